@@ -1,0 +1,1 @@
+//! Benchmarks: IPC ping-pong, gate cost, controller jitter.

@@ -1,0 +1,2 @@
+//! The `aeris` command line.
+fn main() {}

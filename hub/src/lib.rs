@@ -1,0 +1,1 @@
+//! The communication hub: decision gate, ATT, ordered delivery and the hub role.

@@ -1,0 +1,1 @@
+//! Supervisor: workflow files, process spawning, CPU binding, heartbeat statistics, restarts, status.

@@ -1,0 +1,1 @@
+//! Role implementations: camera, perception, reasoning planner, controller, simulated vehicle.

@@ -1,0 +1,90 @@
+//! What the hub reports per semantic cycle: the gate's verdict, counters and ATT.
+
+use crate::MAX_SUBGOALS;
+use iceoryx2_bb_derive_macros::ZeroCopySend;
+use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
+
+/// Hub report (`hub/report`), published once per committed or reused cycle.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("aeris::HubReport@s1")]
+#[repr(C)]
+pub struct HubReport {
+    /// Publisher sequence number.
+    pub seq: u64,
+    /// Semantic cycle number.
+    pub cycle: u64,
+    /// CLOCK_MONOTONIC ns at publication.
+    pub publish_ns: u64,
+    /// Cycle time (cycle start -> commit) in ns; 0 when the cycle reused a decision.
+    pub ct_ns: u64,
+    /// Stage durations in ns: perception, reasoning, routing, binding.
+    pub stage_ns: [u64; 4],
+    /// 1 when this cycle committed a fresh decision.
+    pub committed: u8,
+    /// 1 when this cycle reused the last valid decision (late, invalid or missing).
+    pub reused: u8,
+    /// 1 when the committed decision was clamped.
+    pub clamped: u8,
+    /// Reserved, zero.
+    pub reserved: u8,
+    /// Active step i* (1-based).
+    pub active_step: u16,
+    /// Number of subgoals L.
+    pub subgoals: u16,
+    /// Attention alpha over the subgoals (first `subgoals` entries valid).
+    pub attention: [f32; MAX_SUBGOALS],
+    /// Decisions received.
+    pub decisions_received: u64,
+    /// Decisions rejected by validation or feasibility.
+    pub decisions_rejected: u64,
+    /// Decisions that arrived after the deadline.
+    pub decisions_late: u64,
+    /// Cycles that reused the last valid decision.
+    pub decisions_reused: u64,
+    /// Sequence gaps detected on incoming decisions.
+    pub sequence_gaps: u64,
+    /// Out-of-order (or duplicate) decisions detected.
+    pub sequence_reorders: u64,
+    /// States received.
+    pub states_received: u64,
+    /// States rejected by validation.
+    pub states_rejected: u64,
+}
+
+/// Why a hub report is unusable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum HubReportError {
+    /// More subgoals than [`MAX_SUBGOALS`], or an active step outside them.
+    #[error("step {step} / subgoals {subgoals} out of range")]
+    BadStep {
+        /// Active step.
+        step: u16,
+        /// Subgoal count.
+        subgoals: u16,
+    },
+    /// An attention weight is not finite or outside [0, 1].
+    #[error("attention weight is not a probability")]
+    BadAttention,
+}
+
+impl HubReport {
+    /// Deterministic validation.
+    pub fn validate(&self) -> Result<(), HubReportError> {
+        let l = self.subgoals as usize;
+        if l == 0 || l > MAX_SUBGOALS || self.active_step == 0 || self.active_step > self.subgoals {
+            return Err(HubReportError::BadStep {
+                step: self.active_step,
+                subgoals: self.subgoals,
+            });
+        }
+        if !self.attention[..l].iter().all(|a| (0.0..=1.0).contains(a)) {
+            return Err(HubReportError::BadAttention);
+        }
+        Ok(())
+    }
+
+    /// The valid attention weights.
+    pub fn alpha(&self) -> &[f32] {
+        &self.attention[..(self.subgoals as usize).min(MAX_SUBGOALS)]
+    }
+}

@@ -1,0 +1,51 @@
+//! # aeris-schemas
+//!
+//! The typed messages that cross AERIS processes through iceoryx2 shared memory.
+//!
+//! Every payload type here is `#[repr(C)]`, fixed-size, contains no pointers and
+//! implements [`ZeroCopySend`] so it can live in shared memory untouched. Every type has a
+//! deterministic `validate` function that returns a typed error; receivers call it before
+//! trusting a sample.
+//!
+//! Frames: `[N, E, U]` means a local frame with x north, y east, z **up** (metres). The
+//! controller converts to MAVLink's NED at the autopilot boundary, nowhere else.
+//!
+//! This crate is a leaf: it depends on nothing of ours.
+
+#![deny(missing_docs)]
+
+pub mod decision;
+pub mod frame;
+pub mod heartbeat;
+pub mod hub_report;
+pub mod setpoint;
+pub mod state;
+pub mod telemetry;
+pub mod text;
+pub mod topics;
+pub mod version;
+
+pub use decision::{ActionMode, Decision, DecisionError, DecisionLimits};
+pub use frame::{FrameError, FrameFormat, FrameHeader};
+pub use heartbeat::{HeartbeatError, MAX_STAGES, RoleHeartbeat, RoleStatus, StageTiming};
+pub use hub_report::{HubReport, HubReportError};
+pub use setpoint::{BoundSetpoint, SetpointError};
+pub use state::{
+    Cue, Detection, MAX_CUES, MAX_DETECTIONS, OCCUPANCY_CELLS, OCCUPANCY_SIDE, OCCUPANCY_UNKNOWN,
+    OccupancyGrid, PerceptionState, SUMMARY_MAX, StateError,
+};
+pub use telemetry::{TelemetryError, VehicleTelemetry};
+pub use text::FixedText;
+pub use version::{FlightManifest, ManifestError, SCHEMA_LAYOUT_HASH, SCHEMA_VERSION};
+
+/// Re-exported so that downstream crates name the same trait the payloads implement.
+pub use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
+
+/// Upper bound on the number of subgoals an instruction may be segmented into.
+pub const MAX_SUBGOALS: usize = 16;
+
+/// `true` when every component is finite (not NaN, not +-inf).
+#[inline]
+pub fn all_finite(values: &[f32]) -> bool {
+    values.iter().all(|v| v.is_finite())
+}

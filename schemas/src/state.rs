@@ -1,0 +1,278 @@
+//! The typed state S_t (perception -> reasoning / hub), MISSION §2.
+
+use crate::all_finite;
+use crate::text::FixedText;
+use iceoryx2_bb_derive_macros::ZeroCopySend;
+use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
+
+/// Maximum bytes of the scene summary S-bar_t.
+pub const SUMMARY_MAX: usize = 512;
+/// k of the top-k detections I_t.
+pub const MAX_DETECTIONS: usize = 16;
+/// k of the top-k instruction cues C_t.
+pub const MAX_CUES: usize = 8;
+/// Side of the ego occupancy grid O_t in cells.
+pub const OCCUPANCY_SIDE: usize = 64;
+/// Number of cells of O_t.
+pub const OCCUPANCY_CELLS: usize = OCCUPANCY_SIDE * OCCUPANCY_SIDE;
+/// Cell value meaning "not observed".
+pub const OCCUPANCY_UNKNOWN: u8 = 255;
+/// Maximum bytes of a detection label.
+pub const LABEL_MAX: usize = 32;
+/// Maximum bytes of a cue text.
+pub const CUE_MAX: usize = 64;
+
+/// One detection: class, score and box.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+pub struct Detection {
+    /// Class label (e.g. "building", "red roof").
+    pub label: FixedText<LABEL_MAX>,
+    /// Class index in the detector's label set.
+    pub class_id: u32,
+    /// Score in [0, 1].
+    pub score: f32,
+    /// Box `[x, y, w, h]` normalised to [0, 1] image coordinates.
+    pub bbox: [f32; 4],
+    /// Estimated range in metres (0 = unknown).
+    pub range_m: f32,
+}
+
+impl Default for Detection {
+    fn default() -> Self {
+        Self {
+            label: FixedText::new(),
+            class_id: 0,
+            score: 0.0,
+            bbox: [0.0; 4],
+            range_m: 0.0,
+        }
+    }
+}
+
+/// One instruction cue: a phrase with a relevance score.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct Cue {
+    /// Cue text.
+    pub text: FixedText<CUE_MAX>,
+    /// Score in [0, 1].
+    pub score: f32,
+}
+
+/// Ego-centred, north-aligned 2.5-D occupancy grid O_t.
+///
+/// Cell `(row, col)` covers north offset `(row - SIDE/2) * resolution` and east offset
+/// `(col - SIDE/2) * resolution` from `origin` (the vehicle position when it was built).
+/// A cell holds the height in metres of the highest obstacle top seen there, 0 for free
+/// ground, [`OCCUPANCY_UNKNOWN`] for not observed.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+pub struct OccupancyGrid {
+    /// Grid centre `[N, E]` in metres.
+    pub origin: [f32; 2],
+    /// Metres per cell (> 0), 0 = grid absent.
+    pub resolution_m: f32,
+    /// Cell heights, row-major (row = north index).
+    pub cells: [u8; OCCUPANCY_CELLS],
+}
+
+impl Default for OccupancyGrid {
+    fn default() -> Self {
+        Self {
+            origin: [0.0; 2],
+            resolution_m: 0.0,
+            cells: [OCCUPANCY_UNKNOWN; OCCUPANCY_CELLS],
+        }
+    }
+}
+
+impl OccupancyGrid {
+    /// `true` when the grid carries observations.
+    pub fn is_present(&self) -> bool {
+        self.resolution_m > 0.0
+    }
+
+    /// Cell index of the point `[N, E]`, if inside the grid.
+    pub fn cell_of(&self, p: [f32; 2]) -> Option<usize> {
+        if !self.is_present() {
+            return None;
+        }
+        let half = (OCCUPANCY_SIDE / 2) as f32;
+        let r = ((p[0] - self.origin[0]) / self.resolution_m + half).floor();
+        let c = ((p[1] - self.origin[1]) / self.resolution_m + half).floor();
+        if r >= 0.0 && c >= 0.0 && (r as usize) < OCCUPANCY_SIDE && (c as usize) < OCCUPANCY_SIDE {
+            Some(r as usize * OCCUPANCY_SIDE + c as usize)
+        } else {
+            None
+        }
+    }
+
+    /// Obstacle top height at `[N, E]`: `Some(h)` when observed, `None` when unknown or
+    /// outside the grid.
+    pub fn height_at(&self, p: [f32; 2]) -> Option<f32> {
+        let v = self.cells[self.cell_of(p)?];
+        (v != OCCUPANCY_UNKNOWN).then_some(v as f32)
+    }
+}
+
+/// The typed state S_t (`perception/state`).
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("aeris::PerceptionState@s1")]
+#[repr(C)]
+pub struct PerceptionState {
+    /// Publisher sequence number.
+    pub seq: u64,
+    /// Sequence number of the frame this state was computed from.
+    pub frame_seq: u64,
+    /// CLOCK_MONOTONIC ns of that frame's capture (start of the semantic cycle).
+    pub capture_ns: u64,
+    /// CLOCK_MONOTONIC ns at which the state was published.
+    pub publish_ns: u64,
+    /// Vehicle position at capture `[N, E, U]`.
+    pub position: [f32; 3],
+    /// Vehicle yaw at capture (rad).
+    pub yaw: f32,
+    /// Scene summary S-bar_t.
+    pub summary: FixedText<SUMMARY_MAX>,
+    /// Number of valid entries in `detections`.
+    pub detection_count: u32,
+    /// Number of valid entries in `cues`.
+    pub cue_count: u32,
+    /// Top-k detections I_t, best first.
+    pub detections: [Detection; MAX_DETECTIONS],
+    /// Top-k instruction cues C_t, best first.
+    pub cues: [Cue; MAX_CUES],
+    /// Ego occupancy O_t.
+    pub occupancy: OccupancyGrid,
+}
+
+impl Default for PerceptionState {
+    fn default() -> Self {
+        Self {
+            seq: 0,
+            frame_seq: 0,
+            capture_ns: 0,
+            publish_ns: 0,
+            position: [0.0; 3],
+            yaw: 0.0,
+            summary: FixedText::new(),
+            detection_count: 0,
+            cue_count: 0,
+            detections: [Detection::default(); MAX_DETECTIONS],
+            cues: [Cue::default(); MAX_CUES],
+            occupancy: OccupancyGrid::default(),
+        }
+    }
+}
+
+/// Why a state is unusable.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum StateError {
+    /// `detection_count` exceeds [`MAX_DETECTIONS`].
+    #[error("detection count {0} exceeds {MAX_DETECTIONS}")]
+    TooManyDetections(u32),
+    /// `cue_count` exceeds [`MAX_CUES`].
+    #[error("cue count {0} exceeds {MAX_CUES}")]
+    TooManyCues(u32),
+    /// A text field is not UTF-8 or its length is out of range.
+    #[error("text field `{0}` is corrupt")]
+    CorruptText(&'static str),
+    /// A number is NaN/inf or a score/box is outside [0, 1].
+    #[error("field `{0}` is not finite or out of range")]
+    BadNumber(&'static str),
+}
+
+impl PerceptionState {
+    /// The valid detections.
+    pub fn detections(&self) -> &[Detection] {
+        &self.detections[..(self.detection_count as usize).min(MAX_DETECTIONS)]
+    }
+
+    /// The valid cues.
+    pub fn cues(&self) -> &[Cue] {
+        &self.cues[..(self.cue_count as usize).min(MAX_CUES)]
+    }
+
+    /// Deterministic validation of every block.
+    pub fn validate(&self) -> Result<(), StateError> {
+        if self.detection_count as usize > MAX_DETECTIONS {
+            return Err(StateError::TooManyDetections(self.detection_count));
+        }
+        if self.cue_count as usize > MAX_CUES {
+            return Err(StateError::TooManyCues(self.cue_count));
+        }
+        if !all_finite(&self.position) || !self.yaw.is_finite() {
+            return Err(StateError::BadNumber("position"));
+        }
+        if !self.summary.is_valid() {
+            return Err(StateError::CorruptText("summary"));
+        }
+        let unit = |v: f32| (0.0..=1.0).contains(&v);
+        for d in self.detections() {
+            if !d.label.is_valid() {
+                return Err(StateError::CorruptText("detections.label"));
+            }
+            if !unit(d.score)
+                || !d.bbox.iter().all(|v| unit(*v))
+                || !(d.range_m >= 0.0 && d.range_m.is_finite())
+            {
+                return Err(StateError::BadNumber("detections"));
+            }
+        }
+        for c in self.cues() {
+            if !c.text.is_valid() {
+                return Err(StateError::CorruptText("cues.text"));
+            }
+            if !unit(c.score) {
+                return Err(StateError::BadNumber("cues.score"));
+            }
+        }
+        let o = &self.occupancy;
+        if !all_finite(&o.origin) || !(o.resolution_m >= 0.0 && o.resolution_m <= 100.0) {
+            return Err(StateError::BadNumber("occupancy"));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_state_is_valid() {
+        assert_eq!(PerceptionState::default().validate(), Ok(()));
+    }
+
+    #[test]
+    fn rejects_corrupt_blocks() {
+        let mut s = PerceptionState {
+            detection_count: 17,
+            ..PerceptionState::default()
+        };
+        assert_eq!(s.validate(), Err(StateError::TooManyDetections(17)));
+        s.detection_count = 1;
+        s.detections[0].score = f32::NAN;
+        assert_eq!(s.validate(), Err(StateError::BadNumber("detections")));
+        s.detections[0].score = 0.5;
+        assert_eq!(s.validate(), Ok(()));
+        s.occupancy.resolution_m = f32::INFINITY;
+        assert_eq!(s.validate(), Err(StateError::BadNumber("occupancy")));
+    }
+
+    #[test]
+    fn occupancy_cells_map_to_points() {
+        let mut g = OccupancyGrid {
+            origin: [10.0, 20.0],
+            resolution_m: 2.0,
+            ..OccupancyGrid::default()
+        };
+        let i = g.cell_of([10.0, 20.0]).unwrap();
+        assert_eq!(i, 32 * OCCUPANCY_SIDE + 32);
+        g.cells[i] = 12;
+        assert_eq!(g.height_at([10.5, 21.9]), Some(12.0));
+        assert_eq!(g.height_at([10.0, 18.0]), None); // unknown cell
+        assert_eq!(g.cell_of([10.0 + 65.0, 20.0]), None);
+    }
+}

@@ -1,0 +1,51 @@
+//! Topic names and how they map to iceoryx2 service names.
+//!
+//! A versioned service is `aeris/s{SCHEMA_VERSION}/{flight}/{topic}`; the flight name is the
+//! namespace prefix that keeps two flights (two vehicles, or parallel tests) on one host
+//! apart. The manifest lives at the unversioned `aeris/{flight}/manifest`.
+
+/// RGB frames: `[u8]` payload with a [`crate::FrameHeader`] user header.
+pub const CAMERA_RGB: &str = "camera/rgb";
+/// Depth frames: `[u8]` payload (u16 mm LE) with a [`crate::FrameHeader`] user header.
+pub const CAMERA_DEPTH: &str = "camera/depth";
+/// Typed state S_t: [`crate::PerceptionState`].
+pub const PERCEPTION_STATE: &str = "perception/state";
+/// Decisions D_t: [`crate::Decision`].
+pub const REASONING_DECISION: &str = "reasoning/decision";
+/// Bound setpoints: [`crate::BoundSetpoint`].
+pub const HUB_SETPOINT: &str = "hub/setpoint";
+/// Hub cycle reports: [`crate::HubReport`].
+pub const HUB_REPORT: &str = "hub/report";
+/// Vehicle telemetry: [`crate::VehicleTelemetry`].
+pub const VEHICLE_TELEMETRY: &str = "vehicle/telemetry";
+/// Role heartbeats: [`crate::RoleHeartbeat`].
+pub const HEARTBEAT: &str = "heartbeat";
+
+/// Every versioned topic, for listing and validation.
+pub const ALL: [&str; 8] = [
+    CAMERA_RGB,
+    CAMERA_DEPTH,
+    PERCEPTION_STATE,
+    REASONING_DECISION,
+    HUB_SETPOINT,
+    HUB_REPORT,
+    VEHICLE_TELEMETRY,
+    HEARTBEAT,
+];
+
+/// Maximum length of a flight name.
+pub const FLIGHT_NAME_MAX: usize = 48;
+
+/// `true` when `name` is a valid flight name: 1..=48 of `[a-z0-9_-]`.
+pub fn is_valid_flight_name(name: &str) -> bool {
+    !name.is_empty()
+        && name.len() <= FLIGHT_NAME_MAX
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_' || b == b'-')
+}
+
+/// `true` when `topic` is one of [`ALL`].
+pub fn is_known_topic(topic: &str) -> bool {
+    ALL.contains(&topic)
+}

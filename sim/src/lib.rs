@@ -1,0 +1,1 @@
+//! Built-in simulation: world, FPV renderer, multirotor kinematics and a MAVLink vehicle endpoint.
