@@ -1,1 +1,24 @@
-//! Role runtime: the Role trait, the process host, and the iceoryx2 transport with flight namespaces.
+//! # aeris-runtime
+//!
+//! What every AERIS process shares:
+//! - [`bus`]: the iceoryx2 transport. A [`bus::FlightBus`] is one process's node in one
+//!   flight; every service it opens lives under that flight's namespace prefix.
+//! - [`role`]: the one [`role::Role`] abstraction every role implements and the
+//!   [`role::RoleHost`] that runs a role as a process (heartbeats, signals, deadlines).
+//! - [`spec`]: what the supervisor hands a role at launch ([`spec::RoleSpec`]).
+//! - [`clock`], [`signals`], [`affinity`]: monotonic time, termination requests, CPU sets.
+
+#![deny(missing_docs)]
+
+pub mod affinity;
+pub mod bus;
+pub mod catalog;
+pub mod clock;
+pub mod role;
+pub mod signals;
+pub mod spec;
+pub mod stats;
+
+pub use bus::{BusError, FlightBus};
+pub use role::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleHost};
+pub use spec::{MissionSpec, RoleSpec};

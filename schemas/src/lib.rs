@@ -20,6 +20,7 @@ pub mod heartbeat;
 pub mod hub_report;
 pub mod setpoint;
 pub mod state;
+pub mod supervisor;
 pub mod telemetry;
 pub mod text;
 pub mod topics;
@@ -34,6 +35,7 @@ pub use state::{
     Cue, Detection, MAX_CUES, MAX_DETECTIONS, OCCUPANCY_CELLS, OCCUPANCY_SIDE, OCCUPANCY_UNKNOWN,
     OccupancyGrid, PerceptionState, SUMMARY_MAX, StateError,
 };
+pub use supervisor::{MAX_ROLES, RoleStatusEntry, SupervisorStatus};
 pub use telemetry::{TelemetryError, VehicleTelemetry};
 pub use text::FixedText;
 pub use version::{FlightManifest, ManifestError, SCHEMA_LAYOUT_HASH, SCHEMA_VERSION};

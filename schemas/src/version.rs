@@ -10,7 +10,7 @@
 
 use crate::{
     BoundSetpoint, Decision, FrameHeader, HubReport, PerceptionState, RoleHeartbeat,
-    VehicleTelemetry,
+    SupervisorStatus, VehicleTelemetry,
 };
 use iceoryx2_bb_derive_macros::ZeroCopySend;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
@@ -44,6 +44,8 @@ const fn layout_hash() -> u64 {
         core::mem::align_of::<VehicleTelemetry>(),
         core::mem::size_of::<HubReport>(),
         core::mem::align_of::<HubReport>(),
+        core::mem::size_of::<SupervisorStatus>(),
+        core::mem::align_of::<SupervisorStatus>(),
     ];
     let mut h = fnv1a(0xcbf2_9ce4_8422_2325, SCHEMA_VERSION as u64);
     let mut i = 0;
@@ -166,6 +168,7 @@ mod tests {
                 <RoleHeartbeat as ZeroCopySend>::type_name(),
                 <VehicleTelemetry as ZeroCopySend>::type_name(),
                 <HubReport as ZeroCopySend>::type_name(),
+                <SupervisorStatus as ZeroCopySend>::type_name(),
             ]
         };
         for n in names {

@@ -1,0 +1,205 @@
+//! CPU sets: parsing "0-2,5" lists and binding processes (every thread) to them.
+
+/// Why a CPU list cannot be used.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum CpuSetError {
+    /// The text is not a CPU list like `0`, `0-3` or `0,2-3`.
+    #[error("`{0}` is not a CPU list (expected e.g. `0`, `0-3` or `0,2-3`)")]
+    Syntax(String),
+    /// A CPU index is beyond what this machine has.
+    #[error("CPU {cpu} does not exist on this machine (it has CPUs 0-{last})")]
+    NoSuchCpu {
+        /// Requested CPU.
+        cpu: usize,
+        /// Highest CPU index available.
+        last: usize,
+    },
+    /// The list is empty.
+    #[error("the CPU list is empty")]
+    Empty,
+}
+
+/// A parsed set of CPU indices.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CpuSet {
+    cpus: Vec<usize>,
+}
+
+impl CpuSet {
+    /// Parse `"0-2,5"`; does not check that the CPUs exist (see [`CpuSet::check_exists`]).
+    pub fn parse(text: &str) -> Result<Self, CpuSetError> {
+        let mut cpus = Vec::new();
+        let bad = || CpuSetError::Syntax(text.to_string());
+        for part in text.split(',').map(str::trim) {
+            if part.is_empty() {
+                return Err(bad());
+            }
+            match part.split_once('-') {
+                Some((a, b)) => {
+                    let a: usize = a.trim().parse().map_err(|_| bad())?;
+                    let b: usize = b.trim().parse().map_err(|_| bad())?;
+                    if a > b || b >= libc::CPU_SETSIZE as usize {
+                        return Err(bad());
+                    }
+                    cpus.extend(a..=b);
+                }
+                None => {
+                    let a: usize = part.parse().map_err(|_| bad())?;
+                    if a >= libc::CPU_SETSIZE as usize {
+                        return Err(bad());
+                    }
+                    cpus.push(a)
+                }
+            }
+        }
+        cpus.sort_unstable();
+        cpus.dedup();
+        if cpus.is_empty() {
+            return Err(CpuSetError::Empty);
+        }
+        Ok(Self { cpus })
+    }
+
+    /// All CPUs this process may currently run on.
+    pub fn available() -> Self {
+        let n = std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1);
+        Self {
+            cpus: (0..n).collect(),
+        }
+    }
+
+    /// Error unless every CPU exists on this machine.
+    pub fn check_exists(&self) -> Result<(), CpuSetError> {
+        // SAFETY: sysconf has no memory-safety preconditions.
+        let online = unsafe { libc::sysconf(libc::_SC_NPROCESSORS_CONF) };
+        let n = if online > 0 { online as usize } else { 1 };
+        match self.cpus.iter().find(|c| **c >= n) {
+            Some(&cpu) => Err(CpuSetError::NoSuchCpu { cpu, last: n - 1 }),
+            None => Ok(()),
+        }
+    }
+
+    /// The CPU indices, ascending.
+    pub fn cpus(&self) -> &[usize] {
+        &self.cpus
+    }
+
+    fn to_libc(&self) -> libc::cpu_set_t {
+        // SAFETY: cpu_set_t is plain data; zero is the empty set.
+        let mut set: libc::cpu_set_t = unsafe { core::mem::zeroed() };
+        for &c in &self.cpus {
+            // SAFETY: c < CPU_SETSIZE was checked at parse time.
+            unsafe { libc::CPU_SET(c, &mut set) };
+        }
+        set
+    }
+
+    /// Bind one task (thread id, or a pid for its main thread; 0 = caller) to this set.
+    pub fn bind_task(&self, tid: i32) -> std::io::Result<()> {
+        let set = self.to_libc();
+        // SAFETY: `set` is a valid cpu_set_t of the size passed.
+        let rc =
+            unsafe { libc::sched_setaffinity(tid, core::mem::size_of::<libc::cpu_set_t>(), &set) };
+        if rc == 0 {
+            Ok(())
+        } else {
+            Err(std::io::Error::last_os_error())
+        }
+    }
+
+    /// Bind every thread of process `pid` (read from /proc/PID/task) to this set.
+    pub fn bind_process(&self, pid: i32) -> std::io::Result<usize> {
+        let mut moved = 0;
+        for entry in std::fs::read_dir(format!("/proc/{pid}/task"))? {
+            let Some(tid) = entry?
+                .file_name()
+                .to_str()
+                .and_then(|s| s.parse::<i32>().ok())
+            else {
+                continue;
+            };
+            match self.bind_task(tid) {
+                Ok(()) => moved += 1,
+                // a thread may exit while we iterate
+                Err(e) if e.raw_os_error() == Some(libc::ESRCH) => {}
+                Err(e) => return Err(e),
+            }
+        }
+        Ok(moved)
+    }
+
+    /// The affinity of task `tid` (0 = caller).
+    pub fn of_task(tid: i32) -> std::io::Result<Self> {
+        // SAFETY: zeroed cpu_set_t is valid; the kernel fills it.
+        let mut set: libc::cpu_set_t = unsafe { core::mem::zeroed() };
+        // SAFETY: `set` is writable and of the size passed.
+        let rc = unsafe {
+            libc::sched_getaffinity(tid, core::mem::size_of::<libc::cpu_set_t>(), &mut set)
+        };
+        if rc != 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+        // SAFETY: reading bits of a valid set.
+        let cpus: Vec<usize> = (0..libc::CPU_SETSIZE as usize)
+            .filter(|c| unsafe { libc::CPU_ISSET(*c, &set) })
+            .collect();
+        Ok(Self { cpus })
+    }
+}
+
+impl core::fmt::Display for CpuSet {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let mut i = 0;
+        let mut first = true;
+        while i < self.cpus.len() {
+            let start = self.cpus[i];
+            let mut end = start;
+            while i + 1 < self.cpus.len() && self.cpus[i + 1] == end + 1 {
+                i += 1;
+                end = self.cpus[i];
+            }
+            if !first {
+                write!(f, ",")?;
+            }
+            first = false;
+            if start == end {
+                write!(f, "{start}")?
+            } else {
+                write!(f, "{start}-{end}")?
+            }
+            i += 1;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_and_prints_lists() {
+        let s = CpuSet::parse("3,0-1,1").unwrap();
+        assert_eq!(s.cpus(), &[0, 1, 3]);
+        assert_eq!(s.to_string(), "0-1,3");
+        for bad in ["", "a", "2-1", "1,,2", "-1", "99999"] {
+            assert!(CpuSet::parse(bad).is_err(), "{bad:?}");
+        }
+        assert!(CpuSet::parse("0").unwrap().check_exists().is_ok());
+        assert!(matches!(
+            CpuSet::parse("1000").unwrap().check_exists(),
+            Err(CpuSetError::NoSuchCpu { .. })
+        ));
+    }
+
+    #[test]
+    fn binds_the_calling_thread() {
+        let before = CpuSet::of_task(0).unwrap();
+        let one = CpuSet::parse("0").unwrap();
+        one.bind_task(0).unwrap();
+        assert_eq!(CpuSet::of_task(0).unwrap(), one);
+        before.bind_task(0).unwrap();
+    }
+}

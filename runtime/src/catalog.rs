@@ -1,0 +1,76 @@
+//! The role catalog: every role kind, its variants, and the topics it reads and writes.
+//!
+//! The supervisor validates workflow files against this table; the `aeris role` entry point
+//! dispatches on it. Adding a variant means adding it here and to the kind's constructor.
+
+use aeris_schemas::topics;
+
+/// One role kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RoleKind {
+    /// Kind name as written in workflow files.
+    pub kind: &'static str,
+    /// Variants this build can run.
+    pub variants: &'static [&'static str],
+    /// Topics the kind subscribes to.
+    pub subscribes: &'static [&'static str],
+    /// Topics the kind publishes (besides `heartbeat`, which every role publishes).
+    pub publishes: &'static [&'static str],
+    /// What it does, for `--help` and errors.
+    pub summary: &'static str,
+}
+
+/// Every role kind this build knows.
+pub const ROLE_KINDS: &[RoleKind] = &[
+    RoleKind {
+        kind: "vehicle",
+        variants: &["sim-multirotor"],
+        subscribes: &[],
+        publishes: &[],
+        summary: "built-in simulated multirotor behind a MAVLink endpoint (PX4-like offboard)",
+    },
+    RoleKind {
+        kind: "camera",
+        variants: &["sim-render"],
+        subscribes: &[topics::VEHICLE_TELEMETRY],
+        publishes: &[topics::CAMERA_RGB, topics::CAMERA_DEPTH],
+        summary: "renders the FPV camera of the built-in world at the vehicle's pose",
+    },
+    RoleKind {
+        kind: "perception",
+        variants: &["geometric"],
+        subscribes: &[topics::CAMERA_RGB, topics::CAMERA_DEPTH],
+        publishes: &[topics::PERCEPTION_STATE],
+        summary: "frames -> S_t: colour-segment detections, scene summary, depth occupancy grid",
+    },
+    RoleKind {
+        kind: "reasoning",
+        variants: &["planner", "garbage"],
+        subscribes: &[topics::PERCEPTION_STATE, topics::VEHICLE_TELEMETRY],
+        publishes: &[topics::REASONING_DECISION],
+        summary: "(S_t, G, M) -> D_t every semantic heartbeat; `garbage` is a fault injector",
+    },
+    RoleKind {
+        kind: "hub",
+        variants: &["gate"],
+        subscribes: &[
+            topics::REASONING_DECISION,
+            topics::PERCEPTION_STATE,
+            topics::VEHICLE_TELEMETRY,
+        ],
+        publishes: &[topics::HUB_SETPOINT, topics::HUB_REPORT],
+        summary: "decision gate (validate, clamp, bind), deadline, ordered delivery, ATT",
+    },
+    RoleKind {
+        kind: "controller",
+        variants: &["mavlink"],
+        subscribes: &[topics::HUB_SETPOINT],
+        publishes: &[topics::VEHICLE_TELEMETRY],
+        summary: "tracks setpoints at the control rate and talks MAVLink v2 to the autopilot",
+    },
+];
+
+/// The catalog entry of `kind`.
+pub fn role_kind(kind: &str) -> Option<&'static RoleKind> {
+    ROLE_KINDS.iter().find(|k| k.kind == kind)
+}

@@ -1,0 +1,212 @@
+//! The one role abstraction and the host that runs a role as its own process.
+//!
+//! A role is built once from its [`RoleContext`] ([`Role::new`]: open ports, load models),
+//! then the [`RoleHost`] calls [`Role::cycle`] on absolute deadlines of CLOCK_MONOTONIC
+//! (no drift), publishes a [`RoleHeartbeat`] after every cycle that did work (and a
+//! liveness heartbeat when idle), and stops cleanly on SIGTERM/SIGINT.
+//! `cycle` must not allocate: ports and buffers are created in `new`.
+
+use crate::bus::{BusError, FlightBus, TypedPublisher};
+use crate::clock::{duration_ns, monotonic_ns, sleep_until_ns};
+use crate::signals;
+use crate::spec::RoleSpec;
+use aeris_schemas::{FixedText, MAX_STAGES, RoleHeartbeat, RoleStatus, StageTiming, topics};
+use core::time::Duration;
+
+/// Why a role failed. Roles map their own failures into one of these.
+#[derive(Debug, thiserror::Error)]
+pub enum RoleError {
+    /// A transport operation failed.
+    #[error(transparent)]
+    Bus(#[from] BusError),
+    /// The role's configuration is unusable.
+    #[error("invalid configuration: {0}")]
+    Config(String),
+    /// An external peer (autopilot, device) failed.
+    #[error("{0}")]
+    Io(String),
+    /// The role cannot go on.
+    #[error("{0}")]
+    Fatal(String),
+}
+
+/// What a cycle did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CycleOutcome {
+    /// Produced output: publish a heartbeat with this cycle's latency.
+    Worked,
+    /// Nothing to do this time (e.g. no new input).
+    Idle,
+    /// The role finished its job and the process should exit cleanly.
+    Finished,
+}
+
+/// What a role reports about one cycle; the host copies it into the heartbeat.
+#[derive(Debug, Clone, Copy)]
+pub struct CycleReport {
+    stages: [(&'static str, u64); MAX_STAGES],
+    stage_count: usize,
+    /// Role-specific counters (documented per role).
+    pub counters: [u64; 8],
+    /// Health to report.
+    pub status: RoleStatus,
+}
+
+impl Default for CycleReport {
+    fn default() -> Self {
+        Self {
+            stages: [("", 0); MAX_STAGES],
+            stage_count: 0,
+            counters: [0; 8],
+            status: RoleStatus::Running,
+        }
+    }
+}
+
+impl CycleReport {
+    /// Record a stage duration (up to [`MAX_STAGES`]; extra stages are dropped).
+    pub fn stage(&mut self, name: &'static str, ns: u64) {
+        if self.stage_count < MAX_STAGES {
+            self.stages[self.stage_count] = (name, ns);
+            self.stage_count += 1;
+        }
+    }
+
+    fn clear_stages(&mut self) {
+        self.stage_count = 0;
+    }
+}
+
+/// What a role sees of its process.
+pub struct RoleContext {
+    /// The launch spec.
+    pub spec: RoleSpec,
+    /// This process's node in the flight.
+    pub bus: FlightBus,
+    /// Cycles run so far.
+    pub cycles: u64,
+    /// Cycles that started after their deadline had already passed.
+    pub missed_deadlines: u64,
+}
+
+/// The role abstraction every role implements.
+pub trait Role: Sized {
+    /// Build the role inside its process: open ports, load models, allocate buffers.
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError>;
+
+    /// Period of the cycle.
+    fn period(&self) -> Duration;
+
+    /// One cycle. Must not allocate on the heap.
+    fn cycle(
+        &mut self,
+        ctx: &mut RoleContext,
+        report: &mut CycleReport,
+    ) -> Result<CycleOutcome, RoleError>;
+
+    /// Called once when the process is asked to stop.
+    fn shutdown(&mut self, _ctx: &mut RoleContext) {}
+}
+
+/// Runs one role as the current process.
+pub struct RoleHost;
+
+impl RoleHost {
+    /// Run role `R` with `spec` until SIGTERM/SIGINT, a fatal error, or `Finished`.
+    pub fn run<R: Role>(spec: RoleSpec) -> Result<(), RoleError> {
+        signals::install_termination_handlers()
+            .map_err(|e| RoleError::Fatal(format!("cannot install signal handlers: {e}")))?;
+        let bus = FlightBus::builder(&spec.flight)
+            .node_name(&spec.name)
+            .create()?;
+        let heartbeats: TypedPublisher<RoleHeartbeat> = bus.publisher(topics::HEARTBEAT)?;
+        let mut ctx = RoleContext {
+            spec,
+            bus,
+            cycles: 0,
+            missed_deadlines: 0,
+        };
+        let mut hb = RoleHeartbeat::default();
+        hb.role.set(&ctx.spec.name);
+        hb.variant.set(&ctx.spec.variant);
+        hb.executor.set(&ctx.spec.cpus);
+        hb.pid = std::process::id();
+        hb.status = RoleStatus::Starting as u8;
+        hb.seq = 1;
+        hb.stamp_ns = monotonic_ns();
+        heartbeats.publish(&hb)?;
+
+        let mut role = R::new(&mut ctx)?;
+        let period_ns = duration_ns(role.period()).max(1);
+        let idle_ns = ctx.spec.timing.idle_heartbeat_ms.max(1) * 1_000_000;
+        let mut report = CycleReport::default();
+        let mut next = monotonic_ns();
+        let mut last_hb = 0u64;
+        let mut result = Ok(());
+        while !signals::termination_requested() {
+            let start = monotonic_ns();
+            report.clear_stages();
+            let outcome = match role.cycle(&mut ctx, &mut report) {
+                Ok(o) => o,
+                Err(e) => {
+                    result = Err(e);
+                    break;
+                }
+            };
+            let end = monotonic_ns();
+            ctx.cycles += 1;
+            if outcome == CycleOutcome::Worked || end.saturating_sub(last_hb) >= idle_ns {
+                hb.seq += 1;
+                hb.stamp_ns = end;
+                hb.status = report.status as u8;
+                hb.counters = report.counters;
+                if outcome == CycleOutcome::Worked {
+                    hb.cycle_latency_ns = end - start;
+                    for (slot, (name, ns)) in hb.stages.iter_mut().zip(report.stages.iter()) {
+                        *slot = StageTiming {
+                            name: FixedText::from_str_truncated(name),
+                            ns: *ns,
+                        };
+                    }
+                    for slot in hb.stages.iter_mut().skip(report.stage_count) {
+                        *slot = StageTiming::default();
+                    }
+                }
+                heartbeats.publish(&hb)?;
+                last_hb = end;
+            }
+            if outcome == CycleOutcome::Finished {
+                break;
+            }
+            next += period_ns;
+            let now = monotonic_ns();
+            if now > next {
+                // The deadline already passed: count it and re-anchor instead of bursting.
+                ctx.missed_deadlines += (now - next) / period_ns + 1;
+                next = now + period_ns - (now - next) % period_ns;
+            }
+            sleep_until_ns(next);
+        }
+        hb.seq += 1;
+        hb.stamp_ns = monotonic_ns();
+        hb.status = RoleStatus::Stopping as u8;
+        let _ = heartbeats.publish(&hb);
+        role.shutdown(&mut ctx);
+        result
+    }
+}
+
+/// Try to run the calling thread under SCHED_FIFO at `priority`; `false` when not permitted
+/// (the thread keeps its normal policy).
+pub fn try_sched_fifo(priority: i32) -> bool {
+    let param = libc::sched_param {
+        sched_priority: priority,
+    };
+    // SAFETY: `param` is valid; 0 = calling thread.
+    unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) == 0 }
+}
+
+/// Sleep helper for roles that wait on something outside the cycle (never in `cycle`).
+pub fn sleep(d: Duration) {
+    sleep_until_ns(monotonic_ns() + duration_ns(d));
+}

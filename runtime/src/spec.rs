@@ -1,0 +1,353 @@
+//! What the supervisor hands each role process at launch.
+//!
+//! The supervisor validates the workflow file once and writes one [`RoleSpec`] per role as
+//! JSON; the role process reads it with [`RoleSpec::load`]. Roles never parse the workflow
+//! themselves, so there is one validator.
+
+use aeris_schemas::{ActionMode, DecisionLimits, MAX_SUBGOALS};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Timing of the flight (MISSION §6).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TimingSpec {
+    /// Semantic heartbeat period (ms), default 2000.
+    pub heartbeat_period_ms: u64,
+    /// Decision deadline after the cycle start (ms), default = heartbeat period.
+    pub decision_deadline_ms: u64,
+    /// Controller rate (Hz), default 50.
+    pub control_rate_hz: f64,
+    /// The controller holds position when no setpoint arrives within this (ms).
+    pub setpoint_timeout_ms: u64,
+    /// A role that did no work publishes a liveness heartbeat at least this often (ms).
+    pub idle_heartbeat_ms: u64,
+}
+
+impl Default for TimingSpec {
+    fn default() -> Self {
+        Self {
+            heartbeat_period_ms: 2000,
+            decision_deadline_ms: 2000,
+            control_rate_hz: 50.0,
+            setpoint_timeout_ms: 500,
+            idle_heartbeat_ms: 100,
+        }
+    }
+}
+
+/// Camera geometry and rate.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CameraSpec {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Frames per second.
+    pub fps: f64,
+    /// Horizontal field of view (degrees).
+    pub hfov_deg: f32,
+}
+
+impl Default for CameraSpec {
+    fn default() -> Self {
+        Self {
+            width: 320,
+            height: 240,
+            fps: 10.0,
+            hfov_deg: 90.0,
+        }
+    }
+}
+
+/// One subgoal g_i of the segmented instruction.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SubgoalSpec {
+    /// The instruction text of this step.
+    pub text: String,
+    /// Action that completes it: takeoff, goto, hover, turn, ascend, descend, land, stop.
+    pub action: String,
+    /// Waypoint `[N, E, U]` that marks its completion.
+    pub waypoint: [f32; 3],
+}
+
+impl SubgoalSpec {
+    /// The action as an [`ActionMode`]; `None` when the name is unknown.
+    pub fn action_mode(&self) -> Option<ActionMode> {
+        ActionMode::from_name(&self.action)
+    }
+}
+
+/// Hard limits of the flight (MISSION §3 ranges).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LimitsSpec {
+    /// v_max (m/s).
+    pub v_max: f32,
+    /// h_min (m).
+    pub h_min: f32,
+    /// h_max (m).
+    pub h_max: f32,
+    /// r_max (m).
+    pub r_max: f32,
+    /// Geofence lower corner `[N, E, U]`.
+    pub geofence_min: [f32; 3],
+    /// Geofence upper corner `[N, E, U]`.
+    pub geofence_max: [f32; 3],
+    /// Clearance kept from obstacles by the hub's clamp (m).
+    pub obstacle_clearance_m: f32,
+}
+
+impl Default for LimitsSpec {
+    fn default() -> Self {
+        Self {
+            v_max: 8.0,
+            h_min: 0.0,
+            h_max: 60.0,
+            r_max: 10.0,
+            geofence_min: [-200.0, -200.0, 0.0],
+            geofence_max: [200.0, 200.0, 60.0],
+            obstacle_clearance_m: 3.0,
+        }
+    }
+}
+
+/// The mission G: instruction, its subgoals, and the limits it is flown under.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MissionSpec {
+    /// The natural-language instruction.
+    pub instruction: String,
+    /// The instruction segmented into subgoals g_1..g_H.
+    pub subgoals: Vec<SubgoalSpec>,
+    /// Built-in world the simulator renders.
+    #[serde(default = "default_world")]
+    pub world: String,
+    /// Start position `[N, E, U]`.
+    #[serde(default)]
+    pub start: [f32; 3],
+    /// Cruise speed (m/s) the planner asks for.
+    #[serde(default = "default_cruise")]
+    pub cruise_speed: f32,
+    /// Distance to the goal under which the goal counts as reached (m).
+    #[serde(default = "default_acceptance")]
+    pub acceptance_radius_m: f32,
+    /// Give up after this long (s).
+    #[serde(default = "default_max_duration")]
+    pub max_duration_s: f64,
+    /// Hard limits.
+    #[serde(default)]
+    pub limits: LimitsSpec,
+}
+
+fn default_world() -> String {
+    "village".into()
+}
+fn default_cruise() -> f32 {
+    5.0
+}
+fn default_acceptance() -> f32 {
+    3.0
+}
+fn default_max_duration() -> f64 {
+    240.0
+}
+
+/// Why a mission is unusable.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MissionError {
+    /// No subgoals, or more than [`MAX_SUBGOALS`].
+    #[error("the mission has {0} subgoals; it needs 1..={MAX_SUBGOALS}")]
+    SubgoalCount(usize),
+    /// A subgoal names an unknown action.
+    #[error(
+        "subgoal {index} (`{text}`): unknown action `{action}` (expected one of takeoff, goto, hover, turn, ascend, descend, land, stop)"
+    )]
+    UnknownAction {
+        /// 1-based subgoal index.
+        index: usize,
+        /// Its text.
+        text: String,
+        /// The bad action.
+        action: String,
+    },
+    /// A waypoint is outside the geofence / altitude band or not finite.
+    #[error(
+        "subgoal {index} (`{text}`): waypoint {waypoint:?} is outside the geofence or altitude limits"
+    )]
+    WaypointOutside {
+        /// 1-based subgoal index.
+        index: usize,
+        /// Its text.
+        text: String,
+        /// The waypoint.
+        waypoint: [f32; 3],
+    },
+    /// The limits are incoherent (e.g. h_min > h_max, NaN).
+    #[error(
+        "mission limits are incoherent (check v_max > 0, h_min <= h_max, geofence_min <= geofence_max, all finite)"
+    )]
+    BadLimits,
+    /// Cruise speed, acceptance radius or duration out of range.
+    #[error("mission field `{0}` is out of range")]
+    BadField(&'static str),
+}
+
+impl MissionSpec {
+    /// The limits Valid(D_t) uses.
+    pub fn decision_limits(&self) -> DecisionLimits {
+        let l = &self.limits;
+        DecisionLimits {
+            v_max: l.v_max,
+            h_min: l.h_min,
+            h_max: l.h_max,
+            r_max: l.r_max,
+            geofence_min: l.geofence_min,
+            geofence_max: l.geofence_max,
+            subgoals: self.subgoals.len().min(MAX_SUBGOALS) as u16,
+        }
+    }
+
+    /// The goal: the last subgoal's waypoint.
+    pub fn goal(&self) -> [f32; 3] {
+        self.subgoals
+            .last()
+            .map(|s| s.waypoint)
+            .unwrap_or(self.start)
+    }
+
+    /// Check the mission is flyable on its own terms.
+    pub fn validate(&self) -> Result<(), MissionError> {
+        if self.subgoals.is_empty() || self.subgoals.len() > MAX_SUBGOALS {
+            return Err(MissionError::SubgoalCount(self.subgoals.len()));
+        }
+        let limits = self.decision_limits();
+        if !limits.is_coherent() {
+            return Err(MissionError::BadLimits);
+        }
+        if !(self.cruise_speed > 0.0 && self.cruise_speed <= self.limits.v_max) {
+            return Err(MissionError::BadField("cruise_speed"));
+        }
+        if !(self.acceptance_radius_m > 0.0 && self.acceptance_radius_m <= self.limits.r_max) {
+            return Err(MissionError::BadField("acceptance_radius_m"));
+        }
+        if !(self.max_duration_s > 0.0 && self.max_duration_s.is_finite()) {
+            return Err(MissionError::BadField("max_duration_s"));
+        }
+        if !limits.inside_geofence(self.start) {
+            return Err(MissionError::BadField("start"));
+        }
+        for (i, s) in self.subgoals.iter().enumerate() {
+            if s.action_mode().is_none() {
+                return Err(MissionError::UnknownAction {
+                    index: i + 1,
+                    text: s.text.clone(),
+                    action: s.action.clone(),
+                });
+            }
+            let w = s.waypoint;
+            if !aeris_schemas::all_finite(&w) || !limits.inside_geofence(w) || w[2] > limits.h_max {
+                return Err(MissionError::WaypointOutside {
+                    index: i + 1,
+                    text: s.text.clone(),
+                    waypoint: w,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Everything a role process needs, written by the supervisor.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RoleSpec {
+    /// Flight name: the namespace prefix of every service.
+    pub flight: String,
+    /// Role instance name (unique in the flight).
+    pub name: String,
+    /// Role kind (camera, perception, reasoning, hub, controller, vehicle).
+    pub kind: String,
+    /// Variant of the kind.
+    pub variant: String,
+    /// Executor CPU list the supervisor bound the process to ("" = unbound).
+    #[serde(default)]
+    pub cpus: String,
+    /// Flight timing.
+    #[serde(default)]
+    pub timing: TimingSpec,
+    /// Camera geometry.
+    #[serde(default)]
+    pub camera: CameraSpec,
+    /// The mission.
+    pub mission: MissionSpec,
+    /// Role-specific parameters (e.g. `autopilot` URL for the controller).
+    #[serde(default)]
+    pub params: serde_json::Map<String, serde_json::Value>,
+}
+
+/// Why a spec could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum SpecError {
+    /// The file could not be read.
+    #[error("cannot read role spec {path}: {source}")]
+    Read {
+        /// Path.
+        path: String,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// The file is not a valid spec.
+    #[error("role spec {path} is invalid: {source}")]
+    Parse {
+        /// Path.
+        path: String,
+        /// Cause.
+        source: serde_json::Error,
+    },
+    /// The mission inside is invalid.
+    #[error("role spec {path}: {source}")]
+    Mission {
+        /// Path.
+        path: String,
+        /// Cause.
+        source: MissionError,
+    },
+    /// The flight name is not `[a-z0-9_-]{{1,48}}`.
+    #[error("flight name `{0}` is invalid: use 1-48 characters of a-z, 0-9, `_`, `-`")]
+    FlightName(String),
+}
+
+impl RoleSpec {
+    /// Read and validate a spec written by the supervisor.
+    pub fn load(path: &Path) -> Result<Self, SpecError> {
+        let p = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| SpecError::Read {
+            path: p.clone(),
+            source,
+        })?;
+        let spec: RoleSpec = serde_json::from_str(&text).map_err(|source| SpecError::Parse {
+            path: p.clone(),
+            source,
+        })?;
+        if !aeris_schemas::topics::is_valid_flight_name(&spec.flight) {
+            return Err(SpecError::FlightName(spec.flight));
+        }
+        spec.mission
+            .validate()
+            .map_err(|source| SpecError::Mission { path: p, source })?;
+        Ok(spec)
+    }
+
+    /// A string parameter.
+    pub fn param_str(&self, key: &str) -> Option<&str> {
+        self.params.get(key).and_then(|v| v.as_str())
+    }
+
+    /// A numeric parameter.
+    pub fn param_f64(&self, key: &str) -> Option<f64> {
+        self.params.get(key).and_then(|v| v.as_f64())
+    }
+}

@@ -1,0 +1,109 @@
+//! The transport over real iceoryx2 services (within one process, two nodes).
+
+use aeris_runtime::bus::{BusError, FlightBus, flight_node_census, list_flight_services};
+use aeris_schemas::{Decision, FrameFormat, FrameHeader, ZeroCopySend, topics};
+
+fn flight(tag: &str) -> String {
+    format!("t-{tag}-{}", std::process::id())
+}
+
+#[test]
+fn typed_messages_cross_between_nodes_of_one_flight() {
+    let f = flight("typed");
+    let a = FlightBus::builder(&f).node_name("a").create().unwrap();
+    let b = FlightBus::builder(&f).node_name("b").create().unwrap();
+    let publisher = a.publisher::<Decision>(topics::REASONING_DECISION).unwrap();
+    let subscriber = b
+        .subscriber::<Decision>(topics::REASONING_DECISION)
+        .unwrap();
+    for seq in 1..=3 {
+        publisher
+            .publish(&Decision {
+                seq,
+                ..Decision::default()
+            })
+            .unwrap();
+    }
+    let mut got = Vec::new();
+    subscriber.drain(|d| got.push(d.seq)).unwrap();
+    assert_eq!(got, vec![1, 2, 3]);
+    assert!(list_flight_services(&f).contains(&topics::REASONING_DECISION.to_string()));
+    assert_eq!(flight_node_census(&f), (2, 0));
+}
+
+#[test]
+fn flights_do_not_cross_talk() {
+    let a = FlightBus::builder(&flight("x1"))
+        .node_name("a")
+        .create()
+        .unwrap();
+    let b = FlightBus::builder(&flight("x2"))
+        .node_name("b")
+        .create()
+        .unwrap();
+    let publisher = a.publisher::<Decision>(topics::REASONING_DECISION).unwrap();
+    let subscriber = b
+        .subscriber::<Decision>(topics::REASONING_DECISION)
+        .unwrap();
+    publisher.publish(&Decision::default()).unwrap();
+    assert_eq!(subscriber.next().unwrap(), None);
+}
+
+#[test]
+fn frames_travel_with_their_header() {
+    let f = flight("frames");
+    let a = FlightBus::builder(&f).node_name("cam").create().unwrap();
+    let b = FlightBus::builder(&f).node_name("per").create().unwrap();
+    let publisher = a.frame_publisher(topics::CAMERA_RGB, 4 * 2 * 3).unwrap();
+    let subscriber = b.frame_subscriber(topics::CAMERA_RGB).unwrap();
+    let header = FrameHeader {
+        seq: 7,
+        width: 4,
+        height: 2,
+        format: FrameFormat::Rgb8 as u8,
+        ..FrameHeader::default()
+    };
+    publisher
+        .publish_with(&header, 24, |bytes| {
+            bytes.iter_mut().enumerate().for_each(|(i, b)| *b = i as u8)
+        })
+        .unwrap();
+    let frame = subscriber.latest().unwrap().expect("a frame");
+    assert_eq!(frame.user_header().seq, 7);
+    assert_eq!(
+        frame.user_header().validate(frame.payload().len()),
+        Ok(FrameFormat::Rgb8)
+    );
+    assert_eq!(frame.payload()[23], 23);
+}
+
+/// A payload with another layout under the same type name family: what a build with
+/// another schema would send.
+#[derive(Debug, Clone, Copy, iceoryx2::prelude::ZeroCopySend)]
+#[type_name("aeris::Decision@s0")]
+#[repr(C)]
+struct OldDecision {
+    seq: u64,
+    speed: f32,
+}
+
+#[test]
+fn a_service_of_another_schema_is_refused_with_a_clear_error() {
+    let f = flight("skew");
+    let new = FlightBus::builder(&f).node_name("new").create().unwrap();
+    let _p = new
+        .publisher::<Decision>(topics::REASONING_DECISION)
+        .unwrap();
+    let old = FlightBus::builder(&f).node_name("old").create().unwrap();
+    let err = old
+        .subscriber::<OldDecision>(topics::REASONING_DECISION)
+        .err()
+        .expect("refused");
+    assert!(
+        matches!(err, BusError::IncompatibleSchema { .. }),
+        "{err:?}"
+    );
+    assert!(err.to_string().contains("another schema version"), "{err}");
+    // SAFETY: type_name has no preconditions.
+    let _ = unsafe { <OldDecision as ZeroCopySend>::type_name() };
+}
