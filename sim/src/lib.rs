@@ -1,1 +1,15 @@
-//! Built-in simulation: world, FPV renderer, multirotor kinematics and a MAVLink vehicle endpoint.
+//! # aeris-sim
+//!
+//! The built-in simulation, so the default flight needs no external simulator:
+//! - [`world`]: procedurally described scenes of boxes (buildings, towers, signs, ground
+//!   patches) with named landmarks;
+//! - [`render`]: a CPU ray-caster producing FPV RGB and depth frames of a world;
+//! - [`multirotor`]: simple multirotor kinematics with velocity and acceleration limits;
+//! - [`mav_vehicle`]: a MAVLink v2 endpoint that behaves like a PX4 multirotor in offboard mode.
+
+#![deny(missing_docs)]
+
+pub mod mav_vehicle;
+pub mod multirotor;
+pub mod render;
+pub mod world;
