@@ -50,7 +50,8 @@ fn main() -> ExitCode {
                 matches!(
                     c.downcast_ref::<aeris_runtime::RoleError>(),
                     Some(aeris_runtime::RoleError::Bus(
-                        aeris_runtime::BusError::Manifest { .. } | aeris_runtime::BusError::IncompatibleSchema { .. }
+                        aeris_runtime::BusError::Manifest { .. }
+                            | aeris_runtime::BusError::IncompatibleSchema { .. }
                     ))
                 )
             });
