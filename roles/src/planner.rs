@@ -1,36 +1,425 @@
-//! Placeholder: being implemented.
-use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
-/// Placeholder.
-pub struct PlannerRole;
-impl Role for PlannerRole {
-    fn new(_ctx: &mut RoleContext) -> Result<Self, RoleError> {
-        Err(RoleError::Fatal("not built yet".into()))
+//! Reasoning role, first variant: a deterministic planner, and a fault injector.
+//!
+//! [`PlannerRole`] turns the mission's subgoals into decisions D_t through exactly the path a
+//! language model's decisions take (`reasoning/decision` -> hub gate -> controller). Its
+//! memory M_{t-1} is the index of the subgoal in progress; it advances when the vehicle
+//! reaches that subgoal's waypoint (or lands, for a land step).
+//!
+//! [`GarbageRole`] (variant `garbage`) runs the same planner but corrupts most decisions in
+//! rotating ways (NaN, infinities, out-of-range fields, unknown actions, bad steps, stale
+//! cycle starts, duplicate and skipped sequence numbers) — a hostile reasoner for tests.
+//!
+//! Heartbeat counters: `[decisions, subgoal_index (0-based), corrupted, 0, 0, 0, 0, 0]`.
+
+use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::{
+    CycleOutcome, CycleReport, Role, RoleContext, RoleError, bus::TypedPublisher,
+    bus::TypedSubscriber,
+};
+use aeris_schemas::{
+    ActionMode, Decision, MAX_SUBGOALS, PerceptionState, VehicleTelemetry, topics,
+};
+use core::time::Duration;
+
+/// One subgoal as the planner needs it (copied from the mission at start).
+#[derive(Debug, Clone, Copy)]
+struct Step {
+    action: ActionMode,
+    waypoint: [f32; 3],
+}
+
+/// The planner's pure logic: memory (the subgoal in progress) and the decision rule.
+#[derive(Debug, Clone)]
+pub struct Planner {
+    steps: [Option<Step>; MAX_SUBGOALS],
+    count: usize,
+    current: usize,
+    start: [f32; 3],
+    cruise: f32,
+    radius: f32,
+    h_min: f32,
+}
+
+impl Planner {
+    /// A planner for the mission in `spec`; `None` when an action name is unknown (the
+    /// mission was validated, so this does not happen for supervisor-written specs).
+    pub fn new(mission: &aeris_runtime::MissionSpec) -> Option<Self> {
+        let mut steps = [None; MAX_SUBGOALS];
+        for (slot, s) in steps.iter_mut().zip(mission.subgoals.iter()) {
+            *slot = Some(Step {
+                action: s.action_mode()?,
+                waypoint: s.waypoint,
+            });
+        }
+        Some(Self {
+            steps,
+            count: mission.subgoals.len().min(MAX_SUBGOALS),
+            current: 0,
+            start: mission.start,
+            cruise: mission.cruise_speed,
+            radius: mission.acceptance_radius_m,
+            h_min: mission.limits.h_min,
+        })
     }
-    fn period(&self) -> core::time::Duration {
-        core::time::Duration::from_millis(100)
+
+    /// Index (0-based) of the subgoal in progress.
+    pub fn current(&self) -> usize {
+        self.current
     }
-    fn cycle(
-        &mut self,
-        _ctx: &mut RoleContext,
-        _r: &mut CycleReport,
-    ) -> Result<CycleOutcome, RoleError> {
-        Ok(CycleOutcome::Idle)
+
+    fn reached(
+        step: &Step,
+        start: [f32; 3],
+        position: [f32; 3],
+        landed: bool,
+        radius: f32,
+    ) -> bool {
+        let w = step.waypoint;
+        match step.action {
+            ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend => {
+                (position[2] - w[2]).abs() <= 1.0
+            }
+            ActionMode::Land => landed && horizontal(position, w) <= radius.max(1.0) + 1.0,
+            ActionMode::Hover | ActionMode::Turn | ActionMode::Stop => {
+                let _ = start;
+                true
+            }
+            ActionMode::Goto => distance(position, w) <= radius,
+        }
+    }
+
+    /// Advance the memory on the vehicle's state and return the decision for this cycle
+    /// (timing fields left for the caller).
+    pub fn decide(&mut self, position: [f32; 3], yaw: f32, landed: bool) -> Decision {
+        while self.current + 1 < self.count {
+            let Some(step) = self.steps[self.current] else {
+                break;
+            };
+            if !Self::reached(&step, self.start, position, landed, self.radius) {
+                break;
+            }
+            self.current += 1;
+        }
+        let step = self.steps[self.current].unwrap_or(Step {
+            action: ActionMode::Hover,
+            waypoint: position,
+        });
+        let w = step.waypoint;
+        let (target, altitude) = match step.action {
+            ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend => {
+                ([position[0], position[1], w[2]], w[2])
+            }
+            // land: fly (or stay) over the touchdown point at the current height; the gate
+            // binds the descent to U=0
+            ActionMode::Land => ([w[0], w[1], w[2]], position[2].max(self.h_min).max(w[2])),
+            _ => (w, w[2].max(self.h_min)),
+        };
+        let dn = target[0] - position[0];
+        let de = target[1] - position[1];
+        let heading = if dn.hypot(de) > 1.0 {
+            de.atan2(dn)
+        } else {
+            yaw
+        };
+        Decision {
+            target,
+            yaw: wrap_pi(heading),
+            speed: self.cruise,
+            altitude,
+            acceptance_radius: self.radius,
+            confidence: 1.0,
+            step: (self.current + 1) as u16,
+            action: step.action as u8,
+            ..Decision::default()
+        }
     }
 }
-/// Placeholder.
-pub struct GarbageRole;
-impl Role for GarbageRole {
-    fn new(_ctx: &mut RoleContext) -> Result<Self, RoleError> {
-        Err(RoleError::Fatal("not built yet".into()))
+
+fn distance(a: [f32; 3], b: [f32; 3]) -> f32 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+fn horizontal(a: [f32; 3], b: [f32; 3]) -> f32 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
+fn wrap_pi(a: f32) -> f32 {
+    let pi = core::f32::consts::PI;
+    let mut a = a;
+    while a > pi {
+        a -= 2.0 * pi;
     }
-    fn period(&self) -> core::time::Duration {
-        core::time::Duration::from_millis(100)
+    while a < -pi {
+        a += 2.0 * pi;
     }
+    a.clamp(-pi, pi)
+}
+
+/// Ports and timing shared by both variants.
+struct ReasonerIo {
+    planner: Planner,
+    states: TypedSubscriber<PerceptionState>,
+    telemetry: TypedSubscriber<VehicleTelemetry>,
+    decisions: TypedPublisher<Decision>,
+    period: Duration,
+    last_state: Option<PerceptionState>,
+    last_telemetry: Option<VehicleTelemetry>,
+    seq: u64,
+    cycle: u64,
+}
+
+impl ReasonerIo {
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+        let planner = Planner::new(&ctx.spec.mission)
+            .ok_or_else(|| RoleError::Config("the mission names an unknown action".into()))?;
+        Ok(Self {
+            planner,
+            states: ctx.bus.subscriber(topics::PERCEPTION_STATE)?,
+            telemetry: ctx.bus.subscriber(topics::VEHICLE_TELEMETRY)?,
+            decisions: ctx.bus.publisher(topics::REASONING_DECISION)?,
+            period: Duration::from_millis(ctx.spec.timing.heartbeat_period_ms.max(1)),
+            last_state: None,
+            last_telemetry: None,
+            seq: 0,
+            cycle: 0,
+        })
+    }
+
+    /// Read inputs and make this cycle's decision (not yet published).
+    fn think(&mut self, report: &mut CycleReport) -> Result<Decision, RoleError> {
+        let t0 = monotonic_ns();
+        if let Some(s) = self.states.latest()? {
+            if s.validate().is_ok() {
+                self.last_state = Some(s);
+            }
+        }
+        if let Some(t) = self.telemetry.latest()? {
+            if t.validate().is_ok() {
+                self.last_telemetry = Some(t);
+            }
+        }
+        let (position, yaw, landed) = match (&self.last_telemetry, &self.last_state) {
+            (Some(t), _) => (t.position, t.attitude[2], t.landed == 1),
+            (None, Some(s)) => (s.position, s.yaw, s.position[2] < 0.3),
+            (None, None) => (self.planner.start, 0.0, true),
+        };
+        let reasoning_start = monotonic_ns();
+        let mut d = self.planner.decide(position, yaw, landed);
+        self.cycle += 1;
+        d.cycle = self.cycle;
+        match &self.last_state {
+            Some(s) => {
+                d.cycle_start_ns = s.capture_ns;
+                d.state_stamp_ns = s.publish_ns;
+            }
+            None => {
+                d.cycle_start_ns = t0;
+                d.state_stamp_ns = t0;
+            }
+        }
+        d.reasoning_start_ns = reasoning_start;
+        report.stage("read", reasoning_start - t0);
+        report.stage("plan", monotonic_ns() - reasoning_start);
+        Ok(d)
+    }
+
+    fn send(&mut self, d: &mut Decision, report: &mut CycleReport) -> Result<(), RoleError> {
+        let t = monotonic_ns();
+        if d.seq == 0 {
+            self.seq += 1;
+            d.seq = self.seq;
+        }
+        d.publish_ns = monotonic_ns();
+        self.decisions.publish(d)?;
+        report.stage("publish", monotonic_ns() - t);
+        report.counters[0] = self.seq;
+        report.counters[1] = self.planner.current() as u64;
+        Ok(())
+    }
+}
+
+/// The deterministic planner variant of the reasoning role.
+pub struct PlannerRole {
+    io: ReasonerIo,
+}
+
+impl Role for PlannerRole {
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+        Ok(Self {
+            io: ReasonerIo::new(ctx)?,
+        })
+    }
+
+    fn period(&self) -> Duration {
+        self.io.period
+    }
+
     fn cycle(
         &mut self,
         _ctx: &mut RoleContext,
-        _r: &mut CycleReport,
+        report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
-        Ok(CycleOutcome::Idle)
+        let mut d = self.io.think(report)?;
+        self.io.send(&mut d, report)?;
+        Ok(CycleOutcome::Worked)
+    }
+}
+
+/// A reasoner that corrupts most of its decisions (fault injection).
+pub struct GarbageRole {
+    io: ReasonerIo,
+    rng: u64,
+    corrupted: u64,
+}
+
+impl GarbageRole {
+    fn next_rand(&mut self) -> u64 {
+        // xorshift64*: deterministic, allocation-free
+        self.rng ^= self.rng >> 12;
+        self.rng ^= self.rng << 25;
+        self.rng ^= self.rng >> 27;
+        self.rng.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+
+    /// Corrupt `d` in the way selected by `kind`; returns false for "leave it valid".
+    fn corrupt(&mut self, d: &mut Decision, kind: u64) -> bool {
+        let r = self.next_rand();
+        let huge = f32::from_bits(r as u32) * 1e30;
+        match kind % 12 {
+            0 => d.speed = f32::NAN,
+            1 => d.target[0] = f32::INFINITY,
+            2 => d.target = [1e6, -1e6, 5e3],
+            3 => d.altitude = -50.0,
+            4 => d.speed = 1e3,
+            5 => d.yaw = 7.0,
+            6 => d.action = 0xEE,
+            7 => d.step = 999,
+            8 => d.confidence = huge,
+            // stale: claims its cycle started long ago (late at the hub)
+            9 => d.cycle_start_ns = d.cycle_start_ns.saturating_sub(3_600_000_000_000),
+            // replay an old sequence number (reorder / duplicate)
+            10 => d.seq = self.io.seq.saturating_sub(1).max(1),
+            _ => return false,
+        }
+        true
+    }
+}
+
+impl Role for GarbageRole {
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+        let seed = ctx.spec.param_f64("seed").unwrap_or(7.0) as u64;
+        Ok(Self {
+            io: ReasonerIo::new(ctx)?,
+            rng: seed.max(1).wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1,
+            corrupted: 0,
+        })
+    }
+
+    fn period(&self) -> Duration {
+        self.io.period
+    }
+
+    fn cycle(
+        &mut self,
+        _ctx: &mut RoleContext,
+        report: &mut CycleReport,
+    ) -> Result<CycleOutcome, RoleError> {
+        let mut d = self.io.think(report)?;
+        // Send a burst: several corrupted decisions, then (usually) the valid one, so the
+        // flight can still make progress through the gate.
+        let burst = 1 + self.next_rand() % 3;
+        for _ in 0..burst {
+            let mut bad = d;
+            let kind = self.next_rand();
+            if self.corrupt(&mut bad, kind) {
+                self.corrupted += 1;
+                self.io.send(&mut bad, report)?;
+            }
+        }
+        if self.next_rand() % 4 != 0 {
+            d.seq = 0;
+            self.io.send(&mut d, report)?;
+        }
+        report.counters[2] = self.corrupted;
+        Ok(CycleOutcome::Worked)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use aeris_runtime::spec::{LimitsSpec, SubgoalSpec};
+
+    fn mission() -> aeris_runtime::MissionSpec {
+        aeris_runtime::MissionSpec {
+            instruction: "take off, fly north, land".into(),
+            subgoals: vec![
+                SubgoalSpec {
+                    text: "take off".into(),
+                    action: "takeoff".into(),
+                    waypoint: [0.0, 0.0, 10.0],
+                },
+                SubgoalSpec {
+                    text: "fly north".into(),
+                    action: "goto".into(),
+                    waypoint: [30.0, 0.0, 10.0],
+                },
+                SubgoalSpec {
+                    text: "land".into(),
+                    action: "land".into(),
+                    waypoint: [30.0, 10.0, 0.0],
+                },
+            ],
+            world: "village".into(),
+            start: [0.0; 3],
+            cruise_speed: 5.0,
+            acceptance_radius_m: 2.0,
+            max_duration_s: 60.0,
+            limits: LimitsSpec::default(),
+        }
+    }
+
+    #[test]
+    fn advances_through_subgoals_and_every_decision_is_valid() {
+        let m = mission();
+        let limits = m.decision_limits();
+        let mut p = Planner::new(&m).unwrap();
+        let d = p.decide([0.0, 0.0, 0.0], 0.0, true);
+        assert_eq!(
+            (d.step, ActionMode::from_u8(d.action)),
+            (1, Some(ActionMode::Takeoff))
+        );
+        assert!(d.validate(&limits).is_ok());
+        let d = p.decide([0.0, 0.0, 9.5], 0.0, false);
+        assert_eq!(
+            (d.step, ActionMode::from_u8(d.action)),
+            (2, Some(ActionMode::Goto))
+        );
+        assert_eq!(d.target, [30.0, 0.0, 10.0]);
+        assert!(d.validate(&limits).is_ok());
+        // not there yet: memory holds
+        let d = p.decide([15.0, 0.0, 10.0], 0.0, false);
+        assert_eq!(d.step, 2);
+        let d = p.decide([29.0, 0.5, 10.0], 0.0, false);
+        assert_eq!(
+            (d.step, ActionMode::from_u8(d.action)),
+            (3, Some(ActionMode::Land))
+        );
+        assert!(d.validate(&limits).is_ok());
+        // the last step stays active
+        let d = p.decide([30.0, 10.0, 0.0], 0.0, true);
+        assert_eq!(d.step, 3);
+    }
+
+    #[test]
+    fn yaw_points_at_the_target() {
+        let mut p = Planner::new(&mission()).unwrap();
+        let _ = p.decide([0.0, 0.0, 10.0], 0.0, false);
+        let d = p.decide([30.0, -20.0, 10.0], 0.0, false);
+        assert!(
+            (d.yaw - core::f32::consts::FRAC_PI_2).abs() < 1e-3,
+            "{}",
+            d.yaw
+        );
     }
 }
