@@ -799,3 +799,12 @@ pub fn flight_node_census(flight: &str) -> (usize, usize) {
     });
     (alive, dead)
 }
+
+/// Remove the iceoryx2 resources of every dead process on this host; returns how many dead
+/// nodes were cleaned up.
+pub fn cleanup_dead_nodes() -> u64 {
+    match NodeBuilder::new().signal_handling_mode(SignalHandlingMode::Disabled).create::<Ipc>() {
+        Ok(node) => node.try_cleanup_dead_nodes().cleanups,
+        Err(_) => 0,
+    }
+}

@@ -70,3 +70,92 @@ impl Drop for TempDir {
 pub fn python() -> String {
     std::env::var("AERIS_PYTHON").unwrap_or_else(|_| "python3".to_string())
 }
+
+/// Wait for `child` to exit, polling; kill it and return `None` after `bound` (a hang guard,
+/// not a timing assertion).
+pub fn wait_bounded(child: &mut Child, bound: std::time::Duration) -> Option<std::process::ExitStatus> {
+    let start = std::time::Instant::now();
+    loop {
+        if let Ok(Some(status)) = child.try_wait() {
+            return Some(status);
+        }
+        if start.elapsed() > bound {
+            let _ = child.kill();
+            let _ = child.wait();
+            return None;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+}
+
+/// Poll `cond` until it returns `Some`, or give up after `bound` (hang guard).
+pub fn poll_until<T>(bound: std::time::Duration, mut cond: impl FnMut() -> Option<T>) -> Option<T> {
+    let start = std::time::Instant::now();
+    loop {
+        if let Some(v) = cond() {
+            return Some(v);
+        }
+        if start.elapsed() > bound {
+            return None;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+}
+
+/// The last line of `stdout` parsed as JSON.
+pub fn last_json_line(stdout: &str) -> serde_json::Value {
+    let line = stdout.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("");
+    serde_json::from_str(line).unwrap_or_else(|e| panic!("last stdout line is not JSON ({e}): {line:?}"))
+}
+
+/// The built-in default workflow as a TOML table, for tests that fly a variation of it.
+pub fn default_workflow() -> toml::Table {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../workflows/default.toml");
+    let text = std::fs::read_to_string(&path).expect("workflows/default.toml");
+    text.parse().expect("default workflow parses")
+}
+
+/// Set `variant` of the role named `role` in a workflow table.
+pub fn set_variant(workflow: &mut toml::Table, role: &str, variant: &str) {
+    let roles = workflow.get_mut("roles").and_then(|r| r.as_array_mut()).expect("roles");
+    let entry = roles
+        .iter_mut()
+        .filter_map(|r| r.as_table_mut())
+        .find(|r| r.get("name").and_then(|n| n.as_str()) == Some(role))
+        .expect("role in workflow");
+    entry.insert("variant".into(), toml::Value::String(variant.into()));
+}
+
+/// Write a workflow table to `dir/name.toml`.
+pub fn write_workflow(dir: &std::path::Path, name: &str, workflow: &toml::Table) -> PathBuf {
+    let p = dir.join(format!("{name}.toml"));
+    std::fs::write(&p, toml::to_string(workflow).expect("serialise workflow")).expect("write workflow");
+    p
+}
+
+/// Start `aeris run --json --flight FLIGHT [extra..]` with stdout/stderr captured to files in
+/// `dir` (so a long flight never blocks on a full pipe).
+pub fn spawn_run(dir: &std::path::Path, flight: &str, extra: &[&str]) -> ChildGuard {
+    let out = std::fs::File::create(dir.join("run.stdout")).expect("stdout file");
+    let err = std::fs::File::create(dir.join("run.stderr")).expect("stderr file");
+    let mut cmd = Command::new(aeris_bin());
+    cmd.arg("run")
+        .arg("--json")
+        .arg("--flight")
+        .arg(flight)
+        .arg("--run-dir")
+        .arg(dir.join("run"))
+        .args(extra)
+        .stdin(std::process::Stdio::null())
+        .stdout(out)
+        .stderr(err);
+    ChildGuard::spawn(&mut cmd).expect("spawn aeris run")
+}
+
+/// Read the captured stdout and stderr of [`spawn_run`].
+pub fn run_output(dir: &std::path::Path) -> (String, String) {
+    (
+        std::fs::read_to_string(dir.join("run.stdout")).unwrap_or_default(),
+        std::fs::read_to_string(dir.join("run.stderr")).unwrap_or_default(),
+    )
+}

@@ -1,0 +1,233 @@
+//! Watching a flight from the outside: hub reports and telemetry -> progress and summary.
+
+use aeris_runtime::bus::{BusError, FlightBus, TypedSubscriber};
+use aeris_runtime::stats::{mean_std, percentile};
+use aeris_runtime::MissionSpec;
+use aeris_schemas::{topics, ActionMode, HubReport, VehicleTelemetry};
+use serde::Serialize;
+
+/// What a finished flight reports (`aeris run --json` prints this as one line).
+#[derive(Debug, Clone, Serialize)]
+pub struct RunSummary {
+    /// Flight name (namespace prefix).
+    pub flight: String,
+    /// The vehicle ended within the acceptance radius of the goal (and landed, for a land goal).
+    pub reached_goal: bool,
+    /// Distance from the final position to the goal (m).
+    pub final_distance_m: f64,
+    /// Final position [N, E, U].
+    pub final_position: [f64; 3],
+    /// Wall time of the flight (s).
+    pub duration_s: f64,
+    /// Semantic cycles (committed + reused).
+    pub cycles: u64,
+    /// Cycles that committed a fresh decision.
+    pub cycles_committed: u64,
+    /// Mean cycle time (start of cycle -> commit) over committed cycles (s).
+    pub ct_mean_s: f64,
+    /// Standard deviation of the cycle time (s).
+    pub ct_std_s: f64,
+    /// 95th percentile of the cycle time (s).
+    pub ct_p95_s: f64,
+    /// Mean stage durations (s): perception, reasoning, routing, binding.
+    pub stages_mean_s: StageMeans,
+    /// Execution error rate: share of cycles that missed the deadline or were rejected.
+    pub eer: f64,
+    /// Decisions the hub received.
+    pub decisions_received: u64,
+    /// Decisions rejected by the gate (invalid, infeasible, late, out of order).
+    pub decisions_rejected: u64,
+    /// Cycles that reused the last valid decision.
+    pub decisions_reused: u64,
+    /// Decisions that arrived after the deadline.
+    pub decisions_late: u64,
+    /// Sequence gaps seen by the hub.
+    pub sequence_gaps: u64,
+    /// Out-of-order / duplicate decisions seen by the hub.
+    pub sequence_reorders: u64,
+    /// Controller ticks.
+    pub controller_ticks: u64,
+    /// Controller ticks that missed their deadline.
+    pub controller_missed_ticks: u64,
+    /// Setpoints the controller refused.
+    pub controller_refused_setpoints: u64,
+    /// Role restarts by the supervisor.
+    pub role_restarts: u64,
+    /// Subgoals in the mission.
+    pub subgoals_total: u64,
+    /// Highest active step the hub's ATT reached (1-based).
+    pub max_active_step: u64,
+    /// The attention trace, compressed to the sequence of distinct active steps.
+    pub attention_steps: Vec<u16>,
+}
+
+/// Mean stage durations.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct StageMeans {
+    /// Frame capture -> S_t published.
+    pub perception: f64,
+    /// S_t -> D_t published.
+    pub reasoning: f64,
+    /// D_t published -> received by the hub.
+    pub routing: f64,
+    /// Received -> bound setpoint committed.
+    pub binding: f64,
+}
+
+/// Subscribes to a flight's hub reports and telemetry and keeps the tallies.
+pub struct FlightMonitor {
+    reports: TypedSubscriber<HubReport>,
+    telemetry: TypedSubscriber<VehicleTelemetry>,
+    goal: [f32; 3],
+    radius: f32,
+    land_goal: bool,
+    subgoals: u16,
+    ct_s: Vec<f64>,
+    stage_sums: [f64; 4],
+    cycles: u64,
+    committed: u64,
+    reused: u64,
+    last_report: Option<HubReport>,
+    last_telemetry: Option<VehicleTelemetry>,
+    attention_steps: Vec<u16>,
+}
+
+impl FlightMonitor {
+    /// Watch the flight on `bus` flying `mission`.
+    pub fn new(bus: &FlightBus, mission: &MissionSpec) -> Result<Self, BusError> {
+        let land_goal = mission
+            .subgoals
+            .last()
+            .and_then(|s| s.action_mode())
+            .is_some_and(|a| a == ActionMode::Land);
+        Ok(Self {
+            reports: bus.subscriber(topics::HUB_REPORT)?,
+            telemetry: bus.subscriber(topics::VEHICLE_TELEMETRY)?,
+            goal: mission.goal(),
+            radius: mission.acceptance_radius_m,
+            land_goal,
+            subgoals: mission.subgoals.len() as u16,
+            ct_s: Vec::new(),
+            stage_sums: [0.0; 4],
+            cycles: 0,
+            committed: 0,
+            reused: 0,
+            last_report: None,
+            last_telemetry: None,
+            attention_steps: Vec::new(),
+        })
+    }
+
+    /// Drain new reports and telemetry.
+    pub fn poll(&mut self) -> Result<(), BusError> {
+        while let Some(r) = self.reports.next()? {
+            if r.validate().is_err() {
+                continue;
+            }
+            self.cycles += 1;
+            if r.committed == 1 {
+                self.committed += 1;
+                self.ct_s.push(r.ct_ns as f64 * 1e-9);
+                for (sum, ns) in self.stage_sums.iter_mut().zip(r.stage_ns) {
+                    *sum += ns as f64 * 1e-9;
+                }
+            }
+            if r.reused == 1 {
+                self.reused += 1;
+            }
+            if self.attention_steps.last() != Some(&r.active_step) {
+                self.attention_steps.push(r.active_step);
+            }
+            self.last_report = Some(r);
+        }
+        if let Some(t) = self.telemetry.latest()?
+            && t.validate().is_ok()
+        {
+            self.last_telemetry = Some(t);
+        }
+        Ok(())
+    }
+
+    /// Latest vehicle position, if any telemetry arrived.
+    pub fn position(&self) -> Option<[f32; 3]> {
+        self.last_telemetry.map(|t| t.position)
+    }
+
+    /// Distance to the goal (m), if the position is known.
+    pub fn distance_to_goal(&self) -> Option<f32> {
+        self.position().map(|p| dist(p, self.goal))
+    }
+
+    /// `true` when the goal is reached: within the acceptance radius (landed, for a land goal).
+    pub fn reached_goal(&self) -> bool {
+        match (self.last_telemetry, self.distance_to_goal()) {
+            (Some(t), Some(d)) => d <= self.radius && (!self.land_goal || t.landed == 1),
+            _ => false,
+        }
+    }
+
+    /// Active step (1-based) and the subgoal count.
+    pub fn active_step(&self) -> (u16, u16) {
+        (self.last_report.map(|r| r.active_step).unwrap_or(0), self.subgoals)
+    }
+
+    /// Mean cycle time so far (s).
+    pub fn ct_mean_s(&self) -> f64 {
+        mean_std(&self.ct_s).map(|(m, _)| m).unwrap_or(0.0)
+    }
+
+    /// Execution error rate so far.
+    pub fn eer(&self) -> f64 {
+        if self.cycles == 0 { 0.0 } else { self.reused as f64 / self.cycles as f64 }
+    }
+
+    /// Decisions rejected so far.
+    pub fn rejected(&self) -> u64 {
+        self.last_report.map(|r| r.decisions_rejected).unwrap_or(0)
+    }
+
+    /// The summary of the flight so far.
+    pub fn summary(&self, flight: &str, duration_s: f64, role_restarts: u64) -> RunSummary {
+        let (ct_mean, ct_std) = mean_std(&self.ct_s).unwrap_or((0.0, 0.0));
+        let n = self.committed.max(1) as f64;
+        let r = self.last_report.unwrap_or_default();
+        let t = self.last_telemetry.unwrap_or_default();
+        let p = self.position().unwrap_or([f32::NAN; 3]);
+        RunSummary {
+            flight: flight.to_string(),
+            reached_goal: self.reached_goal(),
+            final_distance_m: self.distance_to_goal().map(f64::from).unwrap_or(f64::NAN),
+            final_position: p.map(f64::from),
+            duration_s,
+            cycles: self.cycles,
+            cycles_committed: self.committed,
+            ct_mean_s: ct_mean,
+            ct_std_s: ct_std,
+            ct_p95_s: percentile(&self.ct_s, 95.0).unwrap_or(0.0),
+            stages_mean_s: StageMeans {
+                perception: self.stage_sums[0] / n,
+                reasoning: self.stage_sums[1] / n,
+                routing: self.stage_sums[2] / n,
+                binding: self.stage_sums[3] / n,
+            },
+            eer: self.eer(),
+            decisions_received: r.decisions_received,
+            decisions_rejected: r.decisions_rejected,
+            decisions_reused: r.decisions_reused,
+            decisions_late: r.decisions_late,
+            sequence_gaps: r.sequence_gaps,
+            sequence_reorders: r.sequence_reorders,
+            controller_ticks: t.controller_ticks,
+            controller_missed_ticks: t.controller_missed_ticks,
+            controller_refused_setpoints: t.setpoints_refused,
+            role_restarts,
+            subgoals_total: self.subgoals as u64,
+            max_active_step: self.attention_steps.iter().copied().max().unwrap_or(0) as u64,
+            attention_steps: self.attention_steps.clone(),
+        }
+    }
+}
+
+fn dist(a: [f32; 3], b: [f32; 3]) -> f32 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}

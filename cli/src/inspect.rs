@@ -1,0 +1,210 @@
+//! `aeris status` and `aeris topic ...`: looking at running flights from another process.
+
+use anyhow::{bail, Context, Result};
+use aeris_runtime::bus::{self, FlightBus};
+use aeris_runtime::clock::monotonic_ns;
+use aeris_schemas::{
+    topics, BoundSetpoint, Decision, HubReport, PerceptionState, RoleHeartbeat, RoleStatus, VehicleTelemetry,
+    ZeroCopySend,
+};
+use core::fmt::Debug;
+use core::time::Duration;
+
+/// The flight to inspect: the one named, or the only one running.
+pub fn resolve_flight(flight: Option<String>) -> Result<String> {
+    bus::cleanup_dead_nodes();
+    if let Some(f) = flight {
+        return Ok(f);
+    }
+    let flights = bus::list_flights();
+    match flights.as_slice() {
+        [] => bail!("no flight is running on this host (start one with `aeris run`)"),
+        [one] => Ok(one.clone()),
+        many => bail!(
+            "several flights are running ({}); choose one with --flight NAME",
+            many.join(", ")
+        ),
+    }
+}
+
+fn tool_bus(flight: &str, tool: &str) -> Result<FlightBus> {
+    FlightBus::builder(flight)
+        .node_name(&format!("cli-{tool}-{}", std::process::id()))
+        .create()
+        .with_context(|| format!("cannot join flight `{flight}`"))
+}
+
+/// `aeris status`.
+pub fn status(flight: Option<String>, json: bool) -> Result<()> {
+    let flight = resolve_flight(flight)?;
+    let bus = tool_bus(&flight, "status")?;
+    let board = bus
+        .read_status_board()
+        .with_context(|| format!("flight `{flight}` has no supervisor status board (is its supervisor running?)"))?;
+    let now = monotonic_ns();
+    let roles: Vec<serde_json::Value> = board
+        .roles()
+        .iter()
+        .map(|r| {
+            let age_ms = (r.last_heartbeat_ns > 0).then(|| now.saturating_sub(r.last_heartbeat_ns) as f64 / 1e6);
+            serde_json::json!({
+                "name": r.name.as_str_lossy(),
+                "pid": r.pid,
+                "cpus": r.cpus.as_str_lossy(),
+                "variant": r.variant.as_str_lossy(),
+                "status": RoleStatus::from_u8(r.status).map(|s| s.name()).unwrap_or("no-heartbeat"),
+                "heartbeat_age_ms": age_ms,
+                "heartbeats": r.heartbeats,
+                "latency_p50_ms": r.latency_ms[0],
+                "latency_p95_ms": r.latency_ms[1],
+                "latency_p99_ms": r.latency_ms[2],
+                "restarts": r.restarts,
+                "heartbeat_gaps": r.heartbeat_gaps,
+            })
+        })
+        .collect();
+    if json {
+        let out = serde_json::json!({
+            "flight": flight,
+            "supervisor_pid": board.supervisor_pid,
+            "active_step": board.active_step,
+            "subgoals": board.subgoals,
+            "distance_to_goal_m": (board.distance_to_goal_m >= 0.0).then_some(board.distance_to_goal_m),
+            "ct_mean_s": board.ct_mean_s,
+            "roles": roles,
+        });
+        println!("{out}");
+        return Ok(());
+    }
+    println!(
+        "flight {flight}  supervisor pid {}  step {}/{}  distance to goal {}  CT mean {:.3} s",
+        board.supervisor_pid,
+        board.active_step,
+        board.subgoals,
+        if board.distance_to_goal_m >= 0.0 { format!("{:.1} m", board.distance_to_goal_m) } else { "?".into() },
+        board.ct_mean_s
+    );
+    println!(
+        "{:<12} {:>7} {:<6} {:<15} {:<12} {:>9} {:>9} {:>9} {:>8}",
+        "ROLE", "PID", "CPUS", "VARIANT", "STATUS", "HB AGE", "P50 ms", "P95 ms", "RESTARTS"
+    );
+    for r in &roles {
+        let age = r["heartbeat_age_ms"].as_f64().map(|a| format!("{a:.0} ms")).unwrap_or_else(|| "-".into());
+        println!(
+            "{:<12} {:>7} {:<6} {:<15} {:<12} {:>9} {:>9.3} {:>9.3} {:>8}",
+            r["name"].as_str().unwrap_or(""),
+            r["pid"],
+            r["cpus"].as_str().unwrap_or(""),
+            r["variant"].as_str().unwrap_or(""),
+            r["status"].as_str().unwrap_or(""),
+            age,
+            r["latency_p50_ms"].as_f64().unwrap_or(0.0),
+            r["latency_p95_ms"].as_f64().unwrap_or(0.0),
+            r["restarts"]
+        );
+    }
+    Ok(())
+}
+
+fn type_of(topic: &str) -> &'static str {
+    match topic {
+        topics::CAMERA_RGB | topics::CAMERA_DEPTH => "[u8] + FrameHeader",
+        topics::PERCEPTION_STATE => "PerceptionState",
+        topics::REASONING_DECISION => "Decision",
+        topics::HUB_SETPOINT => "BoundSetpoint",
+        topics::HUB_REPORT => "HubReport",
+        topics::VEHICLE_TELEMETRY => "VehicleTelemetry",
+        topics::HEARTBEAT => "RoleHeartbeat",
+        "supervisor" => "SupervisorStatus (blackboard)",
+        _ => "?",
+    }
+}
+
+/// `aeris topic list`.
+pub fn topic_list(flight: Option<String>) -> Result<()> {
+    let flights = match flight {
+        Some(f) => vec![f],
+        None => {
+            bus::cleanup_dead_nodes();
+            bus::list_flights()
+        }
+    };
+    if flights.is_empty() {
+        bail!("no flight is running on this host (start one with `aeris run`)");
+    }
+    for f in flights {
+        for t in bus::list_flight_services(&f) {
+            println!("{:<60} {}", bus::service_name(&f, &t), type_of(&t));
+        }
+    }
+    Ok(())
+}
+
+/// Calls `on_sample` for every sample of `topic` until `count` samples or `seconds` passed.
+fn each_sample(bus: &FlightBus, topic: &str, count: Option<u64>, seconds: f64, mut on_sample: impl FnMut(String)) -> Result<u64> {
+    fn typed<T: Debug + ZeroCopySend + Copy + 'static>(
+        bus: &FlightBus,
+        topic: &str,
+    ) -> Result<Box<dyn FnMut() -> Result<Option<String>>>> {
+        let sub = bus.subscriber::<T>(topic)?;
+        Ok(Box::new(move || Ok(sub.next()?.map(|v| format!("{v:?}")))))
+    }
+    let mut next: Box<dyn FnMut() -> Result<Option<String>>> = match topic {
+        topics::CAMERA_RGB | topics::CAMERA_DEPTH => {
+            let sub = bus.frame_subscriber(topic)?;
+            Box::new(move || Ok(sub.next()?.map(|s| format!("{:?} bytes={}", s.user_header(), s.payload().len()))))
+        }
+        topics::PERCEPTION_STATE => typed::<PerceptionState>(bus, topic)?,
+        topics::REASONING_DECISION => typed::<Decision>(bus, topic)?,
+        topics::HUB_SETPOINT => typed::<BoundSetpoint>(bus, topic)?,
+        topics::HUB_REPORT => typed::<HubReport>(bus, topic)?,
+        topics::VEHICLE_TELEMETRY => typed::<VehicleTelemetry>(bus, topic)?,
+        topics::HEARTBEAT => typed::<RoleHeartbeat>(bus, topic)?,
+        other => bail!("unknown topic `{other}`; known topics: {}", topics::ALL.join(", ")),
+    };
+    let end = monotonic_ns() + (seconds * 1e9) as u64;
+    let mut n = 0;
+    while monotonic_ns() < end && count.is_none_or(|c| n < c) {
+        match next()? {
+            Some(s) => {
+                n += 1;
+                on_sample(s);
+            }
+            None => std::thread::sleep(Duration::from_millis(2)),
+        }
+    }
+    Ok(n)
+}
+
+/// `aeris topic echo`.
+pub fn topic_echo(flight: Option<String>, topic: &str, count: Option<u64>, seconds: f64) -> Result<()> {
+    let flight = resolve_flight(flight)?;
+    let bus = tool_bus(&flight, "echo")?;
+    let n = each_sample(&bus, topic, count, seconds, |s| println!("{s}"))?;
+    if n == 0 {
+        eprintln!("no sample on `{topic}` within {seconds} s");
+    }
+    Ok(())
+}
+
+/// `aeris topic hz`.
+pub fn topic_hz(flight: Option<String>, topic: &str, seconds: f64) -> Result<()> {
+    let flight = resolve_flight(flight)?;
+    let bus = tool_bus(&flight, "hz")?;
+    let start = monotonic_ns();
+    let mut window_start = start;
+    let mut in_window = 0u64;
+    let total = each_sample(&bus, topic, None, seconds, |_| {
+        in_window += 1;
+        let now = monotonic_ns();
+        if now - window_start >= 1_000_000_000 {
+            let dt = (now - window_start) as f64 * 1e-9;
+            println!("{topic}: {:.2} Hz ({in_window} samples in {dt:.2} s)", in_window as f64 / dt);
+            window_start = now;
+            in_window = 0;
+        }
+    })?;
+    let dt = (monotonic_ns() - start) as f64 * 1e-9;
+    println!("{topic}: average {:.2} Hz over {dt:.1} s ({total} samples)", total as f64 / dt);
+    Ok(())
+}
