@@ -1,12 +1,44 @@
 //! # aeris-hub
 //!
-//! The communication hub (MISSION §4).
+//! The communication hub (MISSION §4): ordered delivery, the decision gate, the heartbeat
+//! deadline with last-valid reuse, and ATT (attention-subgoal alignment).
+//!
+//! The decision logic is pure and deterministic, so it can be tested and fuzzed on its own:
+//! - [`gate`]: [`gate::DecisionGate`] validates D_t, makes it feasible against the geofence,
+//!   the altitude band and the occupancy grid (clamp or reject), and binds it to a
+//!   [`aeris_schemas::BoundSetpoint`];
+//! - [`ordering`]: [`ordering::SequenceTracker`] (gaps, reorders, duplicates, restarts);
+//! - [`att`]: instruction segmentation, the pluggable [`att::AttentionScorer`], the lexical
+//!   scorer and the [`att::Attention`] state machine with its trace;
+//! - [`core`]: [`core::HubCore`], the state machine that ties them together;
+//! - [`role`]: [`role::HubRole`], the thin process shell that feeds it messages and the clock.
 
 #![deny(missing_docs)]
 
-use aeris_runtime::{RoleError, RoleSpec};
+pub mod att;
+pub mod core;
+pub mod gate;
+pub mod ordering;
+pub mod role;
 
-/// Run the hub role in this process.
-pub fn run(_spec: RoleSpec) -> Result<(), RoleError> {
-    Err(RoleError::Fatal("hub not built yet".into()))
+pub use crate::core::{DecisionVerdict, HubConfig, HubCore, HubCounters, RejectReason, TickOutput};
+pub use att::{
+    Attention, AttentionError, AttentionPrior, AttentionResult, AttentionScorer, LexicalScorer,
+    segment_instruction,
+};
+pub use gate::{DecisionGate, Feasible, GateConfigError, GateError};
+pub use ordering::{SeqVerdict, SequenceTracker};
+pub use role::HubRole;
+
+use aeris_runtime::{RoleError, RoleHost, RoleSpec};
+
+/// Run the hub role (kind `hub`, variant `gate`) in this process.
+pub fn run(spec: RoleSpec) -> Result<(), RoleError> {
+    if spec.variant != "gate" {
+        return Err(RoleError::Config(format!(
+            "no hub variant `{}` in this build (the hub has variant `gate`)",
+            spec.variant
+        )));
+    }
+    RoleHost::run::<HubRole>(spec)
 }

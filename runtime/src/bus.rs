@@ -195,6 +195,10 @@ impl FlightBusBuilder {
     }
 }
 
+/// The port factory of a frame service.
+type FrameService =
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<Ipc, [u8], FrameHeader>;
+
 type ManifestService = iceoryx2::service::port_factory::blackboard::PortFactory<Ipc, u64>;
 
 /// One process's node in one flight.
@@ -411,16 +415,7 @@ impl FlightBus {
         })
     }
 
-    fn frame_service(
-        &self,
-        topic: &str,
-    ) -> Result<
-        (
-            String,
-            iceoryx2::service::port_factory::publish_subscribe::PortFactory<Ipc, [u8], FrameHeader>,
-        ),
-        BusError,
-    > {
+    fn frame_service(&self, topic: &str) -> Result<(String, FrameService), BusError> {
         let name = self.service_name(topic);
         let q = qos(topic);
         let service = self
@@ -776,23 +771,13 @@ pub fn flight_node_census(flight: &str) -> (usize, usize) {
     let prefix = format!("{flight}/");
     let (mut alive, mut dead) = (0, 0);
     let _ = Node::<Ipc>::list(Config::global_config(), |state| {
+        let of_flight = |d: &Option<iceoryx2::node::NodeDetails>| {
+            d.as_ref()
+                .is_some_and(|d| d.name().as_str().starts_with(&prefix))
+        };
         match &state {
-            NodeState::Alive(v) => {
-                if v.details()
-                    .as_ref()
-                    .is_some_and(|d| d.name().as_str().starts_with(&prefix))
-                {
-                    alive += 1;
-                }
-            }
-            NodeState::Dead(v) => {
-                if v.details()
-                    .as_ref()
-                    .is_some_and(|d| d.name().as_str().starts_with(&prefix))
-                {
-                    dead += 1;
-                }
-            }
+            NodeState::Alive(v) if of_flight(v.details()) => alive += 1,
+            NodeState::Dead(v) if of_flight(v.details()) => dead += 1,
             _ => {}
         }
         CallbackProgression::Continue
@@ -803,7 +788,10 @@ pub fn flight_node_census(flight: &str) -> (usize, usize) {
 /// Remove the iceoryx2 resources of every dead process on this host; returns how many dead
 /// nodes were cleaned up.
 pub fn cleanup_dead_nodes() -> u64 {
-    match NodeBuilder::new().signal_handling_mode(SignalHandlingMode::Disabled).create::<Ipc>() {
+    match NodeBuilder::new()
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<Ipc>()
+    {
         Ok(node) => node.try_cleanup_dead_nodes().cleanups,
         Err(_) => 0,
     }

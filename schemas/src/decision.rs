@@ -305,7 +305,8 @@ mod tests {
     #[test]
     fn rejects_each_bad_field() {
         let l = limits();
-        let cases: [(fn(&mut Decision), &str); 9] = [
+        type Case = (fn(&mut Decision), &'static str);
+        let cases: [Case; 9] = [
             (|d| d.speed = f32::NAN, "nan speed"),
             (|d| d.target[1] = f32::INFINITY, "inf target"),
             (|d| d.speed = 9.0, "speed"),

@@ -131,10 +131,11 @@ impl FrameHeader {
                 actual: payload_len,
             });
         }
-        if !all_finite(&self.camera_position)
-            || !self.camera_yaw.is_finite()
-            || !(self.hfov > 0.0 && self.hfov < core::f32::consts::PI)
-        {
+        let pose_ok = all_finite(&self.camera_position)
+            && self.camera_yaw.is_finite()
+            && self.hfov > 0.0
+            && self.hfov < core::f32::consts::PI;
+        if !pose_ok {
             return Err(FrameError::BadPose);
         }
         // expected_len already decoded the format

@@ -213,10 +213,11 @@ impl PerceptionState {
             if !d.label.is_valid() {
                 return Err(StateError::CorruptText("detections.label"));
             }
-            if !unit(d.score)
-                || !d.bbox.iter().all(|v| unit(*v))
-                || !(d.range_m >= 0.0 && d.range_m.is_finite())
-            {
+            let numbers_ok = unit(d.score)
+                && d.bbox.iter().all(|v| unit(*v))
+                && d.range_m >= 0.0
+                && d.range_m.is_finite();
+            if !numbers_ok {
                 return Err(StateError::BadNumber("detections"));
             }
         }
@@ -229,7 +230,8 @@ impl PerceptionState {
             }
         }
         let o = &self.occupancy;
-        if !all_finite(&o.origin) || !(o.resolution_m >= 0.0 && o.resolution_m <= 100.0) {
+        let grid_ok = all_finite(&o.origin) && (0.0..=100.0).contains(&o.resolution_m);
+        if !grid_ok {
             return Err(StateError::BadNumber("occupancy"));
         }
         Ok(())

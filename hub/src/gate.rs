@@ -1,0 +1,703 @@
+//! The decision gate: validate D_t, make it feasible (occupancy and geofence), bind it to an
+//! executable [`BoundSetpoint`] (MISSION §3, §4).
+//!
+//! Everything here is a pure function of its inputs and never allocates, so the gate can be
+//! fuzzed and benchmarked on its own ([`DecisionGate::admit`] = validate + clamp + bind).
+//!
+//! # Binding
+//! | action | bound position `[N, E, U]` |
+//! |---|---|
+//! | takeoff, ascend, descend | vehicle N, E; h_t |
+//! | turn | vehicle N, E; h_t (yaw psi_t) |
+//! | goto | g_t N, E; h_t |
+//! | hover, stop | hold at g_t N, E; h_t |
+//! | land | g_t N, E; 0 |
+//!
+//! The vehicle's horizontal position is first projected into the geofence (a vehicle that
+//! drifted out is brought back to the nearest point inside).
+//!
+//! # Feasibility
+//! - Altitude: h_t is kept inside the band `[max(h_min, fence_min.U), min(h_max,
+//!   fence_max.U)]`; an empty band rejects ([`GateError::NoAltitude`]).
+//! - Horizontal motion (goto, hover, stop, land): the horizontal segment from the vehicle to
+//!   the target is walked through every occupancy cell it touches (an exact grid traversal,
+//!   which never skips a cell the way fixed half-cell sampling can at corners). The first
+//!   cell whose obstacle top is `> 0` and `>= h - clearance` blocks (UNKNOWN cells count as
+//!   free; `h` is h_t, and for land the lower of h_t and the vehicle's altitude, since the
+//!   vehicle crosses at its height before descending). The target is pulled back along the
+//!   segment to `clearance` metres before the point where the segment enters that cell
+//!   (`clamped`); if that leaves less than one cell of motion the decision is rejected
+//!   ([`GateError::Blocked`]). A land whose touchdown cell holds an obstacle is rejected.
+//! - In place (takeoff, ascend, descend, turn): when the cell under the vehicle holds an
+//!   obstacle with top `>= h_t - clearance`, h_t is raised to `top + clearance` (`clamped`),
+//!   or the decision is rejected when that is above the band.
+//! - Speed is clamped to `[0, v_max]` (validation already guarantees it).
+//!
+//! The bound setpoint is finally checked with [`BoundSetpoint::validate`], so the gate and the
+//! controller agree: a land setpoint is at U = 0, which `validate` accepts below h_min for
+//! land (and takeoff, hover, stop) by design.
+
+use aeris_runtime::MissionSpec;
+use aeris_schemas::{
+    ActionMode, BoundSetpoint, Decision, DecisionError, DecisionLimits, OCCUPANCY_SIDE,
+    OCCUPANCY_UNKNOWN, OccupancyGrid, SetpointError, all_finite,
+};
+
+/// Why a decision was not admitted.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum GateError {
+    /// Valid(D_t) failed: a field is missing, NaN/inf, or out of range.
+    #[error("invalid decision: {0}")]
+    Invalid(#[from] DecisionError),
+    /// The vehicle position given to the gate is NaN or infinite.
+    #[error("vehicle position {0:?} is not finite")]
+    BadPosition([f32; 3]),
+    /// The occupancy grid is malformed (NaN/inf origin or resolution, negative resolution).
+    #[error("occupancy grid is malformed (origin or resolution not finite / negative)")]
+    BadGrid,
+    /// An obstacle blocks the way and pulling back leaves less than one cell of motion.
+    #[error(
+        "blocked by an obstacle {top_m} m high at [N, E] = {at:?}: only {free_m} m of motion left"
+    )]
+    Blocked {
+        /// Centre `[N, E]` of the blocking cell.
+        at: [f32; 2],
+        /// Obstacle top in that cell (m).
+        top_m: f32,
+        /// Motion left after pulling back (m, >= 0).
+        free_m: f32,
+    },
+    /// No altitude in the band (or above an obstacle) is allowed.
+    #[error("no feasible altitude: needs >= {min} m but the band ends at {max} m")]
+    NoAltitude {
+        /// Lowest altitude needed (m).
+        min: f32,
+        /// Highest altitude allowed (m).
+        max: f32,
+    },
+    /// The bound setpoint failed [`BoundSetpoint::validate`] (limits that admit no
+    /// setpoint for this action, e.g. h_max < 0 for a land).
+    #[error("the bound setpoint is not flyable: {0}")]
+    Unbindable(SetpointError),
+}
+
+/// Why a gate could not be built.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum GateConfigError {
+    /// The decision limits are incoherent (NaN, h_min > h_max, empty geofence, ...).
+    #[error("decision limits are incoherent")]
+    IncoherentLimits,
+    /// The obstacle clearance is NaN, infinite or negative.
+    #[error("obstacle clearance {0} m must be finite and >= 0")]
+    BadClearance(f32),
+}
+
+/// A decision made feasible, before binding.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Feasible {
+    /// The validated action.
+    pub mode: ActionMode,
+    /// Target position `[N, E, U]` (altitude applied).
+    pub position: [f32; 3],
+    /// Speed limit (m/s).
+    pub speed: f32,
+    /// `true` when anything was changed to make it feasible.
+    pub clamped: bool,
+}
+
+/// Where the segment walk first met a blocking cell.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Hit {
+    /// Segment parameter in [0, 1] at which the segment enters the cell.
+    t: f64,
+    /// Cell index (row-major).
+    cell: usize,
+    /// Obstacle top (m).
+    top: f32,
+}
+
+/// The decision gate of one flight: the mission's limits and obstacle clearance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DecisionGate {
+    limits: DecisionLimits,
+    clearance_m: f32,
+}
+
+impl DecisionGate {
+    /// A gate for `limits` keeping `clearance_m` metres from obstacles.
+    pub fn new(limits: DecisionLimits, clearance_m: f32) -> Result<Self, GateConfigError> {
+        if !limits.is_coherent() {
+            return Err(GateConfigError::IncoherentLimits);
+        }
+        if !(clearance_m.is_finite() && clearance_m >= 0.0) {
+            return Err(GateConfigError::BadClearance(clearance_m));
+        }
+        Ok(Self {
+            limits,
+            clearance_m,
+        })
+    }
+
+    /// The gate of `mission`: `mission.decision_limits()` and `limits.obstacle_clearance_m`.
+    pub fn from_mission(mission: &MissionSpec) -> Result<Self, GateConfigError> {
+        Self::new(
+            mission.decision_limits(),
+            mission.limits.obstacle_clearance_m,
+        )
+    }
+
+    /// The limits decisions are checked against.
+    pub fn limits(&self) -> &DecisionLimits {
+        &self.limits
+    }
+
+    /// The obstacle clearance (m).
+    pub fn clearance_m(&self) -> f32 {
+        self.clearance_m
+    }
+
+    /// The altitude band `[max(h_min, fence_min.U), min(h_max, fence_max.U)]` (may be empty).
+    pub fn altitude_band(&self) -> (f32, f32) {
+        let l = &self.limits;
+        (
+            l.h_min.max(l.geofence_min[2]),
+            l.h_max.min(l.geofence_max[2]),
+        )
+    }
+
+    /// Valid(D_t): [`Decision::validate`] against the flight's limits.
+    pub fn validate(&self, d: &Decision) -> Result<ActionMode, GateError> {
+        Ok(d.validate(&self.limits)?)
+    }
+
+    /// Project `[N, E]` into the geofence.
+    fn project(&self, p: [f32; 2]) -> [f32; 2] {
+        let l = &self.limits;
+        [
+            p[0].clamp(l.geofence_min[0], l.geofence_max[0]),
+            p[1].clamp(l.geofence_min[1], l.geofence_max[1]),
+        ]
+    }
+
+    /// Occupancy-aware feasibility of a validated decision (`mode` from
+    /// [`DecisionGate::validate`]) for a vehicle at `position` `[N, E, U]`: clamp or reject.
+    pub fn feasible(
+        &self,
+        d: &Decision,
+        mode: ActionMode,
+        position: [f32; 3],
+        grid: Option<&OccupancyGrid>,
+    ) -> Result<Feasible, GateError> {
+        if !all_finite(&position) {
+            return Err(GateError::BadPosition(position));
+        }
+        let grid = usable_grid(grid)?;
+        let (lo, hi) = self.altitude_band();
+        if lo > hi {
+            return Err(GateError::NoAltitude { min: lo, max: hi });
+        }
+        let here = self.project([position[0], position[1]]);
+        let mut clamped = here != [position[0], position[1]]
+            && matches!(
+                mode,
+                ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend | ActionMode::Turn
+            );
+        let mut h = d.altitude;
+        if h < lo {
+            h = lo;
+            clamped = true;
+        }
+        if h > hi {
+            h = hi;
+            clamped = true;
+        }
+        let speed = if d.speed >= 0.0 && d.speed <= self.limits.v_max {
+            d.speed
+        } else {
+            clamped = true;
+            if d.speed > self.limits.v_max {
+                self.limits.v_max
+            } else {
+                0.0
+            }
+        };
+        let c = self.clearance_m;
+        let position = match mode {
+            ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend | ActionMode::Turn => {
+                if let Some(top) = grid.and_then(|g| obstacle_top(g, here))
+                    && top >= h - c
+                {
+                    let need = top + c;
+                    if need > hi {
+                        return Err(GateError::NoAltitude { min: need, max: hi });
+                    }
+                    h = need;
+                    clamped = true;
+                }
+                [here[0], here[1], h]
+            }
+            ActionMode::Goto | ActionMode::Hover | ActionMode::Stop => {
+                let (p, c) = self.walk(here, [d.target[0], d.target[1]], h, grid)?;
+                clamped |= c;
+                [p[0], p[1], h]
+            }
+            ActionMode::Land => {
+                let cross = h.min(position[2]);
+                let (p, c) = self.walk(here, [d.target[0], d.target[1]], cross, grid)?;
+                clamped |= c;
+                if let Some(g) = grid
+                    && let Some(cell) = g.cell_of(p)
+                    && let Some(top) = obstacle(g.cells[cell])
+                {
+                    return Err(GateError::Blocked {
+                        at: cell_centre(g, cell),
+                        top_m: top,
+                        free_m: 0.0,
+                    });
+                }
+                [p[0], p[1], 0.0]
+            }
+        };
+        Ok(Feasible {
+            mode,
+            position,
+            speed,
+            clamped,
+        })
+    }
+
+    /// Walk the segment `from -> to` at altitude `h`; the (possibly pulled back) target and
+    /// whether it was pulled back.
+    fn walk(
+        &self,
+        from: [f32; 2],
+        to: [f32; 2],
+        h: f32,
+        grid: Option<&OccupancyGrid>,
+    ) -> Result<([f32; 2], bool), GateError> {
+        let Some(g) = grid else {
+            return Ok((to, false));
+        };
+        let Some(hit) = first_blocking(g, from, to, h - self.clearance_m) else {
+            return Ok((to, false));
+        };
+        let (dn, de) = (to[0] as f64 - from[0] as f64, to[1] as f64 - from[1] as f64);
+        let length = dn.hypot(de);
+        let free = hit.t * length - self.clearance_m as f64;
+        if free < g.resolution_m as f64 || length <= 0.0 {
+            return Err(GateError::Blocked {
+                at: cell_centre(g, hit.cell),
+                top_m: hit.top,
+                free_m: free.max(0.0) as f32,
+            });
+        }
+        let k = free / length;
+        let p = [
+            (from[0] as f64 + dn * k) as f32,
+            (from[1] as f64 + de * k) as f32,
+        ];
+        // the segment lies in the (convex) geofence; this only removes rounding
+        Ok((self.project(p), true))
+    }
+
+    /// Bind a feasible decision to a setpoint and check it with
+    /// [`BoundSetpoint::validate`]. `active_step` is the decision's step, `reused` 0 and
+    /// `seq`/`publish_ns` 0: the hub fills them when it publishes.
+    pub fn bind(&self, d: &Decision, f: &Feasible) -> Result<BoundSetpoint, GateError> {
+        let sp = BoundSetpoint {
+            seq: 0,
+            decision_seq: d.seq,
+            publish_ns: 0,
+            position: f.position,
+            yaw: d.yaw,
+            speed: f.speed,
+            acceptance_radius: d.acceptance_radius,
+            active_step: d.step,
+            mode: f.mode as u8,
+            reused: 0,
+            clamped: f.clamped as u8,
+            reserved: [0; 3],
+        };
+        sp.validate(&self.limits).map_err(GateError::Unbindable)?;
+        Ok(sp)
+    }
+
+    /// Validate, make feasible and bind `d` for a vehicle at `position` in one call
+    /// (allocation-free).
+    pub fn admit(
+        &self,
+        d: &Decision,
+        position: [f32; 3],
+        grid: Option<&OccupancyGrid>,
+    ) -> Result<BoundSetpoint, GateError> {
+        let mode = self.validate(d)?;
+        let f = self.feasible(d, mode, position, grid)?;
+        self.bind(d, &f)
+    }
+
+    /// A hover setpoint holding `position` (projected into the geofence, altitude capped at
+    /// the band's top), with the yaw, speed and radius of `d` (sanitised) — what the hub
+    /// flies when the last valid decision became infeasible.
+    pub fn hold(&self, d: &Decision, position: [f32; 3]) -> Result<BoundSetpoint, GateError> {
+        if !all_finite(&position) {
+            return Err(GateError::BadPosition(position));
+        }
+        let (_, hi) = self.altitude_band();
+        let here = self.project([position[0], position[1]]);
+        let pi = std::f32::consts::PI;
+        let finite_or = |v: f32, lo: f32, hi: f32| if v.is_finite() { v.clamp(lo, hi) } else { lo };
+        let sp = BoundSetpoint {
+            seq: 0,
+            decision_seq: d.seq,
+            publish_ns: 0,
+            position: [here[0], here[1], position[2].min(hi)],
+            yaw: finite_or(d.yaw, -pi, pi),
+            speed: finite_or(d.speed, 0.0, self.limits.v_max),
+            acceptance_radius: finite_or(d.acceptance_radius, 0.0, self.limits.r_max),
+            active_step: d.step,
+            mode: ActionMode::Hover as u8,
+            reused: 0,
+            clamped: 1,
+            reserved: [0; 3],
+        };
+        sp.validate(&self.limits).map_err(GateError::Unbindable)?;
+        Ok(sp)
+    }
+}
+
+/// The grid if it is present and well-formed; `Ok(None)` when absent.
+fn usable_grid(grid: Option<&OccupancyGrid>) -> Result<Option<&OccupancyGrid>, GateError> {
+    let Some(g) = grid else {
+        return Ok(None);
+    };
+    let r = g.resolution_m;
+    if r == 0.0 {
+        return Ok(None);
+    }
+    if !r.is_finite() || r <= 0.0 || !all_finite(&g.origin) {
+        return Err(GateError::BadGrid);
+    }
+    Ok(Some(g))
+}
+
+/// Obstacle top of a cell value: observed and above the ground.
+fn obstacle(v: u8) -> Option<f32> {
+    (v != OCCUPANCY_UNKNOWN && v > 0).then_some(v as f32)
+}
+
+/// Obstacle top in the cell under `p`, if any.
+fn obstacle_top(g: &OccupancyGrid, p: [f32; 2]) -> Option<f32> {
+    g.cell_of(p).and_then(|i| obstacle(g.cells[i]))
+}
+
+/// Centre `[N, E]` of cell `i`.
+fn cell_centre(g: &OccupancyGrid, i: usize) -> [f32; 2] {
+    let half = (OCCUPANCY_SIDE / 2) as f32;
+    let (r, c) = ((i / OCCUPANCY_SIDE) as f32, (i % OCCUPANCY_SIDE) as f32);
+    [
+        g.origin[0] + (r - half + 0.5) * g.resolution_m,
+        g.origin[1] + (c - half + 0.5) * g.resolution_m,
+    ]
+}
+
+/// The first cell touched by the segment `from -> to` (in order along it) holding an
+/// obstacle with top `>= threshold`. Exact grid traversal (Amanatides & Woo) of the part of
+/// the segment inside the grid; at most `2 * SIDE + 2` cells are visited.
+fn first_blocking(g: &OccupancyGrid, from: [f32; 2], to: [f32; 2], threshold: f32) -> Option<Hit> {
+    let side = OCCUPANCY_SIDE as f64;
+    let res = g.resolution_m as f64;
+    let half = side / 2.0;
+    // continuous grid coordinates: x = row (north), y = column (east)
+    let x0 = (from[0] as f64 - g.origin[0] as f64) / res + half;
+    let y0 = (from[1] as f64 - g.origin[1] as f64) / res + half;
+    let x1 = (to[0] as f64 - g.origin[0] as f64) / res + half;
+    let y1 = (to[1] as f64 - g.origin[1] as f64) / res + half;
+    let (dx, dy) = (x1 - x0, y1 - y0);
+    // Liang-Barsky clip of t in [0, 1] to the square [0, side]^2
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for (p, q) in [(-dx, x0), (dx, side - x0), (-dy, y0), (dy, side - y0)] {
+        if p == 0.0 {
+            if q < 0.0 {
+                return None;
+            }
+        } else {
+            let r = q / p;
+            if p < 0.0 {
+                if r > t1 {
+                    return None;
+                }
+                t0 = t0.max(r);
+            } else {
+                if r < t0 {
+                    return None;
+                }
+                t1 = t1.min(r);
+            }
+        }
+    }
+    if t0 > t1 {
+        return None;
+    }
+    let last = OCCUPANCY_SIDE as i64 - 1;
+    let mut ix = ((x0 + t0 * dx).floor() as i64).clamp(0, last);
+    let mut iy = ((y0 + t0 * dy).floor() as i64).clamp(0, last);
+    let axis = |d: f64, start: f64, i: i64| -> (i64, f64, f64) {
+        if d > 0.0 {
+            (1, ((i + 1) as f64 - start) / d, 1.0 / d)
+        } else if d < 0.0 {
+            (-1, (i as f64 - start) / d, -1.0 / d)
+        } else {
+            (0, f64::INFINITY, f64::INFINITY)
+        }
+    };
+    let (step_x, mut t_max_x, dt_x) = axis(dx, x0, ix);
+    let (step_y, mut t_max_y, dt_y) = axis(dy, y0, iy);
+    let mut t_enter = t0;
+    for _ in 0..(2 * OCCUPANCY_SIDE + 2) {
+        let cell = ix as usize * OCCUPANCY_SIDE + iy as usize;
+        if let Some(top) = obstacle(g.cells[cell])
+            && top >= threshold
+        {
+            return Some(Hit {
+                t: t_enter,
+                cell,
+                top,
+            });
+        }
+        if t_max_x.min(t_max_y) > t1 {
+            break;
+        }
+        if t_max_x < t_max_y {
+            ix += step_x;
+            t_enter = t_max_x;
+            t_max_x += dt_x;
+        } else {
+            iy += step_y;
+            t_enter = t_max_y;
+            t_max_y += dt_y;
+        }
+        if !(0..=last).contains(&ix) || !(0..=last).contains(&iy) {
+            break;
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use aeris_schemas::OCCUPANCY_CELLS;
+
+    fn limits() -> DecisionLimits {
+        DecisionLimits {
+            v_max: 8.0,
+            h_min: 2.0,
+            h_max: 60.0,
+            r_max: 10.0,
+            geofence_min: [-100.0, -100.0, 0.0],
+            geofence_max: [100.0, 100.0, 60.0],
+            subgoals: 4,
+        }
+    }
+
+    fn gate() -> DecisionGate {
+        DecisionGate::new(limits(), 3.0).unwrap()
+    }
+
+    fn decision(action: ActionMode, target: [f32; 3], altitude: f32) -> Decision {
+        Decision {
+            seq: 9,
+            target,
+            yaw: 0.25,
+            speed: 5.0,
+            altitude,
+            acceptance_radius: 2.0,
+            confidence: 0.9,
+            step: 2,
+            action: action as u8,
+            ..Decision::default()
+        }
+    }
+
+    /// 1 m cells centred on the origin, all free ground.
+    fn free_grid() -> OccupancyGrid {
+        OccupancyGrid {
+            origin: [0.0, 0.0],
+            resolution_m: 1.0,
+            cells: [0; OCCUPANCY_CELLS],
+        }
+    }
+
+    fn set(g: &mut OccupancyGrid, n: f32, e: f32, top: u8) {
+        let i = g.cell_of([n, e]).unwrap();
+        g.cells[i] = top;
+    }
+
+    #[test]
+    fn binds_each_action() {
+        let g = gate();
+        let v = [1.0, 2.0, 5.0];
+        let t = [30.0, -10.0, 12.0];
+        let cases = [
+            (ActionMode::Takeoff, [1.0, 2.0, 12.0]),
+            (ActionMode::Ascend, [1.0, 2.0, 12.0]),
+            (ActionMode::Descend, [1.0, 2.0, 12.0]),
+            (ActionMode::Turn, [1.0, 2.0, 12.0]),
+            (ActionMode::Goto, [30.0, -10.0, 12.0]),
+            (ActionMode::Hover, [30.0, -10.0, 12.0]),
+            (ActionMode::Stop, [30.0, -10.0, 12.0]),
+            (ActionMode::Land, [30.0, -10.0, 0.0]),
+        ];
+        for (mode, want) in cases {
+            let sp = g.admit(&decision(mode, t, 12.0), v, None).unwrap();
+            assert_eq!(sp.position, want, "{mode:?}");
+            assert_eq!(sp.mode, mode as u8);
+            assert_eq!((sp.yaw, sp.speed, sp.acceptance_radius), (0.25, 5.0, 2.0));
+            assert_eq!((sp.active_step, sp.decision_seq, sp.clamped), (2, 9, 0));
+        }
+    }
+
+    #[test]
+    fn rejects_invalid_and_non_finite() {
+        let g = gate();
+        let mut d = decision(ActionMode::Goto, [10.0, 0.0, 10.0], 10.0);
+        d.speed = f32::NAN;
+        assert!(matches!(
+            g.admit(&d, [0.0; 3], None),
+            Err(GateError::Invalid(DecisionError::NonFinite { .. }))
+        ));
+        let d = decision(ActionMode::Goto, [10.0, 0.0, 10.0], 10.0);
+        assert!(matches!(
+            g.admit(&d, [f32::NAN, 0.0, 0.0], None),
+            Err(GateError::BadPosition(_))
+        ));
+        let mut grid = free_grid();
+        grid.origin[0] = f32::INFINITY;
+        assert_eq!(g.admit(&d, [0.0; 3], Some(&grid)), Err(GateError::BadGrid));
+    }
+
+    #[test]
+    fn clamps_before_a_wall_with_clearance() {
+        let g = gate();
+        let mut grid = free_grid();
+        // a wall 20 m high across the path at N in [10, 11)
+        for e in -32..32 {
+            set(&mut grid, 10.5, e as f32 + 0.5, 20);
+        }
+        let d = decision(ActionMode::Goto, [25.0, 0.0, 10.0], 10.0);
+        let sp = g.admit(&d, [0.0, 0.0, 10.0], Some(&grid)).unwrap();
+        assert_eq!(sp.clamped, 1);
+        assert!((sp.position[0] - 7.0).abs() < 1e-4, "{:?}", sp.position);
+        assert_eq!(sp.position[1], 0.0);
+        // flying above the wall (20 <= 24 - 3) passes
+        let d = decision(ActionMode::Goto, [25.0, 0.0, 24.0], 24.0);
+        let sp = g.admit(&d, [0.0, 0.0, 10.0], Some(&grid)).unwrap();
+        assert_eq!((sp.position, sp.clamped), ([25.0, 0.0, 24.0], 0));
+        // too close to pull back: rejected
+        let d = decision(ActionMode::Goto, [25.0, 0.0, 10.0], 10.0);
+        assert!(matches!(
+            g.admit(&d, [6.5, 0.0, 10.0], Some(&grid)),
+            Err(GateError::Blocked { top_m: 20.0, .. })
+        ));
+    }
+
+    #[test]
+    fn unknown_cells_are_free_and_corners_are_not_skipped() {
+        let g = gate();
+        let mut grid = OccupancyGrid {
+            origin: [0.0, 0.0],
+            resolution_m: 1.0,
+            ..OccupancyGrid::default()
+        };
+        let d = decision(ActionMode::Goto, [20.0, 20.0, 10.0], 10.0);
+        assert_eq!(
+            g.admit(&d, [0.0; 3], Some(&grid)).unwrap().position,
+            [20.0, 20.0, 10.0]
+        );
+        // a single cell the diagonal only grazes at its corner region: (10, 9)
+        grid.cells[(32 + 10) * OCCUPANCY_SIDE + 32 + 9] = 50;
+        let d = decision(ActionMode::Goto, [20.0, 19.9, 10.0], 10.0);
+        let sp = g.admit(&d, [0.0; 3], Some(&grid)).unwrap();
+        assert_eq!(sp.clamped, 1);
+        assert!(sp.position[0] < 10.0 - 2.0, "{:?}", sp.position);
+    }
+
+    #[test]
+    fn raises_in_place_climbs_over_an_obstacle() {
+        let g = gate();
+        let mut grid = free_grid();
+        set(&mut grid, 0.5, 0.5, 15);
+        let d = decision(ActionMode::Descend, [0.0, 0.0, 5.0], 5.0);
+        let sp = g.admit(&d, [0.5, 0.5, 30.0], Some(&grid)).unwrap();
+        assert_eq!((sp.position[2], sp.clamped), (18.0, 1));
+        set(&mut grid, 0.5, 0.5, 59);
+        assert!(matches!(
+            g.admit(&d, [0.5, 0.5, 30.0], Some(&grid)),
+            Err(GateError::NoAltitude { .. })
+        ));
+    }
+
+    #[test]
+    fn land_goes_to_ground_but_not_onto_an_obstacle() {
+        let g = gate();
+        let mut grid = free_grid();
+        let d = decision(ActionMode::Land, [5.0, 5.0, 0.0], 10.0);
+        let sp = g.admit(&d, [0.0, 0.0, 10.0], Some(&grid)).unwrap();
+        assert_eq!(sp.position, [5.0, 5.0, 0.0]);
+        assert_eq!(sp.validate(&limits()), Ok(ActionMode::Land));
+        set(&mut grid, 5.0, 5.0, 1);
+        assert!(matches!(
+            g.admit(&d, [0.0, 0.0, 10.0], Some(&grid)),
+            Err(GateError::Blocked { .. })
+        ));
+    }
+
+    #[test]
+    fn altitude_is_kept_inside_the_fence() {
+        let mut l = limits();
+        l.geofence_max[2] = 40.0;
+        let g = DecisionGate::new(l, 3.0).unwrap();
+        let d = decision(ActionMode::Goto, [10.0, 0.0, 10.0], 55.0);
+        let sp = g.admit(&d, [0.0; 3], None).unwrap();
+        assert_eq!((sp.position[2], sp.clamped), (40.0, 1));
+        l.geofence_max[2] = 1.0; // below h_min: no altitude
+        let g = DecisionGate::new(l, 3.0).unwrap();
+        assert!(matches!(
+            g.admit(
+                &decision(ActionMode::Goto, [1.0, 0.0, 1.0], 10.0),
+                [0.0; 3],
+                None
+            ),
+            Err(GateError::Invalid(_)) | Err(GateError::NoAltitude { .. })
+        ));
+    }
+
+    #[test]
+    fn a_vehicle_outside_the_fence_is_brought_back() {
+        let g = gate();
+        let d = decision(ActionMode::Takeoff, [0.0, 0.0, 10.0], 10.0);
+        let sp = g.admit(&d, [150.0, -120.0, 0.0], None).unwrap();
+        assert_eq!((sp.position, sp.clamped), ([100.0, -100.0, 10.0], 1));
+        let h = g.hold(&d, [150.0, 0.0, 90.0]).unwrap();
+        assert_eq!(h.position, [100.0, 0.0, 60.0]);
+        assert_eq!(h.mode, ActionMode::Hover as u8);
+    }
+
+    #[test]
+    fn config_is_checked() {
+        assert!(matches!(
+            DecisionGate::new(limits(), f32::NAN),
+            Err(GateConfigError::BadClearance(_))
+        ));
+        assert!(matches!(
+            DecisionGate::new(limits(), -1.0),
+            Err(GateConfigError::BadClearance(_))
+        ));
+        let mut l = limits();
+        l.h_min = 70.0;
+        assert_eq!(
+            DecisionGate::new(l, 1.0),
+            Err(GateConfigError::IncoherentLimits)
+        );
+    }
+}

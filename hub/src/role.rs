@@ -1,0 +1,202 @@
+//! The hub role (kind `hub`, variant `gate`): a thin shell that feeds [`HubCore`] the
+//! messages and the clock, and publishes what it returns.
+//!
+//! Every 20 ms: drain `vehicle/telemetry` (latest valid position), `perception/state`
+//! (every sample: validate, ATT), `reasoning/decision` (every sample, in arrival order:
+//! order, deadline, gate), then tick: publish `hub/setpoint` (whenever there is a valid
+//! decision to fly) and `hub/report` (per committed or reused cycle).
+//!
+//! Parameters: `no_att` (bool, default false: the active step is the reasoner's declared
+//! step), `att_temperature` (number > 0, default 0.5).
+//!
+//! Heartbeat stages: `route` (transport: draining and publishing), `gate` (decisions and the
+//! tick's re-binding), `att` (states and ATT). Heartbeat counters: `[decisions received,
+//! rejected, late, reused cycles, sequence gaps, reorders, states received, 0]`.
+
+use crate::att::{Attention, AttentionPrior, LexicalScorer};
+use crate::core::{DecisionVerdict, HubConfig, HubCore};
+use crate::gate::DecisionGate;
+use aeris_runtime::bus::{BusError, TypedPublisher, TypedSubscriber};
+use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
+use aeris_schemas::{
+    BoundSetpoint, Decision, HubReport, MAX_SUBGOALS, PerceptionState, RoleStatus,
+    VehicleTelemetry, topics,
+};
+use std::time::Duration;
+
+/// Period of the hub's cycle.
+pub const HUB_PERIOD: Duration = Duration::from_millis(20);
+/// Default softmax temperature of ATT.
+pub const DEFAULT_ATT_TEMPERATURE: f32 = 0.5;
+/// Entries kept in the attention trace.
+pub const TRACE_CAPACITY: usize = 4096;
+
+/// Build the hub's core from a role spec (mission, timing, `no_att`, `att_temperature`).
+pub fn core_from_spec(spec: &RoleSpec) -> Result<HubCore, RoleError> {
+    let no_att = match spec.params.get("no_att") {
+        None => false,
+        Some(v) => v.as_bool().ok_or_else(|| {
+            RoleError::Config(format!("hub param `no_att` must be a bool, got {v}"))
+        })?,
+    };
+    let temperature = match spec.params.get("att_temperature") {
+        None => DEFAULT_ATT_TEMPERATURE,
+        Some(v) => match v.as_f64() {
+            Some(t) if t.is_finite() && t > 0.0 && t <= f32::MAX as f64 => t as f32,
+            _ => {
+                return Err(RoleError::Config(format!(
+                    "hub param `att_temperature` must be a number > 0, got {v}"
+                )));
+            }
+        },
+    };
+    let mission = &spec.mission;
+    let count = mission.subgoals.len();
+    if count == 0 || count > MAX_SUBGOALS {
+        return Err(RoleError::Config(format!(
+            "the mission has {count} subgoals; the hub needs 1..={MAX_SUBGOALS}"
+        )));
+    }
+    let gate = DecisionGate::from_mission(mission)
+        .map_err(|e| RoleError::Config(format!("hub gate: {e}")))?;
+    let texts: Vec<&str> = mission.subgoals.iter().map(|s| s.text.as_str()).collect();
+    let attention = Attention::new(
+        Box::new(LexicalScorer::new(&texts)),
+        count,
+        temperature,
+        AttentionPrior::default(),
+        TRACE_CAPACITY,
+    )
+    .map_err(|e| RoleError::Config(format!("hub attention: {e}")))?;
+    HubCore::new(
+        gate,
+        attention,
+        HubConfig::from_timing(&spec.timing, no_att),
+        mission.start,
+    )
+    .map_err(|e| RoleError::Config(format!("hub: {e}")))
+}
+
+/// The hub role.
+pub struct HubRole {
+    core: HubCore,
+    states: TypedSubscriber<PerceptionState>,
+    telemetry: TypedSubscriber<VehicleTelemetry>,
+    decisions: TypedSubscriber<Decision>,
+    setpoints: TypedPublisher<BoundSetpoint>,
+    reports: TypedPublisher<HubReport>,
+}
+
+impl HubRole {
+    /// The pure state machine inside (for inspection).
+    pub fn core(&self) -> &HubCore {
+        &self.core
+    }
+}
+
+impl Role for HubRole {
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+        let core = core_from_spec(&ctx.spec)?;
+        Ok(Self {
+            core,
+            states: ctx.bus.subscriber(topics::PERCEPTION_STATE)?,
+            telemetry: ctx.bus.subscriber(topics::VEHICLE_TELEMETRY)?,
+            decisions: ctx.bus.subscriber(topics::REASONING_DECISION)?,
+            setpoints: ctx.bus.publisher(topics::HUB_SETPOINT)?,
+            reports: ctx.bus.publisher(topics::HUB_REPORT)?,
+        })
+    }
+
+    fn period(&self) -> Duration {
+        HUB_PERIOD
+    }
+
+    fn cycle(
+        &mut self,
+        _ctx: &mut RoleContext,
+        report: &mut CycleReport,
+    ) -> Result<CycleOutcome, RoleError> {
+        let start = monotonic_ns();
+        let mut gate_ns = 0u64;
+        let mut att_ns = 0u64;
+        let mut publish_error: Option<BusError> = None;
+
+        let mut position = None;
+        let telemetry = self.telemetry.drain(|t| {
+            if t.validate().is_ok() {
+                position = Some(t.position);
+            }
+        })?;
+        if let Some(p) = position {
+            self.core.on_telemetry(p);
+        }
+
+        let core = &mut self.core;
+        let states = self.states.drain(|s| {
+            let t = monotonic_ns();
+            let _ = core.on_state(s, t);
+            att_ns += monotonic_ns().saturating_sub(t);
+        })?;
+
+        let reports = &self.reports;
+        let decisions = self.decisions.drain(|d| {
+            let receive = monotonic_ns();
+            let verdict = core.on_decision_timed(d, receive, monotonic_ns);
+            gate_ns += monotonic_ns().saturating_sub(receive);
+            let out = match verdict {
+                DecisionVerdict::Committed { report, .. } => Some(report),
+                DecisionVerdict::Rejected { report, .. } | DecisionVerdict::Late { report, .. } => {
+                    report
+                }
+            };
+            if let Some(r) = out
+                && let Err(e) = reports.publish(&r)
+                && publish_error.is_none()
+            {
+                publish_error = Some(e);
+            }
+        })?;
+        if let Some(e) = publish_error {
+            return Err(e.into());
+        }
+
+        let now = monotonic_ns();
+        let tick = self.core.on_tick(now);
+        gate_ns += monotonic_ns().saturating_sub(now);
+        if let Some(r) = tick.report {
+            self.reports.publish(&r)?;
+        }
+        if let Some(sp) = tick.setpoint {
+            self.setpoints.publish(&sp)?;
+        }
+
+        let total = monotonic_ns().saturating_sub(start);
+        report.stage("route", total.saturating_sub(gate_ns + att_ns));
+        report.stage("gate", gate_ns);
+        report.stage("att", att_ns);
+        let c = self.core.counters();
+        report.counters = [
+            c.decisions_received,
+            c.decisions_rejected,
+            c.decisions_late,
+            c.decisions_reused,
+            c.sequence_gaps,
+            c.sequence_reorders,
+            c.states_received,
+            0,
+        ];
+        report.status = if self.core.reusing() {
+            RoleStatus::Degraded
+        } else {
+            RoleStatus::Running
+        };
+        let worked =
+            tick.setpoint.is_some() || tick.report.is_some() || telemetry + states + decisions > 0;
+        Ok(if worked {
+            CycleOutcome::Worked
+        } else {
+            CycleOutcome::Idle
+        })
+    }
+}
