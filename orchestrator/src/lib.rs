@@ -1,1 +1,26 @@
-//! Supervisor: workflow files, process spawning, CPU binding, heartbeat statistics, restarts, status.
+//! # aeris-orchestrator
+//!
+//! The supervisor side of AERIS-rs (MISSION §5):
+//! - [`workflow`]: TOML workflow files -> a validated [`Workflow`] (roles, variants,
+//!   executors, message paths, mission, timing);
+//! - [`launch`]: a workflow -> one role spec per role in start order, executors resolved to
+//!   CPU sets, the built-in vehicle linked to the controller;
+//! - [`restart`]: the restart policy as a pure function;
+//! - [`supervisor`]: starts every role as its own process bound to its executor's CPUs,
+//!   watches heartbeats (latency percentiles, sequence gaps), restarts failed roles with
+//!   backoff, and keeps the status board.
+
+#![deny(missing_docs)]
+
+pub mod launch;
+pub mod restart;
+pub mod supervisor;
+pub mod workflow;
+
+pub use launch::{LaunchPlan, PlanError, PlannedRole, plan_launch};
+pub use restart::{RestartDecision, RestartPolicy, RoleExit, restart_decision};
+pub use supervisor::{
+    RoleRuntime, RoleState, ShutdownEntry, ShutdownOutcome, ShutdownReport, SilentRole, Supervisor,
+    SupervisorError, SupervisorEvent, SupervisorOptions,
+};
+pub use workflow::{Executor, ExecutorCpus, RoleDecl, Workflow, WorkflowError, WorkflowFileError};

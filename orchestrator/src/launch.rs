@@ -1,0 +1,262 @@
+//! Launch planning: from a validated workflow to one [`RoleSpec`] per role, in start order.
+//!
+//! Pure apart from the free-port callback, so the supervisor's decisions (CPU binding of
+//! `auto` executors, the built-in vehicle link, an external autopilot) are testable without
+//! starting processes.
+
+use crate::restart::RestartPolicy;
+use crate::workflow::{ExecutorCpus, Workflow, WorkflowError};
+use aeris_runtime::affinity::CpuSet;
+use aeris_runtime::spec::RoleSpec;
+use aeris_schemas::topics;
+
+/// One role ready to start.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlannedRole {
+    /// What the role process gets (written as JSON).
+    pub spec: RoleSpec,
+    /// CPUs to bind the process to (`None` = inherit the supervisor's affinity).
+    pub cpus: Option<CpuSet>,
+    /// Restart policy.
+    pub restart: RestartPolicy,
+    /// Restart budget.
+    pub max_restarts: u32,
+    /// First restart backoff (ms).
+    pub backoff_ms: u64,
+}
+
+/// Every role of a flight, in start order (publishers before subscribers).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LaunchPlan {
+    /// The roles in start order.
+    pub roles: Vec<PlannedRole>,
+    /// Executor name -> resolved CPU set.
+    pub executors: Vec<(String, CpuSet)>,
+    /// UDP port of the built-in vehicle link, when the built-in vehicle flies.
+    pub vehicle_port: Option<u16>,
+}
+
+/// Why a flight cannot be planned.
+#[derive(Debug, thiserror::Error)]
+pub enum PlanError {
+    /// The flight name is unusable as a service prefix.
+    #[error("flight name `{0}` is invalid: use 1-48 characters of a-z, 0-9, `_`, `-`")]
+    FlightName(String),
+    /// The workflow (after applying the external autopilot) is invalid.
+    #[error(transparent)]
+    Workflow(#[from] WorkflowError),
+    /// No free UDP port for the built-in vehicle link.
+    #[error("cannot find a free UDP port on 127.0.0.1 for the built-in vehicle link: {0}")]
+    VehicleLink(std::io::Error),
+}
+
+/// Resolve every executor to a CPU set: `all` is `online`; `auto` executors get one CPU
+/// each, round-robin over `online` in executor-name order; explicit sets stay as written.
+pub fn resolve_executors(workflow: &Workflow, online: &CpuSet) -> Vec<(String, CpuSet)> {
+    let mut next_auto = 0usize;
+    let cpus = online.cpus();
+    workflow
+        .executors
+        .iter()
+        .map(|ex| {
+            let set = match &ex.cpus {
+                ExecutorCpus::Set(s) => s.clone(),
+                ExecutorCpus::All => online.clone(),
+                ExecutorCpus::Auto => {
+                    let set = match cpus.get(next_auto % cpus.len().max(1)) {
+                        Some(c) => CpuSet::parse(&c.to_string()).unwrap_or_else(|_| online.clone()),
+                        None => online.clone(),
+                    };
+                    next_auto += 1;
+                    set
+                }
+            };
+            (ex.name.clone(), set)
+        })
+        .collect()
+}
+
+/// A free UDP port on 127.0.0.1 (bind port 0, read it, release it).
+pub fn free_udp_port() -> std::io::Result<u16> {
+    let socket = std::net::UdpSocket::bind(("127.0.0.1", 0))?;
+    Ok(socket.local_addr()?.port())
+}
+
+/// Plan the flight `flight` of `workflow`.
+///
+/// With `autopilot = Some(url)` the vehicle roles are dropped and every controller gets
+/// `params.autopilot = url`. Otherwise, when a controller's autopilot is `auto`, `free_port`
+/// picks a UDP port P: vehicles with `listen = "auto"` get `udpin:127.0.0.1:P` and
+/// controllers with `autopilot = "auto"` get `udpout:127.0.0.1:P`.
+pub fn plan_launch(
+    workflow: &Workflow,
+    flight: &str,
+    autopilot: Option<&str>,
+    online: &CpuSet,
+    free_port: impl FnOnce() -> std::io::Result<u16>,
+) -> Result<LaunchPlan, PlanError> {
+    if !topics::is_valid_flight_name(flight) {
+        return Err(PlanError::FlightName(flight.to_string()));
+    }
+    let mut w = workflow.clone();
+    let mut vehicle_port = None;
+    match autopilot {
+        Some(url) => {
+            w.roles.retain(|r| r.kind != "vehicle");
+            for r in w.roles.iter_mut().filter(|r| r.kind == "controller") {
+                r.params.insert("autopilot".into(), url.into());
+            }
+        }
+        None if w.needs_builtin_vehicle() => {
+            let port = free_port().map_err(PlanError::VehicleLink)?;
+            vehicle_port = Some(port);
+            for r in w.roles.iter_mut() {
+                let (key, url) = match r.kind.as_str() {
+                    "vehicle" => ("listen", format!("udpin:127.0.0.1:{port}")),
+                    "controller" => ("autopilot", format!("udpout:127.0.0.1:{port}")),
+                    _ => continue,
+                };
+                if r.param_str(key).is_none_or(|v| v == "auto") {
+                    r.params.insert(key.into(), url.into());
+                }
+            }
+        }
+        None => {}
+    }
+    w.validate()?;
+    let executors = resolve_executors(&w, online);
+    let roles = w
+        .start_order()
+        .into_iter()
+        .filter_map(|i| w.roles.get(i))
+        .map(|r| {
+            let cpus = r.executor.as_ref().and_then(|name| {
+                executors
+                    .iter()
+                    .find(|(n, _)| n == name)
+                    .map(|(_, s)| s.clone())
+            });
+            PlannedRole {
+                spec: RoleSpec {
+                    flight: flight.to_string(),
+                    name: r.name.clone(),
+                    kind: r.kind.clone(),
+                    variant: r.variant.clone(),
+                    cpus: cpus.as_ref().map(|c| c.to_string()).unwrap_or_default(),
+                    timing: w.timing.clone(),
+                    camera: w.camera.clone(),
+                    mission: w.mission.clone(),
+                    params: r.params.clone(),
+                },
+                cpus,
+                restart: r.restart,
+                max_restarts: r.max_restarts,
+                backoff_ms: r.backoff_ms,
+            }
+        })
+        .collect();
+    Ok(LaunchPlan {
+        roles,
+        executors,
+        vehicle_port,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn four_cpus() -> CpuSet {
+        CpuSet::parse("0-3").unwrap()
+    }
+
+    #[test]
+    fn auto_executors_get_one_cpu_each_round_robin() {
+        let w = Workflow::builtin_default().unwrap();
+        let ex = resolve_executors(&w, &four_cpus());
+        assert_eq!(
+            ex,
+            vec![
+                ("control".to_string(), CpuSet::parse("0").unwrap()),
+                ("perception".to_string(), CpuSet::parse("1").unwrap()),
+            ]
+        );
+        // one CPU: both share it
+        let ex = resolve_executors(&w, &CpuSet::parse("5").unwrap());
+        assert!(ex.iter().all(|(_, s)| s.cpus() == [5]));
+    }
+
+    #[test]
+    fn all_and_explicit_sets_resolve_as_written() {
+        let mut w = Workflow::builtin_default().unwrap();
+        w.executors[0].cpus = ExecutorCpus::All;
+        w.executors[1].cpus = ExecutorCpus::Set(CpuSet::parse("0").unwrap());
+        let ex = resolve_executors(&w, &four_cpus());
+        assert_eq!(ex[0].1, four_cpus());
+        assert_eq!(ex[1].1, CpuSet::parse("0").unwrap());
+    }
+
+    #[test]
+    fn the_builtin_vehicle_is_linked_to_the_controller() {
+        let w = Workflow::builtin_default().unwrap();
+        let plan = plan_launch(&w, "plan-test", None, &four_cpus(), || Ok(14999)).unwrap();
+        assert_eq!(plan.vehicle_port, Some(14999));
+        let role = |n: &str| plan.roles.iter().find(|r| r.spec.name == n).unwrap();
+        assert_eq!(
+            role("vehicle").spec.param_str("listen"),
+            Some("udpin:127.0.0.1:14999")
+        );
+        assert_eq!(
+            role("controller").spec.param_str("autopilot"),
+            Some("udpout:127.0.0.1:14999")
+        );
+        assert_eq!(role("controller").spec.cpus, "0");
+        assert_eq!(role("camera").spec.cpus, "1");
+        assert_eq!(role("reasoning").cpus, Some(CpuSet::parse("1").unwrap()));
+        assert_eq!(plan.roles.len(), 6);
+        assert!(plan.roles.iter().all(|r| r.spec.flight == "plan-test"));
+    }
+
+    #[test]
+    fn an_external_autopilot_drops_the_vehicle() {
+        let w = Workflow::builtin_default().unwrap();
+        let plan = plan_launch(
+            &w,
+            "plan-test",
+            Some("udpout:10.0.0.2:14540"),
+            &four_cpus(),
+            || panic!("no port is needed"),
+        )
+        .unwrap();
+        assert_eq!(plan.vehicle_port, None);
+        assert!(plan.roles.iter().all(|r| r.spec.kind != "vehicle"));
+        let controller = plan
+            .roles
+            .iter()
+            .find(|r| r.spec.kind == "controller")
+            .unwrap();
+        assert_eq!(
+            controller.spec.param_str("autopilot"),
+            Some("udpout:10.0.0.2:14540")
+        );
+    }
+
+    #[test]
+    fn bad_flight_names_and_port_failures_are_reported() {
+        let w = Workflow::builtin_default().unwrap();
+        assert!(matches!(
+            plan_launch(&w, "Bad Name", None, &four_cpus(), || Ok(1)),
+            Err(PlanError::FlightName(_))
+        ));
+        let err = plan_launch(&w, "ok", None, &four_cpus(), || {
+            Err(std::io::Error::other("no ports"))
+        })
+        .unwrap_err();
+        assert!(matches!(err, PlanError::VehicleLink(_)), "{err}");
+    }
+
+    #[test]
+    fn free_udp_port_is_nonzero() {
+        assert_ne!(free_udp_port().unwrap(), 0);
+    }
+}

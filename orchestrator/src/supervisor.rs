@@ -1,0 +1,1312 @@
+//! The supervisor: starts every role of a workflow as its own process, watches heartbeats,
+//! restarts failed roles with backoff, and keeps the status board `aeris status` reads.
+//!
+//! The caller drives it: [`Supervisor::start`], then [`Supervisor::step`] every ~20 ms
+//! (non-blocking), then [`Supervisor::shutdown`].
+//!
+//! Role processes get `prctl(PR_SET_PDEATHSIG, SIGKILL)`, so they never outlive the
+//! supervisor. Linux delivers that signal when the **thread** that forked them ends, so
+//! drive a supervisor from one long-lived thread (the one that calls `start` and `step`).
+//! Each role runs in its own process group: a Ctrl-C in the terminal reaches only the
+//! supervisor, which then stops the roles in order.
+
+use crate::launch::{PlanError, PlannedRole, plan_launch};
+use crate::restart::{RestartDecision, RestartPolicy, RoleExit, restart_decision};
+use crate::workflow::Workflow;
+use aeris_runtime::affinity::CpuSet;
+use aeris_runtime::bus::{BusError, FlightBus, StatusBoardWriter, TypedSubscriber};
+use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::stats::LatencyWindow;
+use aeris_schemas::{
+    FixedText, MAX_ROLES, RoleHeartbeat, RoleStatus, RoleStatusEntry, SupervisorStatus, topics,
+};
+use std::fs::OpenOptions;
+use std::io::{Read, Seek, SeekFrom, Write};
+use std::os::unix::process::CommandExt;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Heartbeats per role kept for the latency percentiles.
+pub const LATENCY_WINDOW: usize = 256;
+/// Lines of a role's log quoted in errors.
+pub const LOG_TAIL_LINES: usize = 8;
+/// Pause between steps inside [`Supervisor::wait_ready`].
+const POLL: Duration = Duration::from_millis(20);
+/// Pause between checks for exited roles during [`Supervisor::shutdown`].
+const SHUTDOWN_POLL: Duration = Duration::from_millis(5);
+
+/// What the supervisor needs to start a flight.
+#[derive(Debug, Clone)]
+pub struct SupervisorOptions {
+    /// The validated workflow.
+    pub workflow: Workflow,
+    /// Flight name: the namespace of every service (`[a-z0-9_-]{1,48}`).
+    pub flight: String,
+    /// The `aeris` executable; roles start as `aeris_exe role --spec FILE`.
+    pub aeris_exe: PathBuf,
+    /// Directory for `roles/NAME.json` specs and `logs/NAME.log` logs (created if missing).
+    pub run_dir: PathBuf,
+    /// External autopilot MAVLink URL: drop the vehicle role and give this URL to the
+    /// controller. `None` flies the built-in vehicle.
+    pub autopilot: Option<String>,
+}
+
+/// Why the supervisor failed.
+#[derive(Debug, thiserror::Error)]
+pub enum SupervisorError {
+    /// The flight could not be planned (flight name, workflow, vehicle link).
+    #[error("cannot plan flight `{flight}`: {source}")]
+    Plan {
+        /// Flight name.
+        flight: String,
+        /// Why.
+        source: PlanError,
+    },
+    /// The supervisor's iceoryx2 node, heartbeat subscriber or status board failed. A
+    /// status board that already exists means another supervisor runs this flight.
+    #[error(
+        "supervisor of flight `{flight}`: {source} (is another supervisor running this flight? pick another flight name)"
+    )]
+    Bus {
+        /// Flight name.
+        flight: String,
+        /// Why.
+        source: BusError,
+    },
+    /// The run directory could not be prepared.
+    #[error("cannot create run directory {path}: {source} (pass a writable --run-dir)")]
+    RunDir {
+        /// The directory.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A role spec could not be written.
+    #[error("cannot write the spec of role `{role}` to {path}: {source}")]
+    WriteSpec {
+        /// Role name.
+        role: String,
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A role's log could not be opened.
+    #[error("cannot open the log of role `{role}` at {path}: {source}")]
+    OpenLog {
+        /// Role name.
+        role: String,
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A role process could not be started.
+    #[error(
+        "cannot start role `{role}` as `{exe} role --spec {spec}`{cpus}: {source} (build the binary with `cargo build --bin aeris`)"
+    )]
+    Spawn {
+        /// Role name.
+        role: String,
+        /// The executable.
+        exe: PathBuf,
+        /// The spec file.
+        spec: PathBuf,
+        /// " on CPUs X" when it was bound, else empty.
+        cpus: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// Waiting on a role process failed.
+    #[error("cannot wait on role `{role}` (pid {pid}): {source}")]
+    Wait {
+        /// Role name.
+        role: String,
+        /// Its pid.
+        pid: u32,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// Some roles sent no heartbeat in time.
+    #[error("{}", not_ready_text(.timeout, .silent))]
+    NotReady {
+        /// How long was waited.
+        timeout: Duration,
+        /// The silent roles with the tail of their logs.
+        silent: Vec<SilentRole>,
+    },
+    /// While waiting for readiness, a role stopped for good (gave up, or exited under a
+    /// policy that keeps it down).
+    #[error("{}", role_down_text(.role, .state, .log_path, .log_tail))]
+    RoleDown {
+        /// Role name.
+        role: String,
+        /// What happened ("gave up after 5 restarts, last exit code 1").
+        state: String,
+        /// Its log.
+        log_path: PathBuf,
+        /// The last lines of its log.
+        log_tail: Vec<String>,
+    },
+}
+
+/// A role that stayed silent, for [`SupervisorError::NotReady`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SilentRole {
+    /// Role name.
+    pub name: String,
+    /// Its state ("running pid 123", "restarting", ...).
+    pub state: String,
+    /// Its log file.
+    pub log_path: PathBuf,
+    /// The last lines of its log.
+    pub log_tail: Vec<String>,
+}
+
+fn quote_tail(out: &mut String, tail: &[String]) {
+    if tail.is_empty() {
+        out.push_str("\n    (log is empty)");
+    }
+    for line in tail {
+        out.push_str("\n    | ");
+        out.push_str(line);
+    }
+}
+
+fn not_ready_text(timeout: &Duration, silent: &[SilentRole]) -> String {
+    let names: Vec<&str> = silent.iter().map(|s| s.name.as_str()).collect();
+    let mut out = format!(
+        "no heartbeat within {:.1} s from role(s) {}",
+        timeout.as_secs_f64(),
+        names.join(", ")
+    );
+    for s in silent {
+        out.push_str(&format!(
+            "\n  role `{}` ({}), log {}:",
+            s.name,
+            s.state,
+            s.log_path.display()
+        ));
+        quote_tail(&mut out, &s.log_tail);
+    }
+    out
+}
+
+fn role_down_text(role: &str, state: &str, log_path: &Path, tail: &[String]) -> String {
+    let mut out = format!(
+        "role `{role}` {state}; it stays down, so the flight cannot start; log {}:",
+        log_path.display()
+    );
+    quote_tail(&mut out, tail);
+    out
+}
+
+/// Something that happened to a role during a [`Supervisor::step`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SupervisorEvent {
+    /// The role process was started for the first time.
+    RoleStarted {
+        /// Role name.
+        name: String,
+        /// Its pid.
+        pid: u32,
+    },
+    /// The role process exited.
+    RoleExited {
+        /// Role name.
+        name: String,
+        /// How.
+        status: RoleExit,
+    },
+    /// The role process was started again after an exit.
+    RoleRestarted {
+        /// Role name.
+        name: String,
+        /// The new pid.
+        pid: u32,
+        /// Restarts of this role so far, this one included.
+        restarts: u32,
+    },
+    /// A restart could not spawn the process; it counts against the budget.
+    RestartFailed {
+        /// Role name.
+        name: String,
+        /// Why.
+        reason: String,
+    },
+    /// The restart budget is spent: the role stays down.
+    RoleGaveUp {
+        /// Role name.
+        name: String,
+    },
+    /// The first heartbeat of the role's current process arrived.
+    FirstHeartbeat {
+        /// Role name.
+        name: String,
+    },
+}
+
+impl core::fmt::Display for SupervisorEvent {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            SupervisorEvent::RoleStarted { name, pid } => {
+                write!(f, "role `{name}` started (pid {pid})")
+            }
+            SupervisorEvent::RoleExited { name, status } => {
+                write!(f, "role `{name}` exited ({status})")
+            }
+            SupervisorEvent::RoleRestarted {
+                name,
+                pid,
+                restarts,
+            } => write!(f, "role `{name}` restarted (pid {pid}, restart {restarts})"),
+            SupervisorEvent::RestartFailed { name, reason } => {
+                write!(f, "role `{name}` could not be restarted: {reason}")
+            }
+            SupervisorEvent::RoleGaveUp { name } => {
+                write!(f, "role `{name}` spent its restart budget and stays down")
+            }
+            SupervisorEvent::FirstHeartbeat { name } => {
+                write!(f, "role `{name}` is alive (first heartbeat)")
+            }
+        }
+    }
+}
+
+/// Where a role is in its life.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RoleState {
+    /// Its process runs.
+    Running,
+    /// Its process exited; it restarts at this instant.
+    Backoff {
+        /// When the restart is due.
+        until: Instant,
+    },
+    /// Its process exited and the policy keeps it down (no failure).
+    Stopped,
+    /// Its restart budget is spent.
+    GaveUp,
+}
+
+/// What the supervisor knows about one role.
+#[derive(Debug)]
+pub struct RoleRuntime {
+    name: String,
+    kind: String,
+    variant: String,
+    cpus: String,
+    cpu_set: Option<CpuSet>,
+    spec_path: PathBuf,
+    log_path: PathBuf,
+    policy: RestartPolicy,
+    max_restarts: u32,
+    backoff_ms: u64,
+    child: Option<Child>,
+    pid: Option<u32>,
+    old_pids: Vec<u32>,
+    state: RoleState,
+    restarts: u32,
+    last_exit: Option<RoleExit>,
+    last_heartbeat: Option<RoleHeartbeat>,
+    heartbeats: u64,
+    incarnation_heartbeats: u64,
+    heartbeat_gaps: u64,
+    window: LatencyWindow,
+    latency_ms: Option<[f64; 3]>,
+}
+
+impl RoleRuntime {
+    /// Role name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+    /// Role kind.
+    pub fn kind(&self) -> &str {
+        &self.kind
+    }
+    /// Variant it runs.
+    pub fn variant(&self) -> &str {
+        &self.variant
+    }
+    /// CPU list it is bound to ("" = unbound).
+    pub fn cpus(&self) -> &str {
+        &self.cpus
+    }
+    /// Pid of its running process.
+    pub fn pid(&self) -> Option<u32> {
+        self.pid
+    }
+    /// Its state.
+    pub fn state(&self) -> RoleState {
+        self.state
+    }
+    /// Restarts so far.
+    pub fn restarts(&self) -> u32 {
+        self.restarts
+    }
+    /// How its last process ended.
+    pub fn last_exit(&self) -> Option<RoleExit> {
+        self.last_exit
+    }
+    /// The last valid heartbeat (with its counters).
+    pub fn last_heartbeat(&self) -> Option<&RoleHeartbeat> {
+        self.last_heartbeat.as_ref()
+    }
+    /// Heartbeats received from all its processes.
+    pub fn heartbeats(&self) -> u64 {
+        self.heartbeats
+    }
+    /// `true` once its running process sent a heartbeat (false while it is down).
+    pub fn has_heartbeat(&self) -> bool {
+        self.incarnation_heartbeats > 0
+    }
+    /// Heartbeat sequence gaps observed (one per discontinuity).
+    pub fn heartbeat_gaps(&self) -> u64 {
+        self.heartbeat_gaps
+    }
+    /// Cycle latency p50, p95, p99 (ms) over the last [`LATENCY_WINDOW`] cycles.
+    pub fn latency_ms(&self) -> Option<[f64; 3]> {
+        self.latency_ms
+    }
+    /// Cycles in the latency window.
+    pub fn latency_samples(&self) -> usize {
+        self.window.len()
+    }
+    /// Its spec file.
+    pub fn spec_path(&self) -> &Path {
+        &self.spec_path
+    }
+    /// Its log file.
+    pub fn log_path(&self) -> &Path {
+        &self.log_path
+    }
+
+    fn describe_state(&self) -> String {
+        match (self.state, self.pid) {
+            (RoleState::Running, Some(pid)) => format!("running, pid {pid}"),
+            (RoleState::Running, None) => "running".into(),
+            (RoleState::Backoff { .. }, _) => self.with_exit("waiting to restart"),
+            (RoleState::Stopped, _) => self.with_exit("stopped"),
+            (RoleState::GaveUp, _) => {
+                self.with_exit(&format!("gave up after {} restart(s)", self.restarts))
+            }
+        }
+    }
+
+    fn with_exit(&self, what: &str) -> String {
+        match self.last_exit {
+            Some(e) => format!("{what}, last {e}"),
+            None => what.to_string(),
+        }
+    }
+
+    /// Record a heartbeat; returns `true` when it is the first of the current process.
+    fn record(&mut self, hb: &RoleHeartbeat, status: RoleStatus) -> bool {
+        let first = self.incarnation_heartbeats == 0;
+        let same_process = self.last_heartbeat.is_some_and(|l| l.pid == hb.pid);
+        let repeat = match &self.last_heartbeat {
+            Some(last) if same_process => {
+                if hb.seq > last.seq + 1 {
+                    self.heartbeat_gaps += 1;
+                }
+                // A liveness heartbeat repeats the last cycle's figures: count cycles once.
+                last.cycle_latency_ns == hb.cycle_latency_ns && last.stages == hb.stages
+            }
+            _ => false,
+        };
+        let working = matches!(status, RoleStatus::Running | RoleStatus::Degraded);
+        if working && hb.cycle_latency_ns > 0 && !repeat {
+            self.window.push(hb.cycle_latency_ns as f64 / 1e6);
+            self.latency_ms = self.window.percentiles([50.0, 95.0, 99.0]);
+        }
+        self.last_heartbeat = Some(*hb);
+        self.heartbeats += 1;
+        self.incarnation_heartbeats += 1;
+        first
+    }
+}
+
+/// How one role ended at shutdown.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ShutdownOutcome {
+    /// It exited within the grace period after SIGTERM.
+    Exited(RoleExit),
+    /// It was still running after the grace period and got SIGKILL.
+    Killed,
+    /// No process was running.
+    NotRunning,
+}
+
+/// One line of a [`ShutdownReport`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ShutdownEntry {
+    /// Role name.
+    pub name: String,
+    /// How it ended.
+    pub outcome: ShutdownOutcome,
+}
+
+/// Who exited cleanly at shutdown and who had to be killed, in signalling order.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct ShutdownReport {
+    /// One entry per role.
+    pub roles: Vec<ShutdownEntry>,
+}
+
+impl ShutdownReport {
+    /// Roles that exited with code 0.
+    pub fn clean(&self) -> Vec<&str> {
+        self.filter(|o| o == ShutdownOutcome::Exited(RoleExit::Code(0)))
+    }
+    /// Roles that needed SIGKILL.
+    pub fn killed(&self) -> Vec<&str> {
+        self.filter(|o| o == ShutdownOutcome::Killed)
+    }
+    /// `true` when every running role exited with code 0.
+    pub fn all_clean(&self) -> bool {
+        self.roles.iter().all(|e| {
+            matches!(
+                e.outcome,
+                ShutdownOutcome::Exited(RoleExit::Code(0)) | ShutdownOutcome::NotRunning
+            )
+        })
+    }
+    fn filter(&self, f: impl Fn(ShutdownOutcome) -> bool) -> Vec<&str> {
+        self.roles
+            .iter()
+            .filter(|e| f(e.outcome))
+            .map(|e| e.name.as_str())
+            .collect()
+    }
+}
+
+impl core::fmt::Display for ShutdownOutcome {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ShutdownOutcome::Exited(RoleExit::Code(0)) => write!(f, "exited cleanly"),
+            ShutdownOutcome::Exited(e) => write!(f, "exited ({e})"),
+            ShutdownOutcome::Killed => write!(f, "killed after the grace period"),
+            ShutdownOutcome::NotRunning => write!(f, "not running"),
+        }
+    }
+}
+
+impl core::fmt::Display for ShutdownReport {
+    /// One `name: outcome` item per role, comma-separated, in signalling order.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        for (i, e) in self.roles.iter().enumerate() {
+            if i > 0 {
+                write!(f, ", ")?;
+            }
+            write!(f, "{}: {}", e.name, e.outcome)?;
+        }
+        Ok(())
+    }
+}
+
+/// Order in which shutdown stops kinds: reasoning first, controller and vehicle last.
+fn shutdown_rank(kind: &str) -> u8 {
+    match kind {
+        "reasoning" => 0,
+        "perception" | "camera" => 1,
+        "controller" => 3,
+        "vehicle" => 4,
+        _ => 2,
+    }
+}
+
+/// The supervisor of one flight.
+pub struct Supervisor {
+    roles: Vec<RoleRuntime>,
+    flight: String,
+    aeris_exe: PathBuf,
+    run_dir: PathBuf,
+    heartbeats: TypedSubscriber<RoleHeartbeat>,
+    board: StatusBoardWriter,
+    status: SupervisorStatus,
+    pending: Vec<SupervisorEvent>,
+    invalid_heartbeats: u64,
+    unknown_heartbeats: u64,
+    bus: FlightBus,
+}
+
+impl core::fmt::Debug for Supervisor {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Supervisor")
+            .field("flight", &self.flight)
+            .field("roles", &self.roles)
+            .finish()
+    }
+}
+
+/// Open (append) a role's log and write `header` to it.
+fn open_log(log: &Path, header: &str) -> std::io::Result<std::fs::File> {
+    let mut file = OpenOptions::new().create(true).append(true).open(log)?;
+    writeln!(file, "{header}")?;
+    Ok(file)
+}
+
+/// Start `exe role --spec SPEC` with stdout and stderr appended to `log`.
+fn spawn_role(
+    exe: &Path,
+    spec: &Path,
+    log: std::fs::File,
+    cpus: Option<&CpuSet>,
+) -> std::io::Result<Child> {
+    let file = log;
+    let err = file.try_clone()?;
+    let mut cmd = Command::new(exe);
+    cmd.arg("role")
+        .arg("--spec")
+        .arg(spec)
+        .stdin(Stdio::null())
+        .stdout(Stdio::from(file))
+        .stderr(Stdio::from(err))
+        .process_group(0);
+    // SAFETY: getpid has no preconditions.
+    let parent = unsafe { libc::getpid() };
+    let cpus = cpus.cloned();
+    // SAFETY: the closure only makes async-signal-safe system calls (prctl, getppid,
+    // sched_setaffinity, close_range/fcntl) and does not allocate: CpuSet::bind_task builds the mask on the
+    // stack and io::Error::last_os_error / from_raw_os_error do not allocate.
+    unsafe {
+        cmd.pre_exec(move || {
+            if libc::prctl(
+                libc::PR_SET_PDEATHSIG,
+                libc::SIGKILL as libc::c_ulong,
+                0 as libc::c_ulong,
+                0 as libc::c_ulong,
+                0 as libc::c_ulong,
+            ) != 0
+            {
+                return Err(std::io::Error::last_os_error());
+            }
+            // The supervisor died between fork and prctl: do not run orphaned.
+            if libc::getppid() != parent {
+                return Err(std::io::Error::from_raw_os_error(libc::ESRCH));
+            }
+            if let Some(set) = &cpus {
+                set.bind_task(0)?;
+            }
+            close_inherited_fds();
+            Ok(())
+        });
+    }
+    cmd.spawn()
+}
+
+/// Mark every descriptor above stderr close-on-exec, so a role does not inherit the
+/// supervisor's iceoryx2 node locks and shared-memory handles (which would keep a dead
+/// supervisor's node looking alive). Closing is left to exec: std's error-report pipe must
+/// stay open until then. Runs between fork and exec: async-signal-safe, no allocation.
+fn close_inherited_fds() {
+    // SAFETY: close_range only changes descriptor flags of this (forked) process.
+    let rc = unsafe {
+        libc::syscall(
+            libc::SYS_close_range,
+            3 as libc::c_uint,
+            libc::c_uint::MAX,
+            libc::CLOSE_RANGE_CLOEXEC,
+        )
+    };
+    if rc == 0 {
+        return;
+    }
+    // Kernels before 5.11: one by one, up to the descriptor limit.
+    // SAFETY: a zeroed rlimit is valid; getrlimit fills it.
+    let mut lim: libc::rlimit = unsafe { core::mem::zeroed() };
+    // SAFETY: `lim` is writable.
+    let max = if unsafe { libc::getrlimit(libc::RLIMIT_NOFILE, &mut lim) } == 0 {
+        lim.rlim_cur.min(65_536) as libc::c_int
+    } else {
+        1024
+    };
+    for fd in 3..max {
+        // SAFETY: fcntl on a descriptor number that may or may not be open is harmless.
+        unsafe {
+            let flags = libc::fcntl(fd, libc::F_GETFD);
+            if flags >= 0 && flags & libc::FD_CLOEXEC == 0 {
+                libc::fcntl(fd, libc::F_SETFD, flags | libc::FD_CLOEXEC);
+            }
+        }
+    }
+}
+
+/// The last `lines` lines of a file (reads at most its last 16 KiB); empty when unreadable.
+pub fn log_tail(path: &Path, lines: usize) -> Vec<String> {
+    let Ok(mut f) = std::fs::File::open(path) else {
+        return Vec::new();
+    };
+    let len = f.metadata().map(|m| m.len()).unwrap_or(0);
+    let start = len.saturating_sub(16 * 1024);
+    if f.seek(SeekFrom::Start(start)).is_err() {
+        return Vec::new();
+    }
+    let mut buf = Vec::new();
+    if f.read_to_end(&mut buf).is_err() {
+        return Vec::new();
+    }
+    let text = String::from_utf8_lossy(&buf);
+    let all: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
+    // the first line may be cut when we did not read from the start
+    let skip_first = usize::from(start > 0 && all.len() > lines);
+    let from = all.len().saturating_sub(lines).max(skip_first);
+    all[from..].iter().map(|l| l.to_string()).collect()
+}
+
+fn supervisor_pid() -> u32 {
+    std::process::id()
+}
+
+impl Supervisor {
+    /// Plan the flight, open the bus (publishing the flight manifest), the status board and
+    /// the heartbeat subscriber, write every role's spec and start every role in dependency
+    /// order. On error, roles already started are killed.
+    pub fn start(options: SupervisorOptions) -> Result<Supervisor, SupervisorError> {
+        let SupervisorOptions {
+            workflow,
+            flight,
+            aeris_exe,
+            run_dir,
+            autopilot,
+        } = options;
+        let online = CpuSet::of_task(0).unwrap_or_else(|_| CpuSet::available());
+        let plan = plan_launch(
+            &workflow,
+            &flight,
+            autopilot.as_deref(),
+            &online,
+            crate::launch::free_udp_port,
+        )
+        .map_err(|source| SupervisorError::Plan {
+            flight: flight.clone(),
+            source,
+        })?;
+        let bus_err = |source| SupervisorError::Bus {
+            flight: flight.clone(),
+            source,
+        };
+        let bus = FlightBus::builder(&flight)
+            .node_name("supervisor")
+            .create()
+            .map_err(bus_err)?;
+        let heartbeats = bus
+            .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
+            .map_err(bus_err)?;
+        let board = bus.create_status_board().map_err(bus_err)?;
+
+        let roles_dir = run_dir.join("roles");
+        let logs_dir = run_dir.join("logs");
+        for dir in [&roles_dir, &logs_dir] {
+            std::fs::create_dir_all(dir).map_err(|source| SupervisorError::RunDir {
+                path: dir.clone(),
+                source,
+            })?;
+        }
+
+        let mut sup = Supervisor {
+            roles: Vec::with_capacity(plan.roles.len()),
+            flight: flight.clone(),
+            aeris_exe,
+            run_dir,
+            heartbeats,
+            board,
+            status: SupervisorStatus {
+                supervisor_pid: supervisor_pid(),
+                subgoals: workflow.mission.subgoals.len().min(u16::MAX as usize) as u16,
+                ..SupervisorStatus::default()
+            },
+            pending: Vec::new(),
+            invalid_heartbeats: 0,
+            unknown_heartbeats: 0,
+            bus,
+        };
+        for planned in plan.roles {
+            sup.add_role(planned, &roles_dir, &logs_dir)?;
+        }
+        for i in 0..sup.roles.len() {
+            let pid = sup.spawn(i, "start")?;
+            sup.pending.push(SupervisorEvent::RoleStarted {
+                name: sup.roles[i].name.clone(),
+                pid,
+            });
+        }
+        sup.publish_board();
+        Ok(sup)
+    }
+
+    fn add_role(
+        &mut self,
+        planned: PlannedRole,
+        roles_dir: &Path,
+        logs_dir: &Path,
+    ) -> Result<(), SupervisorError> {
+        let PlannedRole {
+            spec,
+            cpus,
+            restart,
+            max_restarts,
+            backoff_ms,
+        } = planned;
+        let spec_path = roles_dir.join(format!("{}.json", spec.name));
+        let log_path = logs_dir.join(format!("{}.log", spec.name));
+        let json = serde_json::to_string_pretty(&spec).map_err(|e| SupervisorError::WriteSpec {
+            role: spec.name.clone(),
+            path: spec_path.clone(),
+            source: std::io::Error::other(e),
+        })?;
+        std::fs::write(&spec_path, json).map_err(|source| SupervisorError::WriteSpec {
+            role: spec.name.clone(),
+            path: spec_path.clone(),
+            source,
+        })?;
+        self.roles.push(RoleRuntime {
+            name: spec.name,
+            kind: spec.kind,
+            variant: spec.variant,
+            cpus: spec.cpus,
+            cpu_set: cpus,
+            spec_path,
+            log_path,
+            policy: restart,
+            max_restarts,
+            backoff_ms,
+            child: None,
+            pid: None,
+            old_pids: Vec::new(),
+            state: RoleState::Stopped,
+            restarts: 0,
+            last_exit: None,
+            last_heartbeat: None,
+            heartbeats: 0,
+            incarnation_heartbeats: 0,
+            heartbeat_gaps: 0,
+            window: LatencyWindow::new(LATENCY_WINDOW),
+            latency_ms: None,
+        });
+        Ok(())
+    }
+
+    /// Start role `i`'s process; returns its pid.
+    fn spawn(&mut self, i: usize, why: &str) -> Result<u32, SupervisorError> {
+        let exe = self.aeris_exe.clone();
+        let Some(role) = self.roles.get_mut(i) else {
+            return Err(SupervisorError::Spawn {
+                role: format!("#{i}"),
+                exe,
+                spec: PathBuf::new(),
+                cpus: String::new(),
+                source: std::io::Error::other("no such role"),
+            });
+        };
+        let header = format!(
+            "=== aeris supervisor: {why} role `{}` ({} / {}) on CPUs [{}], monotonic {} ns ===",
+            role.name,
+            role.kind,
+            role.variant,
+            role.cpus,
+            monotonic_ns()
+        );
+        let log = open_log(&role.log_path, &header).map_err(|source| SupervisorError::OpenLog {
+            role: role.name.clone(),
+            path: role.log_path.clone(),
+            source,
+        })?;
+        match spawn_role(&exe, &role.spec_path, log, role.cpu_set.as_ref()) {
+            Ok(child) => {
+                let pid = child.id();
+                role.child = Some(child);
+                role.pid = Some(pid);
+                role.state = RoleState::Running;
+                role.incarnation_heartbeats = 0;
+                Ok(pid)
+            }
+            Err(source) => Err(SupervisorError::Spawn {
+                role: role.name.clone(),
+                exe,
+                spec: role.spec_path.clone(),
+                cpus: if role.cpus.is_empty() {
+                    String::new()
+                } else {
+                    format!(" on CPUs {}", role.cpus)
+                },
+                source,
+            }),
+        }
+    }
+
+    /// One non-blocking round: drain heartbeats, reap exited roles and apply their restart
+    /// policy, start due restarts, update the status board. Call it every ~20 ms.
+    pub fn step(&mut self) -> Result<Vec<SupervisorEvent>, SupervisorError> {
+        let mut events = core::mem::take(&mut self.pending);
+        self.drain_heartbeats(&mut events)?;
+        self.reap(&mut events)?;
+        self.restart_due(&mut events);
+        self.publish_board();
+        Ok(events)
+    }
+
+    fn drain_heartbeats(
+        &mut self,
+        events: &mut Vec<SupervisorEvent>,
+    ) -> Result<(), SupervisorError> {
+        loop {
+            let hb = match self.heartbeats.next() {
+                Ok(Some(hb)) => hb,
+                Ok(None) => return Ok(()),
+                Err(source) => {
+                    return Err(SupervisorError::Bus {
+                        flight: self.flight.clone(),
+                        source,
+                    });
+                }
+            };
+            let Ok(status) = hb.validate() else {
+                self.invalid_heartbeats += 1;
+                continue;
+            };
+            let name = hb.role.as_str().unwrap_or("");
+            let Some(role) = self.roles.iter_mut().find(|r| r.name == name) else {
+                self.unknown_heartbeats += 1;
+                continue;
+            };
+            if role.old_pids.contains(&hb.pid) {
+                continue; // late heartbeat of a process that already exited
+            }
+            if role.record(&hb, status) {
+                events.push(SupervisorEvent::FirstHeartbeat {
+                    name: role.name.clone(),
+                });
+            }
+        }
+    }
+
+    fn reap(&mut self, events: &mut Vec<SupervisorEvent>) -> Result<(), SupervisorError> {
+        let now = Instant::now();
+        for role in &mut self.roles {
+            let Some(child) = role.child.as_mut() else {
+                continue;
+            };
+            let status = match child.try_wait() {
+                Ok(Some(status)) => status,
+                Ok(None) => continue,
+                Err(source) => {
+                    return Err(SupervisorError::Wait {
+                        role: role.name.clone(),
+                        pid: child.id(),
+                        source,
+                    });
+                }
+            };
+            let exit = RoleExit::from_status(status);
+            if let Some(pid) = role.pid.take() {
+                role.old_pids.push(pid);
+            }
+            role.child = None;
+            role.last_exit = Some(exit);
+            role.incarnation_heartbeats = 0;
+            events.push(SupervisorEvent::RoleExited {
+                name: role.name.clone(),
+                status: exit,
+            });
+            role.state = match restart_decision(
+                role.policy,
+                exit,
+                role.restarts,
+                role.max_restarts,
+                role.backoff_ms,
+            ) {
+                RestartDecision::Stay => RoleState::Stopped,
+                RestartDecision::Restart { after } => RoleState::Backoff { until: now + after },
+                RestartDecision::GiveUp => {
+                    events.push(SupervisorEvent::RoleGaveUp {
+                        name: role.name.clone(),
+                    });
+                    RoleState::GaveUp
+                }
+            };
+        }
+        Ok(())
+    }
+
+    fn restart_due(&mut self, events: &mut Vec<SupervisorEvent>) {
+        let now = Instant::now();
+        for i in 0..self.roles.len() {
+            let RoleState::Backoff { until } = self.roles[i].state else {
+                continue;
+            };
+            if now < until {
+                continue;
+            }
+            self.roles[i].restarts += 1;
+            let name = self.roles[i].name.clone();
+            match self.spawn(i, "restart") {
+                Ok(pid) => events.push(SupervisorEvent::RoleRestarted {
+                    name,
+                    pid,
+                    restarts: self.roles[i].restarts,
+                }),
+                Err(e) => {
+                    events.push(SupervisorEvent::RestartFailed {
+                        name: name.clone(),
+                        reason: e.to_string(),
+                    });
+                    let role = &mut self.roles[i];
+                    let exit = role.last_exit.unwrap_or(RoleExit::Code(-1));
+                    role.state = match restart_decision(
+                        RestartPolicy::Always,
+                        exit,
+                        role.restarts,
+                        role.max_restarts,
+                        role.backoff_ms,
+                    ) {
+                        RestartDecision::Restart { after } => {
+                            RoleState::Backoff { until: now + after }
+                        }
+                        _ => {
+                            events.push(SupervisorEvent::RoleGaveUp { name });
+                            RoleState::GaveUp
+                        }
+                    };
+                }
+            }
+        }
+    }
+
+    fn publish_board(&mut self) {
+        let s = &mut self.status;
+        s.seq += 1;
+        s.stamp_ns = monotonic_ns();
+        s.role_count = self.roles.len().min(MAX_ROLES) as u32;
+        for (entry, role) in s.roles.iter_mut().zip(self.roles.iter()) {
+            let hb = role.last_heartbeat.as_ref();
+            let lat = role.latency_ms.unwrap_or([0.0; 3]);
+            *entry = RoleStatusEntry {
+                name: FixedText::from_str_truncated(&role.name),
+                variant: FixedText::from_str_truncated(&role.variant),
+                cpus: FixedText::from_str_truncated(&role.cpus),
+                pid: role.pid.unwrap_or(0),
+                status: hb.map(|h| h.status).unwrap_or(0),
+                reserved: [0; 3],
+                last_heartbeat_ns: hb.map(|h| h.stamp_ns).unwrap_or(0),
+                heartbeats: role.heartbeats,
+                latency_ms: [lat[0] as f32, lat[1] as f32, lat[2] as f32],
+                restarts: role.restarts,
+                heartbeat_gaps: role.heartbeat_gaps.min(u32::MAX as u64) as u32,
+            };
+        }
+        self.board.update(&self.status);
+    }
+
+    /// Step until every role has sent a heartbeat from its current process. Events seen
+    /// meanwhile are returned by the next [`Supervisor::step`]. Fails at once when a role
+    /// stops for good, and after `timeout` naming the silent roles with their log tails.
+    pub fn wait_ready(&mut self, timeout: Duration) -> Result<(), SupervisorError> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            let events = self.step()?;
+            self.pending.extend(events);
+            if let Some(role) = self.roles.iter().find(|r| {
+                !r.has_heartbeat() && matches!(r.state, RoleState::GaveUp | RoleState::Stopped)
+            }) {
+                return Err(SupervisorError::RoleDown {
+                    role: role.name.clone(),
+                    state: role.describe_state(),
+                    log_path: role.log_path.clone(),
+                    log_tail: log_tail(&role.log_path, LOG_TAIL_LINES),
+                });
+            }
+            if self.roles.iter().all(RoleRuntime::has_heartbeat) {
+                return Ok(());
+            }
+            if Instant::now() >= deadline {
+                let silent = self
+                    .roles
+                    .iter()
+                    .filter(|r| !r.has_heartbeat())
+                    .map(|r| SilentRole {
+                        name: r.name.clone(),
+                        state: r.describe_state(),
+                        log_path: r.log_path.clone(),
+                        log_tail: log_tail(&r.log_path, LOG_TAIL_LINES),
+                    })
+                    .collect();
+                return Err(SupervisorError::NotReady { timeout, silent });
+            }
+            std::thread::sleep(POLL);
+        }
+    }
+
+    /// Every role, in start order.
+    pub fn roles(&self) -> &[RoleRuntime] {
+        &self.roles
+    }
+
+    /// The role named `name`.
+    pub fn role(&self, name: &str) -> Option<&RoleRuntime> {
+        self.roles.iter().find(|r| r.name == name)
+    }
+
+    /// Restarts of all roles together.
+    pub fn total_restarts(&self) -> u32 {
+        self.roles.iter().map(|r| r.restarts).sum()
+    }
+
+    /// Heartbeats that failed validation.
+    pub fn invalid_heartbeats(&self) -> u64 {
+        self.invalid_heartbeats
+    }
+
+    /// Valid heartbeats from a role name that is not in this flight.
+    pub fn unknown_heartbeats(&self) -> u64 {
+        self.unknown_heartbeats
+    }
+
+    /// The flight name.
+    pub fn flight(&self) -> &str {
+        &self.flight
+    }
+
+    /// The supervisor's node in the flight.
+    pub fn bus(&self) -> &FlightBus {
+        &self.bus
+    }
+
+    /// The run directory (specs under `roles/`, logs under `logs/`).
+    pub fn run_dir(&self) -> &Path {
+        &self.run_dir
+    }
+
+    /// The last status board written.
+    pub fn status(&self) -> &SupervisorStatus {
+        &self.status
+    }
+
+    /// Mission progress copied onto the status board (written at once).
+    pub fn set_progress(
+        &mut self,
+        active_step: u16,
+        subgoals: u16,
+        distance_to_goal_m: f32,
+        ct_mean_s: f32,
+    ) {
+        self.status.active_step = active_step;
+        self.status.subgoals = subgoals;
+        self.status.distance_to_goal_m = distance_to_goal_m;
+        self.status.ct_mean_s = ct_mean_s;
+        self.publish_board();
+    }
+
+    /// Stop every role: SIGTERM in order (reasoning first; controller and vehicle only once
+    /// the others exited or half of `grace` passed), wait up to `grace` in all, SIGKILL the
+    /// stragglers and reap everything.
+    pub fn shutdown(mut self, grace: Duration) -> ShutdownReport {
+        let start = Instant::now();
+        let mut order: Vec<usize> = (0..self.roles.len()).collect();
+        order.sort_by_key(|&i| shutdown_rank(&self.roles[i].kind));
+        let mut outcomes: Vec<Option<ShutdownOutcome>> = vec![None; self.roles.len()];
+        for &i in &order {
+            let role = &mut self.roles[i];
+            if role.child.is_none() {
+                outcomes[i] = Some(ShutdownOutcome::NotRunning);
+            }
+            role.state = RoleState::Stopped;
+        }
+        // phase 1: everything but the control roles; phase 2: controller, vehicle
+        let phases = [(0u8..3, grace / 2), (3u8..u8::MAX, grace)];
+        for (ranks, until) in phases {
+            let in_phase = |rank: u8| ranks.contains(&rank);
+            for &i in &order {
+                let role = &self.roles[i];
+                if in_phase(shutdown_rank(&role.kind))
+                    && let Some(child) = &role.child
+                    && let Ok(pid) = libc::pid_t::try_from(child.id())
+                {
+                    // SAFETY: kill has no memory-safety preconditions; the pid is our
+                    // unreaped child, so it cannot have been reused.
+                    unsafe { libc::kill(pid, libc::SIGTERM) };
+                }
+            }
+            loop {
+                self.collect_exits(&mut outcomes);
+                let waiting = order.iter().any(|&i| {
+                    outcomes[i].is_none() && in_phase(shutdown_rank(&self.roles[i].kind))
+                });
+                if !waiting || start.elapsed() >= until {
+                    break;
+                }
+                std::thread::sleep(SHUTDOWN_POLL);
+            }
+        }
+        for (i, role) in self.roles.iter_mut().enumerate() {
+            if let Some(mut child) = role.child.take() {
+                let _ = child.kill();
+                let _ = child.wait();
+                outcomes[i] = Some(ShutdownOutcome::Killed);
+                if let Some(pid) = role.pid.take() {
+                    role.old_pids.push(pid);
+                }
+            }
+        }
+        // drain what the roles said while stopping, then show everyone down
+        let mut ignored = Vec::new();
+        let _ = self.drain_heartbeats(&mut ignored);
+        self.publish_board();
+        ShutdownReport {
+            roles: order
+                .iter()
+                .map(|&i| ShutdownEntry {
+                    name: self.roles[i].name.clone(),
+                    outcome: outcomes[i].unwrap_or(ShutdownOutcome::NotRunning),
+                })
+                .collect(),
+        }
+    }
+
+    fn collect_exits(&mut self, outcomes: &mut [Option<ShutdownOutcome>]) {
+        for (i, role) in self.roles.iter_mut().enumerate() {
+            let Some(child) = role.child.as_mut() else {
+                continue;
+            };
+            if let Ok(Some(status)) = child.try_wait() {
+                let exit = RoleExit::from_status(status);
+                role.last_exit = Some(exit);
+                role.child = None;
+                if let Some(pid) = role.pid.take() {
+                    role.old_pids.push(pid);
+                }
+                outcomes[i] = Some(ShutdownOutcome::Exited(exit));
+            }
+        }
+    }
+}
+
+impl Drop for Supervisor {
+    fn drop(&mut self) {
+        for role in &mut self.roles {
+            if let Some(mut child) = role.child.take() {
+                let _ = child.kill();
+                let _ = child.wait();
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn log_tail_keeps_the_last_lines() {
+        let dir = std::env::temp_dir().join(format!("aeris-orch-tail-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("x.log");
+        let text: String = (0..20).map(|i| format!("line {i}\n")).collect();
+        std::fs::write(&p, text).unwrap();
+        assert_eq!(log_tail(&p, 2), vec!["line 18", "line 19"]);
+        assert!(log_tail(&dir.join("missing.log"), 3).is_empty());
+        // a long log: only whole lines from the end
+        let long: String = (0..5000).map(|i| format!("entry {i:05}\n")).collect();
+        std::fs::write(&p, long).unwrap();
+        assert_eq!(log_tail(&p, 1), vec!["entry 04999"]);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn shutdown_reports_print_one_item_per_role() {
+        let report = ShutdownReport {
+            roles: vec![
+                ShutdownEntry {
+                    name: "reasoning".into(),
+                    outcome: ShutdownOutcome::Exited(RoleExit::Code(0)),
+                },
+                ShutdownEntry {
+                    name: "vehicle".into(),
+                    outcome: ShutdownOutcome::Killed,
+                },
+            ],
+        };
+        assert_eq!(
+            report.to_string(),
+            "reasoning: exited cleanly, vehicle: killed after the grace period"
+        );
+        assert_eq!(report.clean(), ["reasoning"]);
+        assert_eq!(report.killed(), ["vehicle"]);
+        assert!(!report.all_clean());
+    }
+
+    #[test]
+    fn shutdown_ranks_put_reasoning_first_and_vehicle_last() {
+        let mut kinds = [
+            "vehicle",
+            "controller",
+            "hub",
+            "camera",
+            "reasoning",
+            "perception",
+        ];
+        kinds.sort_by_key(|k| shutdown_rank(k));
+        assert_eq!(kinds[0], "reasoning");
+        assert_eq!(kinds[4], "controller");
+        assert_eq!(kinds[5], "vehicle");
+    }
+
+    fn hb(pid: u32, seq: u64, latency_ns: u64) -> RoleHeartbeat {
+        let mut h = RoleHeartbeat::default();
+        h.role.set("r");
+        h.pid = pid;
+        h.seq = seq;
+        h.status = RoleStatus::Running as u8;
+        h.cycle_latency_ns = latency_ns;
+        h
+    }
+
+    fn runtime() -> RoleRuntime {
+        RoleRuntime {
+            name: "r".into(),
+            kind: "hub".into(),
+            variant: "gate".into(),
+            cpus: String::new(),
+            cpu_set: None,
+            spec_path: PathBuf::new(),
+            log_path: PathBuf::new(),
+            policy: RestartPolicy::OnFailure,
+            max_restarts: 1,
+            backoff_ms: 1,
+            child: None,
+            pid: None,
+            old_pids: Vec::new(),
+            state: RoleState::Running,
+            restarts: 0,
+            last_exit: None,
+            last_heartbeat: None,
+            heartbeats: 0,
+            incarnation_heartbeats: 0,
+            heartbeat_gaps: 0,
+            window: LatencyWindow::new(LATENCY_WINDOW),
+            latency_ms: None,
+        }
+    }
+
+    #[test]
+    fn heartbeats_feed_gaps_and_percentiles() {
+        let mut r = runtime();
+        assert!(r.record(&hb(10, 1, 1_000_000), RoleStatus::Running));
+        assert!(!r.record(&hb(10, 2, 2_000_000), RoleStatus::Running));
+        // a liveness repeat of the same figures is not a new cycle
+        assert!(!r.record(&hb(10, 3, 2_000_000), RoleStatus::Running));
+        assert_eq!(r.latency_samples(), 2);
+        // seq 4 and 5 lost
+        r.record(&hb(10, 6, 3_000_000), RoleStatus::Running);
+        assert_eq!(r.heartbeat_gaps(), 1);
+        assert_eq!(r.latency_ms(), Some([2.0, 3.0, 3.0]));
+        // a new process restarts at seq 1: not a gap
+        r.incarnation_heartbeats = 0;
+        assert!(r.record(&hb(11, 1, 0), RoleStatus::Starting));
+        assert_eq!(r.heartbeat_gaps(), 1);
+        assert_eq!(r.heartbeats(), 5);
+        assert_eq!(r.latency_samples(), 3);
+    }
+}

@@ -1,0 +1,1031 @@
+//! Workflow files: which roles a flight runs, on which executors, with which message paths.
+//!
+//! A workflow is a TOML file (format in `workflows/README.md`). [`Workflow::from_toml_str`]
+//! parses and validates it in one go; every problem comes back as a [`WorkflowError`] that
+//! names the offending role, field, executor or topic and says how to fix it. Parsing never
+//! panics, whatever the input.
+
+use crate::restart::RestartPolicy;
+use aeris_runtime::affinity::{CpuSet, CpuSetError};
+use aeris_runtime::catalog::{ROLE_KINDS, role_kind};
+use aeris_runtime::spec::{CameraSpec, MissionError, MissionSpec, TimingSpec};
+use aeris_schemas::heartbeat::NAME_MAX;
+use aeris_schemas::{MAX_ROLES, topics};
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// The built-in default flight (`workflows/default.toml`).
+pub const DEFAULT_WORKFLOW_TOML: &str = include_str!("../../workflows/default.toml");
+
+/// Role kinds every workflow must have (plus `vehicle` while the controller's autopilot is
+/// `auto`).
+pub const REQUIRED_KINDS: [&str; 5] = ["hub", "reasoning", "controller", "camera", "perception"];
+
+/// Default restart budget of a role.
+pub const DEFAULT_MAX_RESTARTS: u32 = 5;
+/// Default first backoff of a role (ms).
+pub const DEFAULT_BACKOFF_MS: u64 = 100;
+
+/// Where an executor's CPUs come from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ExecutorCpus {
+    /// One CPU chosen by the supervisor (auto executors are spread round-robin).
+    Auto,
+    /// Every CPU the supervisor may run on.
+    All,
+    /// This explicit set.
+    Set(CpuSet),
+}
+
+impl core::fmt::Display for ExecutorCpus {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ExecutorCpus::Auto => write!(f, "auto"),
+            ExecutorCpus::All => write!(f, "all"),
+            ExecutorCpus::Set(s) => write!(f, "{s}"),
+        }
+    }
+}
+
+/// A named executor: a CPU set roles are bound to.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Executor {
+    /// Executor name (the key under `[executors]`).
+    pub name: String,
+    /// Its CPUs.
+    pub cpus: ExecutorCpus,
+}
+
+/// One role of the workflow, validated against the catalog.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RoleDecl {
+    /// Unique instance name.
+    pub name: String,
+    /// Kind from [`ROLE_KINDS`].
+    pub kind: String,
+    /// The variant to start.
+    pub variant: String,
+    /// Variants this role may be switched to (contains `variant`).
+    pub variants: Vec<String>,
+    /// Executor name, if bound.
+    pub executor: Option<String>,
+    /// Restart policy.
+    pub restart: RestartPolicy,
+    /// Restart budget.
+    pub max_restarts: u32,
+    /// First restart backoff (ms), doubling up to 5 s.
+    pub backoff_ms: u64,
+    /// Free-form parameters handed to the role.
+    pub params: serde_json::Map<String, serde_json::Value>,
+    /// Topics it subscribes to (the catalog's unless overridden).
+    pub subscribes: Vec<String>,
+    /// Topics it publishes (the catalog's unless overridden; `heartbeat` is implicit).
+    pub publishes: Vec<String>,
+}
+
+impl RoleDecl {
+    /// A string parameter.
+    pub fn param_str(&self, key: &str) -> Option<&str> {
+        self.params.get(key).and_then(|v| v.as_str())
+    }
+}
+
+/// A validated workflow.
+///
+/// The fields are public so that tools can adjust a workflow (e.g. pick another variant);
+/// call [`Workflow::validate`] after changing one. The supervisor validates again at start.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Workflow {
+    /// Flight timing.
+    pub timing: TimingSpec,
+    /// Topics allowed to close a loop (edges through them are not service dependencies).
+    pub feedback: Vec<String>,
+    /// Camera geometry.
+    pub camera: CameraSpec,
+    /// The mission.
+    pub mission: MissionSpec,
+    /// Executors, sorted by name.
+    pub executors: Vec<Executor>,
+    /// Roles in declaration order.
+    pub roles: Vec<RoleDecl>,
+}
+
+/// Why a workflow is unusable.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum WorkflowError {
+    /// The text is not valid TOML.
+    #[error("TOML syntax error at line {line}, column {column}: {message}")]
+    Syntax {
+        /// 1-based line.
+        line: usize,
+        /// 1-based column (characters).
+        column: usize,
+        /// The parser's message.
+        message: String,
+    },
+    /// Valid TOML but not a workflow: an unknown or missing field, or a wrong type.
+    #[error(
+        "line {line}, column {column}: {message} (see workflows/README.md for the workflow format)"
+    )]
+    Structure {
+        /// 1-based line (0 when unknown).
+        line: usize,
+        /// 1-based column (0 when unknown).
+        column: usize,
+        /// The message, naming the field.
+        message: String,
+    },
+    /// A `[flight]` timing value is out of range.
+    #[error("[flight] {field} = {value}: {reason}")]
+    Timing {
+        /// The field.
+        field: &'static str,
+        /// The value as written.
+        value: String,
+        /// What range it must be in.
+        reason: &'static str,
+    },
+    /// A `[camera]` value is out of range.
+    #[error("[camera] {field} = {value}: {reason}")]
+    Camera {
+        /// The field.
+        field: &'static str,
+        /// The value as written.
+        value: String,
+        /// What range it must be in.
+        reason: &'static str,
+    },
+    /// The mission is not flyable.
+    #[error("[mission] is invalid: {0}")]
+    Mission(MissionError),
+    /// An executor's `cpus` is not a usable CPU list.
+    #[error(
+        "[executors.{executor}] cpus = \"{cpus}\": {source}; write a CPU list, \"all\" or \"auto\""
+    )]
+    BadCpuSet {
+        /// Executor name.
+        executor: String,
+        /// The text as written.
+        cpus: String,
+        /// Why it is unusable.
+        source: CpuSetError,
+    },
+    /// More roles than the status board can list.
+    #[error("the workflow has {count} roles; at most {max} are supported")]
+    TooManyRoles {
+        /// Roles declared.
+        count: usize,
+        /// The limit.
+        max: usize,
+    },
+    /// A role name is empty, too long or has characters other than `A-Z a-z 0-9 _ -`.
+    #[error(
+        "role name `{name}` is invalid: use 1-{NAME_MAX} characters of A-Z, a-z, 0-9, `_`, `-`"
+    )]
+    BadRoleName {
+        /// The name.
+        name: String,
+    },
+    /// Two roles share a name.
+    #[error("two roles are named `{name}`: role names must be unique")]
+    DuplicateRole {
+        /// The name.
+        name: String,
+    },
+    /// A role's kind is not in the catalog.
+    #[error("role `{role}`: unknown kind `{kind}` (known kinds: {known})")]
+    UnknownKind {
+        /// Role name.
+        role: String,
+        /// The kind as written.
+        kind: String,
+        /// Known kinds, comma-separated.
+        known: String,
+    },
+    /// A role's variant (or one of its pool) is not a variant of its kind.
+    #[error("role `{role}`: kind `{kind}` has no variant `{variant}` (known variants: {known})")]
+    UnknownVariant {
+        /// Role name.
+        role: String,
+        /// Its kind.
+        kind: String,
+        /// The variant as written.
+        variant: String,
+        /// Known variants, comma-separated.
+        known: String,
+    },
+    /// The role's `variant` is not in its `variants` pool.
+    #[error("role `{role}`: variant `{variant}` is not in its variants pool [{pool}]; add it")]
+    VariantNotInPool {
+        /// Role name.
+        role: String,
+        /// The variant.
+        variant: String,
+        /// The pool, comma-separated.
+        pool: String,
+    },
+    /// The restart policy is not `never`, `on-failure` or `always`.
+    #[error("role `{role}`: restart = \"{value}\" is unknown (use never, on-failure or always)")]
+    BadRestart {
+        /// Role name.
+        role: String,
+        /// The value as written.
+        value: String,
+    },
+    /// A role names an executor that is not declared.
+    #[error("role `{role}`: executor `{executor}` is not declared (declared: {known})")]
+    UnknownExecutor {
+        /// Role name.
+        role: String,
+        /// The executor as written.
+        executor: String,
+        /// Declared executors, comma-separated (or "none").
+        known: String,
+    },
+    /// A role parameter has the wrong type.
+    #[error("role `{role}`: params.{param} {reason}")]
+    BadParam {
+        /// Role name.
+        role: String,
+        /// Parameter name.
+        param: &'static str,
+        /// What is wrong.
+        reason: &'static str,
+    },
+    /// A role names a topic that does not exist.
+    #[error("role `{role}`: unknown topic `{topic}` in {list} (known topics: {known})")]
+    UnknownTopic {
+        /// Role name.
+        role: String,
+        /// The topic as written.
+        topic: String,
+        /// `subscribes` or `publishes`.
+        list: &'static str,
+        /// Known topics, comma-separated.
+        known: String,
+    },
+    /// A `[flight] feedback` entry is not a topic.
+    #[error("[flight] feedback: unknown topic `{topic}` (known topics: {known})")]
+    UnknownFeedbackTopic {
+        /// The topic as written.
+        topic: String,
+        /// Known topics, comma-separated.
+        known: String,
+    },
+    /// A required role kind is missing.
+    #[error("the workflow has no role of kind `{kind}`{hint}")]
+    MissingRole {
+        /// The missing kind.
+        kind: &'static str,
+        /// Why it is needed / how to fix, may be empty.
+        hint: &'static str,
+    },
+    /// A role subscribes to a topic nobody publishes.
+    #[error("role `{role}` subscribes to `{topic}`, but no role publishes it")]
+    Unpublished {
+        /// Role name.
+        role: String,
+        /// The topic.
+        topic: String,
+    },
+    /// The services graph has a cycle that no feedback topic breaks.
+    #[error(
+        "the services graph has a cycle: {} (list the topic that closes the loop in [flight] feedback, or change the roles' subscribes)",
+        cycle_text(.path, .topics)
+    )]
+    Cycle {
+        /// Roles on the cycle; the first is repeated at the end.
+        path: Vec<String>,
+        /// The topic of each edge (`topics[i]` goes from `path[i]` to `path[i + 1]`).
+        topics: Vec<String>,
+    },
+}
+
+fn cycle_text(path: &[String], topics: &[String]) -> String {
+    let mut out = String::new();
+    for (i, role) in path.iter().enumerate() {
+        out.push_str(role);
+        if let Some(t) = topics.get(i) {
+            out.push_str(" -[");
+            out.push_str(t);
+            out.push_str("]-> ");
+        }
+    }
+    out
+}
+
+/// Why a workflow file could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum WorkflowFileError {
+    /// The file could not be read.
+    #[error("cannot read workflow file {path}: {source}")]
+    Read {
+        /// The path.
+        path: String,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The file was read but is not a valid workflow.
+    #[error("workflow file {path}: {source}")]
+    Invalid {
+        /// The path.
+        path: String,
+        /// What is wrong.
+        source: WorkflowError,
+    },
+}
+
+impl WorkflowFileError {
+    /// The validation error, when the file was read.
+    pub fn workflow_error(&self) -> Option<&WorkflowError> {
+        match self {
+            WorkflowFileError::Read { .. } => None,
+            WorkflowFileError::Invalid { source, .. } => Some(source),
+        }
+    }
+}
+
+// ---------------------------------------------------------------- raw TOML shape
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawWorkflow {
+    #[serde(default)]
+    flight: RawFlight,
+    #[serde(default)]
+    camera: CameraSpec,
+    mission: MissionSpec,
+    #[serde(default)]
+    executors: BTreeMap<String, RawExecutor>,
+    #[serde(default)]
+    roles: Vec<RawRole>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawFlight {
+    heartbeat_period_ms: Option<u64>,
+    decision_deadline_ms: Option<u64>,
+    control_rate_hz: Option<f64>,
+    setpoint_timeout_ms: Option<u64>,
+    idle_heartbeat_ms: Option<u64>,
+    feedback: Option<Vec<String>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawExecutor {
+    #[serde(default = "auto")]
+    cpus: String,
+}
+
+fn auto() -> String {
+    "auto".into()
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRole {
+    name: String,
+    kind: String,
+    variant: String,
+    variants: Option<Vec<String>>,
+    executor: Option<String>,
+    restart: Option<String>,
+    max_restarts: Option<u32>,
+    backoff_ms: Option<u64>,
+    #[serde(default)]
+    params: serde_json::Map<String, serde_json::Value>,
+    subscribes: Option<Vec<String>>,
+    publishes: Option<Vec<String>>,
+}
+
+/// 1-based (line, column) of byte offset `at` in `text`, without slicing `text`.
+fn line_column(text: &str, at: usize) -> (usize, usize) {
+    let bytes = text.as_bytes();
+    let at = at.min(bytes.len());
+    let before = &bytes[..at];
+    let line = before.iter().filter(|b| **b == b'\n').count() + 1;
+    let line_start = before
+        .iter()
+        .rposition(|b| *b == b'\n')
+        .map(|p| p + 1)
+        .unwrap_or(0);
+    // count characters: bytes that are not UTF-8 continuation bytes
+    let column = before[line_start..]
+        .iter()
+        .filter(|b| (**b & 0xC0) != 0x80)
+        .count()
+        + 1;
+    (line, column)
+}
+
+fn located(text: &str, e: &toml::de::Error) -> (usize, usize) {
+    match e.span() {
+        Some(span) => line_column(text, span.start),
+        None => (0, 0),
+    }
+}
+
+fn known_topics() -> String {
+    topics::ALL.join(", ")
+}
+
+fn is_valid_role_name(name: &str) -> bool {
+    !name.is_empty()
+        && name.len() <= NAME_MAX
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
+}
+
+impl Workflow {
+    /// Parse and validate a workflow from TOML text.
+    pub fn from_toml_str(text: &str) -> Result<Self, WorkflowError> {
+        // Grammar first, so that syntax errors are told apart from schema errors.
+        if let Err(e) = text.parse::<toml::Table>() {
+            let (line, column) = located(text, &e);
+            return Err(WorkflowError::Syntax {
+                line,
+                column,
+                message: e.message().trim().to_string(),
+            });
+        }
+        let raw: RawWorkflow = toml::from_str(text).map_err(|e| {
+            let (line, column) = located(text, &e);
+            WorkflowError::Structure {
+                line,
+                column,
+                message: e.message().trim().to_string(),
+            }
+        })?;
+        let workflow = Self::from_raw(raw)?;
+        workflow.validate()?;
+        Ok(workflow)
+    }
+
+    /// Read, parse and validate a workflow file.
+    pub fn from_path(path: &Path) -> Result<Self, WorkflowFileError> {
+        let p = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| WorkflowFileError::Read {
+            path: p.clone(),
+            source,
+        })?;
+        Self::from_toml_str(&text).map_err(|source| WorkflowFileError::Invalid { path: p, source })
+    }
+
+    /// The built-in default flight (`workflows/default.toml`).
+    pub fn builtin_default() -> Result<Self, WorkflowError> {
+        Self::from_toml_str(DEFAULT_WORKFLOW_TOML)
+    }
+
+    fn from_raw(raw: RawWorkflow) -> Result<Self, WorkflowError> {
+        let defaults = TimingSpec::default();
+        let period = raw
+            .flight
+            .heartbeat_period_ms
+            .unwrap_or(defaults.heartbeat_period_ms);
+        let timing = TimingSpec {
+            heartbeat_period_ms: period,
+            decision_deadline_ms: raw.flight.decision_deadline_ms.unwrap_or(period),
+            control_rate_hz: raw
+                .flight
+                .control_rate_hz
+                .unwrap_or(defaults.control_rate_hz),
+            setpoint_timeout_ms: raw
+                .flight
+                .setpoint_timeout_ms
+                .unwrap_or(defaults.setpoint_timeout_ms),
+            idle_heartbeat_ms: raw
+                .flight
+                .idle_heartbeat_ms
+                .unwrap_or(defaults.idle_heartbeat_ms),
+        };
+        let feedback = raw
+            .flight
+            .feedback
+            .unwrap_or_else(|| vec![topics::VEHICLE_TELEMETRY.to_string()]);
+
+        let mut executors = Vec::with_capacity(raw.executors.len());
+        for (name, ex) in raw.executors {
+            let cpus = match ex.cpus.trim() {
+                "auto" => ExecutorCpus::Auto,
+                "all" => ExecutorCpus::All,
+                list => {
+                    let set = CpuSet::parse(list)
+                        .and_then(|s| s.check_exists().map(|()| s))
+                        .map_err(|source| WorkflowError::BadCpuSet {
+                            executor: name.clone(),
+                            cpus: ex.cpus.clone(),
+                            source,
+                        })?;
+                    ExecutorCpus::Set(set)
+                }
+            };
+            executors.push(Executor { name, cpus });
+        }
+
+        let mut roles = Vec::with_capacity(raw.roles.len());
+        for r in raw.roles {
+            let restart = match &r.restart {
+                None => RestartPolicy::default(),
+                Some(v) => {
+                    RestartPolicy::from_name(v).ok_or_else(|| WorkflowError::BadRestart {
+                        role: r.name.clone(),
+                        value: v.clone(),
+                    })?
+                }
+            };
+            // Topics default to the catalog's; an unknown kind is reported by validate().
+            let entry = role_kind(&r.kind);
+            let catalog = |f: fn(&aeris_runtime::catalog::RoleKind) -> &'static [&'static str]| {
+                entry
+                    .map(|k| f(k).iter().map(|t| t.to_string()).collect())
+                    .unwrap_or_default()
+            };
+            let subscribes = r.subscribes.unwrap_or_else(|| catalog(|k| k.subscribes));
+            let publishes = r.publishes.unwrap_or_else(|| catalog(|k| k.publishes));
+            roles.push(RoleDecl {
+                variants: r.variants.unwrap_or_else(|| vec![r.variant.clone()]),
+                name: r.name,
+                kind: r.kind,
+                variant: r.variant,
+                executor: r.executor,
+                restart,
+                max_restarts: r.max_restarts.unwrap_or(DEFAULT_MAX_RESTARTS),
+                backoff_ms: r.backoff_ms.unwrap_or(DEFAULT_BACKOFF_MS),
+                params: r.params,
+                subscribes,
+                publishes,
+            });
+        }
+        Ok(Workflow {
+            timing,
+            feedback,
+            camera: raw.camera,
+            mission: raw.mission,
+            executors,
+            roles,
+        })
+    }
+
+    /// Check everything: timing, camera, mission, executors, roles against the catalog,
+    /// required kinds, topics, and that the services graph has no cycle.
+    pub fn validate(&self) -> Result<(), WorkflowError> {
+        self.validate_timing()?;
+        self.validate_camera()?;
+        self.mission.validate().map_err(WorkflowError::Mission)?;
+        for ex in &self.executors {
+            if let ExecutorCpus::Set(set) = &ex.cpus {
+                set.check_exists()
+                    .map_err(|source| WorkflowError::BadCpuSet {
+                        executor: ex.name.clone(),
+                        cpus: set.to_string(),
+                        source,
+                    })?;
+            }
+        }
+        self.validate_roles()?;
+        self.validate_required()?;
+        self.validate_topics()?;
+        if let Some((path, topics)) = self.find_cycle() {
+            return Err(WorkflowError::Cycle { path, topics });
+        }
+        Ok(())
+    }
+
+    fn validate_timing(&self) -> Result<(), WorkflowError> {
+        let t = &self.timing;
+        let bad = |field, value: String, reason| WorkflowError::Timing {
+            field,
+            value,
+            reason,
+        };
+        for (field, v) in [
+            ("heartbeat_period_ms", t.heartbeat_period_ms),
+            ("decision_deadline_ms", t.decision_deadline_ms),
+            ("setpoint_timeout_ms", t.setpoint_timeout_ms),
+            ("idle_heartbeat_ms", t.idle_heartbeat_ms),
+        ] {
+            if v == 0 {
+                return Err(bad(field, v.to_string(), "must be at least 1 ms"));
+            }
+        }
+        if t.decision_deadline_ms > t.heartbeat_period_ms.saturating_mul(10) {
+            return Err(bad(
+                "decision_deadline_ms",
+                t.decision_deadline_ms.to_string(),
+                "must be at most 10 times heartbeat_period_ms",
+            ));
+        }
+        if !(t.control_rate_hz.is_finite() && (1.0..=1000.0).contains(&t.control_rate_hz)) {
+            return Err(bad(
+                "control_rate_hz",
+                t.control_rate_hz.to_string(),
+                "must be a finite rate in 1..=1000 Hz",
+            ));
+        }
+        Ok(())
+    }
+
+    fn validate_camera(&self) -> Result<(), WorkflowError> {
+        let c = &self.camera;
+        let bad = |field, value: String, reason| WorkflowError::Camera {
+            field,
+            value,
+            reason,
+        };
+        if !(1..=4096).contains(&c.width) {
+            return Err(bad("width", c.width.to_string(), "must be in 1..=4096"));
+        }
+        if !(1..=4096).contains(&c.height) {
+            return Err(bad("height", c.height.to_string(), "must be in 1..=4096"));
+        }
+        if !(c.fps.is_finite() && c.fps > 0.0 && c.fps <= 1000.0) {
+            return Err(bad("fps", c.fps.to_string(), "must be in (0, 1000]"));
+        }
+        if !(c.hfov_deg.is_finite() && c.hfov_deg > 0.0 && c.hfov_deg < 180.0) {
+            return Err(bad(
+                "hfov_deg",
+                c.hfov_deg.to_string(),
+                "must be in (0, 180) degrees",
+            ));
+        }
+        Ok(())
+    }
+
+    fn validate_roles(&self) -> Result<(), WorkflowError> {
+        if self.roles.len() > MAX_ROLES {
+            return Err(WorkflowError::TooManyRoles {
+                count: self.roles.len(),
+                max: MAX_ROLES,
+            });
+        }
+        let known_kinds = || {
+            ROLE_KINDS
+                .iter()
+                .map(|k| k.kind)
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        for (i, r) in self.roles.iter().enumerate() {
+            if !is_valid_role_name(&r.name) {
+                return Err(WorkflowError::BadRoleName {
+                    name: r.name.clone(),
+                });
+            }
+            if self.roles[..i].iter().any(|o| o.name == r.name) {
+                return Err(WorkflowError::DuplicateRole {
+                    name: r.name.clone(),
+                });
+            }
+            let Some(kind) = role_kind(&r.kind) else {
+                return Err(WorkflowError::UnknownKind {
+                    role: r.name.clone(),
+                    kind: r.kind.clone(),
+                    known: known_kinds(),
+                });
+            };
+            for v in core::iter::once(&r.variant).chain(r.variants.iter()) {
+                if !kind.variants.contains(&v.as_str()) {
+                    return Err(WorkflowError::UnknownVariant {
+                        role: r.name.clone(),
+                        kind: r.kind.clone(),
+                        variant: v.clone(),
+                        known: kind.variants.join(", "),
+                    });
+                }
+            }
+            if !r.variants.contains(&r.variant) {
+                return Err(WorkflowError::VariantNotInPool {
+                    role: r.name.clone(),
+                    variant: r.variant.clone(),
+                    pool: r.variants.join(", "),
+                });
+            }
+            if let Some(ex) = &r.executor
+                && !self.executors.iter().any(|e| &e.name == ex)
+            {
+                let known = if self.executors.is_empty() {
+                    "none".to_string()
+                } else {
+                    self.executors
+                        .iter()
+                        .map(|e| e.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                };
+                return Err(WorkflowError::UnknownExecutor {
+                    role: r.name.clone(),
+                    executor: ex.clone(),
+                    known,
+                });
+            }
+            let string_param = |param: &'static str| match r.params.get(param) {
+                Some(v) if !v.is_string() => Err(WorkflowError::BadParam {
+                    role: r.name.clone(),
+                    param,
+                    reason: "must be a string (\"auto\" or a MAVLink URL such as \"udpout:127.0.0.1:14540\")",
+                }),
+                _ => Ok(()),
+            };
+            match r.kind.as_str() {
+                "controller" => string_param("autopilot")?,
+                "vehicle" => string_param("listen")?,
+                _ => {}
+            }
+            for (list, topics_of) in [("subscribes", &r.subscribes), ("publishes", &r.publishes)] {
+                if let Some(t) = topics_of.iter().find(|t| !topics::is_known_topic(t)) {
+                    return Err(WorkflowError::UnknownTopic {
+                        role: r.name.clone(),
+                        topic: t.clone(),
+                        list,
+                        known: known_topics(),
+                    });
+                }
+            }
+        }
+        if let Some(t) = self.feedback.iter().find(|t| !topics::is_known_topic(t)) {
+            return Err(WorkflowError::UnknownFeedbackTopic {
+                topic: t.clone(),
+                known: known_topics(),
+            });
+        }
+        Ok(())
+    }
+
+    /// `true` when the built-in simulated vehicle is needed: some controller's autopilot is
+    /// `auto` (or unset).
+    pub fn needs_builtin_vehicle(&self) -> bool {
+        self.roles
+            .iter()
+            .filter(|r| r.kind == "controller")
+            .any(|r| r.param_str("autopilot").is_none_or(|a| a == "auto"))
+    }
+
+    fn validate_required(&self) -> Result<(), WorkflowError> {
+        let has = |kind: &str| self.roles.iter().any(|r| r.kind == kind);
+        for kind in REQUIRED_KINDS {
+            if !has(kind) {
+                return Err(WorkflowError::MissingRole { kind, hint: "" });
+            }
+        }
+        if self.needs_builtin_vehicle() && !has("vehicle") {
+            return Err(WorkflowError::MissingRole {
+                kind: "vehicle",
+                hint: " (the controller's autopilot is \"auto\", which flies the built-in vehicle; \
+                       add a vehicle role or set the controller's params.autopilot to a MAVLink URL)",
+            });
+        }
+        Ok(())
+    }
+
+    fn validate_topics(&self) -> Result<(), WorkflowError> {
+        let published = |topic: &str| {
+            topic == topics::HEARTBEAT
+                || self
+                    .roles
+                    .iter()
+                    .any(|r| r.publishes.iter().any(|t| t == topic))
+        };
+        for r in &self.roles {
+            if let Some(t) = r.subscribes.iter().find(|t| !published(t)) {
+                return Err(WorkflowError::Unpublished {
+                    role: r.name.clone(),
+                    topic: t.clone(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Service dependency edges `(from, to, topic)`: role `to` subscribes to `topic` that role
+    /// `from` publishes. Feedback topics and `heartbeat` make no edges.
+    pub fn service_edges(&self) -> Vec<(usize, usize, String)> {
+        let mut edges = Vec::new();
+        for (from, a) in self.roles.iter().enumerate() {
+            for topic in &a.publishes {
+                if topic == topics::HEARTBEAT || self.feedback.contains(topic) {
+                    continue;
+                }
+                for (to, b) in self.roles.iter().enumerate() {
+                    if b.subscribes.contains(topic)
+                        && !edges.iter().any(|(f, t, _)| *f == from && *t == to)
+                    {
+                        edges.push((from, to, topic.clone()));
+                    }
+                }
+            }
+        }
+        edges
+    }
+
+    /// A cycle of the services graph as (roles with the first repeated, edge topics).
+    fn find_cycle(&self) -> Option<(Vec<String>, Vec<String>)> {
+        let n = self.roles.len();
+        let edges = self.service_edges();
+        let mut adj: Vec<Vec<(usize, &str)>> = vec![Vec::new(); n];
+        for (f, t, topic) in &edges {
+            adj[*f].push((*t, topic.as_str()));
+        }
+        // 0 = unvisited, 1 = on the stack, 2 = done. Iterative DFS.
+        let mut color = vec![0u8; n];
+        for root in 0..n {
+            if color[root] != 0 {
+                continue;
+            }
+            // stack of (node, next edge index); `via[k]` is the topic into stack[k]
+            let mut stack: Vec<(usize, usize)> = vec![(root, 0)];
+            let mut via: Vec<&str> = vec![""];
+            color[root] = 1;
+            while let Some(&mut (node, ref mut next)) = stack.last_mut() {
+                if let Some(&(to, topic)) = adj[node].get(*next) {
+                    *next += 1;
+                    match color[to] {
+                        0 => {
+                            color[to] = 1;
+                            stack.push((to, 0));
+                            via.push(topic);
+                        }
+                        1 => {
+                            let start = stack.iter().position(|(v, _)| *v == to).unwrap_or(0);
+                            let mut path: Vec<String> = stack[start..]
+                                .iter()
+                                .map(|(v, _)| self.roles[*v].name.clone())
+                                .collect();
+                            path.push(self.roles[to].name.clone());
+                            let mut topics: Vec<String> =
+                                via[start + 1..].iter().map(|t| t.to_string()).collect();
+                            topics.push(topic.to_string());
+                            return Some((path, topics));
+                        }
+                        _ => {}
+                    }
+                } else {
+                    color[node] = 2;
+                    stack.pop();
+                    via.pop();
+                }
+            }
+        }
+        None
+    }
+
+    /// Role indices in start order: publishers before their subscribers (feedback edges
+    /// ignored), ties in declaration order. On a cyclic graph (which [`Workflow::validate`]
+    /// rejects) the roles left on cycles follow in declaration order.
+    pub fn start_order(&self) -> Vec<usize> {
+        let n = self.roles.len();
+        let edges = self.service_edges();
+        let mut indegree = vec![0usize; n];
+        for (_, t, _) in &edges {
+            indegree[*t] += 1;
+        }
+        let mut done = vec![false; n];
+        let mut order = Vec::with_capacity(n);
+        while order.len() < n {
+            let next = (0..n)
+                .find(|&i| !done[i] && indegree[i] == 0)
+                .or_else(|| (0..n).find(|&i| !done[i]));
+            let Some(i) = next else { break };
+            done[i] = true;
+            order.push(i);
+            for (f, t, _) in &edges {
+                if *f == i && !done[*t] {
+                    indegree[*t] = indegree[*t].saturating_sub(1);
+                }
+            }
+        }
+        order
+    }
+
+    /// The role named `name`.
+    pub fn role(&self, name: &str) -> Option<&RoleDecl> {
+        self.roles.iter().find(|r| r.name == name)
+    }
+
+    /// The executor named `name`.
+    pub fn executor(&self, name: &str) -> Option<&Executor> {
+        self.executors.iter().find(|e| e.name == name)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_builtin_default_is_valid_and_complete() {
+        let w = Workflow::builtin_default().unwrap();
+        let names: Vec<&str> = w.roles.iter().map(|r| r.name.as_str()).collect();
+        for n in [
+            "vehicle",
+            "controller",
+            "camera",
+            "perception",
+            "hub",
+            "reasoning",
+        ] {
+            assert!(names.contains(&n), "{n} missing from {names:?}");
+        }
+        assert_eq!(w.mission.subgoals.len(), 4);
+        assert_eq!(w.mission.world, "village");
+        assert_eq!(w.timing, TimingSpec::default());
+        assert_eq!(w.feedback, vec![topics::VEHICLE_TELEMETRY.to_string()]);
+        assert_eq!(
+            w.role("reasoning").unwrap().variants,
+            vec!["planner".to_string(), "garbage".to_string()]
+        );
+        assert!(w.executors.iter().all(|e| e.cpus == ExecutorCpus::Auto));
+        assert!(w.needs_builtin_vehicle());
+    }
+
+    #[test]
+    fn start_order_puts_publishers_first() {
+        let w = Workflow::builtin_default().unwrap();
+        let order: Vec<&str> = w
+            .start_order()
+            .into_iter()
+            .map(|i| w.roles[i].name.as_str())
+            .collect();
+        let pos = |n: &str| order.iter().position(|o| *o == n).unwrap();
+        assert_eq!(order.len(), w.roles.len());
+        assert!(pos("camera") < pos("perception"));
+        assert!(pos("perception") < pos("reasoning"));
+        assert!(pos("reasoning") < pos("hub"));
+        assert!(pos("hub") < pos("controller"));
+    }
+
+    #[test]
+    fn without_feedback_the_control_loop_is_a_cycle() {
+        let text =
+            DEFAULT_WORKFLOW_TOML.replace("feedback = [\"vehicle/telemetry\"]", "feedback = []");
+        assert_ne!(text, DEFAULT_WORKFLOW_TOML, "default.toml lists feedback");
+        match Workflow::from_toml_str(&text) {
+            Err(WorkflowError::Cycle { path, topics }) => {
+                assert_eq!(path.first(), path.last());
+                assert_eq!(topics.len() + 1, path.len());
+                assert!(topics.contains(&topics::VEHICLE_TELEMETRY.to_string()));
+                assert!(path.contains(&"controller".to_string()));
+            }
+            other => panic!("expected a cycle, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn line_and_column_count_characters() {
+        assert_eq!(line_column("ab\ncd", 4), (2, 2));
+        assert_eq!(line_column("é=\nx", 2), (1, 2));
+        assert_eq!(line_column("abc", 100), (1, 4));
+    }
+
+    #[test]
+    fn timing_limits_are_enforced() {
+        let mut w = Workflow::builtin_default().unwrap();
+        w.timing.decision_deadline_ms = w.timing.heartbeat_period_ms * 10 + 1;
+        assert!(matches!(
+            w.validate(),
+            Err(WorkflowError::Timing {
+                field: "decision_deadline_ms",
+                ..
+            })
+        ));
+        let mut w = Workflow::builtin_default().unwrap();
+        w.timing.control_rate_hz = f64::NAN;
+        assert!(matches!(
+            w.validate(),
+            Err(WorkflowError::Timing {
+                field: "control_rate_hz",
+                ..
+            })
+        ));
+        let mut w = Workflow::builtin_default().unwrap();
+        w.timing.heartbeat_period_ms = 0;
+        assert!(matches!(
+            w.validate(),
+            Err(WorkflowError::Timing {
+                field: "heartbeat_period_ms",
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn an_external_autopilot_makes_the_vehicle_optional() {
+        let mut w = Workflow::builtin_default().unwrap();
+        w.roles.retain(|r| r.kind != "vehicle");
+        assert!(matches!(
+            w.validate(),
+            Err(WorkflowError::MissingRole {
+                kind: "vehicle",
+                ..
+            })
+        ));
+        for r in w.roles.iter_mut().filter(|r| r.kind == "controller") {
+            r.params
+                .insert("autopilot".into(), "udpout:127.0.0.1:14540".into());
+        }
+        w.validate().unwrap();
+    }
+}
