@@ -1,13 +1,19 @@
 //! The `aeris` command line.
 
+mod bench_cmd;
+mod flight;
+mod inspect;
+mod run_cmd;
+
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-/// AERIS-rs: fly a drone from natural-language instructions, every role its own process.
+/// AERIS-rs: fly a drone from natural-language instructions, every role its own process,
+/// frames and state over iceoryx2 shared memory, setpoints over MAVLink.
 #[derive(Debug, Parser)]
-#[command(name = "aeris", version, about)]
+#[command(name = "aeris", version, about, propagate_version = true)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -15,7 +21,33 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Fly a mission: with no WORKFLOW, the built-in default mission in the built-in sim.
+    Run(run_cmd::RunArgs),
+    /// Show every role of a running flight: pid, CPU set, variant, heartbeat age, latency, restarts.
+    Status {
+        /// Flight to show (default: the only one running).
+        #[arg(long)]
+        flight: Option<String>,
+        /// Print one JSON object instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Inspect the topics of a running flight (like `ros2 topic`).
+    Topic {
+        #[command(subcommand)]
+        command: TopicCommand,
+    },
+    /// Check a workflow file and print what it would start.
+    Validate {
+        /// Workflow file (TOML).
+        workflow: PathBuf,
+    },
+    /// List the role kinds and variants this build can run.
+    Roles,
+    /// Run benchmarks (IPC, gate, control) and print their figures.
+    Bench(bench_cmd::BenchArgs),
     /// Run one role in this process (the supervisor starts roles this way).
+    #[command(hide = true)]
     Role {
         /// Role spec (JSON) written by the supervisor.
         #[arg(long)]
@@ -23,10 +55,45 @@ enum Command {
     },
 }
 
+#[derive(Debug, Subcommand)]
+enum TopicCommand {
+    /// List the services of running flights with their message types.
+    List {
+        /// Only this flight.
+        #[arg(long)]
+        flight: Option<String>,
+    },
+    /// Print the messages published on a topic.
+    Echo {
+        /// Topic, e.g. hub/setpoint (see `aeris topic list`).
+        topic: String,
+        /// Flight (default: the only one running).
+        #[arg(long)]
+        flight: Option<String>,
+        /// Stop after this many messages.
+        #[arg(long, short = 'n')]
+        count: Option<u64>,
+        /// Stop after this many seconds.
+        #[arg(long, default_value_t = 10.0)]
+        seconds: f64,
+    },
+    /// Measure the publication rate of a topic.
+    Hz {
+        /// Topic, e.g. vehicle/telemetry.
+        topic: String,
+        /// Flight (default: the only one running).
+        #[arg(long)]
+        flight: Option<String>,
+        /// Measure for this many seconds.
+        #[arg(long, default_value_t = 5.0)]
+        seconds: f64,
+    },
+}
+
 /// Exit code of a role that refused to join a flight of another schema.
 const EXIT_SCHEMA_MISMATCH: u8 = 3;
 
-fn run_role(spec: PathBuf) -> anyhow::Result<()> {
+fn run_role(spec: PathBuf) -> anyhow::Result<ExitCode> {
     let spec = aeris_runtime::RoleSpec::load(&spec)?;
     let name = spec.name.clone();
     let result = if spec.kind == "hub" {
@@ -34,25 +101,51 @@ fn run_role(spec: PathBuf) -> anyhow::Result<()> {
     } else {
         aeris_roles::run(spec)
     };
-    result.with_context(|| format!("role `{name}` failed"))
+    result.with_context(|| format!("role `{name}` failed"))?;
+    Ok(ExitCode::SUCCESS)
+}
+
+fn roles() -> anyhow::Result<ExitCode> {
+    for k in aeris_runtime::catalog::ROLE_KINDS {
+        println!("{:<11} variants: {:<24} {}", k.kind, k.variants.join(", "), k.summary);
+    }
+    Ok(ExitCode::SUCCESS)
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Run(args) => run_cmd::run(args),
+        Command::Status { flight, json } => inspect::status(flight, json).map(|_| ExitCode::SUCCESS),
+        Command::Topic { command } => match command {
+            TopicCommand::List { flight } => inspect::topic_list(flight),
+            TopicCommand::Echo {
+                topic,
+                flight,
+                count,
+                seconds,
+            } => inspect::topic_echo(flight, &topic, count, seconds),
+            TopicCommand::Hz { topic, flight, seconds } => inspect::topic_hz(flight, &topic, seconds),
+        }
+        .map(|_| ExitCode::SUCCESS),
+        Command::Validate { workflow } => run_cmd::validate(&workflow),
+        Command::Roles => roles(),
+        Command::Bench(args) => bench_cmd::run(args).map(|_| ExitCode::SUCCESS),
         Command::Role { spec } => run_role(spec),
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(code) => code,
         Err(e) => {
             eprintln!("aeris: error: {e:#}");
             let schema = e.chain().any(|c| {
                 matches!(
                     c.downcast_ref::<aeris_runtime::RoleError>(),
                     Some(aeris_runtime::RoleError::Bus(
-                        aeris_runtime::BusError::Manifest { .. }
-                            | aeris_runtime::BusError::IncompatibleSchema { .. }
+                        aeris_runtime::BusError::Manifest { .. } | aeris_runtime::BusError::IncompatibleSchema { .. }
                     ))
+                ) || matches!(
+                    c.downcast_ref::<aeris_runtime::BusError>(),
+                    Some(aeris_runtime::BusError::Manifest { .. } | aeris_runtime::BusError::IncompatibleSchema { .. })
                 )
             });
             ExitCode::from(if schema { EXIT_SCHEMA_MISMATCH } else { 1 })
