@@ -406,18 +406,16 @@ impl RoleRuntime {
     fn record(&mut self, hb: &RoleHeartbeat, status: RoleStatus) -> bool {
         let first = self.incarnation_heartbeats == 0;
         let same_process = self.last_heartbeat.is_some_and(|l| l.pid == hb.pid);
-        let repeat = match &self.last_heartbeat {
-            Some(last) if same_process => {
-                if hb.seq > last.seq + 1 {
-                    self.heartbeat_gaps += 1;
-                }
-                // A liveness heartbeat repeats the last cycle's figures: count cycles once.
-                last.cycle_latency_ns == hb.cycle_latency_ns && last.stages == hb.stages
-            }
-            _ => false,
-        };
+        if let Some(last) = &self.last_heartbeat
+            && same_process
+            && hb.seq > last.seq + 1
+        {
+            self.heartbeat_gaps += 1;
+        }
+        // Only a heartbeat that closes a working cycle carries new figures; a liveness
+        // heartbeat repeats the last ones and must not be counted twice.
         let working = matches!(status, RoleStatus::Running | RoleStatus::Degraded);
-        if working && hb.cycle_latency_ns > 0 && !repeat {
+        if working && hb.worked == 1 {
             self.window.push(hb.cycle_latency_ns as f64 / 1e6);
             self.latency_ms = self.window.percentiles([50.0, 95.0, 99.0]);
         }
@@ -1260,7 +1258,15 @@ mod tests {
         h.seq = seq;
         h.status = RoleStatus::Running as u8;
         h.cycle_latency_ns = latency_ns;
+        h.worked = 1;
         h
+    }
+
+    fn liveness(pid: u32, seq: u64, latency_ns: u64) -> RoleHeartbeat {
+        RoleHeartbeat {
+            worked: 0,
+            ..hb(pid, seq, latency_ns)
+        }
     }
 
     fn runtime() -> RoleRuntime {
@@ -1296,7 +1302,7 @@ mod tests {
         assert!(r.record(&hb(10, 1, 1_000_000), RoleStatus::Running));
         assert!(!r.record(&hb(10, 2, 2_000_000), RoleStatus::Running));
         // a liveness repeat of the same figures is not a new cycle
-        assert!(!r.record(&hb(10, 3, 2_000_000), RoleStatus::Running));
+        assert!(!r.record(&liveness(10, 3, 2_000_000), RoleStatus::Running));
         assert_eq!(r.latency_samples(), 2);
         // seq 4 and 5 lost
         r.record(&hb(10, 6, 3_000_000), RoleStatus::Running);

@@ -95,6 +95,7 @@ fn heartbeat(name: &str, pid: u32, seq: u64, status: RoleStatus, latency_ns: u64
     hb.seq = seq;
     hb.status = status as u8;
     hb.cycle_latency_ns = latency_ns;
+    hb.worked = u8::from(latency_ns > 0);
     hb
 }
 

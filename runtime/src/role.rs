@@ -160,6 +160,7 @@ impl RoleHost {
                 hb.stamp_ns = end;
                 hb.status = report.status as u8;
                 hb.counters = report.counters;
+                hb.worked = u8::from(outcome == CycleOutcome::Worked);
                 if outcome == CycleOutcome::Worked {
                     hb.cycle_latency_ns = end - start;
                     for (slot, (name, ns)) in hb.stages.iter_mut().zip(report.stages.iter()) {
@@ -190,6 +191,7 @@ impl RoleHost {
         hb.seq += 1;
         hb.stamp_ns = monotonic_ns();
         hb.status = RoleStatus::Stopping as u8;
+        hb.worked = 0;
         let _ = heartbeats.publish(&hb);
         role.shutdown(&mut ctx);
         result

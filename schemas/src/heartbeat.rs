@@ -71,8 +71,11 @@ pub struct RoleHeartbeat {
     pub pid: u32,
     /// Role status as [`RoleStatus`] wire byte.
     pub status: u8,
+    /// 1 when this heartbeat closes a cycle that did work (its latency and stages are new);
+    /// 0 for a liveness heartbeat of an idle role (figures repeat the last working cycle).
+    pub worked: u8,
     /// Reserved, zero.
-    pub reserved: [u8; 3],
+    pub reserved: [u8; 2],
     /// Heartbeat sequence number (from 1, +1 per cycle).
     pub seq: u64,
     /// CLOCK_MONOTONIC ns at publication.
@@ -93,7 +96,8 @@ impl Default for RoleHeartbeat {
             executor: FixedText::new(),
             pid: 0,
             status: RoleStatus::Starting as u8,
-            reserved: [0; 3],
+            worked: 0,
+            reserved: [0; 2],
             seq: 0,
             stamp_ns: 0,
             cycle_latency_ns: 0,
