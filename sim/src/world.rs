@@ -1,1 +1,416 @@
-//! TODO
+//! Built-in worlds: scenes of axis-aligned boxes with named landmarks.
+//!
+//! Coordinates are `[N, E, U]` metres (north, east, up). The ground is the plane `U = 0`,
+//! covered with grass except where a ground patch (road, water, helipad: a box with
+//! `U` in `0..0.05`) lies on it. Every other landmark is an obstacle.
+//!
+//! The colours of the built-in worlds come from [`palette`]; every class of landmark has
+//! its own colour, so a colour segmenter can tell them apart (see `aeris-roles`'
+//! geometric perception).
+
+/// Colours of the built-in worlds (sRGB, 8 bits per channel).
+///
+/// Each entry is distinct from every other, including after the renderer's face shading
+/// ([`crate::render::FACE_SHADES`]), so a pixel's colour names its class.
+pub mod palette {
+    /// Bare ground.
+    pub const GRASS: [u8; 3] = [96, 140, 68];
+    /// Helipad surface (white, slightly yellow).
+    pub const HELIPAD: [u8; 3] = [228, 222, 176];
+    /// Asphalt.
+    pub const ROAD: [u8; 3] = [62, 64, 74];
+    /// Walls of the grey buildings.
+    pub const GREY_WALL: [u8; 3] = [172, 166, 156];
+    /// Roofs of the grey buildings.
+    pub const GREY_ROOF: [u8; 3] = [118, 114, 110];
+    /// Walls of the red-roofed building.
+    pub const BEIGE_WALL: [u8; 3] = [222, 200, 150];
+    /// The red roof.
+    pub const RED_ROOF: [u8; 3] = [186, 48, 38];
+    /// Walls of the water tower.
+    pub const TOWER_BLUE: [u8; 3] = [42, 84, 204];
+    /// Top of the water tower.
+    pub const TOWER_TOP: [u8; 3] = [70, 112, 226];
+    /// Lake water.
+    pub const WATER: [u8; 3] = [48, 118, 150];
+    /// Sign board.
+    pub const SIGN_YELLOW: [u8; 3] = [244, 212, 24];
+    /// Lettering on signs.
+    pub const SIGN_TEXT: [u8; 3] = [24, 24, 28];
+    /// Sides of tree crowns.
+    pub const TREE_SIDE: [u8; 3] = [46, 108, 42];
+    /// Tops of tree crowns.
+    pub const TREE_TOP: [u8; 3] = [52, 128, 48];
+}
+
+/// `Hit::landmark` value of a ray that hit bare ground (grass), not a landmark.
+pub const GROUND: usize = usize::MAX;
+
+/// Height (m) of ground patches: boxes lower than this are flat ground, not obstacles.
+pub const GROUND_PATCH_MAX_U: f32 = 0.05;
+
+/// What a landmark is.
+#[derive(Debug, Clone, PartialEq)]
+pub enum LandmarkKind {
+    /// A building (walls and a roof).
+    Building,
+    /// A tower (e.g. a water tower).
+    Tower,
+    /// A sign board carrying `text`.
+    Sign {
+        /// The text painted on both faces of the board.
+        text: String,
+    },
+    /// A road (ground patch).
+    Road,
+    /// Water (ground patch).
+    Water,
+    /// A helipad (ground patch).
+    Helipad,
+    /// A tree (a box crown).
+    Tree,
+}
+
+impl LandmarkKind {
+    /// `true` for ground patches (road, water, helipad): flat, never an obstacle.
+    pub fn is_ground(&self) -> bool {
+        matches!(
+            self,
+            LandmarkKind::Road | LandmarkKind::Water | LandmarkKind::Helipad
+        )
+    }
+}
+
+/// One named landmark: an axis-aligned box.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Landmark {
+    /// Human name, e.g. "red-roofed building".
+    pub name: String,
+    /// What it is.
+    pub kind: LandmarkKind,
+    /// Lower corner `[N, E, U]` (m).
+    pub min: [f32; 3],
+    /// Upper corner `[N, E, U]` (m).
+    pub max: [f32; 3],
+    /// Colour of the side faces.
+    pub wall: [u8; 3],
+    /// Colour of the top face.
+    pub roof: [u8; 3],
+}
+
+impl Landmark {
+    /// Centre of the box `[N, E, U]`.
+    pub fn centre(&self) -> [f32; 3] {
+        [
+            0.5 * (self.min[0] + self.max[0]),
+            0.5 * (self.min[1] + self.max[1]),
+            0.5 * (self.min[2] + self.max[2]),
+        ]
+    }
+
+    /// `true` when the horizontal point `(n, e)` lies over the box (edges included).
+    pub fn covers(&self, n: f32, e: f32) -> bool {
+        n >= self.min[0] && n <= self.max[0] && e >= self.min[1] && e <= self.max[1]
+    }
+
+    /// Horizontal distance (m) from `(n, e)` to the box footprint (0 inside).
+    pub fn horizontal_distance(&self, n: f32, e: f32) -> f32 {
+        let dn = (self.min[0] - n).max(0.0).max(n - self.max[0]);
+        let de = (self.min[1] - e).max(0.0).max(e - self.max[1]);
+        (dn * dn + de * de).sqrt()
+    }
+
+    /// `true` when this landmark is an obstacle (anything but a ground patch).
+    pub fn is_obstacle(&self) -> bool {
+        !self.kind.is_ground()
+    }
+}
+
+/// Where a ray met the world.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    /// Distance from the ray origin (m, in units of the direction's length).
+    pub distance: f32,
+    /// Index into [`World::landmarks`], or [`GROUND`] for bare ground.
+    pub landmark: usize,
+    /// `true` when the top face (a roof, or the surface of a ground patch) was hit.
+    pub roof: bool,
+    /// Outward unit normal of the face hit (axis-aligned).
+    pub normal: [f32; 3],
+}
+
+/// A scene of landmarks over a grass plane.
+#[derive(Debug, Clone, PartialEq)]
+pub struct World {
+    /// Name of the world (e.g. "village").
+    pub name: String,
+    /// Its landmarks.
+    pub landmarks: Vec<Landmark>,
+}
+
+fn lm(
+    name: &str,
+    kind: LandmarkKind,
+    min: [f32; 3],
+    max: [f32; 3],
+    wall: [u8; 3],
+    roof: [u8; 3],
+) -> Landmark {
+    Landmark {
+        name: name.to_string(),
+        kind,
+        min,
+        max,
+        wall,
+        roof,
+    }
+}
+
+fn patch(name: &str, kind: LandmarkKind, n: [f32; 2], e: [f32; 2], colour: [u8; 3]) -> Landmark {
+    lm(
+        name,
+        kind,
+        [n[0], e[0], 0.0],
+        [n[1], e[1], GROUND_PATCH_MAX_U],
+        colour,
+        colour,
+    )
+}
+
+fn tree(name: &str, n: f32, e: f32, height: f32) -> Landmark {
+    lm(
+        name,
+        LandmarkKind::Tree,
+        [n, e, 0.0],
+        [n + 4.0, e + 4.0, height],
+        palette::TREE_SIDE,
+        palette::TREE_TOP,
+    )
+}
+
+impl World {
+    /// Names of the built-in worlds.
+    pub fn builtin_names() -> &'static [&'static str] {
+        &["village", "open"]
+    }
+
+    /// A built-in world by name.
+    pub fn builtin(name: &str) -> Option<World> {
+        match name {
+            "village" => Some(Self::village()),
+            "open" => Some(Self::open()),
+            _ => None,
+        }
+    }
+
+    /// Open airspace: a helipad on grass, nothing else.
+    fn open() -> World {
+        World {
+            name: "open".into(),
+            landmarks: vec![patch(
+                "helipad",
+                LandmarkKind::Helipad,
+                [-6.0, 6.0],
+                [-6.0, 6.0],
+                palette::HELIPAD,
+            )],
+        }
+    }
+
+    /// The village the default mission flies in.
+    ///
+    /// The mission path `[0,0] -> [62,0] -> [62,64] -> [42,88]` keeps at least 6 m from
+    /// every obstacle; `[42, 88]` (north of the LAKE VIEW sign) is a clear landing point.
+    fn village() -> World {
+        use LandmarkKind::*;
+        let landmarks = vec![
+            patch(
+                "helipad",
+                Helipad,
+                [-6.0, 6.0],
+                [-6.0, 6.0],
+                palette::HELIPAD,
+            ),
+            patch("road north", Road, [6.0, 70.0], [-4.0, 4.0], palette::ROAD),
+            patch(
+                "road east",
+                Road,
+                [56.0, 68.0],
+                [-4.0, 130.0],
+                palette::ROAD,
+            ),
+            patch("lake", Water, [0.0, 30.0], [80.0, 125.0], palette::WATER),
+            lm(
+                "grey building west",
+                Building,
+                [20.0, -26.0, 0.0],
+                [34.0, -10.0, 18.0],
+                palette::GREY_WALL,
+                palette::GREY_ROOF,
+            ),
+            lm(
+                "grey building east",
+                Building,
+                [36.0, 12.0, 0.0],
+                [50.0, 24.0, 10.0],
+                palette::GREY_WALL,
+                palette::GREY_ROOF,
+            ),
+            lm(
+                "red-roofed building",
+                Building,
+                [72.0, 10.0, 0.0],
+                [88.0, 26.0, 14.0],
+                palette::BEIGE_WALL,
+                palette::RED_ROOF,
+            ),
+            lm(
+                "blue water tower",
+                Tower,
+                [80.0, 60.0, 0.0],
+                [86.0, 66.0, 24.0],
+                palette::TOWER_BLUE,
+                palette::TOWER_TOP,
+            ),
+            lm(
+                "yellow sign that says LAKE VIEW",
+                Sign {
+                    text: "LAKE VIEW".into(),
+                },
+                [34.0, 84.0, 2.0],
+                [35.0, 92.0, 6.0],
+                palette::SIGN_YELLOW,
+                palette::SIGN_YELLOW,
+            ),
+            // west of the north road
+            tree("tree 1", 4.0, -16.0, 7.0),
+            tree("tree 2", 12.0, -14.0, 6.0),
+            tree("tree 3", 40.0, -18.0, 8.0),
+            tree("tree 4", 50.0, -13.0, 7.0),
+            tree("tree 5", 72.0, -14.0, 6.0),
+            // around the lake shore
+            tree("tree 6", -6.0, 92.0, 7.0),
+            tree("tree 7", 12.0, 127.0, 8.0),
+            tree("tree 8", 32.0, 108.0, 6.0),
+            tree("tree 9", 20.0, 72.0, 7.0),
+        ];
+        World {
+            name: "village".into(),
+            landmarks,
+        }
+    }
+
+    /// The landmark called `name`, if any.
+    pub fn landmark_named(&self, name: &str) -> Option<&Landmark> {
+        self.landmarks.iter().find(|l| l.name == name)
+    }
+
+    /// Height (m) of the highest obstacle top over `(n, e)`; 0 when the ground is free.
+    pub fn obstacle_top_at(&self, n: f32, e: f32) -> f32 {
+        self.landmarks
+            .iter()
+            .filter(|l| l.is_obstacle() && l.covers(n, e))
+            .fold(0.0, |top, l| top.max(l.max[2]))
+    }
+
+    /// `true` when a sphere of `radius` at `p` touches an obstacle, or `p` is below ground.
+    /// The ground surface itself does not count as a collision.
+    pub fn collides(&self, p: [f32; 3], radius: f32) -> bool {
+        if p[2] < 0.0 {
+            return true;
+        }
+        let r2 = radius * radius;
+        self.landmarks.iter().filter(|l| l.is_obstacle()).any(|l| {
+            let d2: f32 = (0..3)
+                .map(|a| {
+                    let d = (l.min[a] - p[a]).max(0.0).max(p[a] - l.max[a]);
+                    d * d
+                })
+                .sum();
+            d2 <= r2
+        })
+    }
+
+    /// First hit of the ray `origin + t * dir`, `0 <= t <= max` (`dir` a unit vector).
+    ///
+    /// Boxes are tested with the slab method; a box that contains the origin is ignored (the
+    /// ray starts inside it). Below every box lies the ground plane `U = 0` (landmark
+    /// [`GROUND`]). Never allocates.
+    pub fn raycast(&self, origin: [f32; 3], dir: [f32; 3], max: f32) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        let mut best_t = max;
+        // ground plane
+        if dir[2] < 0.0 && origin[2] >= 0.0 {
+            let t = -origin[2] / dir[2];
+            if t <= best_t {
+                best_t = t;
+                best = Some(Hit {
+                    distance: t,
+                    landmark: GROUND,
+                    roof: true,
+                    normal: [0.0, 0.0, 1.0],
+                });
+            }
+        }
+        for (i, l) in self.landmarks.iter().enumerate() {
+            if let Some((t, axis, positive)) = slab(origin, dir, l.min, l.max, best_t)
+                && t <= best_t
+            {
+                best_t = t;
+                let mut normal = [0.0; 3];
+                normal[axis] = if positive { 1.0 } else { -1.0 };
+                best = Some(Hit {
+                    distance: t,
+                    landmark: i,
+                    roof: axis == 2 && positive,
+                    normal,
+                });
+            }
+        }
+        best
+    }
+}
+
+/// Slab test: entry distance, entry axis and whether the entry face is the box's upper
+/// face on that axis. `None` when the ray misses, starts inside, or enters beyond `max`.
+#[inline]
+fn slab(
+    o: [f32; 3],
+    d: [f32; 3],
+    min: [f32; 3],
+    max: [f32; 3],
+    limit: f32,
+) -> Option<(f32, usize, bool)> {
+    let mut t_enter = f32::NEG_INFINITY;
+    let mut t_exit = f32::INFINITY;
+    let mut axis = 0;
+    let mut positive = false;
+    for a in 0..3 {
+        if d[a].abs() < 1e-9 {
+            if o[a] < min[a] || o[a] > max[a] {
+                return None;
+            }
+            continue;
+        }
+        let inv = 1.0 / d[a];
+        let (t0, t1, pos) = if inv >= 0.0 {
+            ((min[a] - o[a]) * inv, (max[a] - o[a]) * inv, false)
+        } else {
+            ((max[a] - o[a]) * inv, (min[a] - o[a]) * inv, true)
+        };
+        if t0 > t_enter {
+            t_enter = t0;
+            axis = a;
+            positive = pos;
+        }
+        t_exit = t_exit.min(t1);
+        if t_enter > t_exit || t_exit < 0.0 || t_enter > limit {
+            return None;
+        }
+    }
+    if t_enter < 0.0 {
+        // origin inside the box (or the box is degenerate around it)
+        return None;
+    }
+    Some((t_enter, axis, positive))
+}
