@@ -188,15 +188,15 @@ impl ReasonerIo {
     /// Read inputs and make this cycle's decision (not yet published).
     fn think(&mut self, report: &mut CycleReport) -> Result<Decision, RoleError> {
         let t0 = monotonic_ns();
-        if let Some(s) = self.states.latest()? {
-            if s.validate().is_ok() {
-                self.last_state = Some(s);
-            }
+        if let Some(s) = self.states.latest()?
+            && s.validate().is_ok()
+        {
+            self.last_state = Some(s);
         }
-        if let Some(t) = self.telemetry.latest()? {
-            if t.validate().is_ok() {
-                self.last_telemetry = Some(t);
-            }
+        if let Some(t) = self.telemetry.latest()?
+            && t.validate().is_ok()
+        {
+            self.last_telemetry = Some(t);
         }
         let (position, yaw, landed) = match (&self.last_telemetry, &self.last_state) {
             (Some(t), _) => (t.position, t.attitude[2], t.landed == 1),
@@ -336,7 +336,7 @@ impl Role for GarbageRole {
                 self.io.send(&mut bad, report)?;
             }
         }
-        if self.next_rand() % 4 != 0 {
+        if !self.next_rand().is_multiple_of(4) {
             d.seq = 0;
             self.io.send(&mut d, report)?;
         }
