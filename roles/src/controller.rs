@@ -1,19 +1,851 @@
-//! Placeholder: being implemented.
-use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
-/// Placeholder.
-pub struct ControllerRole;
+//! The controller role (kind `controller`, variant `mavlink`): tracks the hub's bound
+//! setpoints at the control rate and talks MAVLink v2 to a PX4-style autopilot.
+//!
+//! Identity: system 1, component `MAV_COMP_ID_ONBOARD_COMPUTER` (191); it commands system 1,
+//! component 1 (the autopilot) and only believes messages from that system/component.
+//!
+//! Parameters (`params` of the [`RoleSpec`]):
+//! - `autopilot`: MAVLink URL of the autopilot (`udpin:`, `udpout:`, `tcpout:`, `tcpin:`,
+//!   `serial:PORT:BAUD`), default [`DEFAULT_AUTOPILOT`];
+//! - `realtime`: bool, default `true`: try SCHED_FIFO priority 50 for the cycle thread, and
+//!   fall back to the normal scheduler with one line on stderr when not permitted.
+//!
+//! Every tick (period `1 / timing.control_rate_hz`, default 50 Hz):
+//! 1. **read**: drain `hub/setpoint`, refuse (and count) every [`BoundSetpoint`] that fails
+//!    `BoundSetpoint::validate(&mission.decision_limits())`, keep the newest valid one; copy
+//!    the autopilot state the receive thread decoded (HEARTBEAT, LOCAL_POSITION_NED,
+//!    ATTITUDE, EXTENDED_SYS_STATE, COMMAND_ACK);
+//! 2. **track** ([`Tracker`]): with no valid setpoint fresher than
+//!    `timing.setpoint_timeout_ms` (or none yet), hold the position latched when the hold
+//!    began (and count the tick); otherwise fly the setpoint's mode: takeoff / ascend /
+//!    descend climb or sink vertically at the north/east where the mode began, goto flies to
+//!    the waypoint, hover / stop hold, turn holds and yaws, land flies to the target's
+//!    north/east and descends to the ground. The commanded position is a reference
+//!    ("carrot") that moves towards the target at `min(setpoint.speed, v_max)` (braking
+//!    before the target, waiting when the vehicle falls behind) with a velocity
+//!    feed-forward of the same speed, so the vehicle never needs to fly faster than
+//!    allowed. Positions stay in the geofence; altitude is clamped to `[h_min, h_max]`
+//!    except while landing and on the ground before takeoff;
+//! 3. **send**: one SET_POSITION_TARGET_LOCAL_NED (`MAV_FRAME_LOCAL_NED`, position +
+//!    velocity + yaw; `[N, E, U]` becomes NED, `z = -U`, only here); HEARTBEAT
+//!    (`MAV_TYPE_ONBOARD_CONTROLLER`, `MAV_AUTOPILOT_INVALID`) at 1 Hz; once the autopilot's
+//!    heartbeat is seen and setpoints have streamed for 0.5 s, while a valid setpoint wants
+//!    the vehicle flying, `MAV_CMD_DO_SET_MODE` (PX4 offboard) and
+//!    `MAV_CMD_COMPONENT_ARM_DISARM` (arm) every 0.5 s until the heartbeat reports armed and
+//!    offboard; `vehicle/telemetry` ([`VehicleTelemetry`] in `[N, E, U]`).
+//!
+//! Heartbeat [`CycleReport`]: stages `read`, `track`, `send`; counters
+//! `[ticks, missed, refused, hold_ticks, sent, 0, 0, 0]`:
+//! ticks = `ctx.cycles`, missed = `ctx.missed_deadlines`, refused = setpoints refused by
+//! validation, hold_ticks = ticks spent holding for lack of a fresh valid setpoint, sent =
+//! SET_POSITION_TARGET_LOCAL_NED messages written to the link.
+//!
+//! The cycle does not allocate: the subscriber, publisher, link and buffers are made in
+//! `new`; the mavlink crate serialises into a stack buffer and writes it with one syscall.
+
+use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
+use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::role::try_sched_fifo;
+use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
+use aeris_schemas::{
+    ActionMode, BoundSetpoint, DecisionLimits, SetpointError, VehicleTelemetry, topics,
+};
+use aeris_sim::mav_vehicle::{
+    LINK_POLL, LinkError, MavLink, PX4_MAIN_MODE_OFFBOARD, PendingLink, prepare_link, px4_main_mode,
+};
+use mavlink::MavHeader;
+use mavlink::dialects::common::{
+    COMMAND_LONG_DATA, HEARTBEAT_DATA, MavAutopilot, MavCmd, MavComponent, MavFrame,
+    MavLandedState, MavMessage, MavModeFlag, MavState, MavType, PositionTargetTypemask,
+    SET_POSITION_TARGET_LOCAL_NED_DATA,
+};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+/// Autopilot URL used when the spec gives none.
+pub const DEFAULT_AUTOPILOT: &str = "udpout:127.0.0.1:14600";
+/// Our MAVLink system id.
+pub const COMPANION_SYSTEM_ID: u8 = 1;
+/// Our MAVLink component id (`MAV_COMP_ID_ONBOARD_COMPUTER`).
+pub const COMPANION_COMPONENT_ID: u8 = MavComponent::MAV_COMP_ID_ONBOARD_COMPUTER as u8;
+/// The autopilot's system id.
+pub const AUTOPILOT_SYSTEM_ID: u8 = 1;
+/// The autopilot's component id.
+pub const AUTOPILOT_COMPONENT_ID: u8 = 1;
+/// The link counts as up while the autopilot's heartbeat is younger than this.
+pub const LINK_TIMEOUT_NS: u64 = 2_000_000_000;
+/// Setpoints must stream this long before the controller asks for offboard.
+pub const STREAM_BEFORE_OFFBOARD_NS: u64 = 500_000_000;
+/// Mode / arm commands are repeated at this interval until they take effect.
+pub const COMMAND_RETRY_NS: u64 = 500_000_000;
+const HEARTBEAT_PERIOD_NS: u64 = 1_000_000_000;
+/// A vehicle below the floor plus this is on the ground when the autopilot reports no
+/// landed state (m).
+const GROUND_MARGIN_M: f32 = 0.15;
+
+/// How the tracker turns setpoints into position targets.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackerConfig {
+    /// The flight's limits (validation, geofence, altitude band, v_max).
+    pub limits: DecisionLimits,
+    /// Position assumed before the autopilot reports one `[N, E, U]`.
+    pub start: [f32; 3],
+    /// Control period (s).
+    pub period_s: f32,
+    /// A valid setpoint older than this no longer counts (ns).
+    pub setpoint_timeout_ns: u64,
+    /// Speed used to return to a hold position (m/s, capped by v_max).
+    pub hold_speed: f32,
+    /// Final descent speed when landing (m/s, capped by v_max).
+    pub land_speed: f32,
+    /// Deceleration the reference plans with before the target (m/s^2).
+    pub brake_accel: f32,
+    /// The reference waits when it is further ahead of the vehicle than
+    /// `max(leash_min_m, speed * leash_s)`.
+    pub leash_s: f32,
+    /// Minimum leash (m).
+    pub leash_min_m: f32,
+}
+
+impl TrackerConfig {
+    /// Configuration from a role spec (mission limits, start, timing).
+    pub fn from_spec(spec: &RoleSpec) -> Self {
+        let limits = spec.mission.decision_limits();
+        let rate = spec.timing.control_rate_hz;
+        let period_s = if rate.is_finite() && rate > 0.0 {
+            (1.0 / rate) as f32
+        } else {
+            0.02
+        };
+        Self {
+            limits,
+            start: spec.mission.start,
+            period_s,
+            setpoint_timeout_ns: spec.timing.setpoint_timeout_ms.saturating_mul(1_000_000),
+            hold_speed: spec.mission.cruise_speed.min(limits.v_max),
+            land_speed: 1.0_f32.min(limits.v_max),
+            brake_accel: 2.0,
+            leash_s: 1.0,
+            leash_min_m: 2.0,
+        }
+    }
+
+    /// The ground the tracker lands on: the geofence floor (m, up).
+    pub fn floor(&self) -> f32 {
+        self.limits.geofence_min[2]
+    }
+}
+
+/// What the tracker knows about the vehicle this tick.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct VehicleView {
+    /// Position `[N, E, U]`, when the autopilot reported one.
+    pub position: Option<[f32; 3]>,
+    /// Yaw (rad), when reported.
+    pub yaw: Option<f32>,
+    /// On the ground.
+    pub landed: bool,
+}
+
+/// One tick's target in `[N, E, U]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackCommand {
+    /// Position target `[N, E, U]`.
+    pub position: [f32; 3],
+    /// Velocity feed-forward `[N, E, U]`.
+    pub velocity: [f32; 3],
+    /// Yaw target (rad).
+    pub yaw: f32,
+    /// The mode flown; `None` while holding for lack of a fresh valid setpoint.
+    pub mode: Option<ActionMode>,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Current {
+    sp: BoundSetpoint,
+    mode: ActionMode,
+    fresh_until_ns: u64,
+}
+
+/// Setpoint gate and trajectory reference of the controller (pure: no I/O, no allocation).
+#[derive(Debug, Clone)]
+pub struct Tracker {
+    cfg: TrackerConfig,
+    current: Option<Current>,
+    carrot: Option<[f32; 3]>,
+    anchor: Option<(ActionMode, [f32; 3])>,
+    hold: Option<([f32; 3], f32)>,
+    last_good: [f32; 3],
+    refused: u64,
+    accepted: u64,
+    hold_ticks: u64,
+}
+
+fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn norm(v: [f32; 3]) -> f32 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+fn scale(v: [f32; 3], k: f32) -> [f32; 3] {
+    [v[0] * k, v[1] * k, v[2] * k]
+}
+
+impl Tracker {
+    /// A tracker with no setpoint yet.
+    pub fn new(cfg: TrackerConfig) -> Self {
+        let start = cfg.start;
+        let mut t = Self {
+            cfg,
+            current: None,
+            carrot: None,
+            anchor: None,
+            hold: None,
+            last_good: [0.0; 3],
+            refused: 0,
+            accepted: 0,
+            hold_ticks: 0,
+        };
+        t.last_good = if start.iter().all(|v| v.is_finite()) {
+            t.fence(start)
+        } else {
+            [0.0; 3]
+        };
+        t
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &TrackerConfig {
+        &self.cfg
+    }
+
+    /// Offer a setpoint received at `now_ns`: refused (and counted) when it fails
+    /// validation, otherwise it becomes the current setpoint. It stays fresh until
+    /// `min(publish_ns, now_ns) + setpoint_timeout`.
+    pub fn offer(&mut self, sp: &BoundSetpoint, now_ns: u64) -> Result<ActionMode, SetpointError> {
+        match sp.validate(&self.cfg.limits) {
+            Ok(mode) => {
+                self.accepted += 1;
+                self.current = Some(Current {
+                    sp: *sp,
+                    mode,
+                    fresh_until_ns: sp
+                        .publish_ns
+                        .min(now_ns)
+                        .saturating_add(self.cfg.setpoint_timeout_ns),
+                });
+                Ok(mode)
+            }
+            Err(e) => {
+                self.refused += 1;
+                Err(e)
+            }
+        }
+    }
+
+    /// The current setpoint if it is still fresh at `now_ns`.
+    pub fn active(&self, now_ns: u64) -> Option<(&BoundSetpoint, ActionMode)> {
+        self.current
+            .as_ref()
+            .filter(|c| now_ns <= c.fresh_until_ns)
+            .map(|c| (&c.sp, c.mode))
+    }
+
+    /// Setpoints refused by validation so far.
+    pub fn refused(&self) -> u64 {
+        self.refused
+    }
+
+    /// Setpoints accepted so far.
+    pub fn accepted(&self) -> u64 {
+        self.accepted
+    }
+
+    /// Ticks spent holding for lack of a fresh valid setpoint.
+    pub fn hold_ticks(&self) -> u64 {
+        self.hold_ticks
+    }
+
+    /// `true` when the active setpoint wants the vehicle armed and in offboard: a fresh,
+    /// valid setpoint of a flying mode, or any fresh setpoint while airborne.
+    pub fn wants_flight(&self, now_ns: u64, landed: bool) -> bool {
+        self.active(now_ns).is_some_and(|(_, mode)| {
+            !landed
+                || matches!(
+                    mode,
+                    ActionMode::Takeoff
+                        | ActionMode::Goto
+                        | ActionMode::Ascend
+                        | ActionMode::Descend
+                )
+        })
+    }
+
+    fn clamp_alt(&self, u: f32) -> f32 {
+        u.clamp(self.cfg.limits.h_min, self.cfg.limits.h_max)
+    }
+
+    /// Keep `p` in the geofence and under h_max (the hard guarantee on every output).
+    fn fence(&self, p: [f32; 3]) -> [f32; 3] {
+        let l = &self.cfg.limits;
+        [
+            p[0].clamp(l.geofence_min[0], l.geofence_max[0]),
+            p[1].clamp(l.geofence_min[1], l.geofence_max[1]),
+            p[2].clamp(l.geofence_min[2], l.geofence_max[2].min(l.h_max)),
+        ]
+    }
+
+    /// Altitude of a holding position: on the ground it stays there (before takeoff),
+    /// in the air it is clamped into the altitude band.
+    fn hold_alt(&self, u: f32, landed: bool) -> f32 {
+        if landed { u } else { self.clamp_alt(u) }
+    }
+
+    /// Move the reference towards `target` at up to `speed`; the feed-forward velocity.
+    fn advance(&mut self, target: [f32; 3], speed: f32, vehicle: Option<[f32; 3]>) -> [f32; 3] {
+        let carrot = self.carrot.unwrap_or(target);
+        let d = sub(target, carrot);
+        let dist = norm(d);
+        if dist < 1e-4 || speed <= 0.0 {
+            self.carrot = Some(if dist < 1e-4 { target } else { carrot });
+            return [0.0; 3];
+        }
+        let dir = scale(d, 1.0 / dist);
+        let v = speed.min((2.0 * self.cfg.brake_accel * dist).sqrt());
+        let leash = self.cfg.leash_min_m.max(speed * self.cfg.leash_s);
+        let waiting = vehicle.is_some_and(|p| norm(sub(carrot, p)) > leash);
+        if !waiting {
+            let step = (v * self.cfg.period_s).min(dist);
+            self.carrot = Some([
+                carrot[0] + dir[0] * step,
+                carrot[1] + dir[1] * step,
+                carrot[2] + dir[2] * step,
+            ]);
+        }
+        scale(dir, v)
+    }
+
+    /// One control tick at `now_ns`: the position target, feed-forward and yaw to send.
+    pub fn tick(&mut self, now_ns: u64, vehicle: &VehicleView) -> TrackCommand {
+        let seed = vehicle.position.unwrap_or(self.cfg.start);
+        if self.carrot.is_none() {
+            self.carrot = Some(self.fence(seed));
+        }
+        let v_max = self.cfg.limits.v_max;
+        let Some((sp, mode)) = self.active(now_ns).map(|(sp, m)| (*sp, m)) else {
+            // Hold the position latched when the hold began.
+            self.hold_ticks += 1;
+            self.anchor = None;
+            let (pos, yaw) = *self.hold.get_or_insert((seed, vehicle.yaw.unwrap_or(0.0)));
+            let target = self.fence([pos[0], pos[1], self.hold_alt(pos[2], vehicle.landed)]);
+            let speed = self.cfg.hold_speed.min(v_max);
+            let ff = self.advance(target, speed, vehicle.position);
+            return self.output(ff, yaw, None);
+        };
+        self.hold = None;
+        let carrot = self.carrot.unwrap_or(seed);
+        let anchor = match self.anchor {
+            Some((m, a)) if m == mode => a,
+            _ => {
+                self.anchor = Some((mode, carrot));
+                carrot
+            }
+        };
+        let speed = sp.speed.min(v_max);
+        let [n, e, u] = sp.position;
+        let ff = match mode {
+            ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend => {
+                let target = self.fence([anchor[0], anchor[1], self.clamp_alt(u)]);
+                self.advance(target, speed, vehicle.position)
+            }
+            ActionMode::Goto => {
+                let target = self.fence([n, e, self.clamp_alt(u)]);
+                self.advance(target, speed, vehicle.position)
+            }
+            ActionMode::Hover | ActionMode::Stop | ActionMode::Turn => {
+                let target = self.fence([
+                    anchor[0],
+                    anchor[1],
+                    self.hold_alt(anchor[2], vehicle.landed),
+                ]);
+                self.advance(
+                    target,
+                    speed.max(self.cfg.hold_speed.min(v_max)),
+                    vehicle.position,
+                )
+            }
+            ActionMode::Land => {
+                // First over the target at the current altitude, then straight down.
+                let land_speed = self.cfg.land_speed.min(v_max);
+                let horizontal = ((carrot[0] - n).powi(2) + (carrot[1] - e).powi(2)).sqrt();
+                if horizontal > 0.05 {
+                    let target = self.fence([n, e, carrot[2]]);
+                    self.advance(target, speed.max(land_speed), vehicle.position)
+                } else {
+                    let floor = self.cfg.floor();
+                    let target = self.fence([n, e, floor]);
+                    let ff = self.advance(target, land_speed, vehicle.position);
+                    let above = vehicle
+                        .position
+                        .is_some_and(|p| p[2] > floor + 0.05 && !vehicle.landed);
+                    if norm(ff) < 1e-6 && above {
+                        // Keep pushing down for a firm touchdown.
+                        [0.0, 0.0, -land_speed]
+                    } else {
+                        ff
+                    }
+                }
+            }
+        };
+        self.output(ff, sp.yaw, Some(mode))
+    }
+
+    fn output(&mut self, ff: [f32; 3], yaw: f32, mode: Option<ActionMode>) -> TrackCommand {
+        let mut position = self.fence(self.carrot.unwrap_or(self.cfg.start));
+        let mut ff = ff;
+        if !position.iter().chain(ff.iter()).all(|v| v.is_finite()) {
+            // Defence in depth (inputs are validated): never put a non-finite number on
+            // the wire; stay at the last good reference instead.
+            position = self.last_good;
+            ff = [0.0; 3];
+        }
+        self.carrot = Some(position);
+        self.last_good = position;
+        let v_max = self.cfg.limits.v_max;
+        let s = norm(ff);
+        let velocity = if s > v_max { scale(ff, v_max / s) } else { ff };
+        TrackCommand {
+            position,
+            velocity,
+            yaw: if yaw.is_finite() { yaw } else { 0.0 },
+            mode,
+        }
+    }
+}
+
+/// `[N, E, U]` -> NED.
+pub fn neu_to_ned(v: [f32; 3]) -> [f32; 3] {
+    [v[0], v[1], -v[2]]
+}
+
+/// NED -> `[N, E, U]`.
+pub fn ned_to_neu(v: [f32; 3]) -> [f32; 3] {
+    [v[0], v[1], -v[2]]
+}
+
+/// The `type_mask` the controller sends: position, velocity and yaw used; acceleration and
+/// yaw rate ignored.
+pub fn position_velocity_yaw_mask() -> PositionTargetTypemask {
+    PositionTargetTypemask::POSITION_TARGET_TYPEMASK_AX_IGNORE
+        | PositionTargetTypemask::POSITION_TARGET_TYPEMASK_AY_IGNORE
+        | PositionTargetTypemask::POSITION_TARGET_TYPEMASK_AZ_IGNORE
+        | PositionTargetTypemask::POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
+}
+
+/// The SET_POSITION_TARGET_LOCAL_NED for `cmd` (the only place `[N, E, U]` becomes NED).
+pub fn position_target_message(cmd: &TrackCommand, time_boot_ms: u32) -> MavMessage {
+    let p = neu_to_ned(cmd.position);
+    let v = neu_to_ned(cmd.velocity);
+    MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
+        time_boot_ms,
+        x: p[0],
+        y: p[1],
+        z: p[2],
+        vx: v[0],
+        vy: v[1],
+        vz: v[2],
+        afx: 0.0,
+        afy: 0.0,
+        afz: 0.0,
+        yaw: cmd.yaw,
+        yaw_rate: 0.0,
+        type_mask: position_velocity_yaw_mask(),
+        target_system: AUTOPILOT_SYSTEM_ID,
+        target_component: AUTOPILOT_COMPONENT_ID,
+        coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
+    })
+}
+
+/// What the receive thread decoded from the autopilot.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct AutopilotState {
+    last_heartbeat_ns: Option<u64>,
+    armed: bool,
+    offboard: bool,
+    landed_state: Option<MavLandedState>,
+    position_ned: Option<[f32; 3]>,
+    velocity_ned: [f32; 3],
+    attitude: Option<[f32; 3]>,
+    time_boot_ms: u32,
+    acks: u64,
+}
+
+impl AutopilotState {
+    fn apply(&mut self, msg: &MavMessage, now_ns: u64) {
+        match msg {
+            MavMessage::HEARTBEAT(hb) => {
+                self.last_heartbeat_ns = Some(now_ns);
+                self.armed = hb
+                    .base_mode
+                    .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED);
+                self.offboard = hb
+                    .base_mode
+                    .contains(MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED)
+                    && px4_main_mode(hb.custom_mode) == PX4_MAIN_MODE_OFFBOARD;
+            }
+            MavMessage::LOCAL_POSITION_NED(p)
+                if [p.x, p.y, p.z, p.vx, p.vy, p.vz]
+                    .iter()
+                    .all(|v| v.is_finite()) =>
+            {
+                self.position_ned = Some([p.x, p.y, p.z]);
+                self.velocity_ned = [p.vx, p.vy, p.vz];
+                self.time_boot_ms = p.time_boot_ms;
+            }
+            MavMessage::ATTITUDE(a) if [a.roll, a.pitch, a.yaw].iter().all(|v| v.is_finite()) => {
+                self.attitude = Some([a.roll, a.pitch, a.yaw]);
+            }
+            MavMessage::EXTENDED_SYS_STATE(e) => {
+                self.landed_state = Some(e.landed_state);
+            }
+            MavMessage::COMMAND_ACK(_) => self.acks += 1,
+            _ => {}
+        }
+    }
+
+    fn link_up(&self, now_ns: u64) -> bool {
+        self.last_heartbeat_ns
+            .is_some_and(|t| now_ns.saturating_sub(t) <= LINK_TIMEOUT_NS)
+    }
+
+    fn landed(&self, floor: f32) -> bool {
+        match self.landed_state {
+            Some(MavLandedState::MAV_LANDED_STATE_ON_GROUND) => true,
+            Some(MavLandedState::MAV_LANDED_STATE_UNDEFINED) | None => self
+                .position_ned
+                .is_some_and(|p| -p[2] <= floor + GROUND_MARGIN_M),
+            Some(_) => false,
+        }
+    }
+}
+
+fn controller_rx(
+    pending: PendingLink,
+    slot: Arc<OnceLock<MavLink>>,
+    shared: Arc<Mutex<AutopilotState>>,
+    stop: Arc<AtomicBool>,
+) {
+    let link = match pending.establish(&stop) {
+        Ok(Some(link)) => link,
+        Ok(None) => return,
+        Err(e) => {
+            eprintln!("aeris controller: autopilot link failed: {e}");
+            return;
+        }
+    };
+    let _ = slot.set(link);
+    let Some(link) = slot.get() else { return };
+    while !stop.load(Ordering::Relaxed) {
+        match link.recv() {
+            Ok(Some((h, msg)))
+                if h.system_id == u32::from(AUTOPILOT_SYSTEM_ID)
+                    && h.component_id == AUTOPILOT_COMPONENT_ID =>
+            {
+                let now = monotonic_ns();
+                if let Ok(mut s) = shared.lock() {
+                    s.apply(&msg, now);
+                }
+            }
+            Ok(_) | Err(LinkError::Decode) => {}
+            Err(_) => std::thread::sleep(LINK_POLL),
+        }
+    }
+}
+
+/// The 50 Hz MAVLink controller role.
+pub struct ControllerRole {
+    link: Arc<OnceLock<MavLink>>,
+    shared: Arc<Mutex<AutopilotState>>,
+    stop: Arc<AtomicBool>,
+    rx: Option<JoinHandle<()>>,
+    setpoints: TypedSubscriber<BoundSetpoint>,
+    telemetry: TypedPublisher<VehicleTelemetry>,
+    tracker: Tracker,
+    period: Duration,
+    start_ns: u64,
+    next_heartbeat_ns: u64,
+    next_command_ns: u64,
+    stream_since_ns: Option<u64>,
+    sent: u64,
+    send_errors: u64,
+    commands_sent: u64,
+    telemetry_seq: u64,
+    confirmation: u8,
+    header: MavHeader,
+}
+
+impl core::fmt::Debug for ControllerRole {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("ControllerRole")
+            .field("sent", &self.sent)
+            .field("refused", &self.tracker.refused())
+            .finish_non_exhaustive()
+    }
+}
+
+fn param_bool(spec: &RoleSpec, key: &str, default: bool) -> Result<bool, RoleError> {
+    match spec.params.get(key) {
+        None => Ok(default),
+        Some(v) => v
+            .as_bool()
+            .ok_or_else(|| RoleError::Config(format!("param `{key}` must be true or false"))),
+    }
+}
+
+impl ControllerRole {
+    /// MAVLink messages of the last run written successfully (setpoints only).
+    pub fn setpoints_sent(&self) -> u64 {
+        self.sent
+    }
+
+    /// Writes to the autopilot link that failed.
+    pub fn send_errors(&self) -> u64 {
+        self.send_errors
+    }
+
+    /// The tracker (setpoint gate and reference).
+    pub fn tracker(&self) -> &Tracker {
+        &self.tracker
+    }
+
+    fn send(&mut self, msg: &MavMessage) -> bool {
+        let Some(link) = self.link.get() else {
+            return false;
+        };
+        match link.send(&self.header, msg) {
+            Ok(n) => n > 0,
+            Err(_) => {
+                self.send_errors += 1;
+                false
+            }
+        }
+    }
+
+    fn command(&mut self, command: MavCmd, p1: f32, p2: f32) {
+        let msg = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            param1: p1,
+            param2: p2,
+            param3: 0.0,
+            param4: 0.0,
+            param5: 0.0,
+            param6: 0.0,
+            param7: 0.0,
+            command,
+            target_system: AUTOPILOT_SYSTEM_ID,
+            target_component: AUTOPILOT_COMPONENT_ID,
+            confirmation: self.confirmation,
+        });
+        if self.send(&msg) {
+            self.commands_sent += 1;
+        }
+    }
+}
+
 impl Role for ControllerRole {
-    fn new(_ctx: &mut RoleContext) -> Result<Self, RoleError> {
-        Err(RoleError::Fatal("not built yet".into()))
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+        let spec = &ctx.spec;
+        let rate = spec.timing.control_rate_hz;
+        if !(rate.is_finite() && rate > 0.0 && rate <= 1000.0) {
+            return Err(RoleError::Config(format!(
+                "timing.control_rate_hz = {rate} must be in (0, 1000]"
+            )));
+        }
+        let url = match spec.params.get("autopilot") {
+            None => DEFAULT_AUTOPILOT.to_string(),
+            Some(v) => v
+                .as_str()
+                .ok_or_else(|| RoleError::Config("param `autopilot` must be a string".into()))?
+                .to_string(),
+        };
+        let realtime = param_bool(spec, "realtime", true)?;
+        let tracker = Tracker::new(TrackerConfig::from_spec(spec));
+        let setpoints = ctx.bus.subscriber::<BoundSetpoint>(topics::HUB_SETPOINT)?;
+        let telemetry = ctx
+            .bus
+            .publisher::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)?;
+        let pending = prepare_link(&url, LINK_POLL)
+            .map_err(|e| RoleError::Config(format!("autopilot link: {e}")))?;
+        let link = Arc::new(OnceLock::new());
+        let shared = Arc::new(Mutex::new(AutopilotState::default()));
+        let stop = Arc::new(AtomicBool::new(false));
+        // Spawned before switching to SCHED_FIFO so the receive thread keeps the normal policy.
+        let rx = {
+            let (link, shared, stop) = (link.clone(), shared.clone(), stop.clone());
+            std::thread::Builder::new()
+                .name("controller-rx".into())
+                .spawn(move || controller_rx(pending, link, shared, stop))
+                .map_err(|e| RoleError::Fatal(format!("cannot spawn the receive thread: {e}")))?
+        };
+        if realtime && !try_sched_fifo(50) {
+            eprintln!(
+                "aeris controller `{}`: SCHED_FIFO not permitted, running with the normal scheduler",
+                spec.name
+            );
+        }
+        let now = monotonic_ns();
+        Ok(Self {
+            link,
+            shared,
+            stop,
+            rx: Some(rx),
+            setpoints,
+            telemetry,
+            tracker,
+            period: Duration::from_secs_f64(1.0 / rate),
+            start_ns: now,
+            next_heartbeat_ns: now,
+            next_command_ns: now,
+            stream_since_ns: None,
+            sent: 0,
+            send_errors: 0,
+            commands_sent: 0,
+            telemetry_seq: 0,
+            confirmation: 0,
+            header: MavHeader {
+                system_id: u32::from(COMPANION_SYSTEM_ID),
+                component_id: COMPANION_COMPONENT_ID,
+                sequence: 0,
+            },
+        })
     }
-    fn period(&self) -> core::time::Duration {
-        core::time::Duration::from_millis(100)
+
+    fn period(&self) -> Duration {
+        self.period
     }
+
     fn cycle(
         &mut self,
-        _ctx: &mut RoleContext,
-        _r: &mut CycleReport,
+        ctx: &mut RoleContext,
+        report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
-        Ok(CycleOutcome::Idle)
+        // read
+        let t0 = monotonic_ns();
+        let tracker = &mut self.tracker;
+        self.setpoints.drain(|sp| {
+            let _ = tracker.offer(sp, t0);
+        })?;
+        let ap = self.shared.lock().map(|s| *s).unwrap_or_default();
+        let t1 = monotonic_ns();
+
+        // track
+        let floor = self.tracker.config().floor();
+        let landed = ap.landed(floor);
+        let view = VehicleView {
+            position: ap.position_ned.map(ned_to_neu),
+            yaw: ap.attitude.map(|a| a[2]),
+            landed,
+        };
+        let cmd = self.tracker.tick(t1, &view);
+        let t2 = monotonic_ns();
+
+        // send
+        let time_boot_ms = ((t2.saturating_sub(self.start_ns)) / 1_000_000) as u32;
+        if self.send(&position_target_message(&cmd, time_boot_ms)) {
+            self.sent += 1;
+            self.stream_since_ns.get_or_insert(t2);
+        }
+        if t2 >= self.next_heartbeat_ns {
+            self.next_heartbeat_ns = t2 + HEARTBEAT_PERIOD_NS;
+            self.send(&MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+                custom_mode: 0,
+                mavtype: MavType::MAV_TYPE_ONBOARD_CONTROLLER,
+                autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+                base_mode: MavModeFlag::empty(),
+                system_status: MavState::MAV_STATE_ACTIVE,
+                mavlink_version: 3,
+            }));
+        }
+        let link_up = ap.link_up(t2);
+        let streamed = self
+            .stream_since_ns
+            .is_some_and(|s| t2.saturating_sub(s) >= STREAM_BEFORE_OFFBOARD_NS);
+        if link_up
+            && streamed
+            && !(ap.armed && ap.offboard)
+            && self.tracker.wants_flight(t2, landed)
+            && t2 >= self.next_command_ns
+        {
+            self.next_command_ns = t2 + COMMAND_RETRY_NS;
+            if !ap.offboard {
+                let custom = f32::from(MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED.bits());
+                self.command(
+                    MavCmd::MAV_CMD_DO_SET_MODE,
+                    custom,
+                    f32::from(PX4_MAIN_MODE_OFFBOARD),
+                );
+            }
+            if !ap.armed {
+                self.command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, 1.0, 0.0);
+            }
+            self.confirmation = self.confirmation.wrapping_add(1);
+        }
+        let attitude = ap.attitude.unwrap_or([0.0; 3]);
+        self.telemetry_seq += 1;
+        let telemetry = VehicleTelemetry {
+            seq: self.telemetry_seq,
+            stamp_ns: t2,
+            autopilot_time_ms: ap.time_boot_ms,
+            armed: u8::from(ap.armed),
+            offboard: u8::from(ap.offboard),
+            link_up: u8::from(link_up),
+            landed: u8::from(landed),
+            position: ap
+                .position_ned
+                .map(ned_to_neu)
+                .unwrap_or(self.tracker.config().start),
+            velocity: ned_to_neu(ap.velocity_ned),
+            attitude,
+            controller_ticks: ctx.cycles,
+            controller_missed_ticks: ctx.missed_deadlines,
+            setpoints_refused: self.tracker.refused(),
+            hold_ticks: self.tracker.hold_ticks(),
+        };
+        self.telemetry.publish(&telemetry)?;
+        let t3 = monotonic_ns();
+
+        report.stage("read", t1 - t0);
+        report.stage("track", t2 - t1);
+        report.stage("send", t3 - t2);
+        report.counters = [
+            ctx.cycles,
+            ctx.missed_deadlines,
+            self.tracker.refused(),
+            self.tracker.hold_ticks(),
+            self.sent,
+            0,
+            0,
+            0,
+        ];
+        Ok(CycleOutcome::Worked)
+    }
+
+    fn shutdown(&mut self, _ctx: &mut RoleContext) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(h) = self.rx.take() {
+            let _ = h.join();
+        }
+    }
+}
+
+impl Drop for ControllerRole {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(h) = self.rx.take() {
+            let _ = h.join();
+        }
     }
 }

@@ -1,1 +1,1024 @@
-//! TODO
+//! A MAVLink v2 endpoint that behaves like a PX4 multirotor in offboard mode.
+//!
+//! [`SimVehicle`] is system 1, component 1 (configurable) on any MAVLink connection URL
+//! (`udpin:`, `udpout:`, `udpbcast:`, `tcpin:`, `tcpout:`, `serial:DEVICE:BAUD`). Around a
+//! [`MultirotorModel`] it:
+//! - sends HEARTBEAT at 1 Hz (`MAV_TYPE_QUADROTOR`, `MAV_AUTOPILOT_PX4`, `base_mode` with
+//!   `CUSTOM_MODE_ENABLED` and `SAFETY_ARMED` when armed, `custom_mode` = PX4 main mode in
+//!   bits 16..24 and sub mode in bits 24..32, see [`FlightMode`]), LOCAL_POSITION_NED and
+//!   ATTITUDE at 50 Hz, EXTENDED_SYS_STATE (landed state) at 5 Hz;
+//! - answers every COMMAND_LONG addressed to it with a COMMAND_ACK; it accepts
+//!   `MAV_CMD_COMPONENT_ARM_DISARM` (disarming in the air only when forced with 21196),
+//!   `MAV_CMD_DO_SET_MODE` (custom main mode 6 = offboard, refused unless setpoints streamed
+//!   within the last 0.5 s; 3 = position; 4 with sub mode 3 = hold, 6 = land) and
+//!   `MAV_CMD_NAV_LAND`; everything else is `MAV_RESULT_UNSUPPORTED`;
+//! - flies SET_POSITION_TARGET_LOCAL_NED in `MAV_FRAME_LOCAL_NED` while in offboard,
+//!   honouring `type_mask` for position, velocity, yaw and yaw rate (setpoints in other
+//!   frames, with nothing usable, or with non-finite numbers are rejected and counted);
+//! - like PX4, falls back to hold when the setpoint stream stops for more than 0.5 s in
+//!   offboard, lands at 0.7 m/s in land mode and disarms 2 s after touching down.
+//!
+//! Receiving never blocks the physics: a receive thread decodes the link and feeds a bounded
+//! channel that [`SimVehicle::step`] drains. The caller drives the physics with
+//! [`SimVehicle::step`] (the vehicle role does, every 10 ms), or [`SimVehicle::spawn`] runs
+//! it on its own thread.
+//!
+//! The link helpers ([`prepare_link`], [`open_link`], [`MavLink`]) are shared with the
+//! controller role: they open any supported URL with a receive timeout so receive threads
+//! can stop cleanly.
+
+use crate::multirotor::{
+    Command, GROUND_U, MAX_STEP_S, MultirotorModel, MultirotorParams, MultirotorState,
+};
+use mavlink::dialects::common::{
+    ATTITUDE_DATA, COMMAND_ACK_DATA, COMMAND_LONG_DATA, EXTENDED_SYS_STATE_DATA, HEARTBEAT_DATA,
+    LOCAL_POSITION_NED_DATA, MavAutopilot, MavCmd, MavFrame, MavLandedState, MavMessage,
+    MavModeFlag, MavResult, MavState, MavType, MavVtolState, PositionTargetTypemask,
+    SET_POSITION_TARGET_LOCAL_NED_DATA,
+};
+use mavlink::error::{MessageReadError, MessageWriteError};
+use mavlink::{Connectable, MavConnection, MavHeader, SerialConfig, TcpConfig, UdpConfig, UdpMode};
+use std::net::{TcpListener, TcpStream};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, SyncSender, TryRecvError, TrySendError, sync_channel};
+use std::sync::{Arc, Mutex, OnceLock};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// PX4 main mode "position control" (custom_mode bits 16..24).
+pub const PX4_MAIN_MODE_POSCTL: u8 = 3;
+/// PX4 main mode "auto" (sub mode in bits 24..32).
+pub const PX4_MAIN_MODE_AUTO: u8 = 4;
+/// PX4 main mode "offboard".
+pub const PX4_MAIN_MODE_OFFBOARD: u8 = 6;
+/// PX4 auto sub mode "loiter" (hold).
+pub const PX4_AUTO_SUB_MODE_LOITER: u8 = 3;
+/// PX4 auto sub mode "land".
+pub const PX4_AUTO_SUB_MODE_LAND: u8 = 6;
+/// `param2` of `MAV_CMD_COMPONENT_ARM_DISARM` that forces the action (PX4 magic number).
+pub const FORCE_ARM_DISARM_MAGIC: f32 = 21196.0;
+
+/// PX4 `custom_mode` of a main and sub mode.
+pub fn px4_custom_mode(main: u8, sub: u8) -> u32 {
+    (u32::from(main) << 16) | (u32::from(sub) << 24)
+}
+
+/// The PX4 main mode inside a HEARTBEAT `custom_mode`.
+pub fn px4_main_mode(custom_mode: u32) -> u8 {
+    ((custom_mode >> 16) & 0xff) as u8
+}
+
+/// The PX4 sub mode inside a HEARTBEAT `custom_mode`.
+pub fn px4_sub_mode(custom_mode: u32) -> u8 {
+    ((custom_mode >> 24) & 0xff) as u8
+}
+
+/// How long a receive call waits before giving the receive loop a chance to stop.
+pub const LINK_POLL: Duration = Duration::from_millis(50);
+
+/// The MAVLink connection type used everywhere (common dialect, MAVLink 2).
+pub type MavConnectionCommon = mavlink::Connection<MavMessage>;
+
+/// Why a MAVLink link operation failed.
+#[derive(Debug, thiserror::Error)]
+pub enum LinkError {
+    /// The URL does not name a supported transport.
+    #[error(
+        "unsupported MAVLink address `{0}` (use udpin:HOST:PORT, udpout:HOST:PORT, udpbcast:HOST:PORT, \
+         tcpin:HOST:PORT, tcpout:HOST:PORT or serial:DEVICE:BAUD)"
+    )]
+    Address(String),
+    /// The transport could not be opened (bind, connect, device).
+    #[error("cannot open MAVLink link `{url}`: {source}")]
+    Open {
+        /// The URL.
+        url: String,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// Writing a message failed.
+    #[error("MAVLink send failed: {0}")]
+    Send(String),
+    /// Reading failed with an I/O error other than a timeout.
+    #[error("MAVLink receive failed: {0}")]
+    Receive(std::io::Error),
+    /// The peer closed the stream (TCP) or the device went away.
+    #[error("the MAVLink peer closed the link")]
+    Closed,
+    /// Bytes arrived that do not decode as a common-dialect MAVLink 2 message.
+    #[error("undecodable MAVLink data")]
+    Decode,
+}
+
+/// An open MAVLink link: send from any thread, receive with a timeout.
+pub struct MavLink {
+    conn: MavConnectionCommon,
+    poll_with_try_recv: bool,
+}
+
+impl core::fmt::Debug for MavLink {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("MavLink").finish_non_exhaustive()
+    }
+}
+
+impl MavLink {
+    /// Send `msg` with `header` (the sequence number is filled in). `Ok(0)` means there is
+    /// no peer yet (a `udpin:` link before anything arrived). Does not allocate.
+    pub fn send(&self, header: &MavHeader, msg: &MavMessage) -> Result<usize, LinkError> {
+        self.conn.send(header, msg).map_err(|e| match e {
+            MessageWriteError::Io(io) => LinkError::Send(io.to_string()),
+            other => LinkError::Send(format!("{other:?}")),
+        })
+    }
+
+    /// Receive one message; `Ok(None)` when nothing arrived within the link's poll timeout.
+    pub fn recv(&self) -> Result<Option<(MavHeader, MavMessage)>, LinkError> {
+        let r = if self.poll_with_try_recv {
+            self.conn.try_recv()
+        } else {
+            self.conn.recv()
+        };
+        match r {
+            Ok(m) => Ok(Some(m)),
+            Err(MessageReadError::Io(e)) => match e.kind() {
+                std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut => Ok(None),
+                std::io::ErrorKind::UnexpectedEof
+                | std::io::ErrorKind::ConnectionReset
+                | std::io::ErrorKind::BrokenPipe
+                | std::io::ErrorKind::NotConnected => Err(LinkError::Closed),
+                _ => Err(LinkError::Receive(e)),
+            },
+            Err(MessageReadError::Parse(_)) => Err(LinkError::Decode),
+        }
+    }
+}
+
+/// A link that is open, or a TCP server still waiting for its peer.
+#[derive(Debug)]
+pub enum PendingLink {
+    /// Ready to use.
+    Ready(MavLink),
+    /// A bound `tcpin:` listener; [`PendingLink::establish`] accepts the peer.
+    Listening {
+        /// The bound listener.
+        listener: TcpListener,
+        /// Read timeout of the accepted stream.
+        timeout: Duration,
+    },
+}
+
+fn open_err(url: &str) -> impl FnOnce(std::io::Error) -> LinkError + '_ {
+    move |source| LinkError::Open {
+        url: url.to_string(),
+        source,
+    }
+}
+
+fn tcp_link(stream: TcpStream, timeout: Duration, url: &str) -> Result<MavLink, LinkError> {
+    stream.set_nodelay(true).map_err(open_err(url))?;
+    stream
+        .set_read_timeout(Some(timeout))
+        .map_err(open_err(url))?;
+    let conn = TcpConfig::from_stream(stream)
+        .map_err(open_err(url))?
+        .connect::<MavMessage>()
+        .map_err(open_err(url))?;
+    Ok(MavLink {
+        conn,
+        poll_with_try_recv: false,
+    })
+}
+
+/// Parse `url` and open its transport (binding, connecting, opening the device), except
+/// that a `tcpin:` server is only bound: its peer is accepted by [`PendingLink::establish`].
+/// Receives on the link time out after `read_timeout` (never zero).
+pub fn prepare_link(url: &str, read_timeout: Duration) -> Result<PendingLink, LinkError> {
+    let timeout = read_timeout.max(Duration::from_millis(1));
+    let (proto, addr) = url
+        .split_once(':')
+        .ok_or_else(|| LinkError::Address(url.to_string()))?;
+    if addr.is_empty() {
+        return Err(LinkError::Address(url.to_string()));
+    }
+    let udp = |mode| -> Result<PendingLink, LinkError> {
+        let conn = UdpConfig::new(addr.to_string(), mode)
+            .read_timeout(timeout)
+            .connect::<MavMessage>()
+            .map_err(open_err(url))?;
+        Ok(PendingLink::Ready(MavLink {
+            conn,
+            poll_with_try_recv: false,
+        }))
+    };
+    match proto {
+        "udpin" | "udp" => udp(UdpMode::Udpin),
+        "udpout" => udp(UdpMode::Udpout),
+        "udpbcast" => udp(UdpMode::UdpBroadcast),
+        "tcpout" | "tcp" => {
+            let stream = TcpStream::connect(addr).map_err(open_err(url))?;
+            Ok(PendingLink::Ready(tcp_link(stream, timeout, url)?))
+        }
+        "tcpin" => {
+            let listener = TcpListener::bind(addr).map_err(open_err(url))?;
+            Ok(PendingLink::Listening { listener, timeout })
+        }
+        "serial" => {
+            let (port, baud) = addr
+                .rsplit_once(':')
+                .ok_or_else(|| LinkError::Address(url.to_string()))?;
+            let baud: u32 = baud
+                .parse()
+                .map_err(|_| LinkError::Address(url.to_string()))?;
+            let conn = SerialConfig::new(port.to_string(), baud)
+                .timeout(timeout)
+                .connect::<MavMessage>()
+                .map_err(open_err(url))?;
+            Ok(PendingLink::Ready(MavLink {
+                conn,
+                poll_with_try_recv: true,
+            }))
+        }
+        _ => Err(LinkError::Address(url.to_string())),
+    }
+}
+
+impl PendingLink {
+    /// The open link; for a `tcpin:` server, wait for the peer to connect. Returns
+    /// `Ok(None)` when `stop` became true while waiting.
+    pub fn establish(self, stop: &AtomicBool) -> Result<Option<MavLink>, LinkError> {
+        match self {
+            PendingLink::Ready(link) => Ok(Some(link)),
+            PendingLink::Listening { listener, timeout } => {
+                let url = listener
+                    .local_addr()
+                    .map(|a| format!("tcpin:{a}"))
+                    .unwrap_or_else(|_| "tcpin".to_string());
+                listener.set_nonblocking(true).map_err(open_err(&url))?;
+                while !stop.load(Ordering::Relaxed) {
+                    match listener.accept() {
+                        Ok((stream, _)) => {
+                            stream.set_nonblocking(false).map_err(open_err(&url))?;
+                            return tcp_link(stream, timeout, &url).map(Some);
+                        }
+                        Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                            std::thread::sleep(Duration::from_millis(20));
+                        }
+                        Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                        Err(source) => return Err(LinkError::Open { url, source }),
+                    }
+                }
+                Ok(None)
+            }
+        }
+    }
+}
+
+/// Open `url` and return the link (blocks until the peer connects for `tcpin:`).
+pub fn open_link(url: &str, read_timeout: Duration) -> Result<MavLink, LinkError> {
+    let never = AtomicBool::new(false);
+    prepare_link(url, read_timeout)?
+        .establish(&never)?
+        .ok_or_else(|| LinkError::Address(url.to_string()))
+}
+
+/// Flight mode of the simulated autopilot (a subset of PX4's).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FlightMode {
+    /// Position control without stick input: holds position (the mode after boot).
+    Position,
+    /// Auto loiter: holds the position latched when the mode was entered.
+    Hold,
+    /// Offboard: flies the streamed SET_POSITION_TARGET_LOCAL_NED setpoints.
+    Offboard,
+    /// Auto land: descends at the latched north/east to the ground.
+    Land,
+}
+
+impl FlightMode {
+    /// PX4 `custom_mode` of this mode.
+    pub fn custom_mode(self) -> u32 {
+        match self {
+            FlightMode::Position => px4_custom_mode(PX4_MAIN_MODE_POSCTL, 0),
+            FlightMode::Hold => px4_custom_mode(PX4_MAIN_MODE_AUTO, PX4_AUTO_SUB_MODE_LOITER),
+            FlightMode::Offboard => px4_custom_mode(PX4_MAIN_MODE_OFFBOARD, 0),
+            FlightMode::Land => px4_custom_mode(PX4_MAIN_MODE_AUTO, PX4_AUTO_SUB_MODE_LAND),
+        }
+    }
+
+    /// Small integer for counters: 1 position, 2 hold, 3 offboard, 4 land.
+    pub fn index(self) -> u64 {
+        match self {
+            FlightMode::Position => 1,
+            FlightMode::Hold => 2,
+            FlightMode::Offboard => 3,
+            FlightMode::Land => 4,
+        }
+    }
+}
+
+/// Configuration of a [`SimVehicle`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimVehicleConfig {
+    /// Start position `[N, E, U]`; above 0.1 m the vehicle starts armed, holding there.
+    pub start: [f32; 3],
+    /// Start yaw (rad).
+    pub start_yaw: f32,
+    /// Kinematic limits.
+    pub params: MultirotorParams,
+    /// MAVLink system id.
+    pub system_id: u8,
+    /// MAVLink component id.
+    pub component_id: u8,
+    /// Offboard is refused, and left for hold, when no setpoint came within this (s).
+    pub offboard_timeout_s: f32,
+    /// Descent speed in land mode (m/s).
+    pub land_speed: f32,
+    /// Disarm this long after touching down from a flight (s).
+    pub auto_disarm_s: f32,
+}
+
+impl Default for SimVehicleConfig {
+    fn default() -> Self {
+        Self {
+            start: [0.0; 3],
+            start_yaw: 0.0,
+            params: MultirotorParams::default(),
+            system_id: 1,
+            component_id: 1,
+            offboard_timeout_s: 0.5,
+            land_speed: 0.7,
+            auto_disarm_s: 2.0,
+        }
+    }
+}
+
+/// Counters of a [`SimVehicle`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SimVehicleStats {
+    /// Physics steps run.
+    pub steps: u64,
+    /// COMMAND_LONGs received.
+    pub commands: u64,
+    /// COMMAND_LONGs answered with `MAV_RESULT_ACCEPTED`.
+    pub commands_accepted: u64,
+    /// Usable setpoints received.
+    pub setpoints: u64,
+    /// Setpoints rejected (frame, type mask, non-finite numbers).
+    pub setpoints_rejected: u64,
+    /// Messages written to the link.
+    pub messages_sent: u64,
+    /// Messages whose write failed.
+    pub send_errors: u64,
+    /// Received messages dropped because the step loop fell behind.
+    pub inbox_dropped: u64,
+    /// Offboard-loss failsafes (offboard -> hold).
+    pub failsafes: u64,
+}
+
+/// A snapshot of the simulated vehicle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimVehicleStatus {
+    /// Kinematic state.
+    pub state: MultirotorState,
+    /// Flight mode.
+    pub mode: FlightMode,
+    /// Simulated time since start (s).
+    pub time_s: f64,
+    /// A link peer is known (the link is established).
+    pub link_established: bool,
+    /// Counters.
+    pub stats: SimVehicleStats,
+}
+
+/// Why a [`SimVehicle`] could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum SimVehicleError {
+    /// The MAVLink link could not be opened.
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    /// The configuration is unusable (non-finite start, non-positive limits).
+    #[error("invalid simulated vehicle configuration: {0}")]
+    Config(&'static str),
+    /// A thread could not be spawned.
+    #[error("cannot spawn the simulated vehicle's thread: {0}")]
+    Thread(std::io::Error),
+}
+
+enum Inbound {
+    Command(COMMAND_LONG_DATA),
+    Setpoint(SET_POSITION_TARGET_LOCAL_NED_DATA),
+}
+
+const INBOX_CAPACITY: usize = 256;
+const HEARTBEAT_PERIOD_S: f64 = 1.0;
+const TELEMETRY_PERIOD_S: f64 = 0.02;
+const EXT_STATE_PERIOD_S: f64 = 0.2;
+
+/// The simulated PX4-like multirotor behind a MAVLink endpoint.
+pub struct SimVehicle {
+    config: SimVehicleConfig,
+    link: Arc<OnceLock<MavLink>>,
+    inbox: Receiver<Inbound>,
+    stop: Arc<AtomicBool>,
+    dropped: Arc<AtomicU64>,
+    rx: Option<JoinHandle<()>>,
+    model: MultirotorModel,
+    mode: FlightMode,
+    time_s: f64,
+    last_setpoint_s: Option<f64>,
+    offboard_cmd: Option<Command>,
+    hold_position: [f32; 3],
+    hold_yaw: f32,
+    airborne_seen: bool,
+    landed_since_s: Option<f64>,
+    next_heartbeat_s: f64,
+    next_telemetry_s: f64,
+    next_ext_state_s: f64,
+    prev_roll: f32,
+    prev_pitch: f32,
+    roll_rate: f32,
+    pitch_rate: f32,
+    stats: SimVehicleStats,
+}
+
+impl core::fmt::Debug for SimVehicle {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("SimVehicle")
+            .field("mode", &self.mode)
+            .field("state", self.model.state())
+            .finish_non_exhaustive()
+    }
+}
+
+fn targets_me(target_system: u8, target_component: Option<u8>, sys: u8, comp: u8) -> bool {
+    (target_system == 0 || target_system == sys)
+        && target_component.is_none_or(|c| c == 0 || c == comp)
+}
+
+fn rx_loop(
+    pending: PendingLink,
+    slot: Arc<OnceLock<MavLink>>,
+    tx: SyncSender<Inbound>,
+    stop: Arc<AtomicBool>,
+    dropped: Arc<AtomicU64>,
+    sys: u8,
+    comp: u8,
+) {
+    let link = match pending.establish(&stop) {
+        Ok(Some(link)) => link,
+        Ok(None) => return,
+        Err(e) => {
+            eprintln!("aeris-sim: vehicle link failed: {e}");
+            return;
+        }
+    };
+    let _ = slot.set(link);
+    let Some(link) = slot.get() else { return };
+    while !stop.load(Ordering::Relaxed) {
+        let item = match link.recv() {
+            Ok(Some((_, MavMessage::COMMAND_LONG(c))))
+                if targets_me(c.target_system, Some(c.target_component), sys, comp) =>
+            {
+                Inbound::Command(c)
+            }
+            Ok(Some((_, MavMessage::SET_POSITION_TARGET_LOCAL_NED(s))))
+                if targets_me(s.target_system, None, sys, comp) =>
+            {
+                Inbound::Setpoint(s)
+            }
+            Ok(_) | Err(LinkError::Decode) => continue,
+            Err(_) => {
+                // Closed or failing transport: back off without spinning.
+                std::thread::sleep(LINK_POLL);
+                continue;
+            }
+        };
+        match tx.try_send(item) {
+            Ok(()) => {}
+            Err(TrySendError::Full(_)) => {
+                dropped.fetch_add(1, Ordering::Relaxed);
+            }
+            Err(TrySendError::Disconnected(_)) => return,
+        }
+    }
+}
+
+fn norm3(v: [f32; 3]) -> f32 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+impl SimVehicle {
+    /// Open `url` and start the receive thread. The physics does not run until
+    /// [`SimVehicle::step`] is called.
+    pub fn start(url: &str, config: SimVehicleConfig) -> Result<Self, SimVehicleError> {
+        if !config.start.iter().all(|x| x.is_finite()) || !config.start_yaw.is_finite() {
+            return Err(SimVehicleError::Config("start pose is not finite"));
+        }
+        let p = &config.params;
+        let positive = [
+            p.max_speed_h,
+            p.max_speed_v,
+            p.max_accel,
+            p.max_yaw_rate,
+            p.kp_position,
+            p.kp_yaw,
+            config.offboard_timeout_s,
+            config.land_speed,
+        ];
+        if !positive.iter().all(|x| x.is_finite() && *x > 0.0) {
+            return Err(SimVehicleError::Config(
+                "limits, gains and timeouts must be finite and positive",
+            ));
+        }
+        let pending = prepare_link(url, LINK_POLL)?;
+        let link = Arc::new(OnceLock::new());
+        let stop = Arc::new(AtomicBool::new(false));
+        let dropped = Arc::new(AtomicU64::new(0));
+        let (tx, inbox) = sync_channel(INBOX_CAPACITY);
+        let rx = {
+            let (link, stop, dropped) = (link.clone(), stop.clone(), dropped.clone());
+            let (sys, comp) = (config.system_id, config.component_id);
+            std::thread::Builder::new()
+                .name("sim-vehicle-rx".into())
+                .spawn(move || rx_loop(pending, link, tx, stop, dropped, sys, comp))
+                .map_err(SimVehicleError::Thread)?
+        };
+        let mut model = MultirotorModel::new(config.params, config.start, config.start_yaw);
+        let airborne = config.start[2] > 0.1;
+        let mode = if airborne {
+            model.set_armed(true);
+            FlightMode::Hold
+        } else {
+            FlightMode::Position
+        };
+        let state = *model.state();
+        Ok(Self {
+            config,
+            link,
+            inbox,
+            stop,
+            dropped,
+            rx: Some(rx),
+            model,
+            mode,
+            time_s: 0.0,
+            last_setpoint_s: None,
+            offboard_cmd: None,
+            hold_position: state.position,
+            hold_yaw: state.yaw,
+            airborne_seen: airborne,
+            landed_since_s: None,
+            next_heartbeat_s: 0.0,
+            next_telemetry_s: 0.0,
+            next_ext_state_s: 0.0,
+            prev_roll: 0.0,
+            prev_pitch: 0.0,
+            roll_rate: 0.0,
+            pitch_rate: 0.0,
+            stats: SimVehicleStats::default(),
+        })
+    }
+
+    /// Start the vehicle and run its physics on its own thread every `period`.
+    pub fn spawn(
+        url: &str,
+        config: SimVehicleConfig,
+        period: Duration,
+    ) -> Result<SimVehicleRunner, SimVehicleError> {
+        let mut vehicle = Self::start(url, config)?;
+        let period = period.max(Duration::from_millis(1));
+        let stop = Arc::new(AtomicBool::new(false));
+        let status = Arc::new(Mutex::new(vehicle.status()));
+        let thread = {
+            let (stop, status) = (stop.clone(), status.clone());
+            std::thread::Builder::new()
+                .name("sim-vehicle".into())
+                .spawn(move || {
+                    let mut next = Instant::now();
+                    let mut last = next;
+                    while !stop.load(Ordering::Relaxed) {
+                        let now = Instant::now();
+                        vehicle.step(now.duration_since(last).as_secs_f32());
+                        last = now;
+                        if let Ok(mut s) = status.lock() {
+                            *s = vehicle.status();
+                        }
+                        next += period;
+                        let now = Instant::now();
+                        if next > now {
+                            std::thread::sleep(next - now);
+                        } else {
+                            next = now;
+                        }
+                    }
+                    vehicle.shutdown();
+                    vehicle.stats()
+                })
+                .map_err(SimVehicleError::Thread)?
+        };
+        Ok(SimVehicleRunner {
+            stop,
+            status,
+            thread: Some(thread),
+        })
+    }
+
+    /// The kinematic state.
+    pub fn state(&self) -> &MultirotorState {
+        self.model.state()
+    }
+
+    /// The flight mode.
+    pub fn mode(&self) -> FlightMode {
+        self.mode
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> SimVehicleStats {
+        let mut s = self.stats;
+        s.inbox_dropped = self.dropped.load(Ordering::Relaxed);
+        s
+    }
+
+    /// A snapshot of everything.
+    pub fn status(&self) -> SimVehicleStatus {
+        SimVehicleStatus {
+            state: *self.model.state(),
+            mode: self.mode,
+            time_s: self.time_s,
+            link_established: self.link.get().is_some(),
+            stats: self.stats(),
+        }
+    }
+
+    /// Advance the simulation by `dt` seconds (clamped to [`MAX_STEP_S`]): handle what
+    /// arrived on the link, apply failsafes, step the physics, send what is due.
+    pub fn step(&mut self, dt: f32) {
+        if !(dt.is_finite() && dt >= 0.0) {
+            return;
+        }
+        let dt = dt.min(MAX_STEP_S);
+        self.time_s += f64::from(dt);
+        loop {
+            match self.inbox.try_recv() {
+                Ok(Inbound::Command(c)) => self.handle_command(&c),
+                Ok(Inbound::Setpoint(s)) => self.handle_setpoint(&s),
+                Err(TryRecvError::Empty) | Err(TryRecvError::Disconnected) => break,
+            }
+        }
+        if self.mode == FlightMode::Offboard && !self.setpoints_fresh() {
+            self.stats.failsafes += 1;
+            self.set_mode(FlightMode::Hold);
+        }
+        let command = self.active_command();
+        self.model.step(dt, &command);
+        self.update_landing();
+        let s = *self.model.state();
+        if dt > 0.0 {
+            self.roll_rate = (s.roll - self.prev_roll) / dt;
+            self.pitch_rate = (s.pitch - self.prev_pitch) / dt;
+        }
+        self.prev_roll = s.roll;
+        self.prev_pitch = s.pitch;
+        self.send_due();
+        self.stats.steps += 1;
+    }
+
+    /// Stop the receive thread (also done on drop).
+    pub fn shutdown(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(h) = self.rx.take() {
+            let _ = h.join();
+        }
+    }
+
+    fn setpoints_fresh(&self) -> bool {
+        self.last_setpoint_s
+            .is_some_and(|t| self.time_s - t <= f64::from(self.config.offboard_timeout_s))
+    }
+
+    fn set_mode(&mut self, mode: FlightMode) {
+        if mode != FlightMode::Offboard {
+            let s = self.model.state();
+            self.hold_position = s.position;
+            self.hold_yaw = s.yaw;
+        }
+        self.mode = mode;
+    }
+
+    fn active_command(&self) -> Command {
+        let hold = Command::hold(self.hold_position, self.hold_yaw);
+        match self.mode {
+            FlightMode::Position | FlightMode::Hold => hold,
+            FlightMode::Offboard => self.offboard_cmd.unwrap_or(hold),
+            FlightMode::Land => Command::Position {
+                position: [self.hold_position[0], self.hold_position[1], GROUND_U - 1.0],
+                velocity_ff: Some([0.0, 0.0, -self.config.land_speed]),
+                yaw: Some(self.hold_yaw),
+                yaw_rate: None,
+            },
+        }
+    }
+
+    fn update_landing(&mut self) {
+        let s = *self.model.state();
+        if !s.armed {
+            self.airborne_seen = false;
+            self.landed_since_s = None;
+            return;
+        }
+        if !s.landed {
+            self.airborne_seen = true;
+            self.landed_since_s = None;
+        } else if self.airborne_seen {
+            let since = *self.landed_since_s.get_or_insert(self.time_s);
+            if self.time_s - since >= f64::from(self.config.auto_disarm_s) {
+                self.model.set_armed(false);
+                self.airborne_seen = false;
+                self.landed_since_s = None;
+            }
+        }
+    }
+
+    fn handle_command(&mut self, c: &COMMAND_LONG_DATA) {
+        self.stats.commands += 1;
+        let landed = self.model.state().landed;
+        let result = match c.command {
+            MavCmd::MAV_CMD_COMPONENT_ARM_DISARM => {
+                if c.param1 > 0.5 {
+                    if !self.model.state().armed {
+                        self.model.set_armed(true);
+                        self.airborne_seen = !landed;
+                        self.landed_since_s = None;
+                        if self.mode != FlightMode::Offboard {
+                            self.set_mode(self.mode);
+                        }
+                    }
+                    MavResult::MAV_RESULT_ACCEPTED
+                } else if landed || c.param2 == FORCE_ARM_DISARM_MAGIC {
+                    self.model.set_armed(false);
+                    MavResult::MAV_RESULT_ACCEPTED
+                } else {
+                    MavResult::MAV_RESULT_DENIED
+                }
+            }
+            MavCmd::MAV_CMD_DO_SET_MODE => {
+                let custom_bit = u32::from(MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED.bits());
+                let custom = (c.param1 as u32 & custom_bit) != 0;
+                let main = c.param2.round();
+                let sub = c.param3.round();
+                if !custom {
+                    MavResult::MAV_RESULT_UNSUPPORTED
+                } else if main == f32::from(PX4_MAIN_MODE_OFFBOARD) {
+                    if self.setpoints_fresh() {
+                        self.set_mode(FlightMode::Offboard);
+                        MavResult::MAV_RESULT_ACCEPTED
+                    } else {
+                        MavResult::MAV_RESULT_TEMPORARILY_REJECTED
+                    }
+                } else if main == f32::from(PX4_MAIN_MODE_POSCTL) {
+                    self.set_mode(FlightMode::Position);
+                    MavResult::MAV_RESULT_ACCEPTED
+                } else if main == f32::from(PX4_MAIN_MODE_AUTO)
+                    && sub == f32::from(PX4_AUTO_SUB_MODE_LOITER)
+                {
+                    self.set_mode(FlightMode::Hold);
+                    MavResult::MAV_RESULT_ACCEPTED
+                } else if main == f32::from(PX4_MAIN_MODE_AUTO)
+                    && sub == f32::from(PX4_AUTO_SUB_MODE_LAND)
+                {
+                    self.set_mode(FlightMode::Land);
+                    MavResult::MAV_RESULT_ACCEPTED
+                } else {
+                    MavResult::MAV_RESULT_UNSUPPORTED
+                }
+            }
+            MavCmd::MAV_CMD_NAV_LAND => {
+                if self.model.state().armed {
+                    self.set_mode(FlightMode::Land);
+                    MavResult::MAV_RESULT_ACCEPTED
+                } else {
+                    MavResult::MAV_RESULT_DENIED
+                }
+            }
+            _ => MavResult::MAV_RESULT_UNSUPPORTED,
+        };
+        if result == MavResult::MAV_RESULT_ACCEPTED {
+            self.stats.commands_accepted += 1;
+        }
+        self.send(&MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+            command: c.command,
+            result,
+        }));
+    }
+
+    fn handle_setpoint(&mut self, s: &SET_POSITION_TARGET_LOCAL_NED_DATA) {
+        if s.coordinate_frame != MavFrame::MAV_FRAME_LOCAL_NED {
+            self.stats.setpoints_rejected += 1;
+            return;
+        }
+        let m = s.type_mask;
+        let pos_used = !m.intersects(
+            PositionTargetTypemask::POSITION_TARGET_TYPEMASK_X_IGNORE
+                | PositionTargetTypemask::POSITION_TARGET_TYPEMASK_Y_IGNORE
+                | PositionTargetTypemask::POSITION_TARGET_TYPEMASK_Z_IGNORE,
+        );
+        let vel_used = !m.intersects(
+            PositionTargetTypemask::POSITION_TARGET_TYPEMASK_VX_IGNORE
+                | PositionTargetTypemask::POSITION_TARGET_TYPEMASK_VY_IGNORE
+                | PositionTargetTypemask::POSITION_TARGET_TYPEMASK_VZ_IGNORE,
+        );
+        let yaw = (!m.contains(PositionTargetTypemask::POSITION_TARGET_TYPEMASK_YAW_IGNORE))
+            .then_some(s.yaw);
+        let yaw_rate = (!m
+            .contains(PositionTargetTypemask::POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE))
+        .then_some(s.yaw_rate);
+        let velocity = [s.vx, s.vy, -s.vz];
+        let cmd = if pos_used {
+            Command::Position {
+                position: [s.x, s.y, -s.z],
+                velocity_ff: vel_used.then_some(velocity),
+                yaw,
+                yaw_rate,
+            }
+        } else if vel_used {
+            Command::Velocity {
+                velocity,
+                yaw,
+                yaw_rate,
+            }
+        } else {
+            self.stats.setpoints_rejected += 1;
+            return;
+        };
+        if !cmd.is_finite() {
+            self.stats.setpoints_rejected += 1;
+            return;
+        }
+        self.offboard_cmd = Some(cmd);
+        self.last_setpoint_s = Some(self.time_s);
+        self.stats.setpoints += 1;
+    }
+
+    fn send(&mut self, msg: &MavMessage) {
+        let Some(link) = self.link.get() else { return };
+        let header = MavHeader {
+            system_id: self.config.system_id.into(),
+            component_id: self.config.component_id,
+            sequence: 0,
+        };
+        match link.send(&header, msg) {
+            Ok(0) => {}
+            Ok(_) => self.stats.messages_sent += 1,
+            Err(_) => self.stats.send_errors += 1,
+        }
+    }
+
+    fn send_due(&mut self) {
+        let t = self.time_s;
+        let time_boot_ms = (t * 1000.0) as u32;
+        let s = *self.model.state();
+        if t >= self.next_heartbeat_s {
+            self.next_heartbeat_s = next_due(self.next_heartbeat_s, HEARTBEAT_PERIOD_S, t);
+            let mut base = MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+                | MavModeFlag::MAV_MODE_FLAG_STABILIZE_ENABLED;
+            base |= match self.mode {
+                FlightMode::Position => MavModeFlag::MAV_MODE_FLAG_MANUAL_INPUT_ENABLED,
+                FlightMode::Offboard => MavModeFlag::MAV_MODE_FLAG_GUIDED_ENABLED,
+                FlightMode::Hold | FlightMode::Land => {
+                    MavModeFlag::MAV_MODE_FLAG_GUIDED_ENABLED
+                        | MavModeFlag::MAV_MODE_FLAG_AUTO_ENABLED
+                }
+            };
+            if s.armed {
+                base |= MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED;
+            }
+            self.send(&MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+                custom_mode: self.mode.custom_mode(),
+                mavtype: MavType::MAV_TYPE_QUADROTOR,
+                autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+                base_mode: base,
+                system_status: if s.armed {
+                    MavState::MAV_STATE_ACTIVE
+                } else {
+                    MavState::MAV_STATE_STANDBY
+                },
+                mavlink_version: 3,
+            }));
+        }
+        if t >= self.next_telemetry_s {
+            self.next_telemetry_s = next_due(self.next_telemetry_s, TELEMETRY_PERIOD_S, t);
+            self.send(&MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
+                time_boot_ms,
+                x: s.position[0],
+                y: s.position[1],
+                z: -s.position[2],
+                vx: s.velocity[0],
+                vy: s.velocity[1],
+                vz: -s.velocity[2],
+            }));
+            self.send(&MavMessage::ATTITUDE(ATTITUDE_DATA {
+                time_boot_ms,
+                roll: s.roll,
+                pitch: s.pitch,
+                yaw: s.yaw,
+                rollspeed: self.roll_rate,
+                pitchspeed: self.pitch_rate,
+                yawspeed: s.yaw_rate,
+            }));
+        }
+        if t >= self.next_ext_state_s {
+            self.next_ext_state_s = next_due(self.next_ext_state_s, EXT_STATE_PERIOD_S, t);
+            let landed_state = if s.landed {
+                MavLandedState::MAV_LANDED_STATE_ON_GROUND
+            } else if self.mode == FlightMode::Land {
+                MavLandedState::MAV_LANDED_STATE_LANDING
+            } else if s.position[2] < 1.0 && s.velocity[2] > 0.1 && norm3(s.velocity) < 10.0 {
+                MavLandedState::MAV_LANDED_STATE_TAKEOFF
+            } else {
+                MavLandedState::MAV_LANDED_STATE_IN_AIR
+            };
+            self.send(&MavMessage::EXTENDED_SYS_STATE(EXTENDED_SYS_STATE_DATA {
+                vtol_state: MavVtolState::MAV_VTOL_STATE_UNDEFINED,
+                landed_state,
+            }));
+        }
+    }
+}
+
+/// Next deadline of a periodic message: one period later, re-anchored when far behind.
+fn next_due(prev: f64, period: f64, now: f64) -> f64 {
+    let next = prev + period;
+    if next <= now { now + period } else { next }
+}
+
+impl Drop for SimVehicle {
+    fn drop(&mut self) {
+        self.shutdown();
+    }
+}
+
+/// A [`SimVehicle`] running on its own thread (see [`SimVehicle::spawn`]).
+#[derive(Debug)]
+pub struct SimVehicleRunner {
+    stop: Arc<AtomicBool>,
+    status: Arc<Mutex<SimVehicleStatus>>,
+    thread: Option<JoinHandle<SimVehicleStats>>,
+}
+
+impl SimVehicleRunner {
+    /// The latest snapshot (`None` if the physics thread panicked).
+    pub fn status(&self) -> Option<SimVehicleStatus> {
+        self.status.lock().ok().map(|s| *s)
+    }
+
+    /// Stop the physics and receive threads; the final counters.
+    pub fn stop(mut self) -> SimVehicleStats {
+        self.halt().unwrap_or_default()
+    }
+
+    fn halt(&mut self) -> Option<SimVehicleStats> {
+        self.stop.store(true, Ordering::Relaxed);
+        self.thread.take().and_then(|h| h.join().ok())
+    }
+}
+
+impl Drop for SimVehicleRunner {
+    fn drop(&mut self) {
+        let _ = self.halt();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn px4_mode_bits() {
+        assert_eq!(FlightMode::Offboard.custom_mode(), 6 << 16);
+        assert_eq!(px4_main_mode(FlightMode::Offboard.custom_mode()), 6);
+        assert_eq!(px4_main_mode(FlightMode::Land.custom_mode()), 4);
+        assert_eq!(px4_sub_mode(FlightMode::Land.custom_mode()), 6);
+        assert_eq!(px4_sub_mode(FlightMode::Hold.custom_mode()), 3);
+    }
+
+    #[test]
+    fn bad_addresses_are_refused() {
+        for url in ["", "udpin", "foo:1.2.3.4:5", "serial:/dev/null", "udpin:"] {
+            assert!(
+                matches!(
+                    prepare_link(url, LINK_POLL),
+                    Err(LinkError::Address(_)) | Err(LinkError::Open { .. })
+                ),
+                "{url}"
+            );
+        }
+    }
+
+    #[test]
+    fn next_due_reanchors() {
+        assert_eq!(next_due(1.0, 1.0, 1.5), 2.0);
+        assert_eq!(next_due(1.0, 1.0, 10.0), 11.0);
+    }
+}

@@ -1,0 +1,183 @@
+#!/usr/bin/env python3
+"""Independent MAVLink decoder for the controller role (pymavlink, MAVLink 2, common dialect).
+
+Plays a minimal PX4 autopilot (system 1, component 1) on a pymavlink connection: sends
+HEARTBEAT at 1 Hz (armed / offboard as commanded), LOCAL_POSITION_NED and ATTITUDE at 50 Hz
+(a crude vehicle that moves towards the last position setpoint while armed in offboard),
+and answers every COMMAND_LONG with COMMAND_ACK (accepted).
+
+Everything the controller sends is decoded with pymavlink. When --count
+SET_POSITION_TARGET_LOCAL_NED messages arrived and both MAV_CMD_COMPONENT_ARM_DISARM and
+MAV_CMD_DO_SET_MODE were seen (and, with --until-north N, a position setpoint at least N m
+north arrived), or after --max-count setpoints, or when --timeout seconds passed, it prints ONE JSON line:
+
+  counts       messages per type
+  commands     sorted set of COMMAND_LONG command ids
+  arm_params   param1 of every arm/disarm command
+  mode_params  [param1, param2] of every set-mode command
+  heartbeats   distinct [type, autopilot, src_system, src_component] of HEARTBEATs
+  sources      distinct [src_system, src_component] of every message
+  setpoints    one [x, y, z, vx, vy, vz, type_mask, coordinate_frame] per setpoint
+               (non-finite numbers become null)
+  mavlink1     messages that arrived as MAVLink 1
+  bad_data     undecodable chunks
+  timed_out    true when --timeout ended the run
+"""
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+
+os.environ["MAVLINK20"] = "1"
+
+from pymavlink import mavutil  # noqa: E402
+
+ARM_DISARM = 400
+DO_SET_MODE = 176
+PX4_OFFBOARD = 6
+PX4_POSCTL = 3
+
+
+def finite_or_none(v):
+    return v if isinstance(v, (int, float)) and math.isfinite(v) else None
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--listen", required=True, help="pymavlink URL, e.g. udpin:127.0.0.1:14600")
+    ap.add_argument("--count", type=int, default=100, help="setpoints to collect")
+    ap.add_argument("--timeout", type=float, default=60.0, help="give up after this (s)")
+    ap.add_argument(
+        "--until-north",
+        type=float,
+        default=None,
+        help="also wait for a position setpoint at least this far north (m)",
+    )
+    ap.add_argument(
+        "--max-count",
+        type=int,
+        default=None,
+        help="stop after this many setpoints whatever else is missing (default 10 x --count)",
+    )
+    args = ap.parse_args()
+    max_count = args.max_count if args.max_count is not None else 10 * args.count
+
+    conn = mavutil.mavlink_connection(
+        args.listen, source_system=1, source_component=1, dialect="common"
+    )
+    mav = conn.mav
+    m = mavutil.mavlink
+
+    counts = {}
+    commands = set()
+    arm_params = []
+    mode_params = []
+    heartbeats = set()
+    sources = set()
+    setpoints = []
+    bad_data = 0
+    mavlink1 = 0
+
+    armed = False
+    offboard = False
+    pos = [0.0, 0.0, 0.0]  # NED
+    vel = [0.0, 0.0, 0.0]
+    yaw = 0.0
+    target = None
+    boot = time.monotonic()
+    next_hb = boot
+    next_tel = boot
+    timed_out = False
+    max_north = -math.inf
+
+    while True:
+        now = time.monotonic()
+        if now - boot > args.timeout:
+            timed_out = True
+            break
+        north_ok = args.until_north is None or max_north >= args.until_north
+        if len(setpoints) >= args.count and {ARM_DISARM, DO_SET_MODE} <= commands and north_ok:
+            break
+        if len(setpoints) >= max_count:
+            break
+        ms = int((now - boot) * 1000)
+        if now >= next_hb:
+            next_hb = now + 1.0
+            base = m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+            if armed:
+                base |= m.MAV_MODE_FLAG_SAFETY_ARMED
+            custom = (PX4_OFFBOARD if offboard else PX4_POSCTL) << 16
+            mav.heartbeat_send(
+                m.MAV_TYPE_QUADROTOR,
+                m.MAV_AUTOPILOT_PX4,
+                base,
+                custom,
+                m.MAV_STATE_ACTIVE if armed else m.MAV_STATE_STANDBY,
+            )
+        if now >= next_tel:
+            dt = 0.02
+            next_tel = max(next_tel + dt, now)
+            vel = [0.0, 0.0, 0.0]
+            if armed and offboard and target is not None:
+                d = [target[i] - pos[i] for i in range(3)]
+                n = math.sqrt(sum(x * x for x in d))
+                if n > 1e-6:
+                    step = min(n, 5.0 * dt)
+                    vel = [d[i] / n * step / dt for i in range(3)]
+                    pos = [pos[i] + d[i] / n * step for i in range(3)]
+            mav.local_position_ned_send(ms, pos[0], pos[1], pos[2], vel[0], vel[1], vel[2])
+            mav.attitude_send(ms, 0.0, 0.0, yaw, 0.0, 0.0, 0.0)
+
+        msg = conn.recv_match(blocking=True, timeout=0.005)
+        if msg is None:
+            continue
+        kind = msg.get_type()
+        if kind == "BAD_DATA":
+            bad_data += 1
+            continue
+        counts[kind] = counts.get(kind, 0) + 1
+        sources.add((msg.get_srcSystem(), msg.get_srcComponent()))
+        buf = msg.get_msgbuf()
+        if buf and buf[0] != 0xFD:
+            mavlink1 += 1
+        if kind == "HEARTBEAT":
+            heartbeats.add((msg.type, msg.autopilot, msg.get_srcSystem(), msg.get_srcComponent()))
+        elif kind == "COMMAND_LONG":
+            commands.add(msg.command)
+            if msg.command == ARM_DISARM:
+                arm_params.append(finite_or_none(msg.param1))
+                armed = msg.param1 > 0.5
+            elif msg.command == DO_SET_MODE:
+                mode_params.append([finite_or_none(msg.param1), finite_or_none(msg.param2)])
+                offboard = int(round(msg.param2)) == PX4_OFFBOARD
+            mav.command_ack_send(msg.command, m.MAV_RESULT_ACCEPTED)
+        elif kind == "SET_POSITION_TARGET_LOCAL_NED":
+            row = [msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz]
+            setpoints.append([finite_or_none(v) for v in row] + [msg.type_mask, msg.coordinate_frame])
+            if all(finite_or_none(v) is not None for v in row[:3]):
+                target = row[:3]
+                max_north = max(max_north, msg.x)
+                yaw = msg.yaw if math.isfinite(msg.yaw) else yaw
+
+    out = {
+        "counts": counts,
+        "commands": sorted(commands),
+        "arm_params": arm_params,
+        "mode_params": mode_params,
+        "heartbeats": sorted(list(h) for h in heartbeats),
+        "sources": sorted(list(s) for s in sources),
+        "setpoints": setpoints,
+        "mavlink1": mavlink1,
+        "bad_data": bad_data,
+        "timed_out": timed_out,
+    }
+    sys.stdout.write(json.dumps(out) + "\n")
+    sys.stdout.flush()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
