@@ -107,16 +107,26 @@ fn run_role(spec: PathBuf) -> anyhow::Result<ExitCode> {
 
 fn roles() -> anyhow::Result<ExitCode> {
     for k in aeris_runtime::catalog::ROLE_KINDS {
-        println!("{:<11} variants: {:<24} {}", k.kind, k.variants.join(", "), k.summary);
+        println!(
+            "{:<11} variants: {:<24} {}",
+            k.kind,
+            k.variants.join(", "),
+            k.summary
+        );
     }
     Ok(ExitCode::SUCCESS)
 }
 
 fn main() -> ExitCode {
+    // iceoryx2 warns on every start that no config file exists; keep its errors only,
+    // unless the user asks for more with IOX2_LOG_LEVEL.
+    iceoryx2::prelude::set_log_level_from_env_or(iceoryx2::prelude::LogLevel::Error);
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Run(args) => run_cmd::run(args),
-        Command::Status { flight, json } => inspect::status(flight, json).map(|_| ExitCode::SUCCESS),
+        Command::Status { flight, json } => {
+            inspect::status(flight, json).map(|_| ExitCode::SUCCESS)
+        }
         Command::Topic { command } => match command {
             TopicCommand::List { flight } => inspect::topic_list(flight),
             TopicCommand::Echo {
@@ -125,7 +135,11 @@ fn main() -> ExitCode {
                 count,
                 seconds,
             } => inspect::topic_echo(flight, &topic, count, seconds),
-            TopicCommand::Hz { topic, flight, seconds } => inspect::topic_hz(flight, &topic, seconds),
+            TopicCommand::Hz {
+                topic,
+                flight,
+                seconds,
+            } => inspect::topic_hz(flight, &topic, seconds),
         }
         .map(|_| ExitCode::SUCCESS),
         Command::Validate { workflow } => run_cmd::validate(&workflow),
@@ -141,11 +155,15 @@ fn main() -> ExitCode {
                 matches!(
                     c.downcast_ref::<aeris_runtime::RoleError>(),
                     Some(aeris_runtime::RoleError::Bus(
-                        aeris_runtime::BusError::Manifest { .. } | aeris_runtime::BusError::IncompatibleSchema { .. }
+                        aeris_runtime::BusError::Manifest { .. }
+                            | aeris_runtime::BusError::IncompatibleSchema { .. }
                     ))
                 ) || matches!(
                     c.downcast_ref::<aeris_runtime::BusError>(),
-                    Some(aeris_runtime::BusError::Manifest { .. } | aeris_runtime::BusError::IncompatibleSchema { .. })
+                    Some(
+                        aeris_runtime::BusError::Manifest { .. }
+                            | aeris_runtime::BusError::IncompatibleSchema { .. }
+                    )
                 )
             });
             ExitCode::from(if schema { EXIT_SCHEMA_MISMATCH } else { 1 })

@@ -682,6 +682,17 @@ impl Supervisor {
             flight: flight.clone(),
             source,
         })?;
+        let mut plan = plan;
+        // A restarted simulated vehicle resumes from its last checkpoint instead of
+        // teleporting back to the start.
+        for r in plan.roles.iter_mut().filter(|r| r.spec.kind == "vehicle") {
+            if !r.spec.params.contains_key("state_file") {
+                let path = run_dir.join(format!("{}.state", r.spec.name));
+                r.spec
+                    .params
+                    .insert("state_file".into(), path.display().to_string().into());
+            }
+        }
         let bus_err = |source| SupervisorError::Bus {
             flight: flight.clone(),
             source,

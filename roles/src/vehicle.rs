@@ -4,18 +4,27 @@
 //! Parameters (`params` of the [`aeris_runtime::RoleSpec`]):
 //! - `listen`: MAVLink URL the vehicle serves (e.g. `udpin:127.0.0.1:14600`), default
 //!   [`DEFAULT_LISTEN`]; the controller's `autopilot` URL points at it.
+//! - `state_file`: where the vehicle checkpoints its pose every 100 ms; a restarted vehicle
+//!   resumes from a checkpoint younger than [`CHECKPOINT_MAX_AGE`] instead of teleporting
+//!   back to the start (the supervisor sets it to `<run dir>/<role>.state`).
+//!
+//! Every received position setpoint is checked against the mission's geofence and altitude
+//! band at the MAVLink boundary (an independent check of the controller and the hub); the
+//! vehicle still flies it, but counts it.
 //!
 //! The vehicle starts at `mission.start` (armed and holding when the start is in the air),
 //! and every cycle (period 10 ms) steps the physics by the measured time since the last
 //! cycle (at most 0.1 s per step, so a stalled process does not teleport the vehicle).
 //!
 //! Heartbeat [`CycleReport`]: stage `step`; counters
-//! `[steps, missed, commands, setpoints, setpoints_rejected, armed, mode, messages_sent]`
+//! `[setpoints, setpoints_outside_fence, steps, missed, commands, setpoints_rejected, armed, mode]`
 //! where armed is 0/1 and mode is 1 position, 2 hold, 3 offboard, 4 land.
 
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_sim::mav_vehicle::{SimVehicle, SimVehicleConfig};
+use std::fs::File;
+use std::os::unix::fs::FileExt;
 use std::time::Duration;
 
 /// URL served when the spec gives no `listen` parameter.
@@ -24,17 +33,90 @@ pub const DEFAULT_LISTEN: &str = "udpin:127.0.0.1:14600";
 /// Physics period.
 pub const VEHICLE_PERIOD: Duration = Duration::from_millis(10);
 
+/// A checkpoint older than this is ignored at start (the flight it belonged to is over).
+pub const CHECKPOINT_MAX_AGE: Duration = Duration::from_secs(10);
+
+/// Cycles between checkpoints (10 ms period -> every 100 ms).
+const CHECKPOINT_EVERY: u64 = 10;
+
+const CHECKPOINT_MAGIC: u32 = 0xAE51_5701;
+const CHECKPOINT_LEN: usize = 32;
+
+/// The pose a restarted vehicle resumes from: `[magic, stamp_ns, n, e, u, yaw, checksum]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Checkpoint {
+    /// CLOCK_MONOTONIC ns when written.
+    pub stamp_ns: u64,
+    /// Position `[N, E, U]`.
+    pub position: [f32; 3],
+    /// Yaw (rad).
+    pub yaw: f32,
+}
+
+fn checksum(bytes: &[u8]) -> u32 {
+    bytes.iter().fold(0x811C_9DC5u32, |h, b| {
+        (h ^ u32::from(*b)).wrapping_mul(0x0100_0193)
+    })
+}
+
+impl Checkpoint {
+    /// Fixed-size little-endian encoding with a checksum (a torn write fails to decode).
+    pub fn encode(&self) -> [u8; CHECKPOINT_LEN] {
+        let mut b = [0u8; CHECKPOINT_LEN];
+        b[0..4].copy_from_slice(&CHECKPOINT_MAGIC.to_le_bytes());
+        b[4..12].copy_from_slice(&self.stamp_ns.to_le_bytes());
+        for (i, v) in self
+            .position
+            .iter()
+            .chain(core::iter::once(&self.yaw))
+            .enumerate()
+        {
+            b[12 + 4 * i..16 + 4 * i].copy_from_slice(&v.to_le_bytes());
+        }
+        let c = checksum(&b[..28]);
+        b[28..32].copy_from_slice(&c.to_le_bytes());
+        b
+    }
+
+    /// Decode; `None` for a wrong magic, a bad checksum or non-finite numbers.
+    pub fn decode(b: &[u8]) -> Option<Self> {
+        let b: &[u8; CHECKPOINT_LEN] = b.get(..CHECKPOINT_LEN)?.try_into().ok()?;
+        let word = |i: usize| [b[i], b[i + 1], b[i + 2], b[i + 3]];
+        if u32::from_le_bytes(word(0)) != CHECKPOINT_MAGIC
+            || u32::from_le_bytes(word(28)) != checksum(&b[..28])
+        {
+            return None;
+        }
+        let mut stamp = [0u8; 8];
+        stamp.copy_from_slice(&b[4..12]);
+        let f = |i: usize| f32::from_le_bytes(word(12 + 4 * i));
+        let c = Checkpoint {
+            stamp_ns: u64::from_le_bytes(stamp),
+            position: [f(0), f(1), f(2)],
+            yaw: f(3),
+        };
+        (c.position.iter().all(|v| v.is_finite()) && c.yaw.is_finite()).then_some(c)
+    }
+}
+
 /// The simulated vehicle as a role process.
 #[derive(Debug)]
 pub struct VehicleRole {
     sim: SimVehicle,
     last_ns: u64,
+    checkpoint: Option<File>,
+    resumed: bool,
 }
 
 impl VehicleRole {
     /// The simulated vehicle.
     pub fn sim(&self) -> &SimVehicle {
         &self.sim
+    }
+
+    /// `true` when this process resumed from a checkpoint.
+    pub fn resumed(&self) -> bool {
+        self.resumed
     }
 }
 
@@ -47,15 +129,53 @@ impl Role for VehicleRole {
                 .as_str()
                 .ok_or_else(|| RoleError::Config("param `listen` must be a string".into()))?,
         };
-        let config = SimVehicleConfig {
+        let limits = &spec.mission.limits;
+        let mut fence_max = limits.geofence_max;
+        fence_max[2] = fence_max[2].min(limits.h_max);
+        let mut config = SimVehicleConfig {
             start: spec.mission.start,
+            fence: Some((limits.geofence_min, fence_max)),
             ..SimVehicleConfig::default()
+        };
+        let state_file = match spec.params.get("state_file") {
+            None => None,
+            Some(v) => Some(
+                v.as_str()
+                    .ok_or_else(|| RoleError::Config("param `state_file` must be a string".into()))?
+                    .to_string(),
+            ),
+        };
+        let mut resumed = false;
+        if let Some(path) = &state_file
+            && let Ok(bytes) = std::fs::read(path)
+            && let Some(c) = Checkpoint::decode(&bytes)
+            && monotonic_ns().saturating_sub(c.stamp_ns) <= CHECKPOINT_MAX_AGE.as_nanos() as u64
+        {
+            config.start = c.position;
+            config.start_yaw = c.yaw;
+            resumed = true;
+            eprintln!("vehicle: resumed from checkpoint at {:?}", c.position);
+        }
+        let checkpoint = match &state_file {
+            Some(path) => Some(
+                std::fs::OpenOptions::new()
+                    .create(true)
+                    .write(true)
+                    .truncate(false)
+                    .open(path)
+                    .map_err(|e| {
+                        RoleError::Config(format!("cannot open state_file {path}: {e}"))
+                    })?,
+            ),
+            None => None,
         };
         let sim = SimVehicle::start(url, config)
             .map_err(|e| RoleError::Config(format!("simulated vehicle: {e}")))?;
         Ok(Self {
             sim,
             last_ns: monotonic_ns(),
+            checkpoint,
+            resumed,
         })
     }
 
@@ -74,20 +194,55 @@ impl Role for VehicleRole {
         self.sim.step(dt as f32);
         let st = self.sim.stats();
         report.stage("step", monotonic_ns().saturating_sub(now));
+        if let Some(file) = &self.checkpoint
+            && ctx.cycles.is_multiple_of(CHECKPOINT_EVERY)
+        {
+            let state = self.sim.state();
+            let c = Checkpoint {
+                stamp_ns: now,
+                position: state.position,
+                yaw: state.yaw,
+            };
+            // One 32-byte positional write: no allocation; a torn write fails its checksum.
+            if let Err(e) = file.write_all_at(&c.encode(), 0) {
+                return Err(RoleError::Io(format!(
+                    "writing the vehicle checkpoint: {e}"
+                )));
+            }
+        }
         report.counters = [
+            st.setpoints,
+            st.setpoints_outside_fence,
             st.steps,
             ctx.missed_deadlines,
             st.commands,
-            st.setpoints,
             st.setpoints_rejected,
             u64::from(self.sim.state().armed),
             self.sim.mode().index(),
-            st.messages_sent,
         ];
         Ok(CycleOutcome::Worked)
     }
 
     fn shutdown(&mut self, _ctx: &mut RoleContext) {
         self.sim.shutdown();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn checkpoints_round_trip_and_torn_ones_are_refused() {
+        let c = Checkpoint {
+            stamp_ns: 123_456_789,
+            position: [1.5, -2.0, 12.0],
+            yaw: 0.25,
+        };
+        let mut b = c.encode();
+        assert_eq!(Checkpoint::decode(&b), Some(c));
+        b[13] ^= 0x40;
+        assert_eq!(Checkpoint::decode(&b), None);
+        assert_eq!(Checkpoint::decode(&b[..10]), None);
     }
 }

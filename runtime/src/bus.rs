@@ -282,7 +282,9 @@ impl FlightBus {
                 .node
                 .service_builder(&iox)
                 .blackboard_opener::<u64>()
-                .max_nodes(MAX_NODES)
+                // the manifest's settings are whatever its creator chose: require nothing
+                .max_nodes(1)
+                .max_readers(1)
                 .open()
             {
                 Ok(service) => {

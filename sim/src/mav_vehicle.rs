@@ -336,6 +336,10 @@ pub struct SimVehicleConfig {
     pub land_speed: f32,
     /// Disarm this long after touching down from a flight (s).
     pub auto_disarm_s: f32,
+    /// Bounds `(min, max)` in `[N, E, U]` that every received position setpoint is checked
+    /// against (the vehicle still flies it, like an autopilot with its own fence would
+    /// report it); counted in [`SimVehicleStats::setpoints_outside_fence`].
+    pub fence: Option<([f32; 3], [f32; 3])>,
 }
 
 impl Default for SimVehicleConfig {
@@ -349,6 +353,7 @@ impl Default for SimVehicleConfig {
             offboard_timeout_s: 0.5,
             land_speed: 0.7,
             auto_disarm_s: 2.0,
+            fence: None,
         }
     }
 }
@@ -374,6 +379,9 @@ pub struct SimVehicleStats {
     pub inbox_dropped: u64,
     /// Offboard-loss failsafes (offboard -> hold).
     pub failsafes: u64,
+    /// Position setpoints outside the configured fence or not finite (see
+    /// [`SimVehicleConfig::fence`]); the controller must never send one.
+    pub setpoints_outside_fence: u64,
 }
 
 /// A snapshot of the simulated vehicle.
@@ -835,6 +843,14 @@ impl SimVehicle {
             .contains(PositionTargetTypemask::POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE))
         .then_some(s.yaw_rate);
         let velocity = [s.vx, s.vy, -s.vz];
+        if pos_used && let Some((min, max)) = self.config.fence {
+            let p = [s.x, s.y, -s.z];
+            let inside =
+                (0..3).all(|i| p[i].is_finite() && p[i] >= min[i] - 1e-3 && p[i] <= max[i] + 1e-3);
+            if !inside {
+                self.stats.setpoints_outside_fence += 1;
+            }
+        }
         let cmd = if pos_used {
             Command::Position {
                 position: [s.x, s.y, -s.z],

@@ -73,7 +73,10 @@ pub fn python() -> String {
 
 /// Wait for `child` to exit, polling; kill it and return `None` after `bound` (a hang guard,
 /// not a timing assertion).
-pub fn wait_bounded(child: &mut Child, bound: std::time::Duration) -> Option<std::process::ExitStatus> {
+pub fn wait_bounded(
+    child: &mut Child,
+    bound: std::time::Duration,
+) -> Option<std::process::ExitStatus> {
     let start = std::time::Instant::now();
     loop {
         if let Ok(Some(status)) = child.try_wait() {
@@ -104,8 +107,13 @@ pub fn poll_until<T>(bound: std::time::Duration, mut cond: impl FnMut() -> Optio
 
 /// The last line of `stdout` parsed as JSON.
 pub fn last_json_line(stdout: &str) -> serde_json::Value {
-    let line = stdout.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("");
-    serde_json::from_str(line).unwrap_or_else(|e| panic!("last stdout line is not JSON ({e}): {line:?}"))
+    let line = stdout
+        .lines()
+        .rev()
+        .find(|l| !l.trim().is_empty())
+        .unwrap_or("");
+    serde_json::from_str(line)
+        .unwrap_or_else(|e| panic!("last stdout line is not JSON ({e}): {line:?}"))
 }
 
 /// The built-in default workflow as a TOML table, for tests that fly a variation of it.
@@ -117,7 +125,10 @@ pub fn default_workflow() -> toml::Table {
 
 /// Set `variant` of the role named `role` in a workflow table.
 pub fn set_variant(workflow: &mut toml::Table, role: &str, variant: &str) {
-    let roles = workflow.get_mut("roles").and_then(|r| r.as_array_mut()).expect("roles");
+    let roles = workflow
+        .get_mut("roles")
+        .and_then(|r| r.as_array_mut())
+        .expect("roles");
     let entry = roles
         .iter_mut()
         .filter_map(|r| r.as_table_mut())
@@ -129,7 +140,8 @@ pub fn set_variant(workflow: &mut toml::Table, role: &str, variant: &str) {
 /// Write a workflow table to `dir/name.toml`.
 pub fn write_workflow(dir: &std::path::Path, name: &str, workflow: &toml::Table) -> PathBuf {
     let p = dir.join(format!("{name}.toml"));
-    std::fs::write(&p, toml::to_string(workflow).expect("serialise workflow")).expect("write workflow");
+    std::fs::write(&p, toml::to_string(workflow).expect("serialise workflow"))
+        .expect("write workflow");
     p
 }
 

@@ -4,8 +4,14 @@ use aeris_tests::*;
 use std::process::Command;
 
 fn run(args: &[&str]) -> (Option<i32>, String) {
-    let out = Command::new(aeris_bin()).args(args).output().expect("run aeris");
-    (out.status.code(), String::from_utf8_lossy(&out.stderr).into_owned())
+    let out = Command::new(aeris_bin())
+        .args(args)
+        .output()
+        .expect("run aeris");
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
 }
 
 #[test]
@@ -40,7 +46,10 @@ fn bad_workflows_are_refused_with_the_reason() {
         for cmd in ["validate", "run"] {
             let (code, stderr) = run(&[cmd, path.to_str().unwrap()]);
             assert_eq!(code, Some(1), "{cmd} {name}: {stderr}");
-            assert!(stderr.contains("error") && stderr.contains(needle), "{cmd} {name}: {stderr}");
+            assert!(
+                stderr.contains("error") && stderr.contains(needle),
+                "{cmd} {name}: {stderr}"
+            );
             assert!(!stderr.contains("panicked"), "{stderr}");
         }
     }
@@ -54,7 +63,15 @@ fn inspecting_a_flight_that_does_not_exist_is_a_clear_error() {
     let (code, stderr) = run(&["status", "--flight", "no-such-flight-x"]);
     assert_eq!(code, Some(1), "{stderr}");
     assert!(stderr.contains("no-such-flight-x"), "{stderr}");
-    let (code, stderr) = run(&["topic", "echo", "no/such/topic", "--flight", "no-such-flight-y", "--seconds", "0.1"]);
+    let (code, stderr) = run(&[
+        "topic",
+        "echo",
+        "no/such/topic",
+        "--flight",
+        "no-such-flight-y",
+        "--seconds",
+        "0.1",
+    ]);
     assert_eq!(code, Some(1), "{stderr}");
     assert!(stderr.contains("unknown topic"), "{stderr}");
 }

@@ -2,7 +2,7 @@
 //! in its own process, while `aeris status` and `aeris topic` inspect it from outside; no
 //! iceoryx2 resources of the flight remain afterwards.
 
-use aeris_runtime::bus::{flight_node_census, list_flight_services, FlightBus};
+use aeris_runtime::bus::{FlightBus, flight_node_census, list_flight_services};
 use aeris_tests::*;
 use std::collections::HashSet;
 use std::process::Command;
@@ -11,7 +11,10 @@ use std::time::Duration;
 const FLIGHT_BOUND: Duration = Duration::from_secs(900);
 
 fn aeris(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(aeris_bin()).args(args).output().expect("run aeris");
+    let out = Command::new(aeris_bin())
+        .args(args)
+        .output()
+        .expect("run aeris");
     (
         out.status.success(),
         String::from_utf8_lossy(&out.stdout).into_owned(),
@@ -26,17 +29,38 @@ fn default_mission_reaches_the_goal_with_every_role_in_its_own_process() {
     let mut run = spawn_run(&dir.0, &flight, &[]);
 
     // While it flies: the status board lists every role with a live pid of its own.
-    let observer = FlightBus::builder(&flight).node_name("test-observer").create().unwrap();
+    let observer = FlightBus::builder(&flight)
+        .node_name("test-observer")
+        .create()
+        .unwrap();
     let board = poll_until(Duration::from_secs(120), || {
         let b = observer.read_status_board().ok()?;
         (b.role_count >= 6 && b.roles().iter().all(|r| r.pid != 0 && r.heartbeats > 0)).then_some(b)
     })
     .unwrap_or_else(|| panic!("roles never all reported: {:?}", run_output(&dir.0)));
     let pids: HashSet<u32> = board.roles().iter().map(|r| r.pid).collect();
-    assert_eq!(pids.len(), board.roles().len(), "every role has its own process");
-    assert!(!pids.contains(&run.pid()), "no role runs inside the supervisor");
-    let names: HashSet<&str> = board.roles().iter().map(|r| r.name.as_str_lossy()).collect();
-    for r in ["vehicle", "controller", "camera", "perception", "hub", "reasoning"] {
+    assert_eq!(
+        pids.len(),
+        board.roles().len(),
+        "every role has its own process"
+    );
+    assert!(
+        !pids.contains(&run.pid()),
+        "no role runs inside the supervisor"
+    );
+    let names: HashSet<&str> = board
+        .roles()
+        .iter()
+        .map(|r| r.name.as_str_lossy())
+        .collect();
+    for r in [
+        "vehicle",
+        "controller",
+        "camera",
+        "perception",
+        "hub",
+        "reasoning",
+    ] {
         assert!(names.contains(r), "{r} missing from {names:?}");
     }
 
@@ -46,25 +70,55 @@ fn default_mission_reaches_the_goal_with_every_role_in_its_own_process() {
     let roles = status["roles"].as_array().expect("roles array");
     assert_eq!(roles.len(), board.roles().len());
     for r in roles {
-        for key in ["name", "pid", "cpus", "variant", "latency_p50_ms", "latency_p95_ms", "restarts"] {
+        for key in [
+            "name",
+            "pid",
+            "cpus",
+            "variant",
+            "latency_p50_ms",
+            "latency_p95_ms",
+            "restarts",
+        ] {
             assert!(!r[key].is_null(), "status role lacks {key}: {r}");
         }
     }
 
     let (ok, out, err) = aeris(&["topic", "list", "--flight", &flight]);
     assert!(ok, "topic list failed: {err}");
-    for t in ["camera/rgb", "perception/state", "reasoning/decision", "hub/setpoint", "vehicle/telemetry"] {
+    for t in [
+        "camera/rgb",
+        "perception/state",
+        "reasoning/decision",
+        "hub/setpoint",
+        "vehicle/telemetry",
+    ] {
         assert!(out.contains(t), "topic list lacks {t}:\n{out}");
     }
-    let (ok, out, err) = aeris(&["topic", "echo", "vehicle/telemetry", "--flight", &flight, "-n", "1", "--seconds", "60"]);
-    assert!(ok && out.contains("VehicleTelemetry"), "echo failed: {out} {err}");
+    let (ok, out, err) = aeris(&[
+        "topic",
+        "echo",
+        "vehicle/telemetry",
+        "--flight",
+        &flight,
+        "-n",
+        "1",
+        "--seconds",
+        "60",
+    ]);
+    assert!(
+        ok && out.contains("VehicleTelemetry"),
+        "echo failed: {out} {err}"
+    );
 
     let status = wait_bounded(&mut run.0, FLIGHT_BOUND).expect("flight finished");
     let (stdout, stderr) = run_output(&dir.0);
     assert!(status.success(), "aeris run failed: {status}\n{stderr}");
     let summary = last_json_line(&stdout);
     assert_eq!(summary["reached_goal"], true, "{summary}\n{stderr}");
-    assert!(summary["final_distance_m"].as_f64().unwrap() <= 3.0, "{summary}");
+    assert!(
+        summary["final_distance_m"].as_f64().unwrap() <= 3.0,
+        "{summary}"
+    );
     for key in [
         "cycles",
         "ct_mean_s",
@@ -81,10 +135,21 @@ fn default_mission_reaches_the_goal_with_every_role_in_its_own_process() {
     assert!(summary["controller_ticks"].as_u64().unwrap() > 0);
     assert!(summary["cycles"].as_u64().unwrap() > 0);
     assert_eq!(summary["role_restarts"], 0);
-    assert_eq!(summary["max_active_step"], summary["subgoals_total"], "ATT reached the last step: {summary}");
+    assert_eq!(
+        summary["max_active_step"], summary["subgoals_total"],
+        "ATT reached the last step: {summary}"
+    );
 
     drop(observer);
     aeris_runtime::bus::cleanup_dead_nodes();
-    assert_eq!(flight_node_census(&flight), (0, 0), "no node of the flight remains");
-    assert!(list_flight_services(&flight).is_empty(), "{:?}", list_flight_services(&flight));
+    assert_eq!(
+        flight_node_census(&flight),
+        (0, 0),
+        "no node of the flight remains"
+    );
+    assert!(
+        list_flight_services(&flight).is_empty(),
+        "{:?}",
+        list_flight_services(&flight)
+    );
 }

@@ -7,7 +7,7 @@
 //! band (heartbeat counters[1]); the pymavlink test checks the same stream independently.
 
 use aeris_runtime::bus::FlightBus;
-use aeris_schemas::{topics, RoleHeartbeat};
+use aeris_schemas::{RoleHeartbeat, topics};
 use aeris_tests::*;
 use std::time::Duration;
 
@@ -15,8 +15,13 @@ use std::time::Duration;
 fn garbage_decisions_never_reach_the_autopilot() {
     let dir = TempDir::new("garbage");
     let flight = unique_flight("garbage");
-    let observer = FlightBus::builder(&flight).node_name("test-observer").create().unwrap();
-    let heartbeats = observer.subscriber::<RoleHeartbeat>(topics::HEARTBEAT).unwrap();
+    let observer = FlightBus::builder(&flight)
+        .node_name("test-observer")
+        .create()
+        .unwrap();
+    let heartbeats = observer
+        .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
+        .unwrap();
     let mut workflow = default_workflow();
     set_variant(&mut workflow, "reasoning", "garbage");
     let path = write_workflow(&dir.0, "garbage", &workflow);
@@ -37,9 +42,24 @@ fn garbage_decisions_never_reach_the_autopilot() {
     assert!(finished.success(), "aeris run failed: {finished}\n{stderr}");
     let summary = last_json_line(&stdout);
 
-    assert!(garbage_counters[2] > 0, "the garbage reasoner corrupted decisions: {garbage_counters:?}");
-    assert!(summary["decisions_rejected"].as_u64().unwrap() > 0, "{summary}");
-    assert!(vehicle_counters[0] > 0, "the vehicle received setpoints: {vehicle_counters:?}");
-    assert_eq!(vehicle_counters[1], 0, "setpoints outside the bounds reached MAVLink: {vehicle_counters:?}");
-    assert_eq!(summary["reached_goal"], true, "valid decisions in between still fly the mission: {summary}");
+    assert!(
+        garbage_counters[2] > 0,
+        "the garbage reasoner corrupted decisions: {garbage_counters:?}"
+    );
+    assert!(
+        summary["decisions_rejected"].as_u64().unwrap() > 0,
+        "{summary}"
+    );
+    assert!(
+        vehicle_counters[0] > 0,
+        "the vehicle received setpoints: {vehicle_counters:?}"
+    );
+    assert_eq!(
+        vehicle_counters[1], 0,
+        "setpoints outside the bounds reached MAVLink: {vehicle_counters:?}"
+    );
+    assert_eq!(
+        summary["reached_goal"], true,
+        "valid decisions in between still fly the mission: {summary}"
+    );
 }

@@ -45,14 +45,28 @@ fn a_role_refuses_a_flight_of_another_schema() {
     let path = dir.0.join("reasoning.json");
     std::fs::write(&path, serde_json::to_string(&spec).unwrap()).unwrap();
 
-    let out = Command::new(aeris_bin()).args(["role", "--spec"]).arg(&path).output().unwrap();
+    let out = Command::new(aeris_bin())
+        .args(["role", "--spec"])
+        .arg(&path)
+        .output()
+        .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(3), "exit code for a schema mismatch; stderr: {stderr}");
+    assert_eq!(
+        out.status.code(),
+        Some(3),
+        "exit code for a schema mismatch; stderr: {stderr}"
+    );
     assert!(stderr.contains("schema mismatch"), "{stderr}");
-    assert!(stderr.contains(&format!("s{}", SCHEMA_VERSION + 1)), "names the flight's schema: {stderr}");
+    assert!(
+        stderr.contains(&format!("s{}", SCHEMA_VERSION + 1)),
+        "names the flight's schema: {stderr}"
+    );
 
     // Tools refuse it the same way.
-    let out = Command::new(aeris_bin()).args(["status", "--flight", &flight]).output().unwrap();
+    let out = Command::new(aeris_bin())
+        .args(["status", "--flight", &flight])
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("schema mismatch"));
 }
