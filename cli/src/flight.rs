@@ -1,9 +1,9 @@
 //! Watching a flight from the outside: hub reports and telemetry -> progress and summary.
 
+use aeris_runtime::MissionSpec;
 use aeris_runtime::bus::{BusError, FlightBus, TypedSubscriber};
 use aeris_runtime::stats::{mean_std, percentile};
-use aeris_runtime::MissionSpec;
-use aeris_schemas::{topics, ActionMode, HubReport, VehicleTelemetry};
+use aeris_schemas::{ActionMode, HubReport, VehicleTelemetry, topics};
 use serde::Serialize;
 
 /// What a finished flight reports (`aeris run --json` prints this as one line).
@@ -168,7 +168,10 @@ impl FlightMonitor {
 
     /// Active step (1-based) and the subgoal count.
     pub fn active_step(&self) -> (u16, u16) {
-        (self.last_report.map(|r| r.active_step).unwrap_or(0), self.subgoals)
+        (
+            self.last_report.map(|r| r.active_step).unwrap_or(0),
+            self.subgoals,
+        )
     }
 
     /// Mean cycle time so far (s).
@@ -178,7 +181,11 @@ impl FlightMonitor {
 
     /// Execution error rate so far.
     pub fn eer(&self) -> f64 {
-        if self.cycles == 0 { 0.0 } else { self.reused as f64 / self.cycles as f64 }
+        if self.cycles == 0 {
+            0.0
+        } else {
+            self.reused as f64 / self.cycles as f64
+        }
     }
 
     /// Decisions rejected so far.

@@ -1,12 +1,12 @@
 //! `aeris status` and `aeris topic ...`: looking at running flights from another process.
 
-use anyhow::{bail, Context, Result};
 use aeris_runtime::bus::{self, FlightBus};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_schemas::{
-    topics, BoundSetpoint, Decision, HubReport, PerceptionState, RoleHeartbeat, RoleStatus, VehicleTelemetry,
-    ZeroCopySend,
+    BoundSetpoint, Decision, HubReport, PerceptionState, RoleHeartbeat, RoleStatus,
+    VehicleTelemetry, ZeroCopySend, topics,
 };
+use anyhow::{Context, Result, bail};
 use core::fmt::Debug;
 use core::time::Duration;
 
@@ -38,15 +38,16 @@ fn tool_bus(flight: &str, tool: &str) -> Result<FlightBus> {
 pub fn status(flight: Option<String>, json: bool) -> Result<()> {
     let flight = resolve_flight(flight)?;
     let bus = tool_bus(&flight, "status")?;
-    let board = bus
-        .read_status_board()
-        .with_context(|| format!("flight `{flight}` has no supervisor status board (is its supervisor running?)"))?;
+    let board = bus.read_status_board().with_context(|| {
+        format!("flight `{flight}` has no supervisor status board (is its supervisor running?)")
+    })?;
     let now = monotonic_ns();
     let roles: Vec<serde_json::Value> = board
         .roles()
         .iter()
         .map(|r| {
-            let age_ms = (r.last_heartbeat_ns > 0).then(|| now.saturating_sub(r.last_heartbeat_ns) as f64 / 1e6);
+            let age_ms = (r.last_heartbeat_ns > 0)
+                .then(|| now.saturating_sub(r.last_heartbeat_ns) as f64 / 1e6);
             serde_json::json!({
                 "name": r.name.as_str_lossy(),
                 "pid": r.pid,
@@ -81,7 +82,11 @@ pub fn status(flight: Option<String>, json: bool) -> Result<()> {
         board.supervisor_pid,
         board.active_step,
         board.subgoals,
-        if board.distance_to_goal_m >= 0.0 { format!("{:.1} m", board.distance_to_goal_m) } else { "?".into() },
+        if board.distance_to_goal_m >= 0.0 {
+            format!("{:.1} m", board.distance_to_goal_m)
+        } else {
+            "?".into()
+        },
         board.ct_mean_s
     );
     println!(
@@ -89,7 +94,10 @@ pub fn status(flight: Option<String>, json: bool) -> Result<()> {
         "ROLE", "PID", "CPUS", "VARIANT", "STATUS", "HB AGE", "P50 ms", "P95 ms", "RESTARTS"
     );
     for r in &roles {
-        let age = r["heartbeat_age_ms"].as_f64().map(|a| format!("{a:.0} ms")).unwrap_or_else(|| "-".into());
+        let age = r["heartbeat_age_ms"]
+            .as_f64()
+            .map(|a| format!("{a:.0} ms"))
+            .unwrap_or_else(|| "-".into());
         println!(
             "{:<12} {:>7} {:<6} {:<15} {:<12} {:>9} {:>9.3} {:>9.3} {:>8}",
             r["name"].as_str().unwrap_or(""),
@@ -141,7 +149,13 @@ pub fn topic_list(flight: Option<String>) -> Result<()> {
 }
 
 /// Calls `on_sample` for every sample of `topic` until `count` samples or `seconds` passed.
-fn each_sample(bus: &FlightBus, topic: &str, count: Option<u64>, seconds: f64, mut on_sample: impl FnMut(String)) -> Result<u64> {
+fn each_sample(
+    bus: &FlightBus,
+    topic: &str,
+    count: Option<u64>,
+    seconds: f64,
+    mut on_sample: impl FnMut(String),
+) -> Result<u64> {
     fn typed<T: Debug + ZeroCopySend + Copy + 'static>(
         bus: &FlightBus,
         topic: &str,
@@ -152,7 +166,11 @@ fn each_sample(bus: &FlightBus, topic: &str, count: Option<u64>, seconds: f64, m
     let mut next: Box<dyn FnMut() -> Result<Option<String>>> = match topic {
         topics::CAMERA_RGB | topics::CAMERA_DEPTH => {
             let sub = bus.frame_subscriber(topic)?;
-            Box::new(move || Ok(sub.next()?.map(|s| format!("{:?} bytes={}", s.user_header(), s.payload().len()))))
+            Box::new(move || {
+                Ok(sub
+                    .next()?
+                    .map(|s| format!("{:?} bytes={}", s.user_header(), s.payload().len())))
+            })
         }
         topics::PERCEPTION_STATE => typed::<PerceptionState>(bus, topic)?,
         topics::REASONING_DECISION => typed::<Decision>(bus, topic)?,
@@ -160,7 +178,10 @@ fn each_sample(bus: &FlightBus, topic: &str, count: Option<u64>, seconds: f64, m
         topics::HUB_REPORT => typed::<HubReport>(bus, topic)?,
         topics::VEHICLE_TELEMETRY => typed::<VehicleTelemetry>(bus, topic)?,
         topics::HEARTBEAT => typed::<RoleHeartbeat>(bus, topic)?,
-        other => bail!("unknown topic `{other}`; known topics: {}", topics::ALL.join(", ")),
+        other => bail!(
+            "unknown topic `{other}`; known topics: {}",
+            topics::ALL.join(", ")
+        ),
     };
     let end = monotonic_ns() + (seconds * 1e9) as u64;
     let mut n = 0;
@@ -177,7 +198,12 @@ fn each_sample(bus: &FlightBus, topic: &str, count: Option<u64>, seconds: f64, m
 }
 
 /// `aeris topic echo`.
-pub fn topic_echo(flight: Option<String>, topic: &str, count: Option<u64>, seconds: f64) -> Result<()> {
+pub fn topic_echo(
+    flight: Option<String>,
+    topic: &str,
+    count: Option<u64>,
+    seconds: f64,
+) -> Result<()> {
     let flight = resolve_flight(flight)?;
     let bus = tool_bus(&flight, "echo")?;
     let n = each_sample(&bus, topic, count, seconds, |s| println!("{s}"))?;
@@ -199,12 +225,18 @@ pub fn topic_hz(flight: Option<String>, topic: &str, seconds: f64) -> Result<()>
         let now = monotonic_ns();
         if now - window_start >= 1_000_000_000 {
             let dt = (now - window_start) as f64 * 1e-9;
-            println!("{topic}: {:.2} Hz ({in_window} samples in {dt:.2} s)", in_window as f64 / dt);
+            println!(
+                "{topic}: {:.2} Hz ({in_window} samples in {dt:.2} s)",
+                in_window as f64 / dt
+            );
             window_start = now;
             in_window = 0;
         }
     })?;
     let dt = (monotonic_ns() - start) as f64 * 1e-9;
-    println!("{topic}: average {:.2} Hz over {dt:.1} s ({total} samples)", total as f64 / dt);
+    println!(
+        "{topic}: average {:.2} Hz over {dt:.1} s ({total} samples)",
+        total as f64 / dt
+    );
     Ok(())
 }

@@ -4,7 +4,7 @@ use crate::flight::FlightMonitor;
 use aeris_orchestrator::supervisor::{Supervisor, SupervisorEvent, SupervisorOptions};
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::signals;
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::Args;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -46,7 +46,12 @@ fn load(path: Option<&Path>) -> Result<Workflow> {
 /// `aeris validate WORKFLOW`.
 pub fn validate(path: &Path) -> Result<ExitCode> {
     let w = load(Some(path))?;
-    println!("{}: ok — {} roles, {} subgoals", path.display(), w.roles.len(), w.mission.subgoals.len());
+    println!(
+        "{}: ok — {} roles, {} subgoals",
+        path.display(),
+        w.roles.len(),
+        w.mission.subgoals.len()
+    );
     for r in &w.roles {
         println!(
             "  {:<11} {:<10} {:<15} executor {}",
@@ -83,7 +88,10 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
         workflow.mission.max_duration_s = s;
     }
     workflow.validate().context("workflow")?;
-    let flight = args.flight.clone().unwrap_or_else(|| format!("flight-{}", std::process::id()));
+    let flight = args
+        .flight
+        .clone()
+        .unwrap_or_else(|| format!("flight-{}", std::process::id()));
     let run_dir = args
         .run_dir
         .clone()
@@ -107,9 +115,11 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
         run_dir.join("logs").display()
     );
     eprintln!("aeris: mission: {}", mission.instruction);
-    sup.wait_ready(Duration::from_secs(60)).context("waiting for every role's first heartbeat")?;
+    sup.wait_ready(Duration::from_secs(60))
+        .context("waiting for every role's first heartbeat")?;
 
-    let mut monitor = FlightMonitor::new(sup.bus(), &mission).context("subscribing to the flight")?;
+    let mut monitor =
+        FlightMonitor::new(sup.bus(), &mission).context("subscribing to the flight")?;
     let start = Instant::now();
     let mut last_progress = Instant::now();
     let mut failure: Option<String> = None;
@@ -119,7 +129,11 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
                 SupervisorEvent::RoleGaveUp { name } => {
                     failure = Some(format!("role `{name}` exhausted its restart budget"));
                 }
-                SupervisorEvent::RoleRestarted { name, pid, restarts } => {
+                SupervisorEvent::RoleRestarted {
+                    name,
+                    pid,
+                    restarts,
+                } => {
                     eprintln!("aeris: restarted {name} (pid {pid}, restart #{restarts})");
                 }
                 SupervisorEvent::RoleExited { name, status } => {
@@ -131,12 +145,20 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
         monitor.poll().context("reading flight telemetry")?;
         let (step, steps) = monitor.active_step();
         let distance = monitor.distance_to_goal();
-        sup.set_progress(step, steps, distance.unwrap_or(-1.0), monitor.ct_mean_s() as f32);
+        sup.set_progress(
+            step,
+            steps,
+            distance.unwrap_or(-1.0),
+            monitor.ct_mean_s() as f32,
+        );
         if monitor.reached_goal() || failure.is_some() {
             break;
         }
         if start.elapsed() > max_duration {
-            failure = Some(format!("the goal was not reached within {:.0} s", max_duration.as_secs_f64()));
+            failure = Some(format!(
+                "the goal was not reached within {:.0} s",
+                max_duration.as_secs_f64()
+            ));
             break;
         }
         if signals::termination_requested() {
@@ -154,7 +176,9 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
             eprintln!(
                 "[{:6.1} s] step {step}/{steps} \"{text}\"  distance to goal {}  alt {:.1} m  CT {:.3} s  EER {:.1}%  rejected {}  restarts {}",
                 start.elapsed().as_secs_f64(),
-                distance.map(|d| format!("{d:.1} m")).unwrap_or_else(|| "?".into()),
+                distance
+                    .map(|d| format!("{d:.1} m"))
+                    .unwrap_or_else(|| "?".into()),
                 pos[2],
                 monitor.ct_mean_s(),
                 monitor.eer() * 100.0,
@@ -171,13 +195,23 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
     let report = sup.shutdown(Duration::from_secs(3));
     eprintln!("aeris: shutdown: {report}");
 
-    println!("flight {flight}: {}", if summary.reached_goal { "goal reached" } else { "goal NOT reached" });
+    println!(
+        "flight {flight}: {}",
+        if summary.reached_goal {
+            "goal reached"
+        } else {
+            "goal NOT reached"
+        }
+    );
     if let Some(f) = &failure {
         println!("  reason: {f}");
     }
     println!(
         "  final distance to goal {:.2} m after {:.1} s; subgoals reached by ATT {}/{}",
-        summary.final_distance_m, summary.duration_s, summary.max_active_step, summary.subgoals_total
+        summary.final_distance_m,
+        summary.duration_s,
+        summary.max_active_step,
+        summary.subgoals_total
     );
     println!(
         "  cycles {} (committed {}), CT mean {:.3} s (std {:.3}, p95 {:.3}); stages: perception {:.3} reasoning {:.3} routing {:.4} binding {:.4} s",
@@ -203,10 +237,20 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
     );
     println!(
         "  controller ticks {} missed {} refused setpoints {}; role restarts {}",
-        summary.controller_ticks, summary.controller_missed_ticks, summary.controller_refused_setpoints, summary.role_restarts
+        summary.controller_ticks,
+        summary.controller_missed_ticks,
+        summary.controller_refused_setpoints,
+        summary.role_restarts
     );
     if args.json {
-        println!("{}", serde_json::to_string(&summary).context("serialising the summary")?);
+        println!(
+            "{}",
+            serde_json::to_string(&summary).context("serialising the summary")?
+        );
     }
-    Ok(if summary.reached_goal { ExitCode::SUCCESS } else { ExitCode::from(2) })
+    Ok(if summary.reached_goal {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(2)
+    })
 }
