@@ -195,9 +195,36 @@ impl FlightBusBuilder {
     }
 }
 
-/// The port factory of a frame service.
-type FrameService =
-    iceoryx2::service::port_factory::publish_subscribe::PortFactory<Ipc, [u8], FrameHeader>;
+/// The port factory of a publish-subscribe service.
+type PubSubService<P, H> =
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<Ipc, P, H>;
+
+/// A publish-subscribe service builder.
+type PubSubBuilder<P, H> = iceoryx2::service::builder::publish_subscribe::Builder<P, H, Ipc>;
+
+/// Apply the QoS of `topic` (from [`qos`]) to a service builder.
+fn with_qos<P, H>(builder: PubSubBuilder<P, H>, topic: &str) -> PubSubBuilder<P, H>
+where
+    P: Debug + iceoryx2::prelude::IceoryxSend + ?Sized,
+    H: Debug + ZeroCopySend,
+{
+    let q = qos(topic);
+    builder
+        .history_size(q.history)
+        .subscriber_max_buffer_size(q.buffer)
+        .max_publishers(q.max_publishers)
+        .max_subscribers(q.max_subscribers)
+        .max_nodes(MAX_NODES)
+        .enable_safe_overflow(true)
+}
+
+/// Maps a port-creation failure on `service` to [`BusError::Port`].
+fn port_error<E: Debug>(service: &str) -> impl Fn(E) -> BusError + '_ {
+    move |e| BusError::Port {
+        service: service.to_string(),
+        reason: format!("{e:?}"),
+    }
+}
 
 type ManifestService = iceoryx2::service::port_factory::blackboard::PortFactory<Ipc, u64>;
 
@@ -291,10 +318,7 @@ impl FlightBus {
                     let reader = service
                         .reader_builder()
                         .create()
-                        .map_err(|e| BusError::Port {
-                            service: name.clone(),
-                            reason: format!("{e:?}"),
-                        })?;
+                        .map_err(port_error(&name))?;
                     let entry = reader.entry::<FlightManifest>(&0).map_err(|_| {
                         BusError::IncompatibleSchema {
                             service: name.clone(),
@@ -353,32 +377,49 @@ impl FlightBus {
         })
     }
 
+    /// Open (or create) the fixed-size publish-subscribe service of `topic`.
+    fn open_fixed<T>(&self, topic: &str) -> Result<(String, PubSubService<T, ()>), BusError>
+    where
+        T: Debug + ZeroCopySend + Copy + 'static,
+    {
+        let name = self.service_name(topic);
+        let builder = self
+            .node
+            .service_builder(&Self::iox_name(&name)?)
+            .publish_subscribe::<T>();
+        let service = with_qos(builder, topic)
+            .open_or_create()
+            .map_err(|e| ps_open_error(&name, e))?;
+        Ok((name, service))
+    }
+
+    /// Open (or create) the frame service (`[u8]` + [`FrameHeader`]) of `topic`.
+    fn open_frames(
+        &self,
+        topic: &str,
+    ) -> Result<(String, PubSubService<[u8], FrameHeader>), BusError> {
+        let name = self.service_name(topic);
+        let builder = self
+            .node
+            .service_builder(&Self::iox_name(&name)?)
+            .publish_subscribe::<[u8]>()
+            .user_header::<FrameHeader>();
+        let service = with_qos(builder, topic)
+            .open_or_create()
+            .map_err(|e| ps_open_error(&name, e))?;
+        Ok((name, service))
+    }
+
     /// A publisher of fixed-size `T` on `topic`.
     pub fn publisher<T: Debug + ZeroCopySend + Copy + 'static>(
         &self,
         topic: &str,
     ) -> Result<TypedPublisher<T>, BusError> {
-        let name = self.service_name(topic);
-        let q = qos(topic);
-        let service = self
-            .node
-            .service_builder(&Self::iox_name(&name)?)
-            .publish_subscribe::<T>()
-            .history_size(q.history)
-            .subscriber_max_buffer_size(q.buffer)
-            .max_publishers(q.max_publishers)
-            .max_subscribers(q.max_subscribers)
-            .max_nodes(MAX_NODES)
-            .enable_safe_overflow(true)
-            .open_or_create()
-            .map_err(|e| ps_open_error(&name, e))?;
+        let (name, service) = self.open_fixed::<T>(topic)?;
         let publisher = service
             .publisher_builder()
             .create()
-            .map_err(|e| BusError::Port {
-                service: name.clone(),
-                reason: format!("{e:?}"),
-            })?;
+            .map_err(port_error(&name))?;
         Ok(TypedPublisher {
             publisher,
             service: name,
@@ -390,50 +431,15 @@ impl FlightBus {
         &self,
         topic: &str,
     ) -> Result<TypedSubscriber<T>, BusError> {
-        let name = self.service_name(topic);
-        let q = qos(topic);
-        let service = self
-            .node
-            .service_builder(&Self::iox_name(&name)?)
-            .publish_subscribe::<T>()
-            .history_size(q.history)
-            .subscriber_max_buffer_size(q.buffer)
-            .max_publishers(q.max_publishers)
-            .max_subscribers(q.max_subscribers)
-            .max_nodes(MAX_NODES)
-            .enable_safe_overflow(true)
-            .open_or_create()
-            .map_err(|e| ps_open_error(&name, e))?;
+        let (name, service) = self.open_fixed::<T>(topic)?;
         let subscriber = service
             .subscriber_builder()
             .create()
-            .map_err(|e| BusError::Port {
-                service: name.clone(),
-                reason: format!("{e:?}"),
-            })?;
+            .map_err(port_error(&name))?;
         Ok(TypedSubscriber {
             subscriber,
             service: name,
         })
-    }
-
-    fn frame_service(&self, topic: &str) -> Result<(String, FrameService), BusError> {
-        let name = self.service_name(topic);
-        let q = qos(topic);
-        let service = self
-            .node
-            .service_builder(&Self::iox_name(&name)?)
-            .publish_subscribe::<[u8]>()
-            .user_header::<FrameHeader>()
-            .history_size(q.history)
-            .subscriber_max_buffer_size(q.buffer)
-            .max_publishers(q.max_publishers)
-            .max_subscribers(q.max_subscribers)
-            .max_nodes(MAX_NODES)
-            .enable_safe_overflow(true)
-            .open_or_create()
-            .map_err(|e| ps_open_error(&name, e))?;
-        Ok((name, service))
     }
 
     /// A publisher of frames (byte slices of up to `max_bytes`, with a [`FrameHeader`]).
@@ -442,16 +448,13 @@ impl FlightBus {
         topic: &str,
         max_bytes: usize,
     ) -> Result<FramePublisher, BusError> {
-        let (name, service) = self.frame_service(topic)?;
+        let (name, service) = self.open_frames(topic)?;
         let publisher = service
             .publisher_builder()
             .initial_max_slice_len(max_bytes.max(1))
             .allocation_strategy(AllocationStrategy::PowerOfTwo)
             .create()
-            .map_err(|e| BusError::Port {
-                service: name.clone(),
-                reason: format!("{e:?}"),
-            })?;
+            .map_err(port_error(&name))?;
         Ok(FramePublisher {
             publisher,
             service: name,
@@ -460,14 +463,11 @@ impl FlightBus {
 
     /// A subscriber of frames.
     pub fn frame_subscriber(&self, topic: &str) -> Result<FrameSubscriber, BusError> {
-        let (name, service) = self.frame_service(topic)?;
+        let (name, service) = self.open_frames(topic)?;
         let subscriber = service
             .subscriber_builder()
             .create()
-            .map_err(|e| BusError::Port {
-                service: name.clone(),
-                reason: format!("{e:?}"),
-            })?;
+            .map_err(port_error(&name))?;
         Ok(FrameSubscriber {
             subscriber,
             service: name,
@@ -492,16 +492,10 @@ impl FlightBus {
         let writer = service
             .writer_builder()
             .create()
-            .map_err(|e| BusError::Port {
-                service: name.clone(),
-                reason: format!("{e:?}"),
-            })?;
+            .map_err(port_error(&name))?;
         let entry = writer
             .entry::<SupervisorStatus>(&0)
-            .map_err(|e| BusError::Port {
-                service: name.clone(),
-                reason: format!("{e:?}"),
-            })?;
+            .map_err(port_error(&name))?;
         Ok(StatusBoardWriter {
             entry,
             _writer: writer,
@@ -532,14 +526,10 @@ impl FlightBus {
                 });
             }
         };
-        let reader: Reader<Ipc, u64> =
-            service
-                .reader_builder()
-                .create()
-                .map_err(|e| BusError::Port {
-                    service: name.clone(),
-                    reason: format!("{e:?}"),
-                })?;
+        let reader: Reader<Ipc, u64> = service
+            .reader_builder()
+            .create()
+            .map_err(port_error(&name))?;
         let entry = reader
             .entry::<SupervisorStatus>(&0)
             .map_err(|_| BusError::IncompatibleSchema { service: name })?;
