@@ -17,7 +17,8 @@ fn run(args: &[&str]) -> (Option<i32>, String) {
 #[test]
 fn bad_workflows_are_refused_with_the_reason() {
     let dir = TempDir::new("cli-errors");
-    let cases: Vec<(&str, Box<dyn Fn(&mut toml::Table)>, &str)> = vec![
+    type Edit = Box<dyn Fn(&mut toml::Table)>;
+    let cases: Vec<(&str, Edit, &str)> = vec![
         (
             "unknown-variant",
             Box::new(|w| set_variant(w, "reasoning", "gpt-9")),
