@@ -171,3 +171,46 @@ pub fn run_output(dir: &std::path::Path) -> (String, String) {
         std::fs::read_to_string(dir.join("run.stderr")).unwrap_or_default(),
     )
 }
+
+/// The default workflow's mission.
+pub fn default_mission() -> aeris_runtime::MissionSpec {
+    let workflow = default_workflow();
+    let value = serde_json::to_value(workflow["mission"].clone()).expect("mission as JSON");
+    serde_json::from_value(value).expect("mission parses")
+}
+
+/// A role spec in `flight`, as the supervisor would write it, for starting one role by hand.
+pub fn role_spec(
+    flight: &str,
+    name: &str,
+    kind: &str,
+    variant: &str,
+    params: serde_json::Value,
+) -> aeris_runtime::RoleSpec {
+    aeris_runtime::RoleSpec {
+        flight: flight.to_string(),
+        name: name.to_string(),
+        kind: kind.to_string(),
+        variant: variant.to_string(),
+        cpus: String::new(),
+        timing: Default::default(),
+        camera: Default::default(),
+        mission: default_mission(),
+        params: params.as_object().cloned().unwrap_or_default(),
+    }
+}
+
+/// Write `spec` as JSON to `dir/<name>.json`.
+pub fn write_spec(dir: &std::path::Path, spec: &aeris_runtime::RoleSpec) -> PathBuf {
+    let p = dir.join(format!("{}.json", spec.name));
+    std::fs::write(&p, serde_json::to_string(spec).expect("spec as JSON")).expect("write spec");
+    p
+}
+
+/// A UDP port that was free a moment ago on 127.0.0.1.
+pub fn free_udp_port() -> u16 {
+    std::net::UdpSocket::bind("127.0.0.1:0")
+        .and_then(|s| s.local_addr())
+        .map(|a| a.port())
+        .expect("free UDP port")
+}

@@ -26,24 +26,15 @@ fn a_role_refuses_a_flight_of_another_schema() {
         .create()
         .unwrap();
 
-    let mut workflow = default_workflow();
-    workflow.remove("executors");
     // Role specs are what the supervisor writes; build one for the planner by hand.
-    let mission: aeris_runtime::MissionSpec =
-        serde_json::from_value(serde_json::to_value(workflow["mission"].clone()).unwrap()).unwrap();
-    let spec = aeris_runtime::RoleSpec {
-        flight: flight.clone(),
-        name: "reasoning".into(),
-        kind: "reasoning".into(),
-        variant: "planner".into(),
-        cpus: String::new(),
-        timing: Default::default(),
-        camera: Default::default(),
-        mission,
-        params: Default::default(),
-    };
-    let path = dir.0.join("reasoning.json");
-    std::fs::write(&path, serde_json::to_string(&spec).unwrap()).unwrap();
+    let spec = role_spec(
+        &flight,
+        "reasoning",
+        "reasoning",
+        "planner",
+        serde_json::json!({}),
+    );
+    let path = write_spec(&dir.0, &spec);
 
     let out = Command::new(aeris_bin())
         .args(["role", "--spec"])
