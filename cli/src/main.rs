@@ -13,7 +13,7 @@ use std::process::ExitCode;
 /// AERIS-rs: fly a drone from natural-language instructions, every role its own process,
 /// frames and state over iceoryx2 shared memory, setpoints over MAVLink.
 #[derive(Debug, Parser)]
-#[command(name = "aeris", version, about, propagate_version = true)]
+#[command(name = "aeris", version, propagate_version = true)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

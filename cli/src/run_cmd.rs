@@ -28,7 +28,8 @@ pub struct RunArgs {
     /// Where role specs and logs go (default: $TMPDIR/aeris/<flight>).
     #[arg(long, value_name = "DIR")]
     pub run_dir: Option<PathBuf>,
-    /// Run a role with another variant from its pool, e.g. --variant reasoning=garbage.
+    /// Run a role with another variant of its kind (see `aeris roles`), e.g.
+    /// --variant reasoning=garbage (repeatable).
     #[arg(long, value_name = "ROLE=VARIANT")]
     pub variant: Vec<String>,
     /// Give up after this many seconds (default: the mission's max_duration_s).
