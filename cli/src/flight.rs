@@ -19,7 +19,8 @@ pub struct RunSummary {
     pub final_position: [f64; 3],
     /// Wall time of the flight (s).
     pub duration_s: f64,
-    /// Semantic cycles (committed + reused).
+    /// Semantic cycles: committed decisions plus reuses of the last valid one (over every
+    /// hub process of the flight).
     pub cycles: u64,
     /// Cycles that committed a fresh decision.
     pub cycles_committed: u64,
@@ -31,7 +32,7 @@ pub struct RunSummary {
     pub ct_p95_s: f64,
     /// Mean stage durations (s): perception, reasoning, routing, binding.
     pub stages_mean_s: StageMeans,
-    /// Execution error rate: share of cycles that missed the deadline or were rejected.
+    /// Execution error rate: reuses (late, rejected or missing decisions) over cycles.
     pub eer: f64,
     /// Decisions the hub received.
     pub decisions_received: u64,
@@ -74,6 +75,58 @@ pub struct StageMeans {
     pub binding: f64,
 }
 
+/// Cumulative counters of a publisher that may be restarted: a restarted process starts its
+/// counters (and its sequence numbers) from zero, so the totals of the earlier processes are
+/// kept as a base.
+#[derive(Debug, Clone, Copy)]
+struct RestartSafeCounters<const N: usize> {
+    base: [u64; N],
+    last: [u64; N],
+    last_seq: u64,
+}
+
+impl<const N: usize> Default for RestartSafeCounters<N> {
+    fn default() -> Self {
+        Self {
+            base: [0; N],
+            last: [0; N],
+            last_seq: 0,
+        }
+    }
+}
+
+impl<const N: usize> RestartSafeCounters<N> {
+    /// Record the counters of a sample with publisher sequence `seq`.
+    fn update(&mut self, seq: u64, counters: [u64; N]) {
+        if seq <= self.last_seq {
+            // a new process: bank what the old one had counted
+            for (b, l) in self.base.iter_mut().zip(self.last) {
+                *b = b.saturating_add(l);
+            }
+        }
+        self.last_seq = seq;
+        self.last = counters;
+    }
+
+    fn total(&self, i: usize) -> u64 {
+        self.base[i].saturating_add(self.last[i])
+    }
+}
+
+// Indices into the hub counters.
+const RECEIVED: usize = 0;
+const COMMITTED: usize = 1;
+const REJECTED: usize = 2;
+const LATE: usize = 3;
+const REUSED: usize = 4;
+const GAPS: usize = 5;
+const REORDERS: usize = 6;
+
+// Indices into the controller counters.
+const TICKS: usize = 0;
+const MISSED: usize = 1;
+const REFUSED: usize = 2;
+
 /// Subscribes to a flight's hub reports and telemetry and keeps the tallies.
 pub struct FlightMonitor {
     reports: TypedSubscriber<HubReport>,
@@ -84,9 +137,8 @@ pub struct FlightMonitor {
     subgoals: u16,
     ct_s: Vec<f64>,
     stage_sums: [f64; 4],
-    cycles: u64,
-    committed: u64,
-    reused: u64,
+    hub: RestartSafeCounters<7>,
+    controller: RestartSafeCounters<3>,
     last_report: Option<HubReport>,
     last_telemetry: Option<VehicleTelemetry>,
     attention_steps: Vec<u16>,
@@ -109,9 +161,8 @@ impl FlightMonitor {
             subgoals: mission.subgoals.len() as u16,
             ct_s: Vec::new(),
             stage_sums: [0.0; 4],
-            cycles: 0,
-            committed: 0,
-            reused: 0,
+            hub: RestartSafeCounters::default(),
+            controller: RestartSafeCounters::default(),
             last_report: None,
             last_telemetry: None,
             attention_steps: Vec::new(),
@@ -124,17 +175,24 @@ impl FlightMonitor {
             if r.validate().is_err() {
                 continue;
             }
-            self.cycles += 1;
             if r.committed == 1 {
-                self.committed += 1;
                 self.ct_s.push(r.ct_ns as f64 * 1e-9);
                 for (sum, ns) in self.stage_sums.iter_mut().zip(r.stage_ns) {
                     *sum += ns as f64 * 1e-9;
                 }
             }
-            if r.reused == 1 {
-                self.reused += 1;
-            }
+            self.hub.update(
+                r.seq,
+                [
+                    r.decisions_received,
+                    r.decisions_committed,
+                    r.decisions_rejected,
+                    r.decisions_late,
+                    r.decisions_reused,
+                    r.sequence_gaps,
+                    r.sequence_reorders,
+                ],
+            );
             if self.attention_steps.last() != Some(&r.active_step) {
                 self.attention_steps.push(r.active_step);
             }
@@ -143,6 +201,14 @@ impl FlightMonitor {
         if let Some(t) = self.telemetry.latest()?
             && t.validate().is_ok()
         {
+            self.controller.update(
+                t.seq,
+                [
+                    t.controller_ticks,
+                    t.controller_missed_ticks,
+                    t.setpoints_refused,
+                ],
+            );
             self.last_telemetry = Some(t);
         }
         Ok(())
@@ -179,26 +245,30 @@ impl FlightMonitor {
         mean_std(&self.ct_s).map(|(m, _)| m).unwrap_or(0.0)
     }
 
-    /// Execution error rate so far.
+    /// Semantic cycles so far: committed decisions plus reuses of the last valid one.
+    pub fn cycles(&self) -> u64 {
+        self.hub
+            .total(COMMITTED)
+            .saturating_add(self.hub.total(REUSED))
+    }
+
+    /// Execution error rate so far: reuses (a late, invalid or missing decision) over cycles.
     pub fn eer(&self) -> f64 {
-        if self.cycles == 0 {
-            0.0
-        } else {
-            self.reused as f64 / self.cycles as f64
+        match self.cycles() {
+            0 => 0.0,
+            n => self.hub.total(REUSED) as f64 / n as f64,
         }
     }
 
-    /// Decisions rejected so far.
+    /// Decisions rejected so far (over every hub process of the flight).
     pub fn rejected(&self) -> u64 {
-        self.last_report.map(|r| r.decisions_rejected).unwrap_or(0)
+        self.hub.total(REJECTED)
     }
 
     /// The summary of the flight so far.
     pub fn summary(&self, flight: &str, duration_s: f64, role_restarts: u64) -> RunSummary {
         let (ct_mean, ct_std) = mean_std(&self.ct_s).unwrap_or((0.0, 0.0));
-        let n = self.committed.max(1) as f64;
-        let r = self.last_report.unwrap_or_default();
-        let t = self.last_telemetry.unwrap_or_default();
+        let n = self.ct_s.len().max(1) as f64;
         let p = self.position().unwrap_or([f32::NAN; 3]);
         RunSummary {
             flight: flight.to_string(),
@@ -206,8 +276,8 @@ impl FlightMonitor {
             final_distance_m: self.distance_to_goal().map(f64::from).unwrap_or(f64::NAN),
             final_position: p.map(f64::from),
             duration_s,
-            cycles: self.cycles,
-            cycles_committed: self.committed,
+            cycles: self.cycles(),
+            cycles_committed: self.hub.total(COMMITTED),
             ct_mean_s: ct_mean,
             ct_std_s: ct_std,
             ct_p95_s: percentile(&self.ct_s, 95.0).unwrap_or(0.0),
@@ -218,15 +288,15 @@ impl FlightMonitor {
                 binding: self.stage_sums[3] / n,
             },
             eer: self.eer(),
-            decisions_received: r.decisions_received,
-            decisions_rejected: r.decisions_rejected,
-            decisions_reused: r.decisions_reused,
-            decisions_late: r.decisions_late,
-            sequence_gaps: r.sequence_gaps,
-            sequence_reorders: r.sequence_reorders,
-            controller_ticks: t.controller_ticks,
-            controller_missed_ticks: t.controller_missed_ticks,
-            controller_refused_setpoints: t.setpoints_refused,
+            decisions_received: self.hub.total(RECEIVED),
+            decisions_rejected: self.hub.total(REJECTED),
+            decisions_reused: self.hub.total(REUSED),
+            decisions_late: self.hub.total(LATE),
+            sequence_gaps: self.hub.total(GAPS),
+            sequence_reorders: self.hub.total(REORDERS),
+            controller_ticks: self.controller.total(TICKS),
+            controller_missed_ticks: self.controller.total(MISSED),
+            controller_refused_setpoints: self.controller.total(REFUSED),
             role_restarts,
             subgoals_total: self.subgoals as u64,
             max_active_step: self.attention_steps.iter().copied().max().unwrap_or(0) as u64,
@@ -237,4 +307,20 @@ impl FlightMonitor {
 
 fn dist(a: [f32; 3], b: [f32; 3]) -> f32 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counters_survive_a_publisher_restart() {
+        let mut c = RestartSafeCounters::<2>::default();
+        c.update(1, [1, 0]);
+        c.update(2, [5, 1]);
+        // the process restarts: sequence and counters from zero
+        c.update(1, [2, 0]);
+        c.update(2, [3, 2]);
+        assert_eq!((c.total(0), c.total(1)), (8, 3));
+    }
 }

@@ -183,7 +183,7 @@ fn each_sample(
             topics::ALL.join(", ")
         ),
     };
-    let end = monotonic_ns() + (seconds * 1e9) as u64;
+    let end = monotonic_ns().saturating_add((seconds.max(0.0) * 1e9) as u64);
     let mut n = 0;
     while monotonic_ns() < end && count.is_none_or(|c| n < c) {
         match next()? {

@@ -90,8 +90,9 @@ enum TopicCommand {
     },
 }
 
-/// Exit code of a role that refused to join a flight of another schema.
-const EXIT_SCHEMA_MISMATCH: u8 = 3;
+/// Exit code of a role that refused to join a flight of another schema (the supervisor
+/// never restarts a role that exits with it).
+const EXIT_SCHEMA_MISMATCH: u8 = aeris_orchestrator::restart::EXIT_SCHEMA_MISMATCH as u8;
 
 fn run_role(spec: PathBuf) -> anyhow::Result<ExitCode> {
     let spec = aeris_runtime::RoleSpec::load(&spec)?;

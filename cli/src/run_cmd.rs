@@ -32,7 +32,8 @@ pub struct RunArgs {
     /// --variant reasoning=garbage (repeatable).
     #[arg(long, value_name = "ROLE=VARIANT")]
     pub variant: Vec<String>,
-    /// Give up after this many seconds (default: the mission's max_duration_s).
+    /// Give up after this many seconds of flight, counted once every role is up
+    /// (default: the mission's max_duration_s).
     #[arg(long, value_name = "SECONDS")]
     pub max_duration: Option<f64>,
 }

@@ -426,6 +426,7 @@ impl HubCore {
             subgoals: l as u16,
             attention,
             decisions_received: c.decisions_received,
+            decisions_committed: c.decisions_committed,
             decisions_rejected: c.decisions_rejected,
             decisions_late: c.decisions_late,
             decisions_reused: c.decisions_reused,

@@ -85,6 +85,10 @@ impl core::fmt::Display for RoleExit {
     }
 }
 
+/// Exit code of `aeris role` when it refuses to join a flight of another schema: final,
+/// never restarted.
+pub const EXIT_SCHEMA_MISMATCH: i32 = 3;
+
 /// What to do about a role that exited.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RestartDecision {
@@ -125,7 +129,9 @@ pub fn restart_decision(
     };
     if !wants {
         RestartDecision::Stay
-    } else if restarts_so_far >= max_restarts {
+    } else if exit == RoleExit::Code(EXIT_SCHEMA_MISMATCH) || restarts_so_far >= max_restarts {
+        // a role that refused the flight's schema would refuse it again: restarting only
+        // burns the budget
         RestartDecision::GiveUp
     } else {
         RestartDecision::Restart {
@@ -227,6 +233,17 @@ mod tests {
     #[test]
     fn exits_print_readably() {
         assert_eq!(RoleExit::Code(3).to_string(), "exit code 3");
+        assert_eq!(
+            restart_decision(
+                RestartPolicy::Always,
+                RoleExit::Code(EXIT_SCHEMA_MISMATCH),
+                0,
+                5,
+                100
+            ),
+            RestartDecision::GiveUp,
+            "a schema mismatch is final"
+        );
         assert_eq!(
             RoleExit::Signal(libc::SIGKILL).to_string(),
             "signal 9 (SIGKILL)"

@@ -570,6 +570,8 @@ fn controller_rx(
 pub struct ControllerRole {
     link: Arc<OnceLock<MavLink>>,
     shared: Arc<Mutex<AutopilotState>>,
+    /// The last autopilot state copied out of `shared` (used when the lock is busy).
+    ap_cache: AutopilotState,
     stop: Arc<AtomicBool>,
     rx: Option<JoinHandle<()>>,
     setpoints: TypedSubscriber<BoundSetpoint>,
@@ -700,6 +702,7 @@ impl Role for ControllerRole {
         Ok(Self {
             link,
             shared,
+            ap_cache: AutopilotState::default(),
             stop,
             rx: Some(rx),
             setpoints,
@@ -738,7 +741,12 @@ impl Role for ControllerRole {
         self.setpoints.drain(|sp| {
             let _ = tracker.offer(sp, t0);
         })?;
-        let ap = self.shared.lock().map(|s| *s).unwrap_or_default();
+        // Never block the real-time tick on the receive thread (std mutexes have no
+        // priority inheritance): when the lock is busy, fly on the previous copy.
+        if let Ok(s) = self.shared.try_lock() {
+            self.ap_cache = *s;
+        }
+        let ap = self.ap_cache;
         let t1 = monotonic_ns();
 
         // track
@@ -793,6 +801,13 @@ impl Role for ControllerRole {
             }
             self.confirmation = self.confirmation.wrapping_add(1);
         }
+        // Telemetry carries what the autopilot reported; nothing is published before its
+        // first LOCAL_POSITION_NED (a made-up position would be taken as real downstream).
+        let Some(position_ned) = ap.position_ned else {
+            report.stage("read", t1 - t0);
+            report.stage("track", t2 - t1);
+            return Ok(CycleOutcome::Worked);
+        };
         let attitude = ap.attitude.unwrap_or([0.0; 3]);
         self.telemetry_seq += 1;
         let telemetry = VehicleTelemetry {
@@ -803,13 +818,11 @@ impl Role for ControllerRole {
             offboard: u8::from(ap.offboard),
             link_up: u8::from(link_up),
             landed: u8::from(landed),
-            position: ap
-                .position_ned
-                .map(ned_to_neu)
-                .unwrap_or(self.tracker.config().start),
+            position: ned_to_neu(position_ned),
             velocity: ned_to_neu(ap.velocity_ned),
             attitude,
-            controller_ticks: ctx.cycles,
+            // this tick included (RoleHost counts it when the cycle returns)
+            controller_ticks: ctx.cycles + 1,
             controller_missed_ticks: ctx.missed_deadlines,
             setpoints_refused: self.tracker.refused(),
             hold_ticks: self.tracker.hold_ticks(),

@@ -19,7 +19,21 @@ use aeris_runtime::{
 use aeris_schemas::{
     ActionMode, Decision, MAX_SUBGOALS, PerceptionState, VehicleTelemetry, topics,
 };
+use aeris_sim::multirotor::wrap_pi;
 use core::time::Duration;
+
+/// A turn step is done when the yaw is this close to the bearing of its waypoint.
+const TURN_TOLERANCE_RAD: f32 = 0.15;
+
+/// Bearing from `from` to `to` (rad, 0 = north, clockwise), or `fallback` when they coincide.
+fn heading(from: [f32; 3], to: [f32; 3], fallback: f32) -> f32 {
+    let (dn, de) = (to[0] - from[0], to[1] - from[1]);
+    if dn.hypot(de) > 1.0 {
+        de.atan2(dn)
+    } else {
+        fallback
+    }
+}
 
 /// One subgoal as the planner needs it (copied from the mission at start).
 #[derive(Debug, Clone, Copy)]
@@ -34,6 +48,7 @@ pub struct Planner {
     steps: [Option<Step>; MAX_SUBGOALS],
     count: usize,
     current: usize,
+    issued: u32,
     start: [f32; 3],
     cruise: f32,
     radius: f32,
@@ -55,6 +70,7 @@ impl Planner {
             steps,
             count: mission.subgoals.len().min(MAX_SUBGOALS),
             current: 0,
+            issued: 0,
             start: mission.start,
             cruise: mission.cruise_speed,
             radius: mission.acceptance_radius_m,
@@ -67,12 +83,15 @@ impl Planner {
         self.current
     }
 
+    /// Whether the step in progress is done, given how many decisions were already issued
+    /// for it (a hover holds for one heartbeat; stop never completes).
     fn reached(
         step: &Step,
-        start: [f32; 3],
         position: [f32; 3],
+        yaw: f32,
         landed: bool,
         radius: f32,
+        issued: u32,
     ) -> bool {
         let w = step.waypoint;
         match step.action {
@@ -80,10 +99,11 @@ impl Planner {
                 (position[2] - w[2]).abs() <= 1.0
             }
             ActionMode::Land => landed && horizontal(position, w) <= radius.max(1.0) + 1.0,
-            ActionMode::Hover | ActionMode::Turn | ActionMode::Stop => {
-                let _ = start;
-                true
+            ActionMode::Hover => issued >= 1,
+            ActionMode::Turn => {
+                issued >= 1 && wrap_pi(heading(position, w, yaw) - yaw).abs() <= TURN_TOLERANCE_RAD
             }
+            ActionMode::Stop => false,
             ActionMode::Goto => distance(position, w) <= radius,
         }
     }
@@ -95,11 +115,13 @@ impl Planner {
             let Some(step) = self.steps[self.current] else {
                 break;
             };
-            if !Self::reached(&step, self.start, position, landed, self.radius) {
+            if !Self::reached(&step, position, yaw, landed, self.radius, self.issued) {
                 break;
             }
             self.current += 1;
+            self.issued = 0;
         }
+        self.issued = self.issued.saturating_add(1);
         let step = self.steps[self.current].unwrap_or(Step {
             action: ActionMode::Hover,
             waypoint: position,
@@ -141,18 +163,6 @@ fn distance(a: [f32; 3], b: [f32; 3]) -> f32 {
 
 fn horizontal(a: [f32; 3], b: [f32; 3]) -> f32 {
     (a[0] - b[0]).hypot(a[1] - b[1])
-}
-
-fn wrap_pi(a: f32) -> f32 {
-    let pi = core::f32::consts::PI;
-    let mut a = a;
-    while a > pi {
-        a -= 2.0 * pi;
-    }
-    while a < -pi {
-        a += 2.0 * pi;
-    }
-    a.clamp(-pi, pi)
 }
 
 /// Ports and timing shared by both variants.
@@ -409,6 +419,59 @@ mod tests {
         // the last step stays active
         let d = p.decide([30.0, 10.0, 0.0], 0.0, true);
         assert_eq!(d.step, 3);
+    }
+
+    #[test]
+    fn a_huge_or_odd_yaw_never_hangs_and_stays_in_range() {
+        let mut p = Planner::new(&mission()).unwrap();
+        for yaw in [1.0e9, -3.0e38, f32::MAX, 7.0] {
+            let d = p.decide([0.0, 0.0, 0.0], yaw, true);
+            assert!(d.yaw.abs() <= core::f32::consts::PI, "{yaw} -> {}", d.yaw);
+        }
+    }
+
+    #[test]
+    fn hover_holds_one_heartbeat_and_turn_waits_for_the_heading() {
+        let mut m = mission();
+        m.subgoals.insert(
+            1,
+            SubgoalSpec {
+                text: "hover".into(),
+                action: "hover".into(),
+                waypoint: [0.0, 0.0, 10.0],
+            },
+        );
+        m.subgoals.insert(
+            2,
+            SubgoalSpec {
+                text: "face east".into(),
+                action: "turn".into(),
+                waypoint: [0.0, 30.0, 10.0],
+            },
+        );
+        let mut p = Planner::new(&m).unwrap();
+        assert_eq!(
+            p.decide([0.0, 0.0, 10.0], 0.0, false).step,
+            2,
+            "takeoff done -> hover"
+        );
+        assert_eq!(
+            p.decide([0.0, 0.0, 10.0], 0.0, false).step,
+            3,
+            "hovered one heartbeat -> turn"
+        );
+        let d = p.decide([0.0, 0.0, 10.0], 0.0, false);
+        assert_eq!(
+            (d.step, ActionMode::from_u8(d.action)),
+            (3, Some(ActionMode::Turn)),
+            "still facing north"
+        );
+        assert!((d.yaw - core::f32::consts::FRAC_PI_2).abs() < 1e-3);
+        assert_eq!(
+            p.decide([0.0, 0.0, 10.0], 1.55, false).step,
+            4,
+            "facing east -> next"
+        );
     }
 
     #[test]

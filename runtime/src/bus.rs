@@ -660,7 +660,8 @@ pub struct FramePublisher {
 
 impl FramePublisher {
     /// Loan `len` bytes of shared memory, let `fill` write the frame in place, stamp the
-    /// header and send. The frame is written once, directly into shared memory.
+    /// header and send. The frame is rendered directly into shared memory (no copy); the
+    /// slice is zero-filled first so `fill` only ever sees initialised bytes.
     pub fn publish_with(
         &self,
         header: &FrameHeader,

@@ -85,7 +85,8 @@ pub struct RoleContext {
     pub bus: FlightBus,
     /// Cycles run so far.
     pub cycles: u64,
-    /// Cycles that started after their deadline had already passed.
+    /// Periods skipped because a cycle overran its deadline (the loop re-anchors instead of
+    /// running late cycles back to back).
     pub missed_deadlines: u64,
 }
 
@@ -138,7 +139,12 @@ impl RoleHost {
 
         let mut role = R::new(&mut ctx)?;
         let period_ns = duration_ns(role.period()).max(1);
-        let idle_ns = ctx.spec.timing.idle_heartbeat_ms.max(1) * 1_000_000;
+        let idle_ns = ctx
+            .spec
+            .timing
+            .idle_heartbeat_ms
+            .max(1)
+            .saturating_mul(1_000_000);
         let mut report = CycleReport::default();
         let mut next = monotonic_ns();
         let mut last_hb = 0u64;

@@ -8,7 +8,7 @@ use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[repr(u8)]
 pub enum ActionMode {
-    /// Climb vertically to h_t above the current position.
+    /// Climb vertically, at the current north/east, to the altitude h_t.
     Takeoff = 1,
     /// Fly to waypoint g_t at altitude h_t.
     Goto = 2,

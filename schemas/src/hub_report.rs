@@ -35,6 +35,8 @@ pub struct HubReport {
     pub attention: [f32; MAX_SUBGOALS],
     /// Decisions received.
     pub decisions_received: u64,
+    /// Decisions committed (passed every check and became the decision in force).
+    pub decisions_committed: u64,
     /// Decisions rejected by validation or feasibility.
     pub decisions_rejected: u64,
     /// Decisions that arrived after the deadline.
