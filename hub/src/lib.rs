@@ -32,13 +32,26 @@ pub use role::HubRole;
 
 use aeris_runtime::{RoleError, RoleHost, RoleSpec};
 
-/// Run the hub role (kind `hub`, variant `gate`) in this process.
+/// The one variant of the hub this build has.
+pub const HUB_VARIANT: &str = "gate";
+
+/// Run the hub role (kind `hub`, variant [`HUB_VARIANT`]) in this process.
 pub fn run(spec: RoleSpec) -> Result<(), RoleError> {
-    if spec.variant != "gate" {
+    if spec.variant != HUB_VARIANT {
         return Err(RoleError::Config(format!(
             "no hub variant `{}` in this build (the hub has variant `gate`)",
             spec.variant
         )));
     }
     RoleHost::run::<HubRole>(spec)
+}
+
+#[cfg(test)]
+mod catalog_tests {
+    /// The catalog the supervisor validates against must list exactly what `run` accepts.
+    #[test]
+    fn the_catalog_lists_the_hub_variant_this_build_runs() {
+        let hub = aeris_runtime::catalog::role_kind("hub").expect("hub in the catalog");
+        assert_eq!(hub.variants, [super::HUB_VARIANT]);
+    }
 }

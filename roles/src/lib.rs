@@ -17,17 +17,54 @@ pub mod vehicle;
 
 use aeris_runtime::{RoleError, RoleHost, RoleSpec};
 
+/// How a role process runs: the [`RoleHost`] instantiated for one role type.
+pub type RoleRunner = fn(RoleSpec) -> Result<(), RoleError>;
+
+/// The runner of `kind`/`variant`, if this crate implements it (every kind except `hub`).
+pub fn runner(kind: &str, variant: &str) -> Option<RoleRunner> {
+    let run: RoleRunner = match (kind, variant) {
+        ("vehicle", "sim-multirotor") => RoleHost::run::<vehicle::VehicleRole>,
+        ("camera", "sim-render") => RoleHost::run::<camera::CameraRole>,
+        ("perception", "geometric") => RoleHost::run::<perception::PerceptionRole>,
+        ("reasoning", "planner") => RoleHost::run::<planner::PlannerRole>,
+        ("reasoning", "garbage") => RoleHost::run::<planner::GarbageRole>,
+        ("controller", "mavlink") => RoleHost::run::<controller::ControllerRole>,
+        _ => return None,
+    };
+    Some(run)
+}
+
 /// Run the role described by `spec` in this process (every kind except `hub`).
 pub fn run(spec: RoleSpec) -> Result<(), RoleError> {
-    match (spec.kind.as_str(), spec.variant.as_str()) {
-        ("vehicle", "sim-multirotor") => RoleHost::run::<vehicle::VehicleRole>(spec),
-        ("camera", "sim-render") => RoleHost::run::<camera::CameraRole>(spec),
-        ("perception", "geometric") => RoleHost::run::<perception::PerceptionRole>(spec),
-        ("reasoning", "planner") => RoleHost::run::<planner::PlannerRole>(spec),
-        ("reasoning", "garbage") => RoleHost::run::<planner::GarbageRole>(spec),
-        ("controller", "mavlink") => RoleHost::run::<controller::ControllerRole>(spec),
-        (kind, variant) => Err(RoleError::Config(format!(
-            "no role kind `{kind}` with variant `{variant}` in this build (see `aeris roles`)"
+    match runner(&spec.kind, &spec.variant) {
+        Some(run) => run(spec),
+        None => Err(RoleError::Config(format!(
+            "no role kind `{}` with variant `{}` in this build (see `aeris roles`)",
+            spec.kind, spec.variant
         ))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The catalog the supervisor validates workflows against and the dispatch that runs
+    /// them must agree, or a workflow passes validation and then fails at start.
+    #[test]
+    fn every_catalog_variant_outside_the_hub_has_a_runner() {
+        for k in aeris_runtime::catalog::ROLE_KINDS
+            .iter()
+            .filter(|k| k.kind != "hub")
+        {
+            for v in k.variants {
+                assert!(
+                    runner(k.kind, v).is_some(),
+                    "{}/{v} is in the catalog but not dispatched",
+                    k.kind
+                );
+            }
+        }
+        assert!(runner("reasoning", "gpt-9").is_none());
     }
 }
