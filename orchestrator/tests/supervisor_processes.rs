@@ -27,7 +27,7 @@ const FAKE_AERIS: &str = r#"#!/bin/sh
 name=$(basename "$3" .json)
 echo "fake role $name starting"
 case "$name" in
-  crasher) echo "crasher: boom" >&2; exit 3 ;;
+  crasher) echo "crasher: boom" >&2; exit 1 ;;
   stubborn) trap '' TERM; echo "stubborn ready"; exec sleep 600 ;;
   *) exec sleep 600 ;;
 esac
@@ -324,18 +324,18 @@ fn a_crashing_role_is_restarted_with_backoff_until_the_budget_is_spent() {
         kinds,
         [
             "started",
-            "exited exit code 3",
+            "exited exit code 1",
             "restart 1",
-            "exited exit code 3",
+            "exited exit code 1",
             "restart 2",
-            "exited exit code 3",
+            "exited exit code 1",
             "gave up"
         ]
     );
     let crasher = sup.role("crasher").unwrap();
     assert_eq!(crasher.state(), RoleState::GaveUp);
     assert_eq!(crasher.pid(), None);
-    assert_eq!(crasher.last_exit(), Some(RoleExit::Code(3)));
+    assert_eq!(crasher.last_exit(), Some(RoleExit::Code(1)));
     assert_eq!(sup.total_restarts(), 2);
     let log = std::fs::read_to_string(crasher.log_path()).unwrap();
     assert_eq!(log.matches("crasher: boom").count(), 3, "{log}");
