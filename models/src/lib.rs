@@ -1,0 +1,23 @@
+//! # aeris-models
+//!
+//! How roles host models:
+//! - [`store`]: the model cache that `scripts/provision-models.sh` fills from registry
+//!   packages, with a sha256 manifest: a missing or corrupt file is refused with an error
+//!   that names the command to fix it;
+//! - [`onnx`]: ONNX Runtime loaded at run time from that cache (`ort` with `load-dynamic`),
+//!   and [`onnx::OnnxModel`], one session with its name for errors;
+//! - [`embed`]: sentence embeddings (all-MiniLM-L6-v2) with a WordPiece tokenizer.
+//!
+//! Library code returns [`ModelError`]; it never panics on a bad file or a bad tensor.
+
+#![deny(missing_docs)]
+
+pub mod embed;
+pub mod error;
+pub mod onnx;
+pub mod store;
+
+pub use embed::{EMBEDDING_DIM, TextEmbedder, cosine};
+pub use error::ModelError;
+pub use onnx::OnnxModel;
+pub use store::ModelStore;

@@ -1,0 +1,122 @@
+//! ONNX Runtime, loaded at run time from the model cache, and one model session.
+
+use crate::error::ModelError;
+use crate::store::ModelStore;
+use ort::environment::Environment;
+use ort::session::Session;
+use ort::session::builder::GraphOptimizationLevel;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// Where the provisioned ONNX Runtime library lies inside the cache.
+pub const RUNTIME_LIBRARY: &str = "onnxruntime/libonnxruntime.so";
+
+static ENVIRONMENT: OnceLock<Result<Environment, String>> = OnceLock::new();
+
+/// The process's ONNX Runtime environment, loading the library from `store` on first use.
+///
+/// A process loads one ONNX Runtime; later calls return the same environment.
+pub fn environment(store: &ModelStore) -> Result<&'static Environment, ModelError> {
+    let lib = store.root().join(RUNTIME_LIBRARY);
+    let env = ENVIRONMENT.get_or_init(|| {
+        // verify before dlopen: a corrupt library would crash the process, not fail
+        let path = store.verified(RUNTIME_LIBRARY).map_err(|e| e.to_string())?;
+        ort::init_from(&path)
+            .map_err(|e| e.to_string())?
+            .with_name("aeris")
+            .build()
+            .map_err(|e| e.to_string())
+    });
+    env.as_ref().map_err(|reason| ModelError::Runtime {
+        path: lib,
+        reason: reason.clone(),
+    })
+}
+
+/// One ONNX model session and the name it is reported under.
+pub struct OnnxModel {
+    session: Session,
+    name: String,
+    path: PathBuf,
+}
+
+impl std::fmt::Debug for OnnxModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("OnnxModel")
+            .field("name", &self.name)
+            .field("path", &self.path)
+            .finish()
+    }
+}
+
+impl OnnxModel {
+    /// Load `file` (relative to the cache, checked against the manifest) with `threads`
+    /// intra-op threads (0 = ONNX Runtime's default).
+    pub fn load(store: &ModelStore, file: &str, threads: usize) -> Result<Self, ModelError> {
+        let env = environment(store)?;
+        let path = store.verified(file)?;
+        Self::load_path(env, &path, threads)
+    }
+
+    fn load_path(env: &Environment, path: &Path, threads: usize) -> Result<Self, ModelError> {
+        let load = |e: ort::Error| ModelError::Load {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        };
+        let mut builder = Session::builder(env)
+            .map_err(load)?
+            .with_optimization_level(GraphOptimizationLevel::Level3)
+            .map_err(|e| load(e.into()))?;
+        if threads > 0 {
+            builder = builder
+                .with_intra_threads(threads)
+                .map_err(|e| load(e.into()))?
+                .with_inter_threads(1)
+                .map_err(|e| load(e.into()))?;
+        }
+        // spinning worker threads would steal the CPU the other roles need
+        builder = builder
+            .with_intra_op_spinning(false)
+            .map_err(|e| load(e.into()))?;
+        let session = builder.commit_from_file(path).map_err(load)?;
+        let name = path
+            .file_stem()
+            .map_or_else(|| "model".into(), |s| s.to_string_lossy().into_owned());
+        Ok(Self {
+            session,
+            name,
+            path: path.to_path_buf(),
+        })
+    }
+
+    /// The model's name (file stem).
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The session, to run it.
+    pub fn session(&mut self) -> &mut Session {
+        &mut self.session
+    }
+
+    /// A custom metadata entry of the model (e.g. class names).
+    pub fn metadata(&self, key: &str) -> Option<String> {
+        self.session.metadata().ok()?.custom(key)
+    }
+
+    /// An [`ModelError::Inference`] for this model.
+    pub fn inference_error(&self, reason: impl std::fmt::Display) -> ModelError {
+        ModelError::Inference {
+            model: self.name.clone(),
+            reason: reason.to_string(),
+        }
+    }
+
+    /// An [`ModelError::Interface`] for this model.
+    pub fn interface_error(&self, reason: impl std::fmt::Display) -> ModelError {
+        ModelError::Interface {
+            model: self.name.clone(),
+            reason: reason.to_string(),
+        }
+    }
+}
