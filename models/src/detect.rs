@@ -13,7 +13,6 @@ use crate::error::ModelError;
 use crate::image::{Letterbox, letterbox_chw};
 use crate::onnx::OnnxModel;
 use crate::store::ModelStore;
-use ort::value::TensorRef;
 
 /// The COCO detector inside the cache (converted Darknet yolov3-tiny).
 pub const COCO_DETECTOR: &str = "detect/yolov3-tiny.onnx";
@@ -252,30 +251,11 @@ impl Detector {
         }
         let lb: Letterbox = letterbox_chw(rgb, width, height, self.side, &mut self.input);
         let side = self.side;
-        let input = TensorRef::from_array_view(([1usize, 3, side, side], self.input.as_slice()))
-            .map_err(|e| self.model.inference_error(e))?;
         let (layout, min_score) = (self.layout, self.min_score);
-        let name = self.model.name().to_string();
-        let outputs =
-            self.model
-                .session()
-                .run(ort::inputs![input])
-                .map_err(|e| ModelError::Inference {
-                    model: name.clone(),
-                    reason: e.to_string(),
-                })?;
-        let (shape, data) =
-            outputs[0]
-                .try_extract_tensor::<f32>()
-                .map_err(|e| ModelError::Interface {
-                    model: name.clone(),
-                    reason: e.to_string(),
-                })?;
-        decode(layout, shape, data, min_score, out).map_err(|reason| ModelError::Interface {
-            model: name,
-            reason,
-        })?;
-        drop(outputs);
+        self.model
+            .run_f32(&[1, 3, side, side], &self.input, |shape, data| {
+                decode(layout, shape, data, min_score, out)
+            })?;
         non_max_suppression(out, self.iou_threshold);
         for b in out.iter_mut() {
             let m = lb.to_image(b.bbox);

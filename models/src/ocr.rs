@@ -12,7 +12,6 @@
 use crate::error::ModelError;
 use crate::onnx::OnnxModel;
 use crate::store::ModelStore;
-use ort::value::TensorRef;
 
 /// PP-OCRv4 detection model inside the cache.
 pub const DET_MODEL: &str = "ocr/ppocrv4-det.onnx";
@@ -248,40 +247,22 @@ impl OcrReader {
                 }
             }
         }
-        let input = TensorRef::from_array_view(([1usize, 3, dh, dw], self.det_input.as_slice()))
-            .map_err(|e| self.det.inference_error(e))?;
-        let det_name = self.det.name().to_string();
-        let outputs =
-            self.det
-                .session()
-                .run(ort::inputs![input])
-                .map_err(|e| ModelError::Inference {
-                    model: det_name.clone(),
-                    reason: e.to_string(),
-                })?;
-        let (shape, prob) =
-            outputs[0]
-                .try_extract_tensor::<f32>()
-                .map_err(|e| ModelError::Interface {
-                    model: det_name.clone(),
-                    reason: e.to_string(),
-                })?;
-        if shape.len() != 4 || shape[2] as usize != dh || shape[3] as usize != dw {
-            return Err(ModelError::Interface {
-                model: det_name,
-                reason: format!("probability map {shape:?}, expected [1, 1, {dh}, {dw}]"),
-            });
-        }
-        map_regions(
-            prob,
-            dw,
-            dh,
+        let (threshold, labels, stack, regions) = (
             self.pixel_threshold,
             &mut self.labels,
             &mut self.stack,
             &mut self.regions,
         );
-        drop(outputs);
+        self.det
+            .run_f32(&[1, 3, dh, dw], &self.det_input, |shape, prob| {
+                if shape.len() != 4 || shape[2] as usize != dh || shape[3] as usize != dw {
+                    return Err(format!(
+                        "probability map {shape:?}, expected [1, 1, {dh}, {dw}]"
+                    ));
+                }
+                map_regions(prob, dw, dh, threshold, labels, stack, regions);
+                Ok(())
+            })?;
         self.regions
             .retain(|r| r.mean >= self.box_threshold && r.pixels >= 6);
         self.regions.sort_by_key(|r| std::cmp::Reverse(r.pixels));
@@ -348,36 +329,18 @@ impl OcrReader {
                 }
             }
         }
-        let input =
-            TensorRef::from_array_view(([1usize, 3, REC_HEIGHT, rw], self.rec_input.as_slice()))
-                .map_err(|e| self.rec.inference_error(e))?;
-        let rec_name = self.rec.name().to_string();
-        let outputs =
-            self.rec
-                .session()
-                .run(ort::inputs![input])
-                .map_err(|e| ModelError::Inference {
-                    model: rec_name.clone(),
-                    reason: e.to_string(),
-                })?;
-        let (shape, probs) =
-            outputs[0]
-                .try_extract_tensor::<f32>()
-                .map_err(|e| ModelError::Interface {
-                    model: rec_name.clone(),
-                    reason: e.to_string(),
-                })?;
-        let classes = shape.last().copied().unwrap_or(0) as usize;
-        if classes != self.charset.len() {
-            return Err(ModelError::Interface {
-                model: rec_name,
-                reason: format!(
-                    "{classes} classes but a character table of {}",
-                    self.charset.len()
-                ),
-            });
-        }
-        Ok(ctc_greedy(probs, classes, &self.charset, text))
+        let charset = &self.charset;
+        self.rec
+            .run_f32(&[1, 3, REC_HEIGHT, rw], &self.rec_input, |shape, probs| {
+                let classes = shape.last().copied().unwrap_or(0) as usize;
+                if classes != charset.len() {
+                    return Err(format!(
+                        "{classes} classes but a character table of {}",
+                        charset.len()
+                    ));
+                }
+                Ok(ctc_greedy(probs, classes, charset, text))
+            })
     }
 }
 

@@ -5,6 +5,7 @@ use crate::store::ModelStore;
 use ort::environment::Environment;
 use ort::session::Session;
 use ort::session::builder::GraphOptimizationLevel;
+use ort::value::TensorRef;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
@@ -102,6 +103,34 @@ impl OnnxModel {
     /// A custom metadata entry of the model (e.g. class names).
     pub fn metadata(&self, key: &str) -> Option<String> {
         self.session.metadata().ok()?.custom(key)
+    }
+
+    /// Run the model on one f32 `input` of `shape` and hand its first output, read as an
+    /// f32 tensor (shape, values), to `read`; `read`'s error becomes [`ModelError::Interface`].
+    pub fn run_f32<R>(
+        &mut self,
+        shape: &[usize],
+        input: &[f32],
+        read: impl FnOnce(&[i64], &[f32]) -> Result<R, String>,
+    ) -> Result<R, ModelError> {
+        let tensor =
+            TensorRef::from_array_view((shape, input)).map_err(|e| self.inference_error(e))?;
+        let name = &self.name;
+        let outputs =
+            self.session
+                .run(ort::inputs![tensor])
+                .map_err(|e| ModelError::Inference {
+                    model: name.clone(),
+                    reason: e.to_string(),
+                })?;
+        let interface = |reason: String| ModelError::Interface {
+            model: name.clone(),
+            reason,
+        };
+        let (out_shape, values) = outputs[0]
+            .try_extract_tensor::<f32>()
+            .map_err(|e| interface(e.to_string()))?;
+        read(out_shape, values).map_err(interface)
     }
 
     /// An [`ModelError::Inference`] for this model.
