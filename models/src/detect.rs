@@ -10,7 +10,7 @@
 //! this project can reach; their layouts are not guessed at.
 
 use crate::error::ModelError;
-use crate::image::{Letterbox, letterbox_chw};
+use crate::image::{Letterbox, letterbox_chw, rgb8_mismatch};
 use crate::onnx::OnnxModel;
 use crate::store::ModelStore;
 
@@ -242,12 +242,8 @@ impl Detector {
         out: &mut Vec<DetectedBox>,
     ) -> Result<(), ModelError> {
         out.clear();
-        if rgb.len() != width * height * 3 {
-            return Err(self.model.interface_error(format!(
-                "an RGB8 image of {width}x{height} needs {} bytes, got {}",
-                width * height * 3,
-                rgb.len()
-            )));
+        if let Some(reason) = rgb8_mismatch(rgb, width, height) {
+            return Err(self.model.interface_error(reason));
         }
         let lb: Letterbox = letterbox_chw(rgb, width, height, self.side, &mut self.input);
         let side = self.side;

@@ -23,6 +23,17 @@ impl Letterbox {
     }
 }
 
+/// Why packed RGB8 `rgb` is not a `width` x `height` image, if it is not.
+pub fn rgb8_mismatch(rgb: &[u8], width: usize, height: usize) -> Option<String> {
+    let needed = width * height * 3;
+    (rgb.len() != needed).then(|| {
+        format!(
+            "an RGB8 image of {width}x{height} needs {needed} bytes, got {}",
+            rgb.len()
+        )
+    })
+}
+
 /// Resize packed RGB8 `rgb` (`width` x `height`) into `dst` as planar CHW floats in [0, 1]
 /// of size `side` x `side`, keeping the aspect ratio and padding with grey (0.5), bilinear.
 ///

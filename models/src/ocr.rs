@@ -10,6 +10,7 @@
 //! the character table stored in the model's metadata.
 
 use crate::error::ModelError;
+use crate::image::rgb8_mismatch;
 use crate::onnx::OnnxModel;
 use crate::store::ModelStore;
 
@@ -221,12 +222,13 @@ impl OcrReader {
         out: &mut Vec<TextRegion>,
     ) -> Result<(), ModelError> {
         out.clear();
-        if width == 0 || height == 0 || rgb.len() != width * height * 3 {
-            return Err(self.det.interface_error(format!(
-                "an RGB8 image of {width}x{height} needs {} bytes, got {}",
-                width * height * 3,
-                rgb.len()
-            )));
+        if width == 0 || height == 0 {
+            return Err(self
+                .det
+                .interface_error("an empty image has no text to read"));
+        }
+        if let Some(reason) = rgb8_mismatch(rgb, width, height) {
+            return Err(self.det.interface_error(reason));
         }
         let scale = self.det_side as f32 / width.max(height) as f32;
         let round32 = |v: f32| ((v / 32.0).round() as usize).max(1) * 32;
