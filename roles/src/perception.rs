@@ -27,7 +27,7 @@ use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, MissionSpec, Role, RoleContext, RoleError};
 use aeris_schemas::{
     Cue, FixedText, FrameError, FrameFormat, FrameHeader, MAX_CUES, MAX_DETECTIONS,
-    OCCUPANCY_UNKNOWN, PerceptionState, topics,
+    OCCUPANCY_UNKNOWN, PerceptionState, block, topics,
 };
 use aeris_sim::render::{CAMERA_MOUNT_HEIGHT_M, CAMERA_PITCH_RAD, CameraModel, FACE_SHADES};
 use aeris_sim::world::palette;
@@ -325,6 +325,7 @@ impl Segmenter {
         state.capture_ns = header.capture_ns;
         state.position = [p[0], p[1], p[2] - CAMERA_MOUNT_HEIGHT_M];
         state.yaw = header.camera_yaw;
+        state.blocks = block::DETECTIONS | block::CUES | block::OCCUPANCY | block::SUMMARY;
         stage("summary", monotonic_ns().saturating_sub(t2));
         Ok(())
     }
@@ -416,6 +417,29 @@ pub fn perceive(
     state: &mut PerceptionState,
 ) -> Result<(), PerceiveError> {
     Segmenter::new().perceive(rgb, depth, header, words, state, &mut |_, _| {})
+}
+
+/// Fill only the occupancy block of `state` (and its frame fields) from one depth frame:
+/// the occupancy role's whole work. Never allocates.
+pub fn occupancy_from_depth(
+    depth: &[u8],
+    header: &FrameHeader,
+    state: &mut PerceptionState,
+) -> Result<(), PerceiveError> {
+    if header.validate(depth.len()) != Ok(FrameFormat::DepthU16Mm) {
+        return Err(PerceiveError::PairMismatch);
+    }
+    let camera =
+        CameraModel::with_pitch(header.width, header.height, header.hfov, CAMERA_PITCH_RAD)
+            .map_err(PerceiveError::Geometry)?;
+    fill_occupancy(depth, header, &camera, state);
+    let p = header.camera_position;
+    state.frame_seq = header.seq;
+    state.capture_ns = header.capture_ns;
+    state.position = [p[0], p[1], p[2] - CAMERA_MOUNT_HEIGHT_M];
+    state.yaw = header.camera_yaw;
+    state.blocks = block::OCCUPANCY;
+    Ok(())
 }
 
 fn fill_occupancy(

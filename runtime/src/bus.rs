@@ -120,7 +120,11 @@ pub fn qos(topic: &str) -> Qos {
     };
     match topic {
         topics::CAMERA_RGB | topics::CAMERA_DEPTH => q(1, 2, 4, 8),
-        topics::PERCEPTION_STATE => q(1, 4, 4, 8),
+        topics::PERCEPTION_STATE
+        | topics::PERCEPTION_TEXT
+        | topics::PERCEPTION_DETECTIONS
+        | topics::PERCEPTION_CUES
+        | topics::PERCEPTION_OCCUPANCY => q(1, 4, 4, 8),
         topics::REASONING_DECISION => q(0, 32, 4, 8),
         topics::HUB_SETPOINT => q(1, 8, 4, 8),
         topics::HUB_REPORT => q(1, 64, 4, 8),

@@ -33,7 +33,7 @@ pub use hub_report::{HubReport, HubReportError};
 pub use setpoint::{BoundSetpoint, SetpointError};
 pub use state::{
     Cue, Detection, MAX_CUES, MAX_DETECTIONS, OCCUPANCY_CELLS, OCCUPANCY_SIDE, OCCUPANCY_UNKNOWN,
-    OccupancyGrid, PerceptionState, SUMMARY_MAX, StateError,
+    OccupancyGrid, PerceptionState, SUMMARY_MAX, StateError, block,
 };
 pub use supervisor::{MAX_ROLES, RoleStatusEntry, SupervisorStatus};
 pub use telemetry::{TelemetryError, VehicleTelemetry};

@@ -1,7 +1,7 @@
 //! The typed state S_t (perception -> reasoning / hub), MISSION §2.
 
-use crate::all_finite;
 use crate::text::FixedText;
+use crate::{MAX_SUBGOALS, all_finite};
 use iceoryx2_bb_derive_macros::ZeroCopySend;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
@@ -21,6 +21,26 @@ pub const OCCUPANCY_UNKNOWN: u8 = 255;
 pub const LABEL_MAX: usize = 32;
 /// Maximum bytes of a cue text.
 pub const CUE_MAX: usize = 64;
+
+/// Which blocks of S_t a [`PerceptionState`] carries (bits of `blocks`).
+///
+/// The perception roles each publish one block on their own topic (a state with only that
+/// bit set); the image-to-text role composes them into the full S_t on `perception/state`.
+pub mod block {
+    /// Scene text read from signs: `summary` holds the texts joined by `" | "`, `cues`
+    /// the regions (text, reader confidence).
+    pub const TEXT: u32 = 1 << 0;
+    /// Object detections in `detections`.
+    pub const DETECTIONS: u32 = 1 << 1;
+    /// Instruction cues in `cues`, and `subgoal_relevance`.
+    pub const CUES: u32 = 1 << 2;
+    /// The occupancy grid in `occupancy`.
+    pub const OCCUPANCY: u32 = 1 << 3;
+    /// The composed scene summary in `summary`.
+    pub const SUMMARY: u32 = 1 << 4;
+    /// Every block.
+    pub const ALL: u32 = TEXT | DETECTIONS | CUES | OCCUPANCY | SUMMARY;
+}
 
 /// One detection: class, score and box.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
@@ -118,7 +138,7 @@ impl OccupancyGrid {
 
 /// The typed state S_t (`perception/state`).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("aeris::PerceptionState@s1")]
+#[type_name("aeris::PerceptionState@s2")]
 #[repr(C)]
 pub struct PerceptionState {
     /// Publisher sequence number.
@@ -145,6 +165,14 @@ pub struct PerceptionState {
     pub cues: [Cue; MAX_CUES],
     /// Ego occupancy O_t.
     pub occupancy: OccupancyGrid,
+    /// Which blocks this state carries ([`block`] bits).
+    pub blocks: u32,
+    /// Number of valid entries in `subgoal_relevance` (the mission's L, or 0).
+    pub relevance_count: u32,
+    /// Relevance of the state to each subgoal g_i, in [0, 1] (cosine similarity of sentence
+    /// embeddings of the state's text and cues with the subgoal's text, clamped at 0);
+    /// the hub's ATT uses it when present.
+    pub subgoal_relevance: [f32; MAX_SUBGOALS],
 }
 
 impl Default for PerceptionState {
@@ -162,6 +190,9 @@ impl Default for PerceptionState {
             detections: [Detection::default(); MAX_DETECTIONS],
             cues: [Cue::default(); MAX_CUES],
             occupancy: OccupancyGrid::default(),
+            blocks: 0,
+            relevance_count: 0,
+            subgoal_relevance: [0.0; MAX_SUBGOALS],
         }
     }
 }
@@ -194,6 +225,16 @@ impl PerceptionState {
         &self.cues[..(self.cue_count as usize).min(MAX_CUES)]
     }
 
+    /// The valid subgoal relevances (empty when no cue extractor scored this state).
+    pub fn subgoal_relevance(&self) -> &[f32] {
+        &self.subgoal_relevance[..(self.relevance_count as usize).min(MAX_SUBGOALS)]
+    }
+
+    /// `true` when every bit of `blocks` is set.
+    pub fn has(&self, blocks: u32) -> bool {
+        self.blocks & blocks == blocks
+    }
+
     /// Deterministic validation of every block.
     pub fn validate(&self) -> Result<(), StateError> {
         if self.detection_count as usize > MAX_DETECTIONS {
@@ -201,6 +242,19 @@ impl PerceptionState {
         }
         if self.cue_count as usize > MAX_CUES {
             return Err(StateError::TooManyCues(self.cue_count));
+        }
+        if self.relevance_count as usize > MAX_SUBGOALS {
+            return Err(StateError::BadNumber("relevance_count"));
+        }
+        if self.blocks & !block::ALL != 0 {
+            return Err(StateError::BadNumber("blocks"));
+        }
+        if !self
+            .subgoal_relevance()
+            .iter()
+            .all(|v| (0.0..=1.0).contains(v))
+        {
+            return Err(StateError::BadNumber("subgoal_relevance"));
         }
         if !all_finite(&self.position) || !self.yaw.is_finite() {
             return Err(StateError::BadNumber("position"));
@@ -261,6 +315,19 @@ mod tests {
         assert_eq!(s.validate(), Ok(()));
         s.occupancy.resolution_m = f32::INFINITY;
         assert_eq!(s.validate(), Err(StateError::BadNumber("occupancy")));
+        s.occupancy.resolution_m = 2.0;
+        s.relevance_count = 2;
+        s.subgoal_relevance[1] = 1.5;
+        assert_eq!(
+            s.validate(),
+            Err(StateError::BadNumber("subgoal_relevance"))
+        );
+        s.subgoal_relevance[1] = 0.5;
+        s.blocks = 1 << 9;
+        assert_eq!(s.validate(), Err(StateError::BadNumber("blocks")));
+        s.blocks = block::ALL;
+        assert_eq!(s.validate(), Ok(()));
+        assert!(s.has(block::TEXT | block::CUES));
     }
 
     #[test]

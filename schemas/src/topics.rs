@@ -8,8 +8,16 @@
 pub const CAMERA_RGB: &str = "camera/rgb";
 /// Depth frames: `[u8]` payload (u16 mm LE) with a [`crate::FrameHeader`] user header.
 pub const CAMERA_DEPTH: &str = "camera/depth";
-/// Typed state S_t: [`crate::PerceptionState`].
+/// Typed state S_t: [`crate::PerceptionState`], every block (composed by image-to-text).
 pub const PERCEPTION_STATE: &str = "perception/state";
+/// Scene-text block of S_t (sign / text reader): [`crate::PerceptionState`].
+pub const PERCEPTION_TEXT: &str = "perception/text";
+/// Detection block of S_t (object detector): [`crate::PerceptionState`].
+pub const PERCEPTION_DETECTIONS: &str = "perception/detections";
+/// Cue block of S_t with subgoal relevance (cue extractor): [`crate::PerceptionState`].
+pub const PERCEPTION_CUES: &str = "perception/cues";
+/// Occupancy block of S_t (occupancy role): [`crate::PerceptionState`].
+pub const PERCEPTION_OCCUPANCY: &str = "perception/occupancy";
 /// Decisions D_t: [`crate::Decision`].
 pub const REASONING_DECISION: &str = "reasoning/decision";
 /// Bound setpoints: [`crate::BoundSetpoint`].
@@ -22,10 +30,14 @@ pub const VEHICLE_TELEMETRY: &str = "vehicle/telemetry";
 pub const HEARTBEAT: &str = "heartbeat";
 
 /// Every versioned topic, for listing and validation.
-pub const ALL: [&str; 8] = [
+pub const ALL: [&str; 12] = [
     CAMERA_RGB,
     CAMERA_DEPTH,
     PERCEPTION_STATE,
+    PERCEPTION_TEXT,
+    PERCEPTION_DETECTIONS,
+    PERCEPTION_CUES,
+    PERCEPTION_OCCUPANCY,
     REASONING_DECISION,
     HUB_SETPOINT,
     HUB_REPORT,
