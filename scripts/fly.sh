@@ -3,5 +3,6 @@
 # every role its own process. Extra arguments go to `aeris run` (e.g. --json, a workflow file).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+scripts/setup-build-deps.sh
 cargo build --release --bin aeris --quiet
 exec target/release/aeris run "$@"

@@ -1,0 +1,20 @@
+//! Language-model reasoning for AERIS (MISSION §4): a small GGUF language model, run by
+//! llama.cpp, turns the typed state S_t, the mission G and a short memory M_{t-1} into a
+//! decision D_t.
+//!
+//! Decoding is constrained by a grammar generated from D_t's schema and the flight's limits
+//! ([`grammar::decision_grammar`]), so every output parses and passes Valid(D_t); the hub
+//! validates again. The prompt puts the mission first so its KV-cache entries are reused from
+//! one heartbeat to the next ([`LanguageReasoner`]).
+
+pub mod grammar;
+pub mod prompt;
+pub mod reasoner;
+pub mod view;
+
+pub use grammar::{GrammarError, decision_grammar};
+pub use prompt::{MissionBrief, Observation, StepBrief, sanitize};
+pub use reasoner::{
+    GEMMA3_270M, LanguageReasoner, LlmError, ReasonerConfig, SMOLLM2_135M, Thought,
+};
+pub use view::{DecisionView, ViewError};

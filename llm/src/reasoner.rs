@@ -1,0 +1,501 @@
+//! [`LanguageReasoner`]: one GGUF model in llama.cpp, a context whose KV cache keeps the
+//! prompt prefix between heartbeats, and grammar-constrained greedy decoding.
+
+use crate::grammar::{FieldGrammar, GrammarError, decision_grammar, field_grammars};
+use crate::prompt::{MissionBrief, Observation, system_message, user_message};
+use crate::view::{DecisionView, ViewError};
+use aeris_models::{ModelError, ModelStore};
+use aeris_schemas::Decision;
+use llama_cpp_2::context::LlamaContext;
+use llama_cpp_2::context::params::LlamaContextParams;
+use llama_cpp_2::llama_backend::LlamaBackend;
+use llama_cpp_2::llama_batch::LlamaBatch;
+use llama_cpp_2::model::params::LlamaModelParams;
+use llama_cpp_2::model::{LlamaChatMessage, LlamaChatTemplate, LlamaModel};
+use llama_cpp_2::sampling::LlamaSampler;
+use llama_cpp_2::token::LlamaToken;
+use llama_cpp_2::token::data::LlamaTokenData;
+use llama_cpp_2::token::data_array::LlamaTokenDataArray;
+use std::num::NonZeroU32;
+use std::sync::OnceLock;
+use std::time::Instant;
+
+/// SmolLM2-135M-Instruct, Q4_1 (the default language-model variant).
+pub const SMOLLM2_135M: &str = "llm/smollm2-135m-instruct-q4_1.gguf";
+/// Gemma-3-270M, Q4_K_M.
+pub const GEMMA3_270M: &str = "llm/gemma-3-270m-q4_k_m.gguf";
+
+/// Candidates (by logit) tried against the grammar one by one before the whole vocabulary
+/// is filtered.
+const GREEDY_PROBES: usize = 8;
+
+/// Why the reasoner could not load or could not decide.
+#[derive(Debug, thiserror::Error)]
+pub enum LlmError {
+    /// The model file is missing, corrupt or unknown (names the provisioning command).
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// llama.cpp's backend did not initialise.
+    #[error("llama.cpp backend: {0}")]
+    Backend(String),
+    /// llama.cpp could not load the GGUF file.
+    #[error("llama.cpp could not load {file}: {reason}")]
+    Load {
+        /// Cache-relative file.
+        file: String,
+        /// llama.cpp's error.
+        reason: String,
+    },
+    /// No grammar exists for the mission's limits.
+    #[error("decision grammar: {0}")]
+    Grammar(#[from] GrammarError),
+    /// llama.cpp rejected the generated grammar (a bug in the generator).
+    #[error("llama.cpp rejected the decision grammar: {0}")]
+    GrammarRejected(String),
+    /// The chat template could not be applied.
+    #[error("chat template: {0}")]
+    Template(String),
+    /// The prompt does not fit the context.
+    #[error("the prompt has {tokens} tokens; the context holds {context}")]
+    PromptTooLong {
+        /// Prompt tokens.
+        tokens: usize,
+        /// Context size.
+        context: usize,
+    },
+    /// Evaluation failed inside llama.cpp.
+    #[error("llama.cpp decode: {0}")]
+    Decode(String),
+    /// The output did not close within the token budget.
+    #[error("no complete decision within {0} tokens")]
+    Truncated(usize),
+    /// The output is not a decision (cannot happen under the grammar; checked anyway).
+    #[error("output {text:?} is not a decision: {source}")]
+    Output {
+        /// What the model wrote.
+        text: String,
+        /// Why it does not parse.
+        source: ViewError,
+    },
+}
+
+/// How the reasoner runs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReasonerConfig {
+    /// CPU threads for evaluation.
+    pub threads: i32,
+    /// Context length in tokens.
+    pub context_tokens: u32,
+    /// Most tokens one decision may take.
+    pub max_output_tokens: usize,
+}
+
+impl Default for ReasonerConfig {
+    fn default() -> Self {
+        Self {
+            threads: 2,
+            context_tokens: 2048,
+            max_output_tokens: 120,
+        }
+    }
+}
+
+/// One decision and what it cost.
+#[derive(Debug, Clone)]
+pub struct Thought {
+    /// The decision (routing fields at defaults: the role fills them).
+    pub decision: Decision,
+    /// Its view, as the model wrote it (memory for the next prompt).
+    pub view: DecisionView,
+    /// The raw output text.
+    pub text: String,
+    /// Tokens in the prompt.
+    pub prompt_tokens: usize,
+    /// Prompt tokens whose KV entries were reused from the previous cycle.
+    pub reused_tokens: usize,
+    /// Tokens generated.
+    pub generated_tokens: usize,
+    /// Seconds spent evaluating the new prompt tokens.
+    pub prompt_s: f64,
+    /// Seconds spent generating.
+    pub generate_s: f64,
+    /// Tokens that needed the whole-vocabulary grammar filter.
+    pub full_filter_tokens: usize,
+    /// Seconds of `generate_s` spent choosing tokens under the grammar (the rest is
+    /// evaluation).
+    pub sample_s: f64,
+}
+
+impl Thought {
+    /// Generation speed in tokens per second.
+    pub fn tokens_per_s(&self) -> f64 {
+        if self.generate_s > 0.0 {
+            self.generated_tokens as f64 / self.generate_s
+        } else {
+            0.0
+        }
+    }
+}
+
+fn backend() -> Result<&'static LlamaBackend, LlmError> {
+    static BACKEND: OnceLock<Result<LlamaBackend, String>> = OnceLock::new();
+    BACKEND
+        .get_or_init(|| {
+            llama_cpp_2::send_logs_to_tracing(
+                llama_cpp_2::LogOptions::default().with_logs_enabled(false),
+            );
+            LlamaBackend::init().map_err(|e| e.to_string())
+        })
+        .as_ref()
+        .map_err(|e| LlmError::Backend(e.clone()))
+}
+
+/// One field's decoding state: its grammar sampler and its key's tokens.
+struct FieldDecoder {
+    spec: FieldGrammar,
+    sampler: LlamaSampler,
+    prefix_tokens: Vec<LlamaToken>,
+}
+
+/// A language model that turns (S_t, G, M_{t-1}) into decisions that always parse and lie
+/// inside the limits of the mission it was built for.
+pub struct LanguageReasoner {
+    // Field order matters: the context borrows the model and must drop first.
+    ctx: LlamaContext<'static>,
+    model: &'static LlamaModel,
+    fields: Vec<FieldDecoder>,
+    whole: LlamaSampler,
+    mission: MissionBrief,
+    cached: Vec<LlamaToken>,
+    batch: LlamaBatch<'static>,
+    config: ReasonerConfig,
+    file: String,
+    load_s: f64,
+}
+
+impl LanguageReasoner {
+    /// Load `file` (cache-relative, hash-checked) for `mission`.
+    ///
+    /// The model is kept for the life of the process (a reasoning role loads one model once;
+    /// its memory goes back to the system when the process exits).
+    pub fn load(
+        store: &ModelStore,
+        file: &str,
+        mission: MissionBrief,
+        config: ReasonerConfig,
+    ) -> Result<Self, LlmError> {
+        let started = Instant::now();
+        let path = store.verified(file)?;
+        let backend = backend()?;
+        let grammar_text = decision_grammar(&mission.limits)?;
+        let model = LlamaModel::load_from_file(backend, &path, &LlamaModelParams::default())
+            .map_err(|e| LlmError::Load {
+                file: file.to_string(),
+                reason: e.to_string(),
+            })?;
+        let model: &'static LlamaModel = Box::leak(Box::new(model));
+        let ctx_tokens = config.context_tokens.max(256);
+        let params = LlamaContextParams::default()
+            .with_n_ctx(NonZeroU32::new(ctx_tokens))
+            .with_n_batch(512)
+            .with_n_threads(config.threads.max(1))
+            .with_n_threads_batch(config.threads.max(1));
+        let ctx = model
+            .new_context(backend, params)
+            .map_err(|e| LlmError::Load {
+                file: file.to_string(),
+                reason: e.to_string(),
+            })?;
+        let whole = LlamaSampler::grammar(model, &grammar_text, "root")
+            .map_err(|e| LlmError::GrammarRejected(e.to_string()))?;
+        let fields = field_grammars(&mission.limits)?
+            .into_iter()
+            .map(|spec| {
+                let sampler = LlamaSampler::grammar(model, &spec.grammar, "root")
+                    .map_err(|e| LlmError::GrammarRejected(format!("{}: {e}", spec.key)))?;
+                let prefix_tokens = model.vocab().tokenize(spec.prefix.as_bytes(), false, false);
+                Ok(FieldDecoder {
+                    spec,
+                    sampler,
+                    prefix_tokens,
+                })
+            })
+            .collect::<Result<Vec<_>, LlmError>>()?;
+        Ok(Self {
+            ctx,
+            model,
+            fields,
+            whole,
+            mission,
+            cached: Vec::new(),
+            batch: LlamaBatch::new(512, 1),
+            config,
+            file: file.to_string(),
+            load_s: started.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// The cache-relative model file.
+    pub fn file(&self) -> &str {
+        &self.file
+    }
+
+    /// Seconds the load took (hash check, weights, context).
+    pub fn load_s(&self) -> f64 {
+        self.load_s
+    }
+
+    /// llama.cpp's own timings since the last call (prompt ms, prompt tokens, eval ms, eval
+    /// tokens), and resets them.
+    pub fn take_timings(&mut self) -> (f64, i32, f64, i32) {
+        let t = self.ctx.timings();
+        self.ctx.reset_timings();
+        (t.t_p_eval_ms(), t.n_p_eval(), t.t_eval_ms(), t.n_eval())
+    }
+
+    /// The mission this reasoner decides for.
+    pub fn mission(&self) -> &MissionBrief {
+        &self.mission
+    }
+
+    /// The full prompt text for an observation (chat template applied).
+    pub fn prompt(&self, obs: &Observation<'_>) -> Result<String, LlmError> {
+        let template = match self.model.chat_template(None) {
+            Ok(t) => t,
+            // GGUF files without a template in their metadata: llama.cpp's built-in template
+            // of the model family
+            Err(_) => {
+                let arch = self
+                    .model
+                    .meta_val_str("general.architecture")
+                    .unwrap_or_default();
+                let name = if arch.starts_with("gemma") {
+                    "gemma"
+                } else {
+                    "chatml"
+                };
+                LlamaChatTemplate::new(name).map_err(|e| LlmError::Template(e.to_string()))?
+            }
+        };
+        let messages = [
+            LlamaChatMessage::new("system".into(), system_message().into()),
+            LlamaChatMessage::new("user".into(), user_message(&self.mission, obs)),
+        ]
+        .into_iter()
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| LlmError::Template(e.to_string()))?;
+        self.model
+            .apply_chat_template(&template, &messages, true)
+            .map_err(|e| LlmError::Template(e.to_string()))
+    }
+
+    /// Make one decision.
+    pub fn decide(&mut self, obs: &Observation<'_>) -> Result<Thought, LlmError> {
+        let prompt = self.prompt(obs)?;
+        // The template already holds the special tokens; perception text was sanitised so
+        // it cannot form any.
+        let tokens = self.model.vocab().tokenize(prompt.as_bytes(), false, true);
+        let context = self.ctx.n_ctx() as usize;
+        if tokens.len() + self.config.max_output_tokens >= context {
+            return Err(LlmError::PromptTooLong {
+                tokens: tokens.len(),
+                context,
+            });
+        }
+        let t0 = Instant::now();
+        let reused = self.reuse_prefix(&tokens);
+        self.eval(&tokens[reused..], reused)?;
+        self.cached.clear();
+        self.cached.extend_from_slice(&tokens);
+        let prompt_s = t0.elapsed().as_secs_f64();
+
+        let t1 = Instant::now();
+        let mut bytes: Vec<u8> = Vec::with_capacity(256);
+        let mut generated = 0usize;
+        let mut full_filter = 0usize;
+        let mut sample_s = 0.0f64;
+        let mut pos = tokens.len();
+        // the last sampled token of the previous field, evaluated with the next prefix
+        let mut pending: Vec<LlamaToken> = Vec::with_capacity(16);
+        self.whole.reset();
+        let mut outcome = Ok(());
+        'fields: for i in 0..self.fields.len() {
+            // jump forward over the key: it is fixed, so it is evaluated, not sampled
+            pending.extend_from_slice(&self.fields[i].prefix_tokens);
+            bytes.extend_from_slice(self.fields[i].spec.prefix.as_bytes());
+            if let Err(e) = self.eval(&pending, pos) {
+                outcome = Err(e);
+                break;
+            }
+            pos += pending.len();
+            pending.clear();
+            self.fields[i].sampler.reset();
+            let terminator = self.fields[i].spec.terminator as u8;
+            loop {
+                if generated >= self.config.max_output_tokens {
+                    outcome = Err(LlmError::Truncated(generated));
+                    break 'fields;
+                }
+                let ts = Instant::now();
+                let (token, full) = self.next_token(i);
+                self.fields[i].sampler.accept(token);
+                sample_s += ts.elapsed().as_secs_f64();
+                full_filter += usize::from(full);
+                generated += 1;
+                let before = bytes.len();
+                self.model
+                    .vocab()
+                    .token_to_piece_into(token, &mut bytes, false, None);
+                if bytes[before..].contains(&terminator) || self.model.vocab().is_eog(token) {
+                    pending.push(token);
+                    break;
+                }
+                if let Err(e) = self.eval(&[token], pos) {
+                    outcome = Err(e);
+                    break 'fields;
+                }
+                pos += 1;
+            }
+        }
+        let generate_s = t1.elapsed().as_secs_f64();
+        // Drop the generated tokens from the cache: the next prompt shares only the prompt.
+        let _ = self
+            .ctx
+            .clear_kv_cache_seq(Some(0), Some(tokens.len() as u32), None);
+        outcome?;
+        let text = String::from_utf8_lossy(&bytes).into_owned();
+        // the fields were sampled one by one: check the whole text against the whole grammar
+        if !self.conforms(&text) {
+            return Err(LlmError::Output {
+                text,
+                source: ViewError::Json("does not match the decision grammar".into()),
+            });
+        }
+        let view = DecisionView::parse(&text).map_err(|source| LlmError::Output {
+            text: text.clone(),
+            source,
+        })?;
+        let decision = view.to_decision().map_err(|source| LlmError::Output {
+            text: text.clone(),
+            source,
+        })?;
+        Ok(Thought {
+            decision,
+            view,
+            text,
+            prompt_tokens: tokens.len(),
+            reused_tokens: reused,
+            generated_tokens: generated,
+            prompt_s,
+            generate_s,
+            full_filter_tokens: full_filter,
+            sample_s,
+        })
+    }
+
+    /// `true` when the whole grammar accepts `text` (checked on this model's tokens of it).
+    fn conforms(&mut self, text: &str) -> bool {
+        self.whole.reset();
+        let tokens = self.model.vocab().tokenize(text.as_bytes(), false, false);
+        tokens.iter().all(|&t| {
+            let mut one = LlamaTokenDataArray::new(vec![LlamaTokenData::new(t, 0.0, 0.0)], false);
+            one.apply_sampler(&mut self.whole);
+            let ok = one.data[0].logit().is_finite();
+            if ok {
+                self.whole.accept(t);
+            }
+            ok
+        })
+    }
+
+    /// Keep the KV entries of the longest common prefix with the last prompt; returns how
+    /// many tokens are reused (at least one token is always evaluated again, for logits).
+    fn reuse_prefix(&mut self, tokens: &[LlamaToken]) -> usize {
+        let mut common = self
+            .cached
+            .iter()
+            .zip(tokens)
+            .take_while(|(a, b)| a == b)
+            .count();
+        if common >= tokens.len() {
+            common = tokens.len().saturating_sub(1);
+        }
+        let removed = self
+            .ctx
+            .clear_kv_cache_seq(Some(0), Some(common as u32), None);
+        if !matches!(removed, Ok(true)) {
+            // a cache kind that cannot drop a suffix (e.g. sliding-window): start over
+            self.ctx.clear_kv_cache();
+            common = 0;
+        }
+        common
+    }
+
+    /// Evaluate `tokens` at positions `start..`, in batches; logits for the last one only.
+    fn eval(&mut self, tokens: &[LlamaToken], start: usize) -> Result<(), LlmError> {
+        let n_batch = 512usize;
+        for (chunk_index, chunk) in tokens.chunks(n_batch).enumerate() {
+            self.batch.clear();
+            let base = start + chunk_index * n_batch;
+            let last_chunk = (chunk_index + 1) * n_batch >= tokens.len();
+            for (i, &t) in chunk.iter().enumerate() {
+                let logits = last_chunk && i + 1 == chunk.len();
+                self.batch
+                    .add(t, (base + i) as i32, &[0], logits)
+                    .map_err(|e| LlmError::Decode(e.to_string()))?;
+            }
+            self.ctx
+                .decode(&mut self.batch)
+                .map_err(|e| LlmError::Decode(e.to_string()))?;
+        }
+        Ok(())
+    }
+
+    /// The best token the grammar allows: the top few by logit are tried one by one (the
+    /// common case), the whole vocabulary is filtered only when none of them fits.
+    /// Returns the token and whether the full filter ran.
+    fn next_token(&mut self, field: usize) -> (LlamaToken, bool) {
+        let grammar = &mut self.fields[field].sampler;
+        let logits = self.ctx.get_logits_ith(self.batch.n_tokens() - 1);
+        let mut top: [(f32, i32); GREEDY_PROBES] = [(f32::NEG_INFINITY, -1); GREEDY_PROBES];
+        for (i, &l) in logits.iter().enumerate() {
+            if l > top[GREEDY_PROBES - 1].0 {
+                let mut j = GREEDY_PROBES - 1;
+                while j > 0 && top[j - 1].0 < l {
+                    top[j] = top[j - 1];
+                    j -= 1;
+                }
+                top[j] = (l, i as i32);
+            }
+        }
+        for &(logit, id) in &top {
+            if id < 0 {
+                break;
+            }
+            let mut one = LlamaTokenDataArray::new(
+                vec![LlamaTokenData::new(LlamaToken(id), logit, 0.0)],
+                false,
+            );
+            one.apply_sampler(grammar);
+            if one.data[0].logit().is_finite() {
+                return (LlamaToken(id), false);
+            }
+        }
+        let mut all = LlamaTokenDataArray::from_iter(
+            logits
+                .iter()
+                .enumerate()
+                .map(|(i, &l)| LlamaTokenData::new(LlamaToken(i as i32), l, 0.0)),
+            false,
+        );
+        all.apply_sampler(grammar);
+        let best = all
+            .data
+            .iter()
+            .filter(|d| d.logit().is_finite())
+            .max_by(|a, b| a.logit().total_cmp(&b.logit()))
+            .map(|d| d.id())
+            .unwrap_or_else(|| self.model.vocab().eos());
+        (best, true)
+    }
+}

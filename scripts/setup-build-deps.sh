@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Installs what building AERIS-rs needs beyond the Rust toolchain, idempotently, from the
+# Debian archive: cmake and a C/C++ compiler (llama.cpp is built from the sources the
+# llama-cpp-sys-2 crate ships) and libclang (bindgen generates its Rust bindings).
+set -euo pipefail
+
+missing=()
+command -v cmake >/dev/null 2>&1 || missing+=(cmake)
+command -v c++ >/dev/null 2>&1 || missing+=(g++)
+if ! ls /usr/lib/llvm-*/lib/libclang*.so* >/dev/null 2>&1 \
+    && ! ls /usr/lib/*/libclang*.so* >/dev/null 2>&1; then
+    missing+=(libclang-dev)
+fi
+if [ ${#missing[@]} -eq 0 ]; then
+    exit 0
+fi
+echo "setup: installing ${missing[*]} (Debian packages)" >&2
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then
+    SUDO="sudo"
+fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq "${missing[@]}" >/dev/null
