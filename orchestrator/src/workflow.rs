@@ -19,8 +19,10 @@ use std::path::Path;
 pub const DEFAULT_WORKFLOW_TOML: &str = include_str!("../../workflows/default.toml");
 
 /// Role kinds every workflow must have (plus `vehicle` while the controller's autopilot is
-/// `auto`).
-pub const REQUIRED_KINDS: [&str; 5] = ["hub", "reasoning", "controller", "camera", "perception"];
+/// `auto`). S_t may come from one `perception` role or from the perception pipeline
+/// (`image-to-text` composing the blocks): the topic check requires a publisher of
+/// `perception/state` either way.
+pub const REQUIRED_KINDS: [&str; 4] = ["hub", "reasoning", "controller", "camera"];
 
 /// Default restart budget of a role.
 pub const DEFAULT_MAX_RESTARTS: u32 = 5;

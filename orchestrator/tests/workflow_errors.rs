@@ -37,19 +37,11 @@ fn the_default_workflow_file_loads() {
 }
 
 #[test]
-fn missing_role_is_named() {
+fn missing_state_producer_is_named() {
+    // no `perception` role and no perception pipeline: nobody publishes S_t
     let (e, msg) = load_bad("missing_role.toml");
-    assert!(
-        matches!(
-            e,
-            WorkflowError::MissingRole {
-                kind: "perception",
-                ..
-            }
-        ),
-        "{e:?}"
-    );
-    assert!(msg.contains("`perception`"), "{msg}");
+    assert!(matches!(e, WorkflowError::Unpublished { .. }), "{e:?}");
+    assert!(msg.contains("`perception/state`"), "{msg}");
 }
 
 #[test]

@@ -4,16 +4,26 @@
 //! - [`vehicle`]: the built-in simulated multirotor behind a MAVLink endpoint;
 //! - [`camera`]: renders FPV RGB + depth frames and publishes them over iceoryx2;
 //! - [`perception`]: frames -> typed state S_t;
+//! - [`text_reader`], [`detector`], [`cues`], [`occupancy`], [`compose`]: the model-backed
+//!   perception roles, each filling its block of S_t ([`vision`] holds what they share);
 //! - [`planner`]: the deterministic reasoning variant (and a garbage-emitting fault injector);
+//! - [`language`]: the language-model reasoning variants (llama.cpp, grammar-constrained);
 //! - [`controller`]: tracks bound setpoints at the control rate over MAVLink.
 
 #![deny(missing_docs)]
 
 pub mod camera;
+pub mod compose;
 pub mod controller;
+pub mod cues;
+pub mod detector;
+pub mod language;
+pub mod occupancy;
 pub mod perception;
 pub mod planner;
+pub mod text_reader;
 pub mod vehicle;
+pub mod vision;
 
 use aeris_runtime::{RoleError, RoleHost, RoleSpec};
 
@@ -28,6 +38,12 @@ pub fn runner(kind: &str, variant: &str) -> Option<RoleRunner> {
         ("perception", "geometric") => RoleHost::run::<perception::PerceptionRole>,
         ("reasoning", "planner") => RoleHost::run::<planner::PlannerRole>,
         ("reasoning", "garbage") => RoleHost::run::<planner::GarbageRole>,
+        ("reasoning", "smollm2" | "gemma3") => RoleHost::run::<language::LanguageRole>,
+        ("text-reader", "ppocr") => RoleHost::run::<text_reader::TextReaderRole>,
+        ("detector", "yolo" | "yolov8" | "palette") => RoleHost::run::<detector::DetectorRole>,
+        ("cues", "minilm") => RoleHost::run::<cues::CueRole>,
+        ("occupancy", "depth" | "onnx") => RoleHost::run::<occupancy::OccupancyRole>,
+        ("image-to-text", "compose" | "vlm") => RoleHost::run::<compose::ComposeRole>,
         ("controller", "mavlink") => RoleHost::run::<controller::ControllerRole>,
         _ => return None,
     };

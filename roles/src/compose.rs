@@ -1,0 +1,264 @@
+//! Image-to-text (kind `image-to-text`) -> the full S_t on `perception/state`.
+//!
+//! Variants:
+//! - `compose`: joins the blocks of one frame (text, detections, cues, occupancy) and writes
+//!   the bounded scene summary from them, e.g. `reads "LAKE VIEW"; bus ahead 21 m; person
+//!   left 8 m`. It publishes when the cue block of a frame arrives (the last stage of the
+//!   pipeline) or, if it does not, `join_ms` (default 1500) after the first block of that
+//!   frame, with whatever blocks are there;
+//! - `vlm`: the slot for a captioning model (the paper's image-to-text VLMs). No captioning
+//!   weights are published on the package registries, so this variant refuses to start with
+//!   an error that says so; it never makes up a caption.
+//!
+//! Heartbeat counters: `[states published, blocks in the last state (bit count), 0..]`.
+
+use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
+use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::{FixedText, PerceptionState, SUMMARY_MAX, block, topics};
+use core::fmt::Write;
+use core::time::Duration;
+
+/// Poll period.
+pub const PERIOD: Duration = Duration::from_millis(20);
+
+/// Why the `vlm` variant does not start.
+pub const NO_CAPTIONING_WEIGHTS: &str = "image-to-text/vlm: no captioning (VLM) weights are published on the package \
+registries (PyPI, crates.io, npm, Debian), so this build has none to run; use variant \
+`compose`, which writes the summary from the other perception roles' outputs";
+
+/// Where a normalised box centre lies, as a word.
+fn side_word(cx: f32) -> &'static str {
+    if cx < 0.35 {
+        "left"
+    } else if cx > 0.65 {
+        "right"
+    } else {
+        "ahead"
+    }
+}
+
+/// Compose S_t from the blocks at hand (each `None` when missing): copy every block and
+/// write the summary (text read first, then the detections with side and range, then the
+/// best cue). `state`'s frame fields come from the first block present.
+pub fn compose(
+    text: Option<&PerceptionState>,
+    dets: Option<&PerceptionState>,
+    cues: Option<&PerceptionState>,
+    occupancy: Option<&PerceptionState>,
+    state: &mut PerceptionState,
+) {
+    *state = PerceptionState::default();
+    let Some(base) = cues.or(dets).or(text).or(occupancy) else {
+        return;
+    };
+    state.frame_seq = base.frame_seq;
+    state.capture_ns = base.capture_ns;
+    state.position = base.position;
+    state.yaw = base.yaw;
+    let mut summary = String::with_capacity(SUMMARY_MAX);
+    if let Some(t) = text {
+        state.blocks |= block::TEXT;
+        let read: Vec<&str> = t.cues().iter().map(|c| c.text.as_str_lossy()).collect();
+        if !read.is_empty() {
+            let _ = write!(summary, "reads \"{}\"", read.join(" "));
+        }
+    }
+    if let Some(d) = dets {
+        state.blocks |= block::DETECTIONS;
+        state.detections = d.detections;
+        state.detection_count = d.detection_count;
+        for det in d.detections().iter().take(6) {
+            if !summary.is_empty() {
+                summary.push_str("; ");
+            }
+            let cx = det.bbox[0] + 0.5 * det.bbox[2];
+            let _ = write!(summary, "{} {}", det.label.as_str_lossy(), side_word(cx));
+            if det.range_m > 0.0 {
+                let _ = write!(summary, " {:.0} m", det.range_m);
+            }
+        }
+    }
+    if let Some(c) = cues {
+        state.blocks |= block::CUES;
+        state.cues = c.cues;
+        state.cue_count = c.cue_count;
+        state.subgoal_relevance = c.subgoal_relevance;
+        state.relevance_count = c.relevance_count;
+        if let Some(best) = c.cues().first() {
+            if !summary.is_empty() {
+                summary.push_str("; ");
+            }
+            let _ = write!(
+                summary,
+                "cue: {} ({:.2})",
+                best.text.as_str_lossy(),
+                best.score
+            );
+        }
+    }
+    if let Some(o) = occupancy {
+        state.blocks |= block::OCCUPANCY;
+        state.occupancy = o.occupancy;
+    }
+    if summary.is_empty() {
+        summary.push_str("nothing recognised");
+    }
+    state.summary = FixedText::from_str_truncated(&summary);
+    state.blocks |= block::SUMMARY;
+}
+
+/// The compose variant of the image-to-text role.
+pub struct ComposeRole {
+    subs: [TypedSubscriber<PerceptionState>; 4],
+    held: [Option<Box<PerceptionState>>; 4],
+    out: TypedPublisher<PerceptionState>,
+    pending: Option<(u64, u64)>,
+    done_frame: u64,
+    join_ns: u64,
+    state: Box<PerceptionState>,
+    seq: u64,
+}
+
+const TEXT: usize = 0;
+const DETS: usize = 1;
+const CUES: usize = 2;
+const OCC: usize = 3;
+
+impl Role for ComposeRole {
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+        if ctx.spec.variant == "vlm" {
+            return Err(RoleError::Config(NO_CAPTIONING_WEIGHTS.into()));
+        }
+        Ok(Self {
+            subs: [
+                ctx.bus.subscriber(topics::PERCEPTION_TEXT)?,
+                ctx.bus.subscriber(topics::PERCEPTION_DETECTIONS)?,
+                ctx.bus.subscriber(topics::PERCEPTION_CUES)?,
+                ctx.bus.subscriber(topics::PERCEPTION_OCCUPANCY)?,
+            ],
+            held: [None, None, None, None],
+            out: ctx.bus.publisher(topics::PERCEPTION_STATE)?,
+            pending: None,
+            done_frame: 0,
+            join_ns: (ctx.spec.param_f64("join_ms").unwrap_or(1500.0).max(0.0) * 1e6) as u64,
+            state: Box::default(),
+            seq: 0,
+        })
+    }
+
+    fn period(&self) -> Duration {
+        PERIOD
+    }
+
+    fn cycle(
+        &mut self,
+        _ctx: &mut RoleContext,
+        report: &mut CycleReport,
+    ) -> Result<CycleOutcome, RoleError> {
+        let now = monotonic_ns();
+        for (sub, slot) in self.subs.iter().zip(self.held.iter_mut()) {
+            if let Some(s) = sub.latest()?
+                && s.validate().is_ok()
+            {
+                if s.frame_seq > self.done_frame
+                    && self.pending.is_none_or(|(f, _)| s.frame_seq > f)
+                {
+                    self.pending = Some((s.frame_seq, now));
+                }
+                *slot = Some(Box::new(s));
+            }
+        }
+        let Some((frame, since)) = self.pending else {
+            return Ok(CycleOutcome::Idle);
+        };
+        let cue_ready = self.held[CUES]
+            .as_ref()
+            .is_some_and(|c| c.frame_seq == frame);
+        if !cue_ready && now.saturating_sub(since) < self.join_ns {
+            return Ok(CycleOutcome::Idle);
+        }
+        self.pending = None;
+        self.done_frame = frame;
+        // blocks of this frame; occupancy may come from the newest frame it has
+        let of_frame = |i: usize| self.held[i].as_deref().filter(|s| s.frame_seq == frame);
+        let occupancy = self.held[OCC].as_deref();
+        let t0 = monotonic_ns();
+        compose(
+            of_frame(TEXT),
+            of_frame(DETS),
+            of_frame(CUES),
+            occupancy,
+            &mut self.state,
+        );
+        report.stage("compose", monotonic_ns() - t0);
+        self.seq += 1;
+        self.state.seq = self.seq;
+        self.state.publish_ns = monotonic_ns();
+        self.out.publish(&self.state)?;
+        report.counters[0] = self.seq;
+        report.counters[1] = self.state.blocks.count_ones() as u64;
+        Ok(CycleOutcome::Worked)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use aeris_schemas::OCCUPANCY_UNKNOWN;
+
+    #[test]
+    fn composes_every_block_and_a_bounded_summary() {
+        let mut text = PerceptionState {
+            frame_seq: 7,
+            blocks: block::TEXT,
+            cue_count: 2,
+            ..PerceptionState::default()
+        };
+        text.cues[0].text = FixedText::from_str_truncated("LAKE");
+        text.cues[1].text = FixedText::from_str_truncated("VIEW");
+        let mut dets = PerceptionState {
+            frame_seq: 7,
+            detection_count: 1,
+            ..PerceptionState::default()
+        };
+        dets.detections[0].label = FixedText::from_str_truncated("bus");
+        dets.detections[0].bbox = [0.4, 0.2, 0.2, 0.5];
+        dets.detections[0].range_m = 21.3;
+        let mut cues = PerceptionState {
+            frame_seq: 7,
+            cue_count: 1,
+            relevance_count: 3,
+            ..PerceptionState::default()
+        };
+        cues.cues[0].text = FixedText::from_str_truncated("a sign that says LAKE VIEW");
+        cues.cues[0].score = 0.61;
+        cues.subgoal_relevance[2] = 0.61;
+        let mut occ = PerceptionState::default();
+        occ.occupancy.resolution_m = 2.0;
+        occ.occupancy.cells[5] = 12;
+        let mut s = PerceptionState::default();
+        compose(Some(&text), Some(&dets), Some(&cues), Some(&occ), &mut s);
+        assert_eq!(
+            s.summary.as_str(),
+            Some("reads \"LAKE VIEW\"; bus ahead 21 m; cue: a sign that says LAKE VIEW (0.61)")
+        );
+        assert_eq!(s.blocks, block::ALL);
+        assert_eq!(s.frame_seq, 7);
+        assert_eq!(s.subgoal_relevance(), &[0.0, 0.0, 0.61]);
+        assert_eq!(s.occupancy.cells[5], 12);
+        assert!(s.validate().is_ok());
+        // a missing block is simply absent
+        compose(None, Some(&dets), None, None, &mut s);
+        assert_eq!(s.blocks, block::DETECTIONS | block::SUMMARY);
+        assert_eq!(s.occupancy.cells[5], OCCUPANCY_UNKNOWN);
+        // a huge text stays inside the summary's bound
+        text.cues[0].text = FixedText::from_str_truncated(&"W".repeat(500));
+        for c in text.cues.iter_mut() {
+            c.text = FixedText::from_str_truncated(&"X".repeat(60));
+        }
+        text.cue_count = 8;
+        compose(Some(&text), Some(&dets), None, None, &mut s);
+        assert!(s.validate().is_ok());
+    }
+}

@@ -1,0 +1,265 @@
+//! Object detector (kind `detector`) -> the detection block of S_t on
+//! `perception/detections`.
+//!
+//! Variants:
+//! - `yolo`: a COCO detector through ONNX Runtime (default `detect/yolov3-tiny.onnx`,
+//!   Darknet weights converted by `scripts/models/darknet_to_onnx.py`, YOLOv5 output layout);
+//! - `yolov8`: any Ultralytics-layout model (YOLOv8/YOLO11 `[1, 4 + classes, anchors]`;
+//!   default the one such model on the registries, `detect/nudenet-320n.onnx`);
+//! - `palette`: the colour segmentation of the built-in worlds (no model; what the
+//!   `geometric` perception role uses), for flights where COCO classes are not what matters.
+//!
+//! Each detection's range is the median depth inside the middle of its box, when the depth
+//! frame of the same `seq` is at hand. Parameters: `model`, `interval_ms` (default 2000),
+//! `threads` (default 1), `min_score`, `models_dir`.
+//! Heartbeat counters: `[blocks published, detections in the last block, frames rejected, 0..]`.
+
+use crate::perception::{InstructionWords, Segmenter};
+use crate::vision::{FrameStride, begin_block, model_file, open_store, threads};
+use aeris_models::detect::{COCO_DETECTOR, YOLOV8_DETECTOR};
+use aeris_models::{DetectedBox, Detector};
+use aeris_runtime::bus::{FrameSample, FrameSubscriber, TypedPublisher};
+use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::{
+    Detection, FixedText, FrameFormat, FrameHeader, MAX_DETECTIONS, PerceptionState, block, topics,
+};
+use core::time::Duration;
+
+/// Poll period.
+pub const PERIOD: Duration = Duration::from_millis(20);
+
+/// Median of the valid depth samples (u16 LE mm) in the middle half of `bbox` (pixels),
+/// in metres; 0 when there are none. `scratch` is reused between calls.
+pub fn box_range_m(
+    depth: &[u8],
+    width: usize,
+    height: usize,
+    bbox: [f32; 4],
+    scratch: &mut Vec<u16>,
+) -> f32 {
+    scratch.clear();
+    if depth.len() != width * height * 2 {
+        return 0.0;
+    }
+    let x0 = (bbox[0] + 0.25 * bbox[2]).max(0.0) as usize;
+    let y0 = (bbox[1] + 0.25 * bbox[3]).max(0.0) as usize;
+    let x1 = ((bbox[0] + 0.75 * bbox[2]).ceil() as usize).min(width);
+    let y1 = ((bbox[1] + 0.75 * bbox[3]).ceil() as usize).min(height);
+    for y in y0..y1 {
+        for x in x0..x1 {
+            let i = 2 * (y * width + x);
+            let z = u16::from_le_bytes([depth[i], depth[i + 1]]);
+            if z > 0 {
+                scratch.push(z);
+            }
+        }
+    }
+    if scratch.is_empty() {
+        return 0.0;
+    }
+    let mid = scratch.len() / 2;
+    let (_, m, _) = scratch.select_nth_unstable(mid);
+    *m as f32 * 0.001
+}
+
+enum Engine {
+    Model(Box<Detector>),
+    Palette(Box<Segmenter>, InstructionWords, Box<PerceptionState>),
+}
+
+/// The detector role.
+pub struct DetectorRole {
+    rgb: FrameSubscriber,
+    depth: FrameSubscriber,
+    held_depth: Option<FrameSample>,
+    out: TypedPublisher<PerceptionState>,
+    engine: Engine,
+    stride: FrameStride,
+    boxes: Vec<DetectedBox>,
+    scratch: Vec<u16>,
+    state: Box<PerceptionState>,
+    seq: u64,
+    rejected: u64,
+}
+
+impl DetectorRole {
+    fn fill_from_boxes(&mut self, header: &FrameHeader) {
+        let Engine::Model(det) = &self.engine else {
+            return;
+        };
+        let (w, h) = (header.width as usize, header.height as usize);
+        let depth = self
+            .held_depth
+            .as_ref()
+            .filter(|d| d.user_header().seq == header.seq)
+            .map(|d| d.payload());
+        let mut n = 0;
+        for b in self.boxes.iter().take(MAX_DETECTIONS) {
+            let range_m = depth
+                .map(|d| box_range_m(d, w, h, b.bbox, &mut self.scratch))
+                .unwrap_or(0.0);
+            let name = det
+                .names()
+                .get(b.class_id)
+                .map(String::as_str)
+                .unwrap_or("object");
+            self.state.detections[n] = Detection {
+                label: FixedText::from_str_truncated(name),
+                class_id: b.class_id as u32,
+                score: b.score.clamp(0.0, 1.0),
+                bbox: [
+                    (b.bbox[0] / w as f32).clamp(0.0, 1.0),
+                    (b.bbox[1] / h as f32).clamp(0.0, 1.0),
+                    (b.bbox[2] / w as f32).clamp(0.0, 1.0),
+                    (b.bbox[3] / h as f32).clamp(0.0, 1.0),
+                ],
+                range_m,
+            };
+            n += 1;
+        }
+        self.state.detection_count = n as u32;
+    }
+}
+
+impl Role for DetectorRole {
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+        let engine = match ctx.spec.variant.as_str() {
+            "palette" => Engine::Palette(
+                Box::default(),
+                InstructionWords::from_mission(&ctx.spec.mission),
+                Box::default(),
+            ),
+            variant => {
+                let default = if variant == "yolov8" {
+                    YOLOV8_DETECTOR
+                } else {
+                    COCO_DETECTOR
+                };
+                let store = open_store(ctx)?;
+                let file = model_file(ctx, default).to_string();
+                let mut det = Detector::load(&store, &file, threads(ctx))
+                    .map_err(|e| RoleError::Config(e.to_string()))?;
+                if let Some(s) = ctx.spec.param_f64("min_score") {
+                    det.min_score = s as f32;
+                }
+                Engine::Model(Box::new(det))
+            }
+        };
+        Ok(Self {
+            rgb: ctx.bus.frame_subscriber(topics::CAMERA_RGB)?,
+            depth: ctx.bus.frame_subscriber(topics::CAMERA_DEPTH)?,
+            held_depth: None,
+            out: ctx.bus.publisher(topics::PERCEPTION_DETECTIONS)?,
+            engine,
+            stride: FrameStride::from_ctx(ctx),
+            boxes: Vec::with_capacity(256),
+            scratch: Vec::with_capacity(320 * 240),
+            state: Box::default(),
+            seq: 0,
+            rejected: 0,
+        })
+    }
+
+    fn period(&self) -> Duration {
+        PERIOD
+    }
+
+    fn cycle(
+        &mut self,
+        _ctx: &mut RoleContext,
+        report: &mut CycleReport,
+    ) -> Result<CycleOutcome, RoleError> {
+        while let Some(d) = self.depth.next()? {
+            self.held_depth = Some(d);
+        }
+        let Some(frame) = self.stride.next_frame(&self.rgb)? else {
+            return Ok(CycleOutcome::Idle);
+        };
+        let header = *frame.user_header();
+        if header.validate(frame.payload().len()) != Ok(FrameFormat::Rgb8) {
+            self.rejected += 1;
+            report.counters[2] = self.rejected;
+            return Ok(CycleOutcome::Idle);
+        }
+        let t0 = monotonic_ns();
+        begin_block(&mut self.state, &header, block::DETECTIONS);
+        let ok = match &mut self.engine {
+            Engine::Model(det) => det
+                .detect(
+                    frame.payload(),
+                    header.width as usize,
+                    header.height as usize,
+                    &mut self.boxes,
+                )
+                .is_ok(),
+            Engine::Palette(seg, words, full) => {
+                let depth = self
+                    .held_depth
+                    .as_ref()
+                    .filter(|d| d.user_header().seq == header.seq);
+                match depth {
+                    Some(d) => {
+                        let r = seg.perceive(
+                            frame.payload(),
+                            d.payload(),
+                            &header,
+                            words,
+                            full,
+                            &mut |_, _| {},
+                        );
+                        self.state.detections = full.detections;
+                        self.state.detection_count = full.detection_count;
+                        r.is_ok()
+                    }
+                    None => false,
+                }
+            }
+        };
+        drop(frame);
+        if !ok {
+            self.rejected += 1;
+            report.counters[2] = self.rejected;
+            return Ok(CycleOutcome::Idle);
+        }
+        self.fill_from_boxes(&header);
+        report.stage("detect", monotonic_ns() - t0);
+        self.seq += 1;
+        self.state.seq = self.seq;
+        self.state.publish_ns = monotonic_ns();
+        self.out.publish(&self.state)?;
+        report.counters[0] = self.seq;
+        report.counters[1] = self.state.detection_count as u64;
+        Ok(CycleOutcome::Worked)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn range_is_the_median_of_the_box_middle() {
+        let (w, h) = (8usize, 4usize);
+        let mut depth = vec![0u8; w * h * 2];
+        for (i, px) in depth.chunks_exact_mut(2).enumerate() {
+            let mm: u16 = if i % w < 4 { 5000 } else { 9000 };
+            px.copy_from_slice(&mm.to_le_bytes());
+        }
+        let mut scratch = Vec::new();
+        // a box over the left half: middle is all 5 m
+        assert_eq!(
+            box_range_m(&depth, w, h, [0.0, 0.0, 4.0, 4.0], &mut scratch),
+            5.0
+        );
+        assert_eq!(
+            box_range_m(&depth, w, h, [4.0, 0.0, 4.0, 4.0], &mut scratch),
+            9.0
+        );
+        // wrong size: unknown
+        assert_eq!(
+            box_range_m(&depth[2..], w, h, [0.0, 0.0, 4.0, 4.0], &mut scratch),
+            0.0
+        );
+    }
+}

@@ -1,0 +1,230 @@
+//! Reasoning role, language-model variants (kind `reasoning`, variants `smollm2`, `gemma3`):
+//! a GGUF model in llama.cpp turns (S_t, G, M_{t-1}) into D_t under the decision grammar
+//! ([`aeris_llm`]).
+//!
+//! The role polls every 50 ms and decides when a new S_t arrived and at least half a
+//! heartbeat passed since its last decision, or when a whole heartbeat passed without one
+//! (it then decides on the telemetry and the last state). The model is loaded and warmed up
+//! (one decision) in `new`, before the first heartbeat, so a swapped-in reasoner is ready
+//! when the supervisor sees it.
+//!
+//! Parameters: `model` (cache-relative GGUF, default per variant), `threads` (default 2),
+//! `context_tokens` (default 2048), `models_dir`.
+//! Heartbeat stages: `read`, `prompt` (evaluating the new prompt tokens), `generate`,
+//! `publish`; the cycle latency is the decision latency. Counters: `[decisions,
+//! tokens_per_s x 100 (last decision), generated tokens (last decision), failures,
+//! prompt tokens reused (last decision), prompt tokens (last decision), 0, 0]`.
+
+use crate::vision::open_store;
+use aeris_llm::{
+    DecisionView, GEMMA3_270M, LanguageReasoner, MissionBrief, Observation, ReasonerConfig,
+    SMOLLM2_135M, StepBrief,
+};
+use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
+use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::{CycleOutcome, CycleReport, MissionSpec, Role, RoleContext, RoleError};
+use aeris_schemas::{Decision, PerceptionState, VehicleTelemetry, topics};
+use core::time::Duration;
+
+/// Poll period.
+pub const POLL: Duration = Duration::from_millis(50);
+
+/// The mission as the language model reads it.
+pub fn mission_brief(mission: &MissionSpec) -> Result<MissionBrief, RoleError> {
+    let steps = mission
+        .subgoals
+        .iter()
+        .map(|s| {
+            Ok(StepBrief {
+                text: s.text.clone(),
+                action: s.action_mode().ok_or_else(|| {
+                    RoleError::Config(format!("unknown action `{}` in the mission", s.action))
+                })?,
+                waypoint: s.waypoint,
+            })
+        })
+        .collect::<Result<Vec<_>, RoleError>>()?;
+    Ok(MissionBrief {
+        instruction: mission.instruction.clone(),
+        steps,
+        limits: mission.decision_limits(),
+        cruise_speed: mission.cruise_speed,
+        acceptance_radius: mission.acceptance_radius_m,
+    })
+}
+
+/// The default model file of a language-model variant.
+pub fn default_model(variant: &str) -> Option<&'static str> {
+    match variant {
+        "smollm2" => Some(SMOLLM2_135M),
+        "gemma3" => Some(GEMMA3_270M),
+        _ => None,
+    }
+}
+
+/// The language-model reasoning role.
+pub struct LanguageRole {
+    reasoner: LanguageReasoner,
+    states: TypedSubscriber<PerceptionState>,
+    telemetry: TypedSubscriber<VehicleTelemetry>,
+    decisions: TypedPublisher<Decision>,
+    period_ns: u64,
+    state: Option<Box<PerceptionState>>,
+    fresh_state: bool,
+    telemetry_last: Option<VehicleTelemetry>,
+    previous: Option<DecisionView>,
+    last_decision_ns: u64,
+    start: [f32; 3],
+    seq: u64,
+    cycle: u64,
+    failures: u64,
+}
+
+impl LanguageRole {
+    fn read_inputs(&mut self) -> Result<(), RoleError> {
+        if let Some(s) = self.states.latest()?
+            && s.validate().is_ok()
+            && self.state.as_ref().is_none_or(|old| old.seq != s.seq)
+        {
+            self.state = Some(Box::new(s));
+            self.fresh_state = true;
+        }
+        if let Some(t) = self.telemetry.latest()?
+            && t.validate().is_ok()
+        {
+            self.telemetry_last = Some(t);
+        }
+        Ok(())
+    }
+}
+
+impl Role for LanguageRole {
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+        let variant = ctx.spec.variant.clone();
+        let file = ctx
+            .spec
+            .param_str("model")
+            .or(default_model(&variant))
+            .ok_or_else(|| RoleError::Config(format!("no model for variant `{variant}`")))?
+            .to_string();
+        let config = ReasonerConfig {
+            threads: ctx
+                .spec
+                .param_f64("threads")
+                .unwrap_or(2.0)
+                .clamp(1.0, 64.0) as i32,
+            context_tokens: ctx
+                .spec
+                .param_f64("context_tokens")
+                .unwrap_or(2048.0)
+                .clamp(256.0, 32768.0) as u32,
+            ..ReasonerConfig::default()
+        };
+        let store = open_store(ctx)?;
+        let brief = mission_brief(&ctx.spec.mission)?;
+        let start = ctx.spec.mission.start;
+        let mut reasoner = LanguageReasoner::load(&store, &file, brief, config)
+            .map_err(|e| RoleError::Config(format!("reasoning/{variant}: {e}")))?;
+        // warm-up: the first decision pays for page faults and graph allocation
+        let warm = Observation {
+            position: start,
+            yaw: 0.0,
+            landed: true,
+            state: None,
+            previous: None,
+        };
+        reasoner
+            .decide(&warm)
+            .map_err(|e| RoleError::Config(format!("reasoning/{variant} warm-up: {e}")))?;
+        Ok(Self {
+            reasoner,
+            states: ctx.bus.subscriber(topics::PERCEPTION_STATE)?,
+            telemetry: ctx.bus.subscriber(topics::VEHICLE_TELEMETRY)?,
+            decisions: ctx.bus.publisher(topics::REASONING_DECISION)?,
+            period_ns: ctx.spec.timing.heartbeat_period_ms.max(1) * 1_000_000,
+            state: None,
+            fresh_state: false,
+            telemetry_last: None,
+            previous: None,
+            last_decision_ns: 0,
+            start,
+            seq: 0,
+            cycle: 0,
+            failures: 0,
+        })
+    }
+
+    fn period(&self) -> Duration {
+        POLL
+    }
+
+    fn cycle(
+        &mut self,
+        _ctx: &mut RoleContext,
+        report: &mut CycleReport,
+    ) -> Result<CycleOutcome, RoleError> {
+        let t0 = monotonic_ns();
+        self.read_inputs()?;
+        let since = t0.saturating_sub(self.last_decision_ns);
+        let due = (self.fresh_state && since >= self.period_ns / 2) || since >= self.period_ns;
+        if !due {
+            return Ok(CycleOutcome::Idle);
+        }
+        self.fresh_state = false;
+        self.last_decision_ns = t0;
+        let (position, yaw, landed) = match (&self.telemetry_last, &self.state) {
+            (Some(t), _) => (t.position, t.attitude[2], t.landed == 1),
+            (None, Some(s)) => (s.position, s.yaw, s.position[2] < 0.3),
+            (None, None) => (self.start, 0.0, true),
+        };
+        let obs = Observation {
+            position,
+            yaw,
+            landed,
+            state: self.state.as_deref(),
+            previous: self.previous.as_ref(),
+        };
+        let reasoning_start = monotonic_ns();
+        report.stage("read", reasoning_start - t0);
+        let thought = match self.reasoner.decide(&obs) {
+            Ok(t) => t,
+            Err(e) => {
+                // no decision this heartbeat: the hub reuses the last valid one
+                self.failures += 1;
+                report.counters[3] = self.failures;
+                eprintln!("reasoning: no decision this heartbeat: {e}");
+                return Ok(CycleOutcome::Worked);
+            }
+        };
+        report.stage("prompt", (thought.prompt_s * 1e9) as u64);
+        report.stage("generate", (thought.generate_s * 1e9) as u64);
+        let mut d = thought.decision;
+        self.cycle += 1;
+        self.seq += 1;
+        d.seq = self.seq;
+        d.cycle = self.cycle;
+        match self.state.as_deref() {
+            Some(s) => {
+                d.cycle_start_ns = s.capture_ns;
+                d.state_stamp_ns = s.publish_ns;
+            }
+            None => {
+                d.cycle_start_ns = t0;
+                d.state_stamp_ns = t0;
+            }
+        }
+        d.reasoning_start_ns = reasoning_start;
+        let tp = monotonic_ns();
+        d.publish_ns = tp;
+        self.decisions.publish(&d)?;
+        report.stage("publish", monotonic_ns() - tp);
+        report.counters[0] = self.seq;
+        report.counters[1] = (thought.tokens_per_s() * 100.0) as u64;
+        report.counters[2] = thought.generated_tokens as u64;
+        report.counters[3] = self.failures;
+        report.counters[4] = thought.reused_tokens as u64;
+        report.counters[5] = thought.prompt_tokens as u64;
+        self.previous = Some(thought.view);
+        Ok(CycleOutcome::Worked)
+    }
+}
