@@ -6,10 +6,12 @@
 //! and picks the active subgoal `i* = argmax alpha`, with monotone progress (see
 //! [`AttentionPrior`]). The sequence of `i*` is the attention trace.
 //!
-//! `f_att` is pluggable ([`AttentionScorer`]); [`LexicalScorer`] is the lightweight default
-//! (word overlap). Scoring and updating never allocate.
+//! `f_att` is pluggable ([`AttentionScorer`]): [`EmbeddingScorer`] reads the subgoal
+//! relevance the cue extractor computed from sentence embeddings (all-MiniLM-L6-v2 of the
+//! state's text and cues against each subgoal) and falls back to [`LexicalScorer`] (word
+//! overlap) for states that carry no cue block. Scoring and updating never allocate.
 
-use aeris_schemas::{MAX_SUBGOALS, PerceptionState};
+use aeris_schemas::{MAX_SUBGOALS, PerceptionState, block};
 
 /// Split an instruction into subgoal texts.
 ///
@@ -212,6 +214,44 @@ impl AttentionScorer for LexicalScorer {
             Self::credit(best, list, c.text.as_str_lossy(), w);
         }
         best.iter().sum::<f32>() / list.len() as f32
+    }
+}
+
+/// Default gain of [`EmbeddingScorer`]: cosine similarities of related phrases differ from
+/// unrelated ones by ~0.2-0.4; times 3 that is comparable to the progress prior.
+pub const EMBEDDING_GAIN: f32 = 3.0;
+
+/// `f_att` from sentence embeddings: `gain * subgoal_relevance[i]` of the state (cosine
+/// similarity in [0, 1], computed by the cue extractor); a state without a cue block is
+/// scored by the lexical fallback.
+pub struct EmbeddingScorer {
+    gain: f32,
+    fallback: LexicalScorer,
+}
+
+impl EmbeddingScorer {
+    /// A scorer with `gain` (non-finite or negative: [`EMBEDDING_GAIN`]) and the lexical
+    /// fallback for `subgoals`.
+    pub fn new<S: AsRef<str>>(subgoals: &[S], gain: f32) -> Self {
+        Self {
+            gain: if gain.is_finite() && gain >= 0.0 {
+                gain
+            } else {
+                EMBEDDING_GAIN
+            },
+            fallback: LexicalScorer::new(subgoals),
+        }
+    }
+}
+
+impl AttentionScorer for EmbeddingScorer {
+    fn score(&mut self, state: &PerceptionState, index: usize) -> f32 {
+        let relevance = state.subgoal_relevance();
+        if state.has(block::CUES) && !relevance.is_empty() {
+            self.gain * relevance.get(index).copied().map(unit).unwrap_or(0.0)
+        } else {
+            self.fallback.score(state, index)
+        }
     }
 }
 
@@ -511,6 +551,51 @@ fn argmax(e: &[f32]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn embedding_relevance_moves_attention_and_lexical_covers_states_without_it() {
+        let subgoals = [
+            "take off",
+            "fly to the red roof",
+            "land by the LAKE VIEW sign",
+        ];
+        let mut att = Attention::new(
+            Box::new(EmbeddingScorer::new(&subgoals, EMBEDDING_GAIN)),
+            3,
+            0.5,
+            AttentionPrior::default(),
+            16,
+        )
+        .unwrap();
+        let mut s = PerceptionState {
+            blocks: block::CUES,
+            relevance_count: 3,
+            frame_seq: 1,
+            ..PerceptionState::default()
+        };
+        // the frame matches the first subgoal: stay
+        s.subgoal_relevance[..3].copy_from_slice(&[0.7, 0.2, 0.1]);
+        assert_eq!(att.update(&s, None).active, 0);
+        // the frame matches the second: progress to it
+        s.frame_seq = 2;
+        s.subgoal_relevance[..3].copy_from_slice(&[0.1, 0.75, 0.2]);
+        let r = att.update(&s, None);
+        assert_eq!(r.active, 1);
+        assert!(r.alpha[1] > r.alpha[0] && r.alpha[1] > r.alpha[2]);
+        // weak evidence for the first again does not move back (monotone progress)
+        s.frame_seq = 3;
+        s.subgoal_relevance[..3].copy_from_slice(&[0.45, 0.3, 0.1]);
+        assert_eq!(att.update(&s, None).active, 1);
+        // no cue block: the lexical fallback scores the summary
+        let mut plain = PerceptionState {
+            frame_seq: 4,
+            ..PerceptionState::default()
+        };
+        plain.summary = aeris_schemas::FixedText::from_str_truncated("LAKE VIEW sign ahead");
+        assert_eq!(att.update(&plain, None).active, 2);
+        let trace: Vec<(u64, usize)> = att.trace().map(|e| (e.frame_seq, e.active)).collect();
+        assert_eq!(trace, vec![(1, 0), (2, 1), (3, 1), (4, 2)]);
+    }
 
     #[test]
     fn segments_on_sentences_and_then() {

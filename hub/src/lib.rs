@@ -23,8 +23,8 @@ pub mod role;
 
 pub use crate::core::{DecisionVerdict, HubConfig, HubCore, HubCounters, RejectReason, TickOutput};
 pub use att::{
-    Attention, AttentionError, AttentionPrior, AttentionResult, AttentionScorer, LexicalScorer,
-    segment_instruction,
+    Attention, AttentionError, AttentionPrior, AttentionResult, AttentionScorer, EMBEDDING_GAIN,
+    EmbeddingScorer, LexicalScorer, segment_instruction,
 };
 pub use gate::{DecisionGate, Feasible, GateConfigError, GateError};
 pub use ordering::{SeqVerdict, SequenceTracker};

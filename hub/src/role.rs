@@ -13,7 +13,7 @@
 //! tick's re-binding), `att` (states and ATT). Heartbeat counters: `[decisions received,
 //! rejected, late, reused cycles, sequence gaps, reorders, states received, 0]`.
 
-use crate::att::{Attention, AttentionPrior, LexicalScorer};
+use crate::att::{Attention, AttentionPrior, EMBEDDING_GAIN, EmbeddingScorer};
 use crate::core::{DecisionVerdict, HubConfig, HubCore};
 use crate::gate::DecisionGate;
 use aeris_runtime::bus::{BusError, TypedPublisher, TypedSubscriber};
@@ -62,7 +62,12 @@ pub fn core_from_spec(spec: &RoleSpec) -> Result<HubCore, RoleError> {
         .map_err(|e| RoleError::Config(format!("hub gate: {e}")))?;
     let texts: Vec<&str> = mission.subgoals.iter().map(|s| s.text.as_str()).collect();
     let attention = Attention::new(
-        Box::new(LexicalScorer::new(&texts)),
+        Box::new(EmbeddingScorer::new(
+            &texts,
+            spec.param_f64("att_gain")
+                .map(|g| g as f32)
+                .unwrap_or(EMBEDDING_GAIN),
+        )),
         count,
         temperature,
         AttentionPrior::default(),
