@@ -19,17 +19,20 @@ static ENVIRONMENT: OnceLock<Result<Environment, String>> = OnceLock::new();
 /// A process loads one ONNX Runtime; later calls return the same environment.
 pub fn environment(store: &ModelStore) -> Result<&'static Environment, ModelError> {
     let lib = store.root().join(RUNTIME_LIBRARY);
+    if ENVIRONMENT.get().is_none() {
+        // verify before dlopen: a corrupt library would crash the process, not fail; the
+        // store's error names the file and the command that fixes it
+        store.verified(RUNTIME_LIBRARY)?;
+    }
     let env = ENVIRONMENT.get_or_init(|| {
-        // verify before dlopen: a corrupt library would crash the process, not fail
-        let path = store.verified(RUNTIME_LIBRARY).map_err(|e| e.to_string())?;
-        ort::init_from(&path)
+        ort::init_from(&lib)
             .map_err(|e| e.to_string())?
             .with_name("aeris")
             .build()
             .map_err(|e| e.to_string())
     });
     env.as_ref().map_err(|reason| ModelError::Runtime {
-        path: lib,
+        path: store.root().join(RUNTIME_LIBRARY),
         reason: reason.clone(),
     })
 }
