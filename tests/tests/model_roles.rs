@@ -43,8 +43,15 @@ fn the_model_pipeline_flies_the_default_mission() {
     let dir = TempDir::new("models-flight");
     let flight = unique_flight("models");
     let mut w = models_workflow();
-    // the deterministic planner decides: this test is about the perception processes
+    // the deterministic planner decides: this test is about the perception processes.
+    // The planner fires on its own 2 s clock, not on new states, so the newest S_t can be up
+    // to one perception interval (2 s) plus the pipeline's latency (debug build) old: give
+    // the deadline room for that instead of measuring the build's speed.
     set_variant(&mut w, "reasoning", "planner");
+    w["flight"]
+        .as_table_mut()
+        .unwrap()
+        .insert("decision_deadline_ms".into(), toml::Value::Integer(8000));
     let path = write_workflow(&dir.0, "models.toml", &w);
     let mut run = spawn_run(&dir.0, &flight, &[path.to_str().unwrap()]);
     let status = wait_bounded(&mut run.0, FLIGHT_BOUND).expect("the flight ends");
