@@ -7,8 +7,10 @@ set -euo pipefail
 missing=()
 command -v cmake >/dev/null 2>&1 || missing+=(cmake)
 command -v c++ >/dev/null 2>&1 || missing+=(g++)
-if ! ls /usr/lib/llvm-*/lib/libclang*.so* >/dev/null 2>&1 \
-    && ! ls /usr/lib/*/libclang*.so* >/dev/null 2>&1; then
+# bindgen (clang-sys) needs libclang itself; libclang-cpp, which some images carry without
+# it, does not count.
+if ! ls /usr/lib/llvm-*/lib/libclang.so* >/dev/null 2>&1 \
+    && ! ls /usr/lib/*/libclang-[0-9]*.so* >/dev/null 2>&1; then
     missing+=(libclang-dev)
 fi
 if [ ${#missing[@]} -eq 0 ]; then
