@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
 # Installs what building AERIS-rs needs beyond the Rust toolchain, idempotently, from the
 # Debian archive: cmake and a C/C++ compiler (llama.cpp is built from the sources the
-# llama-cpp-sys-2 crate ships) and libclang (bindgen generates its Rust bindings).
+# llama-cpp-sys-2 crate ships), libclang (bindgen generates its Rust bindings) and ccache
+# (scripts/test.sh compiles llama.cpp once, not once per cargo command: see there).
 set -euo pipefail
 
 missing=()
 command -v cmake >/dev/null 2>&1 || missing+=(cmake)
 command -v c++ >/dev/null 2>&1 || missing+=(g++)
+command -v ccache >/dev/null 2>&1 || missing+=(ccache)
 # bindgen (clang-sys) needs libclang itself; libclang-cpp, which some images carry without
 # it, does not count.
 if ! ls /usr/lib/llvm-*/lib/libclang.so* >/dev/null 2>&1 \

@@ -10,7 +10,13 @@ scripts/setup-test-deps.sh
 scripts/provision-models.sh
 export AERIS_PYTHON="$PWD/.venv/bin/python"
 
+# clippy, build and test each resolve the build-dependencies' features differently, so cargo
+# runs llama-cpp-sys-2's build script three times; ccache turns the second and third
+# compilations of llama.cpp into cache hits (~6 min each on 2 cores otherwise).
+export CMAKE_C_COMPILER_LAUNCHER=ccache CMAKE_CXX_COMPILER_LAUNCHER=ccache
+export CCACHE_DIR="${CCACHE_DIR:-$HOME/.cache/aeris/ccache}" CCACHE_NOHASHDIR=1 CCACHE_BASEDIR="$PWD"
+
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets --quiet -- -D warnings
-cargo build --workspace --bins --quiet
+cargo build --workspace --all-targets --quiet
 cargo test --workspace --no-fail-fast -- --test-threads=2
