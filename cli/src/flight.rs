@@ -3,7 +3,7 @@
 use aeris_runtime::MissionSpec;
 use aeris_runtime::bus::{BusError, FlightBus, TypedSubscriber};
 use aeris_runtime::stats::{mean_std, percentile};
-use aeris_schemas::{ActionMode, HubReport, VehicleTelemetry, topics};
+use aeris_schemas::{ActionMode, BoundSetpoint, HubReport, VehicleTelemetry, topics};
 use serde::Serialize;
 
 /// What a finished flight reports (`aeris run --json` prints this as one line).
@@ -52,6 +52,22 @@ pub struct RunSummary {
     pub controller_missed_ticks: u64,
     /// Setpoints the controller refused.
     pub controller_refused_setpoints: u64,
+    /// Controller ticks that held position because no fresh setpoint had arrived within
+    /// the setpoint timeout.
+    pub controller_hold_ticks: u64,
+    /// Longest interval between two consecutive hub setpoints (by the hub's publish
+    /// stamps, over consecutive sequence numbers), in ms.
+    pub max_setpoint_gap_ms: f64,
+    /// Median interval between consecutive hub setpoints (ms): the normal period.
+    pub setpoint_period_ms: f64,
+    /// Decisions of a replaced reasoning instance ignored after the hub switched.
+    pub decisions_superseded: u64,
+    /// Times the hub switched to another reasoning instance (swaps, restarts).
+    pub source_switches: u64,
+    /// Hot swaps completed during the flight.
+    pub swaps_done: u64,
+    /// Hot swaps refused or rolled back during the flight.
+    pub swaps_failed: u64,
     /// Role restarts by the supervisor.
     pub role_restarts: u64,
     /// Subgoals in the mission.
@@ -121,24 +137,30 @@ const LATE: usize = 3;
 const REUSED: usize = 4;
 const GAPS: usize = 5;
 const REORDERS: usize = 6;
+const SUPERSEDED: usize = 7;
+const SWITCHES: usize = 8;
 
 // Indices into the controller counters.
 const TICKS: usize = 0;
 const MISSED: usize = 1;
 const REFUSED: usize = 2;
+const HOLDS: usize = 3;
 
 /// Subscribes to a flight's hub reports and telemetry and keeps the tallies.
 pub struct FlightMonitor {
     reports: TypedSubscriber<HubReport>,
     telemetry: TypedSubscriber<VehicleTelemetry>,
+    setpoints: TypedSubscriber<BoundSetpoint>,
+    last_setpoint: Option<(u64, u64)>,
+    setpoint_gaps_ms: Vec<f64>,
     goal: [f32; 3],
     radius: f32,
     land_goal: bool,
     subgoals: u16,
     ct_s: Vec<f64>,
     stage_sums: [f64; 4],
-    hub: RestartSafeCounters<7>,
-    controller: RestartSafeCounters<3>,
+    hub: RestartSafeCounters<9>,
+    controller: RestartSafeCounters<4>,
     last_report: Option<HubReport>,
     last_telemetry: Option<VehicleTelemetry>,
     attention_steps: Vec<u16>,
@@ -155,6 +177,9 @@ impl FlightMonitor {
         Ok(Self {
             reports: bus.subscriber(topics::HUB_REPORT)?,
             telemetry: bus.subscriber(topics::VEHICLE_TELEMETRY)?,
+            setpoints: bus.subscriber(topics::HUB_SETPOINT)?,
+            last_setpoint: None,
+            setpoint_gaps_ms: Vec::new(),
             goal: mission.goal(),
             radius: mission.acceptance_radius_m,
             land_goal,
@@ -191,6 +216,8 @@ impl FlightMonitor {
                     r.decisions_reused,
                     r.sequence_gaps,
                     r.sequence_reorders,
+                    r.decisions_superseded,
+                    r.source_switches,
                 ],
             );
             if self.attention_steps.last() != Some(&r.active_step) {
@@ -207,10 +234,23 @@ impl FlightMonitor {
                     t.controller_ticks,
                     t.controller_missed_ticks,
                     t.setpoints_refused,
+                    t.hold_ticks,
                 ],
             );
             self.last_telemetry = Some(t);
         }
+        let (last, gaps) = (&mut self.last_setpoint, &mut self.setpoint_gaps_ms);
+        self.setpoints.drain(|sp| {
+            // only consecutive numbers of one hub process measure its period; a skipped
+            // number is a sample this monitor missed, not a late hub
+            if let Some((seq, ns)) = *last
+                && sp.seq == seq + 1
+                && sp.publish_ns >= ns
+            {
+                gaps.push((sp.publish_ns - ns) as f64 * 1e-6);
+            }
+            *last = Some((sp.seq, sp.publish_ns));
+        })?;
         Ok(())
     }
 
@@ -297,6 +337,13 @@ impl FlightMonitor {
             controller_ticks: self.controller.total(TICKS),
             controller_missed_ticks: self.controller.total(MISSED),
             controller_refused_setpoints: self.controller.total(REFUSED),
+            controller_hold_ticks: self.controller.total(HOLDS),
+            max_setpoint_gap_ms: self.setpoint_gaps_ms.iter().copied().fold(0.0, f64::max),
+            setpoint_period_ms: percentile(&self.setpoint_gaps_ms, 50.0).unwrap_or(0.0),
+            decisions_superseded: self.hub.total(SUPERSEDED),
+            source_switches: self.hub.total(SWITCHES),
+            swaps_done: 0,
+            swaps_failed: 0,
             role_restarts,
             subgoals_total: self.subgoals as u64,
             max_active_step: self.attention_steps.iter().copied().max().unwrap_or(0) as u64,

@@ -240,3 +240,72 @@ pub fn topic_hz(flight: Option<String>, topic: &str, seconds: f64) -> Result<()>
     );
     Ok(())
 }
+
+/// `aeris swap ROLE VARIANT`: hot-swap a role of a running flight, make-before-break, and
+/// print each step as the supervisor reports it.
+pub fn swap(
+    flight: Option<String>,
+    role: &str,
+    variant: &str,
+    timeout_s: Option<f64>,
+    json: bool,
+) -> Result<()> {
+    let flight = resolve_flight(flight)?;
+    let bus = tool_bus(&flight, "swap")?;
+    let timeout = match timeout_s {
+        Some(s) if s.is_finite() && s > 0.0 => Duration::from_secs_f64(s),
+        Some(s) => bail!("--timeout must be a positive number of seconds, got {s}"),
+        None => Duration::ZERO,
+    };
+    let mut replies = Vec::new();
+    let outcome = aeris_orchestrator::control::request_swap(&bus, role, variant, timeout, |r| {
+        // a refusal or rollback is the error printed below
+        if !json && r.stage() != Some(aeris_schemas::ReplyStage::Failed) {
+            eprintln!("[{:>6} ms] {}", r.elapsed_ms, r.message.as_str_lossy());
+        }
+        replies.push(*r);
+    });
+    let stage_name = |r: &aeris_schemas::SupervisorReply| match r.stage() {
+        Some(aeris_schemas::ReplyStage::Started) => "started",
+        Some(aeris_schemas::ReplyStage::Ready) => "ready",
+        Some(aeris_schemas::ReplyStage::Done) => "done",
+        Some(aeris_schemas::ReplyStage::Failed) => "failed",
+        None => "unknown",
+    };
+    if json {
+        let steps: Vec<serde_json::Value> = replies
+            .iter()
+            .map(|r| {
+                serde_json::json!({
+                    "stage": stage_name(r),
+                    "elapsed_ms": r.elapsed_ms,
+                    "old_pid": r.old_pid,
+                    "new_pid": r.new_pid,
+                    "new_instance": r.new_instance,
+                    "message": r.message.as_str_lossy(),
+                })
+            })
+            .collect();
+        let (ok, error) = match &outcome {
+            Ok(_) => (true, None),
+            Err(e) => (false, Some(e.to_string())),
+        };
+        println!(
+            "{}",
+            serde_json::json!({
+                "flight": flight, "role": role, "variant": variant,
+                "ok": ok, "error": error, "steps": steps,
+            })
+        );
+    }
+    let done = outcome.with_context(|| {
+        format!("swap of role `{role}` to `{variant}` in flight `{flight}` failed")
+    })?;
+    if !json {
+        println!(
+            "role `{role}` now runs `{variant}` as pid {} (instance {}), old pid {} stopped, {} ms",
+            done.new_pid, done.new_instance, done.old_pid, done.elapsed_ms
+        );
+    }
+    Ok(())
+}

@@ -1,6 +1,7 @@
 //! The `aeris` command line.
 
 mod bench_cmd;
+mod bench_models;
 mod flight;
 mod inspect;
 mod run_cmd;
@@ -37,6 +38,26 @@ enum Command {
         #[command(subcommand)]
         command: TopicCommand,
     },
+    /// Replace a running role by another variant of its pool, make-before-break: the new
+    /// process loads and warms up beside the old one, takes over at its first working
+    /// cycle, then the old one stops. A variant that fails to come up is rolled back and
+    /// the old one keeps running.
+    Swap {
+        /// Role name (see `aeris status`).
+        role: String,
+        /// Variant from the role's pool (the workflow's `variants`).
+        variant: String,
+        /// Flight (default: the only one running).
+        #[arg(long)]
+        flight: Option<String>,
+        /// Seconds the new process may take to load, warm up and work once before the
+        /// swap is rolled back (default: 90).
+        #[arg(long, value_name = "SECONDS")]
+        timeout: Option<f64>,
+        /// Print one JSON object instead of progress lines.
+        #[arg(long)]
+        json: bool,
+    },
     /// Check a workflow file and print what it would start.
     Validate {
         /// Workflow file (TOML).
@@ -44,7 +65,7 @@ enum Command {
     },
     /// List the role kinds and variants this build can run.
     Roles,
-    /// Run benchmarks (IPC, gate, control) and print their figures.
+    /// Run benchmarks (IPC, gate, control, models) and print their figures.
     Bench(bench_cmd::BenchArgs),
     /// Run one role in this process (the supervisor starts roles this way).
     #[command(hide = true)]
@@ -52,6 +73,9 @@ enum Command {
         /// Role spec (JSON) written by the supervisor.
         #[arg(long)]
         spec: PathBuf,
+        /// Instance number the supervisor gave this process (overrides the spec's).
+        #[arg(long)]
+        instance: Option<u32>,
     },
 }
 
@@ -94,8 +118,11 @@ enum TopicCommand {
 /// never restarts a role that exits with it).
 const EXIT_SCHEMA_MISMATCH: u8 = aeris_orchestrator::restart::EXIT_SCHEMA_MISMATCH as u8;
 
-fn run_role(spec: PathBuf) -> anyhow::Result<ExitCode> {
-    let spec = aeris_runtime::RoleSpec::load(&spec)?;
+fn run_role(spec: PathBuf, instance: Option<u32>) -> anyhow::Result<ExitCode> {
+    let mut spec = aeris_runtime::RoleSpec::load(&spec)?;
+    if let Some(n) = instance {
+        spec.instance = n;
+    }
     let name = spec.name.clone();
     let result = if spec.kind == "hub" {
         aeris_hub::run(spec)
@@ -143,10 +170,17 @@ fn main() -> ExitCode {
             } => inspect::topic_hz(flight, &topic, seconds),
         }
         .map(|_| ExitCode::SUCCESS),
+        Command::Swap {
+            role,
+            variant,
+            flight,
+            timeout,
+            json,
+        } => inspect::swap(flight, &role, &variant, timeout, json).map(|_| ExitCode::SUCCESS),
         Command::Validate { workflow } => run_cmd::validate(&workflow),
         Command::Roles => roles(),
         Command::Bench(args) => bench_cmd::run(args).map(|_| ExitCode::SUCCESS),
-        Command::Role { spec } => run_role(spec),
+        Command::Role { spec, instance } => run_role(spec, instance),
     };
     match result {
         Ok(code) => code,

@@ -125,8 +125,23 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
     let start = Instant::now();
     let mut last_progress = Instant::now();
     let mut failure: Option<String> = None;
+    let (mut swaps_done, mut swaps_failed) = (0u64, 0u64);
     loop {
         for event in sup.step().context("supervising")? {
+            match &event {
+                SupervisorEvent::SwapStarted { .. } | SupervisorEvent::SwapReady { .. } => {
+                    eprintln!("aeris: {event}");
+                }
+                SupervisorEvent::SwapDone { .. } => {
+                    swaps_done += 1;
+                    eprintln!("aeris: {event}");
+                }
+                SupervisorEvent::SwapFailed { .. } => {
+                    swaps_failed += 1;
+                    eprintln!("aeris: {event}");
+                }
+                _ => {}
+            }
             match event {
                 SupervisorEvent::RoleGaveUp { name } => {
                     failure = Some(format!("role `{name}` exhausted its restart budget"));
@@ -193,7 +208,9 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
     let duration = start.elapsed().as_secs_f64();
     let _ = monitor.poll();
     let restarts = sup.total_restarts();
-    let summary = monitor.summary(&flight, duration, restarts as u64);
+    let mut summary = monitor.summary(&flight, duration, restarts as u64);
+    summary.swaps_done = swaps_done;
+    summary.swaps_failed = swaps_failed;
     let report = sup.shutdown(Duration::from_secs(3));
     eprintln!("aeris: shutdown: {report}");
 

@@ -4,6 +4,11 @@
 //! the time, which makes every rule testable with constructed inputs.
 //!
 //! # Rules
+//! - **Source**: decisions carry their reasoner's instance number. The hub follows the
+//!   newest live instance ([`SourceSelector`]): a newer one (hot swap, restart) takes over
+//!   at its first decision and the sequence check starts over for it; an older one's
+//!   decisions are ignored (counted as superseded, not as rejections) unless the newer one
+//!   has been silent for a whole slot (`heartbeat_period + decision_deadline`).
 //! - **Order**: a decision whose sequence number is older than or equal to the last one is
 //!   rejected (see [`SequenceTracker`]; a `1` with a cycle start newer than any seen is a
 //!   restarted reasoner and resynchronises).
@@ -27,7 +32,7 @@
 
 use crate::att::{Attention, AttentionResult};
 use crate::gate::{DecisionGate, GateError};
-use crate::ordering::{SeqVerdict, SequenceTracker};
+use crate::ordering::{SeqVerdict, SequenceTracker, SourceSelector, SourceVerdict};
 use aeris_runtime::spec::TimingSpec;
 use aeris_schemas::{
     ActionMode, BoundSetpoint, Decision, HubReport, MAX_SUBGOALS, OccupancyGrid, PerceptionState,
@@ -77,6 +82,10 @@ pub struct HubCounters {
     pub states_received: u64,
     /// States rejected by validation.
     pub states_rejected: u64,
+    /// Decisions of an older reasoning instance ignored while a newer one was live.
+    pub decisions_superseded: u64,
+    /// Switches to another reasoning instance.
+    pub source_switches: u64,
 }
 
 /// Why a decision was rejected.
@@ -121,6 +130,14 @@ pub enum DecisionVerdict {
         reason: RejectReason,
         /// Reuse report, if this rejection counted a reuse.
         report: Option<HubReport>,
+    },
+    /// From an older reasoning instance while a newer one is live: ignored, not a
+    /// rejection (it never had a slot).
+    Superseded {
+        /// The instance that sent it.
+        source: u32,
+        /// The instance the hub follows.
+        active: u32,
     },
     /// Past the deadline; rejected like [`DecisionVerdict::Rejected`].
     Late {
@@ -171,6 +188,7 @@ pub struct HubCore {
     attention: Attention,
     config: HubConfig,
     subgoals: usize,
+    sources: SourceSelector,
     sequence: SequenceTracker,
     counters: HubCounters,
     position: [f32; 3],
@@ -217,6 +235,11 @@ impl HubCore {
             attention,
             config,
             subgoals,
+            sources: SourceSelector::new(
+                config
+                    .heartbeat_period_ns
+                    .saturating_add(config.decision_deadline_ns),
+            ),
             sequence: SequenceTracker::new(),
             counters: HubCounters::default(),
             position: start,
@@ -286,6 +309,20 @@ impl HubCore {
         commit_clock: impl FnOnce() -> u64,
     ) -> DecisionVerdict {
         self.counters.decisions_received += 1;
+        match self.sources.observe(d.source, receive_ns) {
+            SourceVerdict::Superseded { active } => {
+                self.counters.decisions_superseded = self.sources.superseded();
+                return DecisionVerdict::Superseded {
+                    source: d.source,
+                    active,
+                };
+            }
+            SourceVerdict::Switched { .. } => {
+                self.counters.source_switches = self.sources.switches();
+                self.sequence.resync();
+            }
+            SourceVerdict::First | SourceVerdict::Active => {}
+        }
         let verdict = self.sequence.observe(d.seq, d.cycle_start_ns);
         self.counters.sequence_gaps = self.sequence.gaps();
         self.counters.sequence_reorders = self.sequence.reorders();
@@ -434,6 +471,10 @@ impl HubCore {
             sequence_reorders: c.sequence_reorders,
             states_received: c.states_received,
             states_rejected: c.states_rejected,
+            decisions_superseded: c.decisions_superseded,
+            source_switches: c.source_switches,
+            decision_source: self.sources.active().unwrap_or(0),
+            reserved2: 0,
         }
     }
 
@@ -488,6 +529,11 @@ impl HubCore {
     /// The counters so far.
     pub fn counters(&self) -> HubCounters {
         self.counters
+    }
+
+    /// The reasoning instance the hub follows, if any decision arrived.
+    pub fn decision_source(&self) -> Option<u32> {
+        self.sources.active()
     }
 
     /// The sequence tracker of incoming decisions.
@@ -595,6 +641,7 @@ mod tests {
             step: 2,
             action: ActionMode::Goto as u8,
             reserved: 0,
+            source: 0,
         }
     }
 
@@ -609,6 +656,48 @@ mod tests {
             DecisionVerdict::Committed { setpoint, report } => (setpoint, report),
             other => panic!("expected a commit, got {other:?}"),
         }
+    }
+
+    #[test]
+    fn a_swapped_in_reasoner_takes_over_without_a_reuse_or_a_rejection() {
+        let mut h = hub();
+        let from = |source: u32, seq: u64, start: u64| Decision {
+            source,
+            ..goto(seq, seq, start, [10.0, 0.0, 10.0])
+        };
+        // the old instance 3 has been deciding every heartbeat
+        for k in 1..=5u64 {
+            committed(h.on_decision(&from(3, 40 + k, 2 * k * S), 2 * k * S + 1));
+        }
+        // the new instance 7 starts its own numbering at 1: accepted, and it becomes active
+        let (_, r) = committed(h.on_decision(&from(7, 1, 12 * S), 12 * S + 1));
+        assert_eq!((r.decision_source, r.source_switches), (7, 1));
+        // the old one, not stopped yet, is ignored without costing a slot
+        let v = h.on_decision(&from(3, 46, 12 * S + 5), 12 * S + 6);
+        assert_eq!(
+            v,
+            DecisionVerdict::Superseded {
+                source: 3,
+                active: 7
+            }
+        );
+        committed(h.on_decision(&from(7, 2, 14 * S), 14 * S + 1));
+        let c = h.counters();
+        assert_eq!(
+            (
+                c.decisions_committed,
+                c.decisions_rejected,
+                c.decisions_reused,
+                c.decisions_superseded,
+                c.sequence_reorders
+            ),
+            (7, 0, 0, 1, 0)
+        );
+        // the new one falls silent (rolled back, died): after a whole slot the old
+        // instance's next decision is taken again
+        committed(h.on_decision(&from(3, 47, 19 * S), 19 * S + 1));
+        assert_eq!(h.decision_source(), Some(3));
+        assert_eq!(h.counters().source_switches, 2);
     }
 
     #[test]

@@ -27,7 +27,7 @@ pub use att::{
     EmbeddingScorer, LexicalScorer, segment_instruction,
 };
 pub use gate::{DecisionGate, Feasible, GateConfigError, GateError};
-pub use ordering::{SeqVerdict, SequenceTracker};
+pub use ordering::{SeqVerdict, SequenceTracker, SourceSelector, SourceVerdict};
 pub use role::HubRole;
 
 use aeris_runtime::{RoleError, RoleHost, RoleSpec};

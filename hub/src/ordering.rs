@@ -128,6 +128,95 @@ impl SequenceTracker {
     pub fn restarts(&self) -> u64 {
         self.restarts
     }
+
+    /// Forget the last sequence number (keep the counters): the next message is the first
+    /// of a new publisher, whatever its number.
+    pub fn resync(&mut self) {
+        self.seen = false;
+    }
+}
+
+/// What one decision's publisher instance means to the hub.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SourceVerdict {
+    /// The first decision the hub sees: its publisher becomes the active one.
+    First,
+    /// From the active publisher.
+    Active,
+    /// From another instance that now becomes the active one: a newer instance (hot swap,
+    /// restart), or an older one after the active one fell silent for a whole slot.
+    Switched {
+        /// The instance that was active.
+        from: u32,
+    },
+    /// From an older instance while a newer one is live: ignored.
+    Superseded {
+        /// The instance that stays active.
+        active: u32,
+    },
+}
+
+/// Chooses which reasoning instance the hub takes decisions from.
+///
+/// The supervisor numbers every process it starts, so a higher instance number is a newer
+/// process (a restart, or the new side of a make-before-break swap). The hub follows the
+/// newest instance and ignores older ones, unless the newest has been silent for longer
+/// than `stale_after_ns` (it died, or its swap was rolled back): then the next instance that
+/// speaks becomes active again. Pure and allocation-free.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SourceSelector {
+    active: Option<u32>,
+    last_ns: u64,
+    stale_after_ns: u64,
+    switches: u64,
+    superseded: u64,
+}
+
+impl SourceSelector {
+    /// A selector that drops an active instance silent for more than `stale_after_ns`.
+    pub fn new(stale_after_ns: u64) -> Self {
+        Self {
+            active: None,
+            last_ns: 0,
+            stale_after_ns,
+            switches: 0,
+            superseded: 0,
+        }
+    }
+
+    /// Classify a decision of instance `source` received at `now_ns`.
+    pub fn observe(&mut self, source: u32, now_ns: u64) -> SourceVerdict {
+        let verdict = match self.active {
+            None => SourceVerdict::First,
+            Some(a) if a == source => SourceVerdict::Active,
+            Some(a) if source > a || now_ns.saturating_sub(self.last_ns) > self.stale_after_ns => {
+                self.switches += 1;
+                SourceVerdict::Switched { from: a }
+            }
+            Some(a) => {
+                self.superseded += 1;
+                return SourceVerdict::Superseded { active: a };
+            }
+        };
+        self.active = Some(source);
+        self.last_ns = self.last_ns.max(now_ns);
+        verdict
+    }
+
+    /// The active instance (`None` before the first decision).
+    pub fn active(&self) -> Option<u32> {
+        self.active
+    }
+
+    /// Switches between instances so far.
+    pub fn switches(&self) -> u64 {
+        self.switches
+    }
+
+    /// Decisions ignored because a newer instance was live.
+    pub fn superseded(&self) -> u64 {
+        self.superseded
+    }
 }
 
 #[cfg(test)]
@@ -157,6 +246,37 @@ mod tests {
         );
         assert!(!SeqVerdict::Reordered.accepted() && !SeqVerdict::Duplicate.accepted());
         assert!(SeqVerdict::Gap { missing: 1 }.accepted());
+    }
+
+    #[test]
+    fn the_newest_live_instance_wins_and_a_silent_one_is_dropped() {
+        let mut s = SourceSelector::new(100);
+        assert_eq!(s.observe(3, 0), SourceVerdict::First);
+        assert_eq!(s.observe(3, 10), SourceVerdict::Active);
+        // a newer instance (swap) takes over at once
+        assert_eq!(s.observe(5, 20), SourceVerdict::Switched { from: 3 });
+        // the old one, still running, is ignored while the new one is live
+        assert_eq!(s.observe(3, 30), SourceVerdict::Superseded { active: 5 });
+        assert_eq!(s.observe(5, 110), SourceVerdict::Active);
+        assert_eq!(s.observe(3, 200), SourceVerdict::Superseded { active: 5 });
+        // the new one fell silent for more than a slot: the old one speaks and is taken
+        assert_eq!(s.observe(3, 211), SourceVerdict::Switched { from: 5 });
+        assert_eq!(s.active(), Some(3));
+        assert_eq!((s.switches(), s.superseded()), (2, 2));
+        // a late message stamped before the last one never moves time back
+        assert_eq!(s.observe(3, 150), SourceVerdict::Active);
+        assert_eq!(s.observe(4, 215), SourceVerdict::Switched { from: 3 });
+    }
+
+    #[test]
+    fn resync_takes_any_number_as_the_first() {
+        let mut t = SequenceTracker::new();
+        t.observe(40, 400);
+        t.observe(42, 420);
+        t.resync();
+        assert_eq!(t.observe(1, 430), SeqVerdict::First);
+        assert_eq!(t.observe(2, 440), SeqVerdict::InOrder);
+        assert_eq!(t.gaps(), 1, "counters survive a resync");
     }
 
     #[test]

@@ -7,17 +7,21 @@
 //! decision to fly) and `hub/report` (per committed or reused cycle).
 //!
 //! Parameters: `no_att` (bool, default false: the active step is the reasoner's declared
-//! step), `att_temperature` (number > 0, default 0.5).
+//! step), `att_temperature` (number > 0, default 0.5), `realtime` (bool, default true: try
+//! SCHED_FIFO priority 49, just below the controller, so model roles loading or deciding on
+//! the same CPUs never delay a setpoint).
 //!
 //! Heartbeat stages: `route` (transport: draining and publishing), `gate` (decisions and the
 //! tick's re-binding), `att` (states and ATT). Heartbeat counters: `[decisions received,
-//! rejected, late, reused cycles, sequence gaps, reorders, states received, 0]`.
+//! rejected, late, reused cycles, sequence gaps, reorders, states received, decisions
+//! superseded]`.
 
 use crate::att::{Attention, AttentionPrior, EMBEDDING_GAIN, EmbeddingScorer};
 use crate::core::{DecisionVerdict, HubConfig, HubCore};
 use crate::gate::DecisionGate;
 use aeris_runtime::bus::{BusError, TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::role::try_sched_fifo;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
 use aeris_schemas::{
     BoundSetpoint, Decision, HubReport, MAX_SUBGOALS, PerceptionState, RoleStatus,
@@ -29,6 +33,8 @@ use std::time::Duration;
 pub const HUB_PERIOD: Duration = Duration::from_millis(20);
 /// Default softmax temperature of ATT.
 pub const DEFAULT_ATT_TEMPERATURE: f32 = 0.5;
+/// SCHED_FIFO priority of the hub's thread (the controller runs at 50).
+pub const HUB_FIFO_PRIORITY: i32 = 49;
 /// Entries kept in the attention trace.
 pub const TRACE_CAPACITY: usize = 4096;
 
@@ -103,6 +109,18 @@ impl HubRole {
 impl Role for HubRole {
     fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
         let core = core_from_spec(&ctx.spec)?;
+        let realtime = match ctx.spec.params.get("realtime") {
+            None => true,
+            Some(v) => v.as_bool().ok_or_else(|| {
+                RoleError::Config(format!("hub param `realtime` must be a bool, got {v}"))
+            })?,
+        };
+        if realtime && !try_sched_fifo(HUB_FIFO_PRIORITY) {
+            eprintln!(
+                "aeris hub `{}`: SCHED_FIFO not permitted, running with the normal scheduler",
+                ctx.spec.name
+            );
+        }
         Ok(Self {
             core,
             states: ctx.bus.subscriber(topics::PERCEPTION_STATE)?,
@@ -154,6 +172,7 @@ impl Role for HubRole {
                 DecisionVerdict::Rejected { report, .. } | DecisionVerdict::Late { report, .. } => {
                     report
                 }
+                DecisionVerdict::Superseded { .. } => None,
             };
             if let Some(r) = out
                 && let Err(e) = reports.publish(&r)
@@ -189,7 +208,7 @@ impl Role for HubRole {
             c.sequence_gaps,
             c.sequence_reorders,
             c.states_received,
-            0,
+            c.decisions_superseded,
         ];
         report.status = if self.core.reusing() {
             RoleStatus::Degraded

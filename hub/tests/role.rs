@@ -46,6 +46,7 @@ fn spec(flight: &str) -> RoleSpec {
             limits: LimitsSpec::default(),
         },
         params: Default::default(),
+        instance: 0,
     }
 }
 
@@ -70,6 +71,7 @@ fn goto(seq: u64, start_ns: u64) -> Decision {
         step: 2,
         action: ActionMode::Goto as u8,
         reserved: 0,
+        source: 0,
     }
 }
 

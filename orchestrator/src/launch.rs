@@ -23,6 +23,8 @@ pub struct PlannedRole {
     pub max_restarts: u32,
     /// First restart backoff (ms).
     pub backoff_ms: u64,
+    /// Variants the role may be hot-swapped to (its workflow `variants`).
+    pub pool: Vec<String>,
 }
 
 /// Every role of a flight, in start order (publishers before subscribers).
@@ -147,11 +149,13 @@ pub fn plan_launch(
                     camera: w.camera.clone(),
                     mission: w.mission.clone(),
                     params: r.params.clone(),
+                    instance: 0,
                 },
                 cpus,
                 restart: r.restart,
                 max_restarts: r.max_restarts,
                 backoff_ms: r.backoff_ms,
+                pool: r.variants.clone(),
             }
         })
         .collect();

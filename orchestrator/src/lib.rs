@@ -8,10 +8,12 @@
 //! - [`restart`]: the restart policy as a pure function;
 //! - [`supervisor`]: starts every role as its own process bound to its executor's CPUs,
 //!   watches heartbeats (latency percentiles, sequence gaps), restarts failed roles with
-//!   backoff, and keeps the status board.
+//!   backoff, keeps the status board, and hot-swaps role variants make-before-break;
+//! - [`control`]: asking a running flight's supervisor for a hot swap (`aeris swap`).
 
 #![deny(missing_docs)]
 
+pub mod control;
 pub mod launch;
 pub mod restart;
 pub mod supervisor;
@@ -21,6 +23,6 @@ pub use launch::{LaunchPlan, PlanError, PlannedRole, plan_launch};
 pub use restart::{RestartDecision, RestartPolicy, RoleExit, restart_decision};
 pub use supervisor::{
     RoleRuntime, RoleState, ShutdownEntry, ShutdownOutcome, ShutdownReport, SilentRole, Supervisor,
-    SupervisorError, SupervisorEvent, SupervisorOptions,
+    SupervisorError, SupervisorEvent, SupervisorOptions, SwapError,
 };
 pub use workflow::{Executor, ExecutorCpus, RoleDecl, Workflow, WorkflowError, WorkflowFileError};

@@ -14,11 +14,14 @@ use crate::launch::{PlanError, PlannedRole, plan_launch};
 use crate::restart::{RestartDecision, RestartPolicy, RoleExit, restart_decision};
 use crate::workflow::Workflow;
 use aeris_runtime::affinity::CpuSet;
-use aeris_runtime::bus::{BusError, FlightBus, StatusBoardWriter, TypedSubscriber};
+use aeris_runtime::bus::{
+    BusError, ControlRequest, ControlServer, FlightBus, StatusBoardWriter, TypedSubscriber,
+};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::stats::LatencyWindow;
 use aeris_schemas::{
-    FixedText, MAX_ROLES, RoleHeartbeat, RoleStatus, RoleStatusEntry, SupervisorStatus, topics,
+    CommandKind, FixedText, MAX_ROLES, ReplyStage, RoleHeartbeat, RoleStatus, RoleStatusEntry,
+    SupervisorReply, SupervisorStatus, topics,
 };
 use std::fs::OpenOptions;
 use std::io::{Read, Seek, SeekFrom, Write};
@@ -35,6 +38,11 @@ pub const LOG_TAIL_LINES: usize = 8;
 const POLL: Duration = Duration::from_millis(20);
 /// Pause between checks for exited roles during [`Supervisor::shutdown`].
 const SHUTDOWN_POLL: Duration = Duration::from_millis(5);
+/// How long a swapped-in process may take, by default, to load, warm up and report its
+/// first working cycle before the swap is rolled back.
+pub const DEFAULT_SWAP_READY_TIMEOUT: Duration = Duration::from_secs(90);
+/// How long a replaced process has to exit after SIGTERM before it gets SIGKILL.
+pub const RETIRE_GRACE: Duration = Duration::from_secs(5);
 
 /// What the supervisor needs to start a flight.
 #[derive(Debug, Clone)]
@@ -164,6 +172,67 @@ pub struct SilentRole {
     pub log_tail: Vec<String>,
 }
 
+/// Why a hot swap was refused (the running process was not touched).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum SwapError {
+    /// No role of that name.
+    #[error("the flight has no role `{role}` (roles: {known})")]
+    UnknownRole {
+        /// The name asked for.
+        role: String,
+        /// The flight's roles, comma-separated.
+        known: String,
+    },
+    /// The role's kind cannot run twice at once.
+    #[error("role `{role}` (kind `{kind}`) cannot be hot-swapped: {why}")]
+    NotSwappable {
+        /// Role name.
+        role: String,
+        /// Its kind.
+        kind: String,
+        /// Why (from the catalog).
+        why: &'static str,
+    },
+    /// The variant is not in the role's pool.
+    #[error(
+        "role `{role}` has no variant `{variant}` in its pool [{pool}]; list it in the role's `variants` in the workflow"
+    )]
+    NotInPool {
+        /// Role name.
+        role: String,
+        /// The variant asked for.
+        variant: String,
+        /// The pool, comma-separated.
+        pool: String,
+    },
+    /// A swap of this role is already under way.
+    #[error("role `{role}` is already being swapped to `{variant}`")]
+    InProgress {
+        /// Role name.
+        role: String,
+        /// The variant being brought up.
+        variant: String,
+    },
+    /// The role has no running process to replace.
+    #[error("role `{role}` is not running ({state}); a swap replaces a running process")]
+    NotRunning {
+        /// Role name.
+        role: String,
+        /// Its state.
+        state: String,
+    },
+    /// The new process's spec or log could not be written.
+    #[error("cannot prepare variant `{variant}` of role `{role}`: {reason}")]
+    Prepare {
+        /// Role name.
+        role: String,
+        /// The variant.
+        variant: String,
+        /// Why.
+        reason: String,
+    },
+}
+
 fn quote_tail(out: &mut String, tail: &[String]) {
     if tail.is_empty() {
         out.push_str("\n    (log is empty)");
@@ -245,6 +314,55 @@ pub enum SupervisorEvent {
         /// Role name.
         name: String,
     },
+    /// A hot swap started the new process; the old one keeps running.
+    SwapStarted {
+        /// Role name.
+        name: String,
+        /// The variant being brought up.
+        variant: String,
+        /// The running process.
+        old_pid: Option<u32>,
+        /// The new process.
+        new_pid: u32,
+        /// Its instance number.
+        instance: u32,
+    },
+    /// The new process loaded, warmed up and reported a working cycle: it is the role now,
+    /// and the old one was asked to stop.
+    SwapReady {
+        /// Role name.
+        name: String,
+        /// The variant now running.
+        variant: String,
+        /// The process being stopped.
+        old_pid: Option<u32>,
+        /// The new process.
+        new_pid: u32,
+        /// Its instance number.
+        instance: u32,
+        /// Milliseconds from the start of the swap to the first working cycle.
+        ready_ms: u64,
+    },
+    /// The old process of a swap exited: the swap is complete.
+    SwapDone {
+        /// Role name.
+        name: String,
+        /// The variant now running.
+        variant: String,
+        /// The process that was replaced.
+        old_pid: Option<u32>,
+        /// How it ended (`None`: there was none).
+        exit: Option<RoleExit>,
+    },
+    /// The new process failed to come up; it was stopped and the old one keeps running.
+    SwapFailed {
+        /// Role name.
+        name: String,
+        /// The variant that failed.
+        variant: String,
+        /// Why, with the tail of the new process's log.
+        reason: String,
+    },
 }
 
 impl core::fmt::Display for SupervisorEvent {
@@ -270,6 +388,46 @@ impl core::fmt::Display for SupervisorEvent {
             SupervisorEvent::FirstHeartbeat { name } => {
                 write!(f, "role `{name}` is alive (first heartbeat)")
             }
+            SupervisorEvent::SwapStarted {
+                name,
+                variant,
+                new_pid,
+                instance,
+                ..
+            } => write!(
+                f,
+                "role `{name}`: swap to `{variant}` started (pid {new_pid}, instance {instance})"
+            ),
+            SupervisorEvent::SwapReady {
+                name,
+                variant,
+                new_pid,
+                ready_ms,
+                ..
+            } => write!(
+                f,
+                "role `{name}`: `{variant}` (pid {new_pid}) is working after {ready_ms} ms; stopping the old process"
+            ),
+            SupervisorEvent::SwapDone {
+                name,
+                variant,
+                old_pid,
+                exit,
+            } => match (old_pid, exit) {
+                (Some(pid), Some(e)) => write!(
+                    f,
+                    "role `{name}`: swap to `{variant}` done (old pid {pid} {e})"
+                ),
+                _ => write!(f, "role `{name}`: swap to `{variant}` done"),
+            },
+            SupervisorEvent::SwapFailed {
+                name,
+                variant,
+                reason,
+            } => write!(
+                f,
+                "role `{name}`: swap to `{variant}` rolled back, the old process keeps running: {reason}"
+            ),
         }
     }
 }
@@ -315,6 +473,33 @@ pub struct RoleRuntime {
     heartbeat_gaps: u64,
     window: LatencyWindow,
     latency_ms: Option<[f64; 3]>,
+    pool: Vec<String>,
+    instance: u32,
+    swap: Option<SwapInProgress>,
+}
+
+/// The new side of a make-before-break swap, until it reports a working cycle.
+#[derive(Debug)]
+struct SwapInProgress {
+    variant: String,
+    spec_path: PathBuf,
+    log_path: PathBuf,
+    child: Child,
+    pid: u32,
+    instance: u32,
+    started: Instant,
+    deadline: Instant,
+    first_working: Option<RoleHeartbeat>,
+}
+
+/// A replaced process, asked to stop, until it exits.
+#[derive(Debug)]
+struct Retiring {
+    name: String,
+    variant: String,
+    pid: u32,
+    child: Child,
+    since: Instant,
 }
 
 impl RoleRuntime {
@@ -381,6 +566,18 @@ impl RoleRuntime {
     /// Its log file.
     pub fn log_path(&self) -> &Path {
         &self.log_path
+    }
+    /// Variants it may be swapped to.
+    pub fn pool(&self) -> &[String] {
+        &self.pool
+    }
+    /// Instance number of its current process (0 before the first start).
+    pub fn instance(&self) -> u32 {
+        self.instance
+    }
+    /// The variant a swap is bringing up, if one is under way.
+    pub fn swapping_to(&self) -> Option<&str> {
+        self.swap.as_ref().map(|s| s.variant.as_str())
     }
 
     fn describe_state(&self) -> String {
@@ -527,6 +724,10 @@ pub struct Supervisor {
     pending: Vec<SupervisorEvent>,
     invalid_heartbeats: u64,
     unknown_heartbeats: u64,
+    next_instance: u32,
+    retiring: Vec<Retiring>,
+    control: ControlServer,
+    requests: Vec<(String, ControlRequest, Instant)>,
     bus: FlightBus,
 }
 
@@ -546,10 +747,11 @@ fn open_log(log: &Path, header: &str) -> std::io::Result<std::fs::File> {
     Ok(file)
 }
 
-/// Start `exe role --spec SPEC` with stdout and stderr appended to `log`.
+/// Start `exe role --spec SPEC --instance N` with stdout and stderr appended to `log`.
 fn spawn_role(
     exe: &Path,
     spec: &Path,
+    instance: u32,
     log: std::fs::File,
     cpus: Option<&CpuSet>,
 ) -> std::io::Result<Child> {
@@ -559,6 +761,8 @@ fn spawn_role(
     cmd.arg("role")
         .arg("--spec")
         .arg(spec)
+        .arg("--instance")
+        .arg(instance.to_string())
         .stdin(Stdio::null())
         .stdout(Stdio::from(file))
         .stderr(Stdio::from(err))
@@ -705,6 +909,7 @@ impl Supervisor {
             .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
             .map_err(bus_err)?;
         let board = bus.create_status_board().map_err(bus_err)?;
+        let control = bus.control_server().map_err(bus_err)?;
 
         let roles_dir = run_dir.join("roles");
         let logs_dir = run_dir.join("logs");
@@ -730,6 +935,10 @@ impl Supervisor {
             pending: Vec::new(),
             invalid_heartbeats: 0,
             unknown_heartbeats: 0,
+            next_instance: 1,
+            retiring: Vec::new(),
+            control,
+            requests: Vec::new(),
             bus,
         };
         for planned in plan.roles {
@@ -758,6 +967,7 @@ impl Supervisor {
             restart,
             max_restarts,
             backoff_ms,
+            pool,
         } = planned;
         let spec_path = roles_dir.join(format!("{}.json", spec.name));
         let log_path = logs_dir.join(format!("{}.log", spec.name));
@@ -794,6 +1004,9 @@ impl Supervisor {
             heartbeat_gaps: 0,
             window: LatencyWindow::new(LATENCY_WINDOW),
             latency_ms: None,
+            pool,
+            instance: 0,
+            swap: None,
         });
         Ok(())
     }
@@ -801,6 +1014,7 @@ impl Supervisor {
     /// Start role `i`'s process; returns its pid.
     fn spawn(&mut self, i: usize, why: &str) -> Result<u32, SupervisorError> {
         let exe = self.aeris_exe.clone();
+        let instance = self.next_instance;
         let Some(role) = self.roles.get_mut(i) else {
             return Err(SupervisorError::Spawn {
                 role: format!("#{i}"),
@@ -811,7 +1025,7 @@ impl Supervisor {
             });
         };
         let header = format!(
-            "=== aeris supervisor: {why} role `{}` ({} / {}) on CPUs [{}], monotonic {} ns ===",
+            "=== aeris supervisor: {why} role `{}` ({} / {}) instance {instance} on CPUs [{}], monotonic {} ns ===",
             role.name,
             role.kind,
             role.variant,
@@ -823,9 +1037,11 @@ impl Supervisor {
             path: role.log_path.clone(),
             source,
         })?;
-        match spawn_role(&exe, &role.spec_path, log, role.cpu_set.as_ref()) {
+        match spawn_role(&exe, &role.spec_path, instance, log, role.cpu_set.as_ref()) {
             Ok(child) => {
+                self.next_instance += 1;
                 let pid = child.id();
+                role.instance = instance;
                 role.child = Some(child);
                 role.pid = Some(pid);
                 role.state = RoleState::Running;
@@ -850,9 +1066,13 @@ impl Supervisor {
     /// policy, start due restarts, update the status board. Call it every ~20 ms.
     pub fn step(&mut self) -> Result<Vec<SupervisorEvent>, SupervisorError> {
         let mut events = core::mem::take(&mut self.pending);
+        self.serve_control(&mut events)?;
         self.drain_heartbeats(&mut events)?;
         self.reap(&mut events)?;
+        self.advance_swaps(&mut events);
+        self.reap_retiring(&mut events);
         self.restart_due(&mut events);
+        self.answer_requests(&events);
         self.publish_board();
         Ok(events)
     }
@@ -881,6 +1101,18 @@ impl Supervisor {
                 self.unknown_heartbeats += 1;
                 continue;
             };
+            if let Some(swap) = role.swap.as_mut()
+                && swap.pid == hb.pid
+            {
+                // the new side of a swap: ready once it reports a working cycle
+                if hb.worked == 1
+                    && matches!(status, RoleStatus::Running | RoleStatus::Degraded)
+                    && swap.first_working.is_none()
+                {
+                    swap.first_working = Some(hb);
+                }
+                continue;
+            }
             if role.old_pids.contains(&hb.pid) {
                 continue; // late heartbeat of a process that already exited
             }
@@ -1048,6 +1280,347 @@ impl Supervisor {
         }
     }
 
+    /// Start replacing role `role` by `variant`, make-before-break: a new process (a new
+    /// instance number) loads and warms up beside the running one; once it reports its first
+    /// working cycle it becomes the role and the old process is stopped
+    /// ([`SupervisorEvent::SwapReady`], then [`SupervisorEvent::SwapDone`]). If it exits
+    /// first, or sends no working heartbeat within `ready_timeout`, it is stopped and the
+    /// old process keeps running ([`SupervisorEvent::SwapFailed`]). Returns the new pid.
+    pub fn begin_swap(
+        &mut self,
+        role: &str,
+        variant: &str,
+        ready_timeout: Duration,
+    ) -> Result<u32, SwapError> {
+        let Some(i) = self.roles.iter().position(|r| r.name == role) else {
+            return Err(SwapError::UnknownRole {
+                role: role.to_string(),
+                known: self
+                    .roles
+                    .iter()
+                    .map(|r| r.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            });
+        };
+        let instance = self.next_instance;
+        let exe = self.aeris_exe.clone();
+        let r = &mut self.roles[i];
+        let refusal = aeris_runtime::catalog::role_kind(&r.kind)
+            .map_or(Some("unknown kind"), |k| k.swap_refusal);
+        if let Some(why) = refusal {
+            return Err(SwapError::NotSwappable {
+                role: r.name.clone(),
+                kind: r.kind.clone(),
+                why,
+            });
+        }
+        if !r.pool.iter().any(|v| v == variant) {
+            return Err(SwapError::NotInPool {
+                role: r.name.clone(),
+                variant: variant.to_string(),
+                pool: r.pool.join(", "),
+            });
+        }
+        if let Some(s) = &r.swap {
+            return Err(SwapError::InProgress {
+                role: r.name.clone(),
+                variant: s.variant.clone(),
+            });
+        }
+        if r.state != RoleState::Running || r.child.is_none() {
+            return Err(SwapError::NotRunning {
+                role: r.name.clone(),
+                state: r.describe_state(),
+            });
+        }
+        let prepare = |reason: String| SwapError::Prepare {
+            role: role.to_string(),
+            variant: variant.to_string(),
+            reason,
+        };
+        let mut spec =
+            aeris_runtime::RoleSpec::load(&r.spec_path).map_err(|e| prepare(e.to_string()))?;
+        spec.variant = variant.to_string();
+        let dir = r.spec_path.parent().unwrap_or(Path::new("."));
+        let spec_path = dir.join(format!("{}.i{instance}.json", r.name));
+        let json = serde_json::to_string_pretty(&spec).map_err(|e| prepare(e.to_string()))?;
+        std::fs::write(&spec_path, json)
+            .map_err(|e| prepare(format!("{}: {e}", spec_path.display())))?;
+        let log_dir = r.log_path.parent().unwrap_or(Path::new("."));
+        let log_path = log_dir.join(format!("{}.i{instance}.log", r.name));
+        let header = format!(
+            "=== aeris supervisor: hot swap of role `{}` from `{}` to `{variant}`, instance {instance} on CPUs [{}], monotonic {} ns ===",
+            r.name,
+            r.variant,
+            r.cpus,
+            monotonic_ns()
+        );
+        let cleanup = |e: String| {
+            let _ = std::fs::remove_file(&spec_path);
+            prepare(e)
+        };
+        let log = open_log(&log_path, &header)
+            .map_err(|e| cleanup(format!("{}: {e}", log_path.display())))?;
+        let child = spawn_role(&exe, &spec_path, instance, log, r.cpu_set.as_ref())
+            .map_err(|e| cleanup(format!("cannot start `{}`: {e}", exe.display())))?;
+        self.next_instance += 1;
+        let pid = child.id();
+        let now = Instant::now();
+        r.swap = Some(SwapInProgress {
+            variant: variant.to_string(),
+            spec_path,
+            log_path,
+            child,
+            pid,
+            instance,
+            started: now,
+            deadline: now + ready_timeout,
+            first_working: None,
+        });
+        self.pending.push(SupervisorEvent::SwapStarted {
+            name: r.name.clone(),
+            variant: variant.to_string(),
+            old_pid: r.pid,
+            new_pid: pid,
+            instance,
+        });
+        Ok(pid)
+    }
+
+    /// Commit swaps whose new process works, roll back those whose new process died or
+    /// timed out.
+    fn advance_swaps(&mut self, events: &mut Vec<SupervisorEvent>) {
+        let now = Instant::now();
+        for role in &mut self.roles {
+            let Some(swap) = role.swap.as_mut() else {
+                continue;
+            };
+            let failure = match swap.child.try_wait() {
+                Ok(Some(status)) => Some(format!(
+                    "the new process exited ({}) before its first working cycle",
+                    RoleExit::from_status(status)
+                )),
+                Err(e) => Some(format!("cannot wait on the new process: {e}")),
+                Ok(None) if swap.first_working.is_some() => None,
+                Ok(None) if now >= swap.deadline => Some(format!(
+                    "no working heartbeat within {:.0} s",
+                    (swap.deadline - swap.started).as_secs_f64()
+                )),
+                Ok(None) => continue,
+            };
+            let Some(swap) = role.swap.take() else {
+                continue;
+            };
+            if let Some(why) = failure {
+                let mut child = swap.child;
+                let _ = child.kill();
+                let _ = child.wait();
+                role.old_pids.push(swap.pid);
+                let _ = std::fs::remove_file(&swap.spec_path);
+                let mut reason = format!("{why}; its log {}:", swap.log_path.display());
+                quote_tail(&mut reason, &log_tail(&swap.log_path, LOG_TAIL_LINES));
+                events.push(SupervisorEvent::SwapFailed {
+                    name: role.name.clone(),
+                    variant: swap.variant,
+                    reason,
+                });
+                continue;
+            }
+            // commit: the new process is the role; stop the old one
+            let old_pid = role.pid.take();
+            let old_variant = core::mem::replace(&mut role.variant, swap.variant.clone());
+            if let Some(mut old) = role.child.take() {
+                if let Ok(pid) = libc::pid_t::try_from(old.id()) {
+                    // SAFETY: kill has no memory-safety preconditions; the pid is our
+                    // unreaped child, so it cannot have been reused.
+                    unsafe { libc::kill(pid, libc::SIGTERM) };
+                }
+                let pid = old.id();
+                role.old_pids.push(pid);
+                match old.try_wait() {
+                    Ok(None) => self.retiring.push(Retiring {
+                        name: role.name.clone(),
+                        variant: swap.variant.clone(),
+                        pid,
+                        child: old,
+                        since: now,
+                    }),
+                    _ => events.push(SupervisorEvent::SwapDone {
+                        name: role.name.clone(),
+                        variant: swap.variant.clone(),
+                        old_pid: Some(pid),
+                        exit: None,
+                    }),
+                }
+            }
+            let _ = old_variant;
+            role.child = Some(swap.child);
+            role.pid = Some(swap.pid);
+            role.instance = swap.instance;
+            role.spec_path = swap.spec_path;
+            role.log_path = swap.log_path;
+            role.state = RoleState::Running;
+            role.last_heartbeat = swap.first_working;
+            role.heartbeats += 1;
+            role.incarnation_heartbeats = 1;
+            // a new model: its latency is a new distribution
+            role.window = LatencyWindow::new(LATENCY_WINDOW);
+            role.latency_ms = None;
+            if let Some(hb) = &swap.first_working {
+                role.window.push(hb.cycle_latency_ns as f64 / 1e6);
+                role.latency_ms = role.window.percentiles([50.0, 95.0, 99.0]);
+            }
+            events.push(SupervisorEvent::SwapReady {
+                name: role.name.clone(),
+                variant: swap.variant.clone(),
+                old_pid,
+                new_pid: swap.pid,
+                instance: swap.instance,
+                ready_ms: swap.started.elapsed().as_millis() as u64,
+            });
+            if old_pid.is_none() {
+                events.push(SupervisorEvent::SwapDone {
+                    name: role.name.clone(),
+                    variant: swap.variant,
+                    old_pid: None,
+                    exit: None,
+                });
+            }
+        }
+    }
+
+    /// Reap replaced processes; SIGKILL those still running after [`RETIRE_GRACE`].
+    fn reap_retiring(&mut self, events: &mut Vec<SupervisorEvent>) {
+        let mut i = 0;
+        while i < self.retiring.len() {
+            let r = &mut self.retiring[i];
+            let exit = match r.child.try_wait() {
+                Ok(Some(status)) => Some(RoleExit::from_status(status)),
+                Ok(None) if r.since.elapsed() < RETIRE_GRACE => None,
+                _ => {
+                    let _ = r.child.kill();
+                    r.child.wait().ok().map(RoleExit::from_status)
+                }
+            };
+            match exit {
+                None => i += 1,
+                Some(exit) => {
+                    let r = self.retiring.swap_remove(i);
+                    events.push(SupervisorEvent::SwapDone {
+                        name: r.name,
+                        variant: r.variant,
+                        old_pid: Some(r.pid),
+                        exit: Some(exit),
+                    });
+                }
+            }
+        }
+    }
+
+    /// Take the commands waiting on `supervisor/control`.
+    fn serve_control(&mut self, events: &mut Vec<SupervisorEvent>) -> Result<(), SupervisorError> {
+        loop {
+            let request = match self.control.receive() {
+                Ok(Some(r)) => r,
+                Ok(None) => return Ok(()),
+                Err(source) => {
+                    return Err(SupervisorError::Bus {
+                        flight: self.flight.clone(),
+                        source,
+                    });
+                }
+            };
+            let command = *request.payload();
+            let role = command.role.as_str_lossy().to_string();
+            let variant = command.variant.as_str_lossy().to_string();
+            let reply = match CommandKind::from_u8(command.kind) {
+                None => SupervisorReply::new(
+                    ReplyStage::Failed,
+                    &format!("unknown command kind {}", command.kind),
+                ),
+                Some(CommandKind::Swap) => {
+                    let timeout = match command.ready_timeout_ms {
+                        0 => DEFAULT_SWAP_READY_TIMEOUT,
+                        ms => Duration::from_millis(ms as u64),
+                    };
+                    match self.begin_swap(&role, &variant, timeout) {
+                        Ok(_) => {
+                            // the SwapStarted event answers it below
+                            events.append(&mut self.pending);
+                            self.requests.push((role, request, Instant::now()));
+                            continue;
+                        }
+                        Err(e) => SupervisorReply::new(ReplyStage::Failed, &e.to_string()),
+                    }
+                }
+            };
+            let _ = self.control.reply(&request, &reply);
+        }
+    }
+
+    /// Forward swap events to the clients that asked for the swap; a final reply ends the
+    /// request.
+    fn answer_requests(&mut self, events: &[SupervisorEvent]) {
+        for event in events {
+            let (name, stage, mut reply) = match event {
+                SupervisorEvent::SwapStarted {
+                    name,
+                    variant,
+                    old_pid,
+                    new_pid,
+                    instance,
+                } => {
+                    let mut r = SupervisorReply::new(
+                        ReplyStage::Started,
+                        &format!("started `{variant}` as pid {new_pid}; loading and warming up"),
+                    );
+                    r.old_pid = old_pid.unwrap_or(0);
+                    r.new_pid = *new_pid;
+                    r.new_instance = *instance;
+                    (name, ReplyStage::Started, r)
+                }
+                SupervisorEvent::SwapReady {
+                    name,
+                    old_pid,
+                    new_pid,
+                    instance,
+                    ..
+                } => {
+                    let mut r = SupervisorReply::new(ReplyStage::Ready, &event.to_string());
+                    r.old_pid = old_pid.unwrap_or(0);
+                    r.new_pid = *new_pid;
+                    r.new_instance = *instance;
+                    (name, ReplyStage::Ready, r)
+                }
+                SupervisorEvent::SwapDone { name, old_pid, .. } => {
+                    let mut r = SupervisorReply::new(ReplyStage::Done, &event.to_string());
+                    r.old_pid = old_pid.unwrap_or(0);
+                    (name, ReplyStage::Done, r)
+                }
+                SupervisorEvent::SwapFailed { name, .. } => (
+                    name,
+                    ReplyStage::Failed,
+                    SupervisorReply::new(ReplyStage::Failed, &event.to_string()),
+                ),
+                _ => continue,
+            };
+            let Some(k) = self.requests.iter().position(|(r, _, _)| r == name) else {
+                continue;
+            };
+            let role = &self.roles.iter().find(|r| &r.name == name);
+            if reply.new_pid == 0 {
+                reply.new_pid = role.and_then(|r| r.pid).unwrap_or(0);
+                reply.new_instance = role.map_or(0, |r| r.instance);
+            }
+            reply.elapsed_ms = self.requests[k].2.elapsed().as_millis() as u64;
+            let _ = self.control.reply(&self.requests[k].1, &reply);
+            if stage.is_final() {
+                self.requests.swap_remove(k);
+            }
+        }
+    }
+
     /// Every role, in start order.
     pub fn roles(&self) -> &[RoleRuntime] {
         &self.roles
@@ -1113,6 +1686,7 @@ impl Supervisor {
     /// stragglers and reap everything.
     pub fn shutdown(mut self, grace: Duration) -> ShutdownReport {
         let start = Instant::now();
+        self.stop_swaps();
         let mut order: Vec<usize> = (0..self.roles.len()).collect();
         order.sort_by_key(|&i| shutdown_rank(&self.roles[i].kind));
         let mut outcomes: Vec<Option<ShutdownOutcome>> = vec![None; self.roles.len()];
@@ -1192,8 +1766,25 @@ impl Supervisor {
     }
 }
 
+impl Supervisor {
+    /// Kill the new sides of unfinished swaps and the replaced processes still exiting.
+    fn stop_swaps(&mut self) {
+        for role in &mut self.roles {
+            if let Some(mut swap) = role.swap.take() {
+                let _ = swap.child.kill();
+                let _ = swap.child.wait();
+            }
+        }
+        for mut r in self.retiring.drain(..) {
+            let _ = r.child.kill();
+            let _ = r.child.wait();
+        }
+    }
+}
+
 impl Drop for Supervisor {
     fn drop(&mut self) {
+        self.stop_swaps();
         for role in &mut self.roles {
             if let Some(mut child) = role.child.take() {
                 let _ = child.kill();
@@ -1304,6 +1895,9 @@ mod tests {
             heartbeat_gaps: 0,
             window: LatencyWindow::new(LATENCY_WINDOW),
             latency_ms: None,
+            pool: vec!["gate".into()],
+            instance: 1,
+            swap: None,
         }
     }
 

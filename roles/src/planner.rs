@@ -176,6 +176,7 @@ struct ReasonerIo {
     last_telemetry: Option<VehicleTelemetry>,
     seq: u64,
     cycle: u64,
+    source: u32,
 }
 
 impl ReasonerIo {
@@ -192,6 +193,7 @@ impl ReasonerIo {
             last_telemetry: None,
             seq: 0,
             cycle: 0,
+            source: ctx.spec.instance,
         })
     }
 
@@ -217,6 +219,7 @@ impl ReasonerIo {
         let mut d = self.planner.decide(position, yaw, landed);
         self.cycle += 1;
         d.cycle = self.cycle;
+        d.source = self.source;
         match &self.last_state {
             Some(s) => {
                 d.cycle_start_ns = s.capture_ns;

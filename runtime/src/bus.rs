@@ -6,7 +6,10 @@
 //! ([`qos`]) so every process opens a service with identical settings.
 
 use aeris_schemas::topics;
-use aeris_schemas::{FlightManifest, FrameHeader, SCHEMA_VERSION, SupervisorStatus, ZeroCopySend};
+use aeris_schemas::{
+    FlightManifest, FrameHeader, SCHEMA_VERSION, SupervisorCommand, SupervisorReply,
+    SupervisorStatus, ZeroCopySend,
+};
 use core::fmt::Debug;
 use core::time::Duration;
 use iceoryx2::node::NodeView;
@@ -20,6 +23,9 @@ use iceoryx2::sample::Sample;
 use iceoryx2::service::builder::blackboard::BlackboardOpenError;
 use iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenError;
 use iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenOrCreateError;
+use iceoryx2::service::builder::request_response::{
+    RequestResponseOpenError, RequestResponseOpenOrCreateError,
+};
 
 /// The iceoryx2 service flavour AERIS uses between processes.
 pub type Ipc = ipc::Service;
@@ -446,6 +452,73 @@ impl FlightBus {
         })
     }
 
+    fn control_builder(&self) -> Result<(String, ControlBuilder), BusError> {
+        let name = self.service_name(aeris_schemas::topics::SUPERVISOR_CONTROL);
+        let builder = self
+            .node
+            .service_builder(&Self::iox_name(&name)?)
+            .request_response::<SupervisorCommand, SupervisorReply>()
+            .max_servers(1)
+            .max_clients(CONTROL_CLIENTS)
+            .max_active_requests_per_client(2)
+            .max_response_buffer_size(CONTROL_REPLY_BUFFER)
+            .max_nodes(MAX_NODES)
+            .enable_safe_overflow_for_responses(true);
+        Ok((name, builder))
+    }
+
+    /// The supervisor's end of the flight's control service (`supervisor/control`).
+    pub fn control_server(&self) -> Result<ControlServer, BusError> {
+        let (name, builder) = self.control_builder()?;
+        let service = builder.open_or_create().map_err(|e| match e {
+            RequestResponseOpenOrCreateError::RequestResponseOpenError(
+                RequestResponseOpenError::IncompatibleRequestOrResponseType,
+            ) => BusError::IncompatibleSchema {
+                service: name.clone(),
+            },
+            other => BusError::Service {
+                service: name.clone(),
+                reason: format!("{other:?}"),
+            },
+        })?;
+        let server = service
+            .server_builder()
+            .create()
+            .map_err(port_error(&name))?;
+        Ok(ControlServer {
+            server,
+            service: name,
+        })
+    }
+
+    /// A client of the flight's control service (what `aeris swap` uses). Fails with
+    /// [`BusError::NotFound`] when no supervisor runs the flight.
+    pub fn control_client(&self) -> Result<ControlClient, BusError> {
+        let (name, builder) = self.control_builder()?;
+        let service = builder.open().map_err(|e| match e {
+            RequestResponseOpenError::DoesNotExist => BusError::NotFound {
+                service: name.clone(),
+            },
+            RequestResponseOpenError::IncompatibleRequestOrResponseType => {
+                BusError::IncompatibleSchema {
+                    service: name.clone(),
+                }
+            }
+            other => BusError::Service {
+                service: name.clone(),
+                reason: format!("{other:?}"),
+            },
+        })?;
+        let client = service
+            .client_builder()
+            .create()
+            .map_err(port_error(&name))?;
+        Ok(ControlClient {
+            client,
+            service: name,
+        })
+    }
+
     /// A publisher of frames (byte slices of up to `max_bytes`, with a [`FrameHeader`]).
     pub fn frame_publisher(
         &self,
@@ -567,6 +640,107 @@ impl StatusBoardWriter {
     /// Replace the board.
     pub fn update(&mut self, status: &SupervisorStatus) {
         self.entry.update_with_copy(*status);
+    }
+}
+
+/// A builder of the control service.
+type ControlBuilder = iceoryx2::service::builder::request_response::Builder<
+    SupervisorCommand,
+    (),
+    SupervisorReply,
+    (),
+    Ipc,
+>;
+
+/// Clients the control service admits at once (`aeris swap` invocations, benchmarks).
+const CONTROL_CLIENTS: usize = 8;
+/// Replies buffered per request (a request gets at most a handful).
+const CONTROL_REPLY_BUFFER: usize = 16;
+
+/// A command received by the supervisor; replies go back through it (a stream), and
+/// dropping it ends the stream.
+pub type ControlRequest =
+    iceoryx2::active_request::ActiveRequest<Ipc, SupervisorCommand, (), SupervisorReply, ()>;
+
+/// The supervisor's end of `supervisor/control`.
+pub struct ControlServer {
+    server: iceoryx2::port::server::Server<Ipc, SupervisorCommand, (), SupervisorReply, ()>,
+    service: String,
+}
+
+impl ControlServer {
+    /// The next command, if one is waiting.
+    pub fn receive(&self) -> Result<Option<ControlRequest>, BusError> {
+        self.server.receive().map_err(|e| BusError::Transfer {
+            service: self.service.clone(),
+            reason: format!("{e:?}"),
+        })
+    }
+
+    /// Send `reply` to the client of `request`. A client that went away is not an error
+    /// (the command goes on; nobody reads the reply).
+    pub fn reply(&self, request: &ControlRequest, reply: &SupervisorReply) -> Result<(), BusError> {
+        if !request.is_connected() {
+            return Ok(());
+        }
+        request.send_copy(*reply).map_err(|e| BusError::Transfer {
+            service: self.service.clone(),
+            reason: format!("{e:?}"),
+        })
+    }
+}
+
+/// A client of `supervisor/control`.
+pub struct ControlClient {
+    client: iceoryx2::port::client::Client<Ipc, SupervisorCommand, (), SupervisorReply, ()>,
+    service: String,
+}
+
+/// The replies of one sent command.
+pub struct PendingControl {
+    pending: iceoryx2::pending_response::PendingResponse<
+        Ipc,
+        SupervisorCommand,
+        (),
+        SupervisorReply,
+        (),
+    >,
+    service: String,
+}
+
+impl ControlClient {
+    /// Send `command`; its replies arrive on the returned [`PendingControl`].
+    pub fn send(&self, command: &SupervisorCommand) -> Result<PendingControl, BusError> {
+        let pending = self
+            .client
+            .send_copy(*command)
+            .map_err(|e| BusError::Transfer {
+                service: self.service.clone(),
+                reason: format!("{e:?}"),
+            })?;
+        Ok(PendingControl {
+            pending,
+            service: self.service.clone(),
+        })
+    }
+}
+
+impl PendingControl {
+    /// The next reply, if one arrived.
+    pub fn receive(&self) -> Result<Option<SupervisorReply>, BusError> {
+        match self.pending.receive() {
+            Ok(Some(r)) => Ok(Some(*r.payload())),
+            Ok(None) => Ok(None),
+            Err(e) => Err(BusError::Transfer {
+                service: self.service.clone(),
+                reason: format!("{e:?}"),
+            }),
+        }
+    }
+
+    /// `false` once the supervisor dropped the request (it ended, or died).
+    pub fn is_connected(&self) -> bool {
+        self.pending.is_connected()
     }
 }
 

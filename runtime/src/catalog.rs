@@ -18,6 +18,9 @@ pub struct RoleKind {
     pub publishes: &'static [&'static str],
     /// What it does, for `--help` and errors.
     pub summary: &'static str,
+    /// `None`: a running role of this kind can be hot-swapped make-before-break (old and new
+    /// process overlap, publishing the same topics for a moment). `Some(why)`: it cannot.
+    pub swap_refusal: Option<&'static str>,
 }
 
 /// Every role kind this build knows.
@@ -28,6 +31,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         subscribes: &[],
         publishes: &[],
         summary: "built-in simulated multirotor behind a MAVLink endpoint (PX4-like offboard)",
+        swap_refusal: Some("two vehicles would share one MAVLink endpoint"),
     },
     RoleKind {
         kind: "camera",
@@ -35,6 +39,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         subscribes: &[topics::VEHICLE_TELEMETRY],
         publishes: &[topics::CAMERA_RGB, topics::CAMERA_DEPTH],
         summary: "renders the FPV camera of the built-in world at the vehicle's pose",
+        swap_refusal: Some("two cameras would number the same frames twice"),
     },
     RoleKind {
         kind: "perception",
@@ -42,6 +47,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         subscribes: &[topics::CAMERA_RGB, topics::CAMERA_DEPTH],
         publishes: &[topics::PERCEPTION_STATE],
         summary: "frames -> S_t: colour-segment detections, scene summary, depth occupancy grid",
+        swap_refusal: None,
     },
     RoleKind {
         kind: "text-reader",
@@ -49,6 +55,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         subscribes: &[topics::CAMERA_RGB],
         publishes: &[topics::PERCEPTION_TEXT],
         summary: "reads sign text in FPV frames (PP-OCRv4 detection + recognition, ONNX Runtime)",
+        swap_refusal: None,
     },
     RoleKind {
         kind: "detector",
@@ -56,6 +63,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         subscribes: &[topics::CAMERA_RGB, topics::CAMERA_DEPTH],
         publishes: &[topics::PERCEPTION_DETECTIONS],
         summary: "object detections with range (YOLO COCO / YOLOv8-layout via ONNX Runtime, or palette)",
+        swap_refusal: None,
     },
     RoleKind {
         kind: "cues",
@@ -63,6 +71,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         subscribes: &[topics::PERCEPTION_TEXT, topics::PERCEPTION_DETECTIONS],
         publishes: &[topics::PERCEPTION_CUES],
         summary: "top-k instruction cues and subgoal relevance from MiniLM sentence embeddings",
+        swap_refusal: None,
     },
     RoleKind {
         kind: "occupancy",
@@ -70,6 +79,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         subscribes: &[topics::CAMERA_DEPTH],
         publishes: &[topics::PERCEPTION_OCCUPANCY],
         summary: "ego occupancy grid from depth (`onnx`: slot for a learned model, needs params.model)",
+        swap_refusal: None,
     },
     RoleKind {
         kind: "image-to-text",
@@ -82,6 +92,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         ],
         publishes: &[topics::PERCEPTION_STATE],
         summary: "composes S_t and its scene summary from the blocks (`vlm`: no weights exist, refuses)",
+        swap_refusal: None,
     },
     RoleKind {
         kind: "reasoning",
@@ -89,6 +100,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         subscribes: &[topics::PERCEPTION_STATE, topics::VEHICLE_TELEMETRY],
         publishes: &[topics::REASONING_DECISION],
         summary: "(S_t, G, M) -> D_t every heartbeat: planner, GGUF language models under the D_t grammar, `garbage` fault injector",
+        swap_refusal: None,
     },
     RoleKind {
         kind: "hub",
@@ -100,6 +112,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         ],
         publishes: &[topics::HUB_SETPOINT, topics::HUB_REPORT],
         summary: "decision gate (validate, clamp, bind), deadline, ordered delivery, ATT",
+        swap_refusal: Some("two hubs would both send setpoints"),
     },
     RoleKind {
         kind: "controller",
@@ -107,6 +120,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         subscribes: &[topics::HUB_SETPOINT],
         publishes: &[topics::VEHICLE_TELEMETRY],
         summary: "tracks setpoints at the control rate and talks MAVLink v2 to the autopilot",
+        swap_refusal: Some("two controllers would both drive the autopilot"),
     },
 ];
 

@@ -286,6 +286,12 @@ pub struct RoleSpec {
     /// Role-specific parameters (e.g. `autopilot` URL for the controller).
     #[serde(default)]
     pub params: serde_json::Map<String, serde_json::Value>,
+    /// Instance number of this process in the flight: the supervisor numbers every process
+    /// it starts (start, restart, hot swap) from 1 up and passes it with
+    /// `aeris role --instance N`; 0 when run by hand. Decisions carry it, so the hub can
+    /// tell a newer reasoner from an older one.
+    #[serde(default)]
+    pub instance: u32,
 }
 
 /// Why a spec could not be loaded.

@@ -69,7 +69,7 @@ impl ActionMode {
 /// `action` is a raw byte on purpose: a decision comes from another process (possibly a
 /// language model) and must be validated, never transmuted into an enum.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("aeris::Decision@s2")]
+#[type_name("aeris::Decision@s3")]
 #[repr(C)]
 pub struct Decision {
     /// Publisher sequence number (monotone per publisher, starting at 1).
@@ -102,6 +102,10 @@ pub struct Decision {
     pub action: u8,
     /// Reserved, zero.
     pub reserved: u8,
+    /// Instance number of the publishing process, given by the supervisor at every spawn
+    /// (0 outside a supervised flight). A newer instance of the reasoning role (restart or
+    /// hot swap) has a higher number: the hub switches to it and ignores the older one.
+    pub source: u32,
 }
 
 impl Default for Decision {
@@ -122,6 +126,7 @@ impl Default for Decision {
             step: 1,
             action: ActionMode::Hover as u8,
             reserved: 0,
+            source: 0,
         }
     }
 }

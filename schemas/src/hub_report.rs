@@ -6,7 +6,7 @@ use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
 /// Hub report (`hub/report`), published once per committed or reused cycle.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("aeris::HubReport@s2")]
+#[type_name("aeris::HubReport@s3")]
 #[repr(C)]
 pub struct HubReport {
     /// Publisher sequence number.
@@ -51,6 +51,16 @@ pub struct HubReport {
     pub states_received: u64,
     /// States rejected by validation.
     pub states_rejected: u64,
+    /// Decisions of an older reasoning instance ignored after the hub switched to a newer
+    /// one (hot swap, restart): not rejections, they never had a slot.
+    pub decisions_superseded: u64,
+    /// Times the hub switched to another reasoning instance.
+    pub source_switches: u64,
+    /// Instance number of the reasoner whose decisions the hub takes now (0 = none yet or
+    /// unsupervised).
+    pub decision_source: u32,
+    /// Reserved, zero.
+    pub reserved2: u32,
 }
 
 /// Why a hub report is unusable.

@@ -14,6 +14,7 @@
 
 #![deny(missing_docs)]
 
+pub mod control;
 pub mod decision;
 pub mod frame;
 pub mod heartbeat;
@@ -26,6 +27,7 @@ pub mod text;
 pub mod topics;
 pub mod version;
 
+pub use control::{CommandKind, ReplyStage, SupervisorCommand, SupervisorReply};
 pub use decision::{ActionMode, Decision, DecisionError, DecisionLimits};
 pub use frame::{FrameError, FrameFormat, FrameHeader};
 pub use heartbeat::{HeartbeatError, MAX_STAGES, RoleHeartbeat, RoleStatus, StageTiming};

@@ -138,7 +138,7 @@ impl OccupancyGrid {
 
 /// The typed state S_t (`perception/state`).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("aeris::PerceptionState@s2")]
+#[type_name("aeris::PerceptionState@s3")]
 #[repr(C)]
 pub struct PerceptionState {
     /// Publisher sequence number.

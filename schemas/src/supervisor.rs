@@ -38,7 +38,7 @@ pub struct RoleStatusEntry {
 
 /// The whole board (`aeris/{flight}/supervisor`, a blackboard entry).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("aeris::SupervisorStatus@s2")]
+#[type_name("aeris::SupervisorStatus@s3")]
 #[repr(C)]
 pub struct SupervisorStatus {
     /// Board update counter.

@@ -29,6 +29,10 @@ pub const VEHICLE_TELEMETRY: &str = "vehicle/telemetry";
 /// Role heartbeats: [`crate::RoleHeartbeat`].
 pub const HEARTBEAT: &str = "heartbeat";
 
+/// Supervisor commands (request-response): [`crate::SupervisorCommand`] ->
+/// [`crate::SupervisorReply`] stream. Not a publish-subscribe topic, so not in [`ALL`].
+pub const SUPERVISOR_CONTROL: &str = "supervisor/control";
+
 /// Every versioned topic, for listing and validation.
 pub const ALL: [&str; 12] = [
     CAMERA_RGB,

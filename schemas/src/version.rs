@@ -10,13 +10,13 @@
 
 use crate::{
     BoundSetpoint, Decision, FrameHeader, HubReport, PerceptionState, RoleHeartbeat,
-    SupervisorStatus, VehicleTelemetry,
+    SupervisorCommand, SupervisorReply, SupervisorStatus, VehicleTelemetry,
 };
 use iceoryx2_bb_derive_macros::ZeroCopySend;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
 /// Version of the message schema. Bump on any change of a payload type.
-pub const SCHEMA_VERSION: u32 = 2;
+pub const SCHEMA_VERSION: u32 = 3;
 
 const fn fnv1a(mut h: u64, v: u64) -> u64 {
     let mut i = 0;
@@ -46,6 +46,10 @@ const fn layout_hash() -> u64 {
         core::mem::align_of::<HubReport>(),
         core::mem::size_of::<SupervisorStatus>(),
         core::mem::align_of::<SupervisorStatus>(),
+        core::mem::size_of::<SupervisorCommand>(),
+        core::mem::align_of::<SupervisorCommand>(),
+        core::mem::size_of::<SupervisorReply>(),
+        core::mem::align_of::<SupervisorReply>(),
     ];
     let mut h = fnv1a(0xcbf2_9ce4_8422_2325, SCHEMA_VERSION as u64);
     let mut i = 0;

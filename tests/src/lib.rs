@@ -197,6 +197,7 @@ pub fn role_spec(
         camera: Default::default(),
         mission: default_mission(),
         params: params.as_object().cloned().unwrap_or_default(),
+        instance: 0,
     }
 }
 
