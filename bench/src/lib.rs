@@ -5,6 +5,8 @@
 //! - [`gate`]: cost per decision of the hub's validate + clamp + bind.
 //! - [`control`]: wake-up lateness of a loop on absolute CLOCK_MONOTONIC deadlines at the
 //!   control rate, alone and with a CPU hog on every core, under SCHED_FIFO where permitted.
+//! - [`models`]: load time, latency and memory of every model a role hosts, each in a
+//!   process of its own.
 //!
 //! Every benchmark returns a report struct (serde `Serialize`); printing is the caller's job.
 
@@ -14,11 +16,13 @@ pub mod control;
 pub mod error;
 pub mod gate;
 pub mod ipc;
+pub mod models;
 
 pub use control::{ControlConfig, ControlReport, ControlRow, Scenario, Sched, SchedChoice};
 pub use error::BenchError;
 pub use gate::{GateReport, GateRow};
 pub use ipc::{IpcConfig, IpcReport, IpcRow, PongSpec, Transport, Wake};
+pub use models::{MODEL_CASES, ModelCase, ModelRow, ModelsReport};
 
 /// Nanoseconds to microseconds, rounded to 0.01 µs (keeps reports readable).
 pub(crate) fn ns_to_us(ns: f64) -> f64 {

@@ -21,6 +21,11 @@ pub enum BenchCommand {
     Gate(GateArgs),
     /// Controller period jitter on absolute deadlines, alone and with a CPU hog on every core.
     Control(ControlArgs),
+    /// Every model a role hosts: load time, latency p50/p95, memory (a process per model).
+    Models(crate::bench_models::ModelsArgs),
+    /// One model of `bench models` (started by it).
+    #[command(name = "model-probe", hide = true)]
+    ModelProbe(crate::bench_models::ModelProbeArgs),
     /// The second process of `bench ipc` (started by it).
     #[command(name = "ipc-pong", hide = true)]
     IpcPong(IpcPongArgs),
@@ -126,6 +131,8 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         BenchCommand::Ipc(a) => run_ipc(a),
         BenchCommand::Gate(a) => run_gate(a),
         BenchCommand::Control(a) => run_control(a),
+        BenchCommand::Models(a) => crate::bench_models::run(a),
+        BenchCommand::ModelProbe(a) => crate::bench_models::probe(a),
         BenchCommand::IpcPong(a) => {
             let spec = PongSpec::from_json(&a.spec).context("bench ipc-pong: bad --spec")?;
             ipc::run_pong(&spec).context("bench ipc-pong failed")

@@ -1,0 +1,167 @@
+//! `aeris bench models`: every model measured in a child process of its own
+//! (`aeris bench model-probe`), one table row as each finishes.
+
+use aeris_bench::models::{self, MODEL_CASES, ModelRow, ModelsReport};
+use aeris_orchestrator::workflow::Workflow;
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+
+/// Arguments of `aeris bench models`.
+#[derive(Debug, Args)]
+pub struct ModelsArgs {
+    /// Only these models (default: all): ppocr, yolov3-tiny, yolov8-320n, minilm, smollm2,
+    /// gemma3.
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<String>,
+    /// Timed runs per model (after one warm-up run).
+    #[arg(long, default_value_t = 10)]
+    pub runs: usize,
+    /// Threads per model (the roles' default: 1 for ONNX models, 2 for language models).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Model cache (default: $AERIS_MODELS or ~/.cache/aeris/models).
+    #[arg(long, value_name = "DIR")]
+    pub models_dir: Option<PathBuf>,
+    /// Print one JSON object on the last line of stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of the hidden `aeris bench model-probe` (one model, one JSON line).
+#[derive(Debug, Args)]
+pub struct ModelProbeArgs {
+    /// Model name.
+    #[arg(long)]
+    pub model: String,
+    /// Timed runs.
+    #[arg(long)]
+    pub runs: usize,
+    /// Threads.
+    #[arg(long)]
+    pub threads: usize,
+    /// Model cache.
+    #[arg(long)]
+    pub models_dir: Option<PathBuf>,
+}
+
+fn default_threads(model: &str) -> usize {
+    if matches!(model, "smollm2" | "gemma3") {
+        2
+    } else {
+        1
+    }
+}
+
+/// `aeris bench models`.
+pub fn run(a: ModelsArgs) -> Result<()> {
+    for name in &a.only {
+        if models::model_case(name).is_none() {
+            let known: Vec<&str> = MODEL_CASES.iter().map(|c| c.name).collect();
+            bail!("unknown model `{name}`; known: {}", known.join(", "));
+        }
+    }
+    let exe = std::env::current_exe().context("cannot find this executable")?;
+    println!(
+        "models: load time, latency over {} runs after a warm-up, resident memory; one process per model",
+        a.runs
+    );
+    println!(
+        "{:<12} {:<18} {:>7} {:>9} {:>9} {:>8} {:>9} {:>7}  output",
+        "model", "role", "load_s", "p50_ms", "p95_ms", "rss_MiB", "model_MiB", "tok/s"
+    );
+    let mut rows: Vec<ModelRow> = Vec::new();
+    let mut failures: Vec<String> = Vec::new();
+    let mut threads_used = 0;
+    for case in MODEL_CASES
+        .iter()
+        .filter(|c| a.only.is_empty() || a.only.iter().any(|o| o == c.name))
+    {
+        let threads = a.threads.unwrap_or_else(|| default_threads(case.name));
+        threads_used = threads_used.max(threads);
+        let mut cmd = Command::new(&exe);
+        cmd.args(["bench", "model-probe", "--model", case.name])
+            .args(["--runs", &a.runs.to_string()])
+            .args(["--threads", &threads.to_string()])
+            .stdin(Stdio::null())
+            .stderr(Stdio::piped())
+            .stdout(Stdio::piped());
+        if let Some(dir) = &a.models_dir {
+            cmd.arg("--models-dir").arg(dir);
+        }
+        let out = cmd
+            .output()
+            .with_context(|| format!("cannot start the probe of `{}`", case.name))?;
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let row = stdout
+            .lines()
+            .last()
+            .and_then(|l| serde_json::from_str::<ModelRow>(l).ok());
+        match (out.status.success(), row) {
+            (true, Some(r)) => {
+                println!(
+                    "{:<12} {:<18} {:>7.2} {:>9.1} {:>9.1} {:>8.0} {:>9.0} {:>7}  {}",
+                    r.model,
+                    r.role,
+                    r.load_s,
+                    r.p50_ms,
+                    r.p95_ms,
+                    r.rss_mib,
+                    r.rss_model_mib,
+                    r.tokens_per_s.map_or("-".into(), |t| format!("{t:.1}")),
+                    shorten(&r.output, 60)
+                );
+                rows.push(r);
+            }
+            _ => {
+                let stderr = String::from_utf8_lossy(&out.stderr);
+                let why = stderr
+                    .lines()
+                    .rev()
+                    .find(|l| !l.trim().is_empty())
+                    .unwrap_or("no output")
+                    .to_string();
+                println!("{:<12} failed: {why}", case.name);
+                failures.push(format!("{}: {why}", case.name));
+            }
+        }
+    }
+    if a.json {
+        let report = ModelsReport {
+            threads: threads_used,
+            rows,
+        };
+        println!("{}", serde_json::to_string(&report)?);
+    }
+    if !failures.is_empty() {
+        bail!(
+            "{} model(s) failed:\n  {}",
+            failures.len(),
+            failures.join("\n  ")
+        );
+    }
+    Ok(())
+}
+
+fn shorten(s: &str, n: usize) -> String {
+    if s.chars().count() <= n {
+        s.to_string()
+    } else {
+        let mut t: String = s.chars().take(n - 1).collect();
+        t.push('…');
+        t
+    }
+}
+
+/// `aeris bench model-probe`: measure one model here and print its row as JSON.
+pub fn probe(a: ModelProbeArgs) -> Result<()> {
+    let case =
+        models::model_case(&a.model).with_context(|| format!("unknown model `{}`", a.model))?;
+    let store = aeris_models::ModelStore::open(a.models_dir.as_deref())?;
+    let workflow = Workflow::builtin_default().context("built-in default workflow")?;
+    let row = models::probe(case, &store, a.threads, a.runs, &workflow.mission)
+        .with_context(|| format!("bench models: {}", case.name))?;
+    println!("{}", serde_json::to_string(&row)?);
+    Ok(())
+}
