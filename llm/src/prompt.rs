@@ -130,15 +130,7 @@ pub fn user_message(mission: &MissionBrief, obs: &Observation<'_>) -> String {
         mission.acceptance_radius
     );
     // From here on the text changes between heartbeats, the slowest-changing first so the
-    // KV cache keeps as much of it as possible: plan, memory, drone, camera.
-    match obs.plan {
-        Some(p) => {
-            let _ = writeln!(m, "Plan: {}", p.to_json());
-        }
-        None => {
-            let _ = writeln!(m, "Plan: none.");
-        }
-    }
+    // KV cache keeps as much of it as possible: memory, drone, camera, then the plan.
     match obs.previous {
         Some(p) => {
             let _ = writeln!(
@@ -198,6 +190,15 @@ pub fn user_message(mission: &MissionBrief, obs: &Observation<'_>) -> String {
         }
         None => {
             let _ = writeln!(m, "Camera: no view yet.");
+        }
+    }
+    // the plan last: a small model copies from what is nearest to its answer
+    match obs.plan {
+        Some(p) => {
+            let _ = writeln!(m, "Plan: {}", p.to_json());
+        }
+        None => {
+            let _ = writeln!(m, "Plan: none.");
         }
     }
     m.push_str("Decision:");

@@ -9,11 +9,10 @@
 //! plan in their own output format, they follow it and can depart from it. The plan is also
 //! the draft the decoder verifies in one batch.
 //!
-//! The role polls every 50 ms and decides when a new S_t arrived and at least half a
-//! heartbeat passed since its last decision, or when a whole heartbeat passed without one
-//! (it then decides on the telemetry and the last state). The model is loaded and warmed up
-//! (one decision) in `new`, before the first heartbeat, so a swapped-in reasoner is ready
-//! when the supervisor sees it.
+//! The role polls every 50 ms and decides once per heartbeat on the first fresh S_t, or on
+//! the telemetry alone when no S_t came for a heartbeat and a half
+//! ([`HeartbeatClock`]). The model is loaded and warmed up (one decision) in `new`, before
+//! the first heartbeat, so a swapped-in reasoner is ready when the supervisor sees it.
 //!
 //! Parameters: `model` (cache-relative GGUF, default per variant), `threads` (default 2),
 //! `context_tokens` (default 2048), `models_dir`.
@@ -24,7 +23,8 @@
 //! verified from the draft (last decision), 1 when the last decision's step departed from
 //! the plan's]`.
 
-use crate::planner::Planner;
+use crate::heartbeat_clock::{Basis, HeartbeatClock};
+use crate::planner::{Planner, RESUME_WAIT, hub_active_step};
 use crate::vision::open_store;
 use aeris_llm::{
     DecisionView, GEMMA3_270M, LanguageReasoner, MissionBrief, Observation, ReasonerConfig,
@@ -36,8 +36,7 @@ use aeris_runtime::{CycleOutcome, CycleReport, MissionSpec, Role, RoleContext, R
 use aeris_schemas::{Decision, PerceptionState, VehicleTelemetry, topics};
 use core::time::Duration;
 
-/// Poll period.
-pub const POLL: Duration = Duration::from_millis(50);
+pub use crate::planner::POLL;
 
 /// The mission as the language model reads it.
 pub fn mission_brief(mission: &MissionSpec) -> Result<MissionBrief, RoleError> {
@@ -79,12 +78,11 @@ pub struct LanguageRole {
     states: TypedSubscriber<PerceptionState>,
     telemetry: TypedSubscriber<VehicleTelemetry>,
     decisions: TypedPublisher<Decision>,
-    period_ns: u64,
+    clock: HeartbeatClock,
     state: Option<Box<PerceptionState>>,
     fresh_state: bool,
     telemetry_last: Option<VehicleTelemetry>,
     previous: Option<DecisionView>,
-    last_decision_ns: u64,
     start: [f32; 3],
     seq: u64,
     cycle: u64,
@@ -134,7 +132,7 @@ impl Role for LanguageRole {
         };
         let store = open_store(ctx)?;
         let brief = mission_brief(&ctx.spec.mission)?;
-        let planner = Planner::new(&ctx.spec.mission)
+        let mut planner = Planner::new(&ctx.spec.mission)
             .ok_or_else(|| RoleError::Config("the mission names an unknown action".into()))?;
         let start = ctx.spec.mission.start;
         let mut reasoner = LanguageReasoner::load(&store, &file, brief, config)
@@ -153,18 +151,24 @@ impl Role for LanguageRole {
         reasoner
             .decide(&warm)
             .map_err(|e| RoleError::Config(format!("reasoning/{variant} warm-up: {e}")))?;
+        // started during a flight (restart, hot swap): take the mission up where it is
+        if let Some(step) = hub_active_step(ctx, RESUME_WAIT)? {
+            planner.resume(step);
+        }
         Ok(Self {
             reasoner,
             planner,
             states: ctx.bus.subscriber(topics::PERCEPTION_STATE)?,
             telemetry: ctx.bus.subscriber(topics::VEHICLE_TELEMETRY)?,
             decisions: ctx.bus.publisher(topics::REASONING_DECISION)?,
-            period_ns: ctx.spec.timing.heartbeat_period_ms.max(1) * 1_000_000,
+            clock: HeartbeatClock::new(
+                ctx.spec.timing.heartbeat_period_ms.max(1) * 1_000_000,
+                monotonic_ns(),
+            ),
             state: None,
             fresh_state: false,
             telemetry_last: None,
             previous: None,
-            last_decision_ns: 0,
             start,
             seq: 0,
             cycle: 0,
@@ -184,13 +188,16 @@ impl Role for LanguageRole {
     ) -> Result<CycleOutcome, RoleError> {
         let t0 = monotonic_ns();
         self.read_inputs()?;
-        let since = t0.saturating_sub(self.last_decision_ns);
-        let due = (self.fresh_state && since >= self.period_ns / 2) || since >= self.period_ns;
-        if !due {
+        let Some(basis) = self.clock.due(t0, self.fresh_state) else {
             return Ok(CycleOutcome::Idle);
-        }
+        };
         self.fresh_state = false;
-        self.last_decision_ns = t0;
+        self.clock.decided(t0);
+        // a decision on telemetry alone does not show the model an old view
+        let state = match basis {
+            Basis::State => self.state.as_deref(),
+            Basis::TelemetryOnly => None,
+        };
         let (position, yaw, landed) = match (&self.telemetry_last, &self.state) {
             (Some(t), _) => (t.position, t.attitude[2], t.landed == 1),
             (None, Some(s)) => (s.position, s.yaw, s.position[2] < 0.3),
@@ -201,7 +208,7 @@ impl Role for LanguageRole {
             position,
             yaw,
             landed,
-            state: self.state.as_deref(),
+            state,
             previous: self.previous.as_ref(),
             plan: Some(&plan),
         };
@@ -225,7 +232,7 @@ impl Role for LanguageRole {
         d.seq = self.seq;
         d.cycle = self.cycle;
         d.source = self.source;
-        match self.state.as_deref() {
+        match state {
             Some(s) => {
                 d.cycle_start_ns = s.capture_ns;
                 d.state_stamp_ns = s.publish_ns;

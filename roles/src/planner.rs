@@ -9,8 +9,12 @@
 //! rotating ways (NaN, infinities, out-of-range fields, unknown actions, bad steps, stale
 //! cycle starts, duplicate and skipped sequence numbers) — a hostile reasoner for tests.
 //!
+//! Both decide once per heartbeat on the first fresh S_t, or on the telemetry alone when no
+//! S_t came for a heartbeat and a half ([`HeartbeatClock`]); they poll every 50 ms.
+//!
 //! Heartbeat counters: `[decisions, subgoal_index (0-based), corrupted, 0, 0, 0, 0, 0]`.
 
+use crate::heartbeat_clock::{Basis, HeartbeatClock};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{
     CycleOutcome, CycleReport, Role, RoleContext, RoleError, bus::TypedPublisher,
@@ -81,6 +85,16 @@ impl Planner {
     /// Index (0-based) of the subgoal in progress.
     pub fn current(&self) -> usize {
         self.current
+    }
+
+    /// Resume at instruction step `step` (1-based, clamped to the mission): a reasoner
+    /// that starts during a flight (restart, hot swap) takes the mission up where the hub
+    /// has it instead of at its first subgoal.
+    pub fn resume(&mut self, step: u16) {
+        self.current = (step as usize)
+            .saturating_sub(1)
+            .min(self.count.saturating_sub(1));
+        self.issued = 0;
     }
 
     /// Whether the step in progress is done, given how many decisions were already issued
@@ -171,25 +185,61 @@ struct ReasonerIo {
     states: TypedSubscriber<PerceptionState>,
     telemetry: TypedSubscriber<VehicleTelemetry>,
     decisions: TypedPublisher<Decision>,
-    period: Duration,
+    clock: HeartbeatClock,
     last_state: Option<PerceptionState>,
+    fresh_state: bool,
     last_telemetry: Option<VehicleTelemetry>,
     seq: u64,
     cycle: u64,
     source: u32,
 }
 
+/// How often the reasoning roles look for a fresh S_t.
+pub const POLL: Duration = Duration::from_millis(50);
+
+/// How long a starting reasoner waits for the hub's latest setpoint (the hub publishes
+/// every 20 ms once a decision is in force; at the flight's start there is none).
+pub const RESUME_WAIT: Duration = Duration::from_millis(250);
+
+/// The hub's active instruction step if the flight is under way: from the latest
+/// `hub/setpoint`, which its history hands to a new subscriber, waited for up to `wait`.
+/// `None` before the first decision of the flight.
+pub fn hub_active_step(ctx: &RoleContext, wait: Duration) -> Result<Option<u16>, RoleError> {
+    let setpoints = ctx
+        .bus
+        .subscriber::<aeris_schemas::BoundSetpoint>(topics::HUB_SETPOINT)?;
+    let deadline = monotonic_ns().saturating_add(aeris_runtime::clock::duration_ns(wait));
+    loop {
+        if let Some(sp) = setpoints.latest()?
+            && sp.active_step >= 1
+        {
+            return Ok(Some(sp.active_step));
+        }
+        if monotonic_ns() >= deadline {
+            return Ok(None);
+        }
+        aeris_runtime::role::sleep(Duration::from_millis(10));
+    }
+}
+
 impl ReasonerIo {
     fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
-        let planner = Planner::new(&ctx.spec.mission)
+        let mut planner = Planner::new(&ctx.spec.mission)
             .ok_or_else(|| RoleError::Config("the mission names an unknown action".into()))?;
+        if let Some(step) = hub_active_step(ctx, RESUME_WAIT)? {
+            planner.resume(step);
+        }
         Ok(Self {
             planner,
             states: ctx.bus.subscriber(topics::PERCEPTION_STATE)?,
             telemetry: ctx.bus.subscriber(topics::VEHICLE_TELEMETRY)?,
             decisions: ctx.bus.publisher(topics::REASONING_DECISION)?,
-            period: Duration::from_millis(ctx.spec.timing.heartbeat_period_ms.max(1)),
+            clock: HeartbeatClock::new(
+                ctx.spec.timing.heartbeat_period_ms.max(1) * 1_000_000,
+                monotonic_ns(),
+            ),
             last_state: None,
+            fresh_state: false,
             last_telemetry: None,
             seq: 0,
             cycle: 0,
@@ -197,13 +247,15 @@ impl ReasonerIo {
         })
     }
 
-    /// Read inputs and make this cycle's decision (not yet published).
-    fn think(&mut self, report: &mut CycleReport) -> Result<Decision, RoleError> {
+    /// Read inputs and, when a decision is due, make it (not yet published).
+    fn think(&mut self, report: &mut CycleReport) -> Result<Option<Decision>, RoleError> {
         let t0 = monotonic_ns();
         if let Some(s) = self.states.latest()?
             && s.validate().is_ok()
+            && self.last_state.is_none_or(|old| old.seq != s.seq)
         {
             self.last_state = Some(s);
+            self.fresh_state = true;
         }
         if let Some(t) = self.telemetry.latest()?
             && t.validate().is_ok()
@@ -215,12 +267,21 @@ impl ReasonerIo {
             (None, Some(s)) => (s.position, s.yaw, s.position[2] < 0.3),
             (None, None) => (self.planner.start, 0.0, true),
         };
+        let Some(basis) = self.clock.due(t0, self.fresh_state) else {
+            return Ok(None);
+        };
+        self.fresh_state = false;
+        self.clock.decided(t0);
         let reasoning_start = monotonic_ns();
         let mut d = self.planner.decide(position, yaw, landed);
         self.cycle += 1;
         d.cycle = self.cycle;
         d.source = self.source;
-        match &self.last_state {
+        let state = match basis {
+            Basis::State => self.last_state.as_ref(),
+            Basis::TelemetryOnly => None,
+        };
+        match state {
             Some(s) => {
                 d.cycle_start_ns = s.capture_ns;
                 d.state_stamp_ns = s.publish_ns;
@@ -233,7 +294,7 @@ impl ReasonerIo {
         d.reasoning_start_ns = reasoning_start;
         report.stage("read", reasoning_start - t0);
         report.stage("plan", monotonic_ns() - reasoning_start);
-        Ok(d)
+        Ok(Some(d))
     }
 
     fn send(&mut self, d: &mut Decision, report: &mut CycleReport) -> Result<(), RoleError> {
@@ -264,7 +325,7 @@ impl Role for PlannerRole {
     }
 
     fn period(&self) -> Duration {
-        self.io.period
+        POLL
     }
 
     fn cycle(
@@ -272,7 +333,9 @@ impl Role for PlannerRole {
         _ctx: &mut RoleContext,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
-        let mut d = self.io.think(report)?;
+        let Some(mut d) = self.io.think(report)? else {
+            return Ok(CycleOutcome::Idle);
+        };
         self.io.send(&mut d, report)?;
         Ok(CycleOutcome::Worked)
     }
@@ -329,7 +392,7 @@ impl Role for GarbageRole {
     }
 
     fn period(&self) -> Duration {
-        self.io.period
+        POLL
     }
 
     fn cycle(
@@ -337,7 +400,9 @@ impl Role for GarbageRole {
         _ctx: &mut RoleContext,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
-        let mut d = self.io.think(report)?;
+        let Some(mut d) = self.io.think(report)? else {
+            return Ok(CycleOutcome::Idle);
+        };
         // Send a burst: several corrupted decisions, then (usually) the valid one, so the
         // flight can still make progress through the gate.
         let burst = 1 + self.next_rand() % 3;
