@@ -6,9 +6,11 @@
 //! # Rules
 //! - **Source**: decisions carry their reasoner's instance number. The hub follows the
 //!   newest live instance ([`SourceSelector`]): a newer one (hot swap, restart) takes over
-//!   at its first decision and the sequence check starts over for it; an older one's
-//!   decisions are ignored (counted as superseded, not as rejections) unless the newer one
-//!   has been silent for a whole slot (`heartbeat_period + decision_deadline`).
+//!   with its first decision that passes the deadline and the gate (the sequence check
+//!   starts over for it); until then its rejected decisions count as rejections but do not
+//!   cost the running reasoner its slot. An older instance's decisions are ignored (counted
+//!   as superseded, not as rejections) unless the newer one has been silent for a whole
+//!   slot (`heartbeat_period + decision_deadline`).
 //! - **Order**: a decision whose sequence number is older than or equal to the last one is
 //!   rejected (see [`SequenceTracker`]; a `1` with a cycle start newer than any seen is a
 //!   restarted reasoner and resynchronises).
@@ -309,34 +311,39 @@ impl HubCore {
         commit_clock: impl FnOnce() -> u64,
     ) -> DecisionVerdict {
         self.counters.decisions_received += 1;
-        match self.sources.observe(d.source, receive_ns) {
+        let candidate = match self.sources.classify(d.source, receive_ns) {
             SourceVerdict::Superseded { active } => {
+                self.sources.supersede();
                 self.counters.decisions_superseded = self.sources.superseded();
                 return DecisionVerdict::Superseded {
                     source: d.source,
                     active,
                 };
             }
-            SourceVerdict::Switched { .. } => {
-                self.counters.source_switches = self.sources.switches();
-                self.sequence.resync();
+            // another instance: judged on its own numbering, adopted only if committed
+            SourceVerdict::Switched { .. } => true,
+            SourceVerdict::First | SourceVerdict::Active => {
+                self.sources.adopt(d.source, receive_ns);
+                false
             }
-            SourceVerdict::First | SourceVerdict::Active => {}
-        }
-        let verdict = self.sequence.observe(d.seq, d.cycle_start_ns);
-        self.counters.sequence_gaps = self.sequence.gaps();
-        self.counters.sequence_reorders = self.sequence.reorders();
-        if !verdict.accepted() {
-            return self.reject(
-                RejectReason::Sequence {
-                    seq: d.seq,
-                    verdict,
-                },
-                receive_ns,
-            );
+        };
+        if !candidate {
+            let verdict = self.sequence.observe(d.seq, d.cycle_start_ns);
+            self.counters.sequence_gaps = self.sequence.gaps();
+            self.counters.sequence_reorders = self.sequence.reorders();
+            if !verdict.accepted() {
+                return self.reject(
+                    RejectReason::Sequence {
+                        seq: d.seq,
+                        verdict,
+                    },
+                    receive_ns,
+                );
+            }
         }
         if d.cycle_start_ns > receive_ns {
-            return self.reject(
+            return self.reject_from(
+                candidate,
                 RejectReason::FutureTimestamp {
                     cycle_start_ns: d.cycle_start_ns,
                     receive_ns,
@@ -348,13 +355,25 @@ impl HubCore {
         if age_ns > self.config.decision_deadline_ns {
             self.counters.decisions_late += 1;
             self.counters.decisions_rejected += 1;
-            let report = self.account_reuse(receive_ns);
+            // a candidate's late decision does not cost the running reasoner its slot
+            let report = if candidate {
+                None
+            } else {
+                self.account_reuse(receive_ns)
+            };
             return DecisionVerdict::Late { age_ns, report };
         }
         let mut setpoint = match self.gate.admit(d, self.position, self.grid()) {
             Ok(s) => s,
-            Err(e) => return self.reject(RejectReason::Gate(e), receive_ns),
+            Err(e) => return self.reject_from(candidate, RejectReason::Gate(e), receive_ns),
         };
+        if candidate {
+            // the newer instance takes over with this decision; its numbering starts here
+            self.sources.adopt(d.source, receive_ns);
+            self.counters.source_switches = self.sources.switches();
+            self.sequence.resync();
+            self.sequence.observe(d.seq, d.cycle_start_ns);
+        }
         let commit_ns = commit_clock().max(receive_ns);
         let mode = ActionMode::from_u8(setpoint.mode).unwrap_or(ActionMode::Hover);
         self.last = Some(LastValid {
@@ -407,6 +426,24 @@ impl HubCore {
         TickOutput {
             setpoint: self.current_setpoint(now_ns),
             report,
+        }
+    }
+
+    /// Reject a decision of the active instance (`candidate` false: its slot counts a
+    /// reuse) or of a candidate instance (not adopted; the active one keeps its slot).
+    fn reject_from(
+        &mut self,
+        candidate: bool,
+        reason: RejectReason,
+        now_ns: u64,
+    ) -> DecisionVerdict {
+        if !candidate {
+            return self.reject(reason, now_ns);
+        }
+        self.counters.decisions_rejected += 1;
+        DecisionVerdict::Rejected {
+            reason,
+            report: None,
         }
     }
 
@@ -659,7 +696,7 @@ mod tests {
     }
 
     #[test]
-    fn a_swapped_in_reasoner_takes_over_without_a_reuse_or_a_rejection() {
+    fn a_swapped_in_reasoner_takes_over_with_its_first_timely_decision_and_costs_no_slot() {
         let mut h = hub();
         let from = |source: u32, seq: u64, start: u64| Decision {
             source,
@@ -669,8 +706,17 @@ mod tests {
         for k in 1..=5u64 {
             committed(h.on_decision(&from(3, 40 + k, 2 * k * S), 2 * k * S + 1));
         }
-        // the new instance 7 starts its own numbering at 1: accepted, and it becomes active
-        let (_, r) = committed(h.on_decision(&from(7, 1, 12 * S), 12 * S + 1));
+        // a candidate's first decision arrives late (it was still warming up): rejected,
+        // but it neither takes over nor costs the running reasoner its slot
+        let v = h.on_decision(&from(7, 1, 8 * S), 11 * S);
+        assert!(
+            matches!(v, DecisionVerdict::Late { report: None, .. }),
+            "{v:?}"
+        );
+        assert_eq!(h.decision_source(), Some(3));
+        assert_eq!(h.counters().decisions_reused, 0);
+        // its next one is in time: it takes over, its own numbering (1, 2) accepted
+        let (_, r) = committed(h.on_decision(&from(7, 2, 12 * S), 12 * S + 1));
         assert_eq!((r.decision_source, r.source_switches), (7, 1));
         // the old one, not stopped yet, is ignored without costing a slot
         let v = h.on_decision(&from(3, 46, 12 * S + 5), 12 * S + 6);
@@ -681,7 +727,7 @@ mod tests {
                 active: 7
             }
         );
-        committed(h.on_decision(&from(7, 2, 14 * S), 14 * S + 1));
+        committed(h.on_decision(&from(7, 3, 14 * S), 14 * S + 1));
         let c = h.counters();
         assert_eq!(
             (
@@ -691,7 +737,7 @@ mod tests {
                 c.decisions_superseded,
                 c.sequence_reorders
             ),
-            (7, 0, 0, 1, 0)
+            (7, 1, 0, 1, 0)
         );
         // the new one falls silent (rolled back, died): after a whole slot the old
         // instance's next decision is taken again

@@ -162,7 +162,9 @@ pub enum SourceVerdict {
 /// process (a restart, or the new side of a make-before-break swap). The hub follows the
 /// newest instance and ignores older ones, unless the newest has been silent for longer
 /// than `stale_after_ns` (it died, or its swap was rolled back): then the next instance that
-/// speaks becomes active again. Pure and allocation-free.
+/// speaks may take over again. Taking over is the caller's choice ([`SourceSelector::adopt`],
+/// for a decision it commits), so a candidate whose first decision is late or invalid does
+/// not displace a working reasoner. Pure and allocation-free.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SourceSelector {
     active: Option<u32>,
@@ -184,23 +186,31 @@ impl SourceSelector {
         }
     }
 
-    /// Classify a decision of instance `source` received at `now_ns`.
-    pub fn observe(&mut self, source: u32, now_ns: u64) -> SourceVerdict {
-        let verdict = match self.active {
+    /// What a decision of instance `source` received at `now_ns` is, without taking it.
+    pub fn classify(&self, source: u32, now_ns: u64) -> SourceVerdict {
+        match self.active {
             None => SourceVerdict::First,
             Some(a) if a == source => SourceVerdict::Active,
             Some(a) if source > a || now_ns.saturating_sub(self.last_ns) > self.stale_after_ns => {
-                self.switches += 1;
                 SourceVerdict::Switched { from: a }
             }
-            Some(a) => {
-                self.superseded += 1;
-                return SourceVerdict::Superseded { active: a };
-            }
-        };
+            Some(a) => SourceVerdict::Superseded { active: a },
+        }
+    }
+
+    /// Take instance `source` (from now on, or still) as the active one: it spoke at
+    /// `now_ns`. Counts a switch when it was another.
+    pub fn adopt(&mut self, source: u32, now_ns: u64) {
+        if self.active.is_some_and(|a| a != source) {
+            self.switches += 1;
+        }
         self.active = Some(source);
         self.last_ns = self.last_ns.max(now_ns);
-        verdict
+    }
+
+    /// Count a decision ignored as superseded.
+    pub fn supersede(&mut self) {
+        self.superseded += 1;
     }
 
     /// The active instance (`None` before the first decision).
@@ -251,21 +261,34 @@ mod tests {
     #[test]
     fn the_newest_live_instance_wins_and_a_silent_one_is_dropped() {
         let mut s = SourceSelector::new(100);
-        assert_eq!(s.observe(3, 0), SourceVerdict::First);
-        assert_eq!(s.observe(3, 10), SourceVerdict::Active);
+        let take = |s: &mut SourceSelector, source, now| {
+            let v = s.classify(source, now);
+            match v {
+                SourceVerdict::Superseded { .. } => s.supersede(),
+                _ => s.adopt(source, now),
+            }
+            v
+        };
+        assert_eq!(take(&mut s, 3, 0), SourceVerdict::First);
+        assert_eq!(take(&mut s, 3, 10), SourceVerdict::Active);
         // a newer instance (swap) takes over at once
-        assert_eq!(s.observe(5, 20), SourceVerdict::Switched { from: 3 });
+        assert_eq!(take(&mut s, 5, 20), SourceVerdict::Switched { from: 3 });
         // the old one, still running, is ignored while the new one is live
-        assert_eq!(s.observe(3, 30), SourceVerdict::Superseded { active: 5 });
-        assert_eq!(s.observe(5, 110), SourceVerdict::Active);
-        assert_eq!(s.observe(3, 200), SourceVerdict::Superseded { active: 5 });
+        assert_eq!(take(&mut s, 3, 30), SourceVerdict::Superseded { active: 5 });
+        assert_eq!(take(&mut s, 5, 110), SourceVerdict::Active);
+        assert_eq!(
+            take(&mut s, 3, 200),
+            SourceVerdict::Superseded { active: 5 }
+        );
         // the new one fell silent for more than a slot: the old one speaks and is taken
-        assert_eq!(s.observe(3, 211), SourceVerdict::Switched { from: 5 });
+        assert_eq!(take(&mut s, 3, 211), SourceVerdict::Switched { from: 5 });
         assert_eq!(s.active(), Some(3));
         assert_eq!((s.switches(), s.superseded()), (2, 2));
         // a late message stamped before the last one never moves time back
-        assert_eq!(s.observe(3, 150), SourceVerdict::Active);
-        assert_eq!(s.observe(4, 215), SourceVerdict::Switched { from: 3 });
+        assert_eq!(take(&mut s, 3, 150), SourceVerdict::Active);
+        // classifying alone changes nothing: a candidate the caller does not adopt
+        assert_eq!(s.classify(4, 215), SourceVerdict::Switched { from: 3 });
+        assert_eq!((s.active(), s.switches()), (Some(3), 2));
     }
 
     #[test]

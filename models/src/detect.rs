@@ -217,6 +217,15 @@ impl Detector {
             .ok()
     }
 
+    /// Run the model once on a blank frame: its first run allocates the session's memory
+    /// and is several times slower, so a role pays it before it reports ready.
+    pub fn warm_up(&mut self) -> Result<(), ModelError> {
+        let side = self.side;
+        let blank = vec![0u8; side * side * 3];
+        let mut out = Vec::new();
+        self.detect(&blank, side, side, &mut out)
+    }
+
     /// The output layout.
     pub fn layout(&self) -> DetectorLayout {
         self.layout

@@ -207,6 +207,22 @@ impl OcrReader {
         })
     }
 
+    /// Run detection on a blank `width` x `height` frame and recognition on a blank line:
+    /// the first run of a session allocates its memory and is several times slower, so a
+    /// role pays it before it reports ready, not on its first frame.
+    pub fn warm_up(&mut self, width: usize, height: usize) -> Result<(), ModelError> {
+        let blank = vec![0u8; width.max(1) * height.max(1) * 3];
+        let mut out = Vec::new();
+        self.read(&blank, width.max(1), height.max(1), &mut out)?;
+        self.rec_input.clear();
+        self.rec_input.resize(3 * REC_HEIGHT * REC_MIN_WIDTH, 0.0);
+        self.rec.run_f32(
+            &[1, 3, REC_HEIGHT, REC_MIN_WIDTH],
+            &self.rec_input,
+            |_, _| Ok(()),
+        )
+    }
+
     /// Number of recognition classes (blank + characters + space).
     pub fn charset_len(&self) -> usize {
         self.charset.len()

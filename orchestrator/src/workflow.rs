@@ -18,6 +18,10 @@ use std::path::Path;
 /// The built-in default flight (`workflows/default.toml`).
 pub const DEFAULT_WORKFLOW_TOML: &str = include_str!("../../workflows/default.toml");
 
+/// The model flight (`workflows/models.toml`): a real model in every perception and
+/// reasoning role; what `aeris bench cycle` and `aeris bench swap` fly.
+pub const MODELS_WORKFLOW_TOML: &str = include_str!("../../workflows/models.toml");
+
 /// Role kinds every workflow must have (plus `vehicle` while the controller's autopilot is
 /// `auto`). S_t may come from one `perception` role or from the perception pipeline
 /// (`image-to-text` composing the blocks): the topic check requires a publisher of
@@ -480,6 +484,11 @@ impl Workflow {
     /// The built-in default flight (`workflows/default.toml`).
     pub fn builtin_default() -> Result<Self, WorkflowError> {
         Self::from_toml_str(DEFAULT_WORKFLOW_TOML)
+    }
+
+    /// The built-in model flight ([`MODELS_WORKFLOW_TOML`]).
+    pub fn builtin_models() -> Result<Self, WorkflowError> {
+        Self::from_toml_str(MODELS_WORKFLOW_TOML)
     }
 
     fn from_raw(raw: RawWorkflow) -> Result<Self, WorkflowError> {

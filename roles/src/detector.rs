@@ -143,6 +143,8 @@ impl Role for DetectorRole {
                 if let Some(s) = ctx.spec.param_f64("min_score") {
                     det.min_score = s as f32;
                 }
+                det.warm_up()
+                    .map_err(|e| RoleError::Config(format!("{file} warm-up: {e}")))?;
                 Engine::Model(Box::new(det))
             }
         };

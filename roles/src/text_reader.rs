@@ -51,8 +51,12 @@ pub struct TextReaderRole {
 impl Role for TextReaderRole {
     fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
         let store = open_store(ctx)?;
-        let reader =
+        let mut reader =
             OcrReader::load(&store, threads(ctx)).map_err(|e| RoleError::Config(e.to_string()))?;
+        let camera = &ctx.spec.camera;
+        reader
+            .warm_up(camera.width as usize, camera.height as usize)
+            .map_err(|e| RoleError::Config(format!("PP-OCR warm-up: {e}")))?;
         Ok(Self {
             rgb: ctx.bus.frame_subscriber(topics::CAMERA_RGB)?,
             out: ctx.bus.publisher(topics::PERCEPTION_TEXT)?,

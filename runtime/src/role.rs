@@ -3,7 +3,8 @@
 //! A role is built once from its [`RoleContext`] ([`Role::new`]: open ports, load models),
 //! then the [`RoleHost`] calls [`Role::cycle`] on absolute deadlines of CLOCK_MONOTONIC
 //! (no drift), publishes a [`RoleHeartbeat`] after every cycle that did work (and a
-//! liveness heartbeat when idle), and stops cleanly on SIGTERM/SIGINT.
+//! liveness heartbeat when idle), and stops cleanly on SIGTERM/SIGINT. Heartbeats say
+//! `Starting` before the role is built and `Running` as soon as it is.
 //! `cycle` must not allocate: ports and buffers are created in `new`.
 
 use crate::bus::{BusError, FlightBus, TypedPublisher};
@@ -138,6 +139,12 @@ impl RoleHost {
         heartbeats.publish(&hb)?;
 
         let mut role = R::new(&mut ctx)?;
+        // built (models loaded and warmed up): say so before the first cycle, which may be
+        // long; the supervisor takes this as the role being ready
+        hb.seq += 1;
+        hb.stamp_ns = monotonic_ns();
+        hb.status = RoleStatus::Running as u8;
+        heartbeats.publish(&hb)?;
         let period_ns = duration_ns(role.period()).max(1);
         let idle_ns = ctx
             .spec
