@@ -23,6 +23,11 @@ pub enum BenchCommand {
     Control(ControlArgs),
     /// Every model a role hosts: load time, latency p50/p95, memory (a process per model).
     Models(crate::bench_models::ModelsArgs),
+    /// The model flight end to end: cycle time per stage (mean, std, p95) and EER over N
+    /// heartbeats.
+    Cycle(crate::bench_flight::CycleArgs),
+    /// Hot swaps during the model flight: missed heartbeats and setpoint gaps per swap.
+    Swap(crate::bench_flight::SwapArgs),
     /// One model of `bench models` (started by it).
     #[command(name = "model-probe", hide = true)]
     ModelProbe(crate::bench_models::ModelProbeArgs),
@@ -132,6 +137,8 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         BenchCommand::Gate(a) => run_gate(a),
         BenchCommand::Control(a) => run_control(a),
         BenchCommand::Models(a) => crate::bench_models::run(a),
+        BenchCommand::Cycle(a) => crate::bench_flight::cycle(a),
+        BenchCommand::Swap(a) => crate::bench_flight::swap(a),
         BenchCommand::ModelProbe(a) => crate::bench_models::probe(a),
         BenchCommand::IpcPong(a) => {
             let spec = PongSpec::from_json(&a.spec).context("bench ipc-pong: bad --spec")?;

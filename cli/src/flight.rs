@@ -153,6 +153,7 @@ pub struct FlightMonitor {
     setpoints: TypedSubscriber<BoundSetpoint>,
     last_setpoint: Option<(u64, u64)>,
     setpoint_gaps_ms: Vec<f64>,
+    setpoint_gap_ends_ns: Vec<u64>,
     goal: [f32; 3],
     radius: f32,
     land_goal: bool,
@@ -180,6 +181,7 @@ impl FlightMonitor {
             setpoints: bus.subscriber(topics::HUB_SETPOINT)?,
             last_setpoint: None,
             setpoint_gaps_ms: Vec::new(),
+            setpoint_gap_ends_ns: Vec::new(),
             goal: mission.goal(),
             radius: mission.acceptance_radius_m,
             land_goal,
@@ -239,7 +241,11 @@ impl FlightMonitor {
             );
             self.last_telemetry = Some(t);
         }
-        let (last, gaps) = (&mut self.last_setpoint, &mut self.setpoint_gaps_ms);
+        let (last, gaps, ends) = (
+            &mut self.last_setpoint,
+            &mut self.setpoint_gaps_ms,
+            &mut self.setpoint_gap_ends_ns,
+        );
         self.setpoints.drain(|sp| {
             // only consecutive numbers of one hub process measure its period; a skipped
             // number is a sample this monitor missed, not a late hub
@@ -248,6 +254,7 @@ impl FlightMonitor {
                 && sp.publish_ns >= ns
             {
                 gaps.push((sp.publish_ns - ns) as f64 * 1e-6);
+                ends.push(sp.publish_ns);
             }
             *last = Some((sp.seq, sp.publish_ns));
         })?;
@@ -298,6 +305,25 @@ impl FlightMonitor {
             0 => 0.0,
             n => self.hub.total(REUSED) as f64 / n as f64,
         }
+    }
+
+    /// Cycles that reused the last valid decision so far: heartbeats that brought no fresh
+    /// valid decision in time.
+    pub fn reused(&self) -> u64 {
+        self.hub.total(REUSED)
+    }
+
+    /// The longest interval between consecutive hub setpoints whose later one was published
+    /// in `[from_ns, to_ns]` (ms; 0 when none), and the median of all intervals so far.
+    pub fn setpoint_gaps_ms(&self, from_ns: u64, to_ns: u64) -> (f64, f64) {
+        let max = self
+            .setpoint_gap_ends_ns
+            .iter()
+            .zip(&self.setpoint_gaps_ms)
+            .filter(|(end, _)| (from_ns..=to_ns).contains(*end))
+            .map(|(_, g)| *g)
+            .fold(0.0, f64::max);
+        (max, percentile(&self.setpoint_gaps_ms, 50.0).unwrap_or(0.0))
     }
 
     /// Decisions rejected so far (over every hub process of the flight).

@@ -1,6 +1,7 @@
 //! The `aeris` command line.
 
 mod bench_cmd;
+mod bench_flight;
 mod bench_models;
 mod flight;
 mod inspect;
@@ -39,9 +40,9 @@ enum Command {
         command: TopicCommand,
     },
     /// Replace a running role by another variant of its pool, make-before-break: the new
-    /// process loads and warms up beside the old one, takes over at its first working
-    /// cycle, then the old one stops. A variant that fails to come up is rolled back and
-    /// the old one keeps running.
+    /// process loads and warms up beside the old one, takes over with its first heartbeat,
+    /// then the old one stops. A variant that fails to come up is rolled back and the old
+    /// one keeps running.
     Swap {
         /// Role name (see `aeris status`).
         role: String,
@@ -50,8 +51,8 @@ enum Command {
         /// Flight (default: the only one running).
         #[arg(long)]
         flight: Option<String>,
-        /// Seconds the new process may take to load, warm up and work once before the
-        /// swap is rolled back (default: 90).
+        /// Seconds the new process may take to load, warm up and send its first heartbeat
+        /// before the swap is rolled back (default: 90).
         #[arg(long, value_name = "SECONDS")]
         timeout: Option<f64>,
         /// Print one JSON object instead of progress lines.
@@ -65,7 +66,7 @@ enum Command {
     },
     /// List the role kinds and variants this build can run.
     Roles,
-    /// Run benchmarks (IPC, gate, control, models) and print their figures.
+    /// Run benchmarks (IPC, gate, control, models, cycle, swap) and print their figures.
     Bench(bench_cmd::BenchArgs),
     /// Run one role in this process (the supervisor starts roles this way).
     #[command(hide = true)]

@@ -1,6 +1,6 @@
 //! `aeris run` (the main job) and `aeris validate`.
 
-use crate::flight::FlightMonitor;
+use crate::flight::{FlightMonitor, RunSummary};
 use aeris_orchestrator::supervisor::{Supervisor, SupervisorEvent, SupervisorOptions};
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::signals;
@@ -66,10 +66,13 @@ pub fn validate(path: &Path) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// `aeris run`.
-pub fn run(args: RunArgs) -> Result<ExitCode> {
-    let mut workflow = load(args.workflow.as_deref())?;
-    for v in &args.variant {
+/// Apply `--variant ROLE=VARIANT` overrides and `--max-duration` to a workflow.
+pub fn apply_overrides(
+    workflow: &mut Workflow,
+    variants: &[String],
+    max_duration: Option<f64>,
+) -> Result<()> {
+    for v in variants {
         let Some((role, variant)) = v.split_once('=') else {
             bail!("--variant expects ROLE=VARIANT, got `{v}`");
         };
@@ -83,21 +86,57 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
             decl.variants.push(variant.to_string());
         }
     }
-    if let Some(s) = args.max_duration {
+    if let Some(s) = max_duration {
         if !(s > 0.0 && s.is_finite()) {
             bail!("--max-duration must be a positive number of seconds");
         }
         workflow.mission.max_duration_s = s;
     }
-    workflow.validate().context("workflow")?;
-    let flight = args
-        .flight
-        .clone()
-        .unwrap_or_else(|| format!("flight-{}", std::process::id()));
-    let run_dir = args
-        .run_dir
-        .clone()
-        .unwrap_or_else(|| std::env::temp_dir().join("aeris").join(&flight));
+    workflow.validate().context("workflow")
+}
+
+/// When [`fly`] ends the flight (besides a failure or Ctrl-C).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StopRule {
+    /// When the vehicle reached the goal (the main job).
+    Goal,
+    /// After this many semantic cycles (benchmarks: heartbeats, goal or not).
+    Cycles(u64),
+}
+
+/// What a flight needs besides its workflow.
+#[derive(Debug, Clone)]
+pub struct FlightPlan {
+    /// Flight name (namespace prefix).
+    pub flight: String,
+    /// Specs and logs.
+    pub run_dir: PathBuf,
+    /// External autopilot URL.
+    pub autopilot: Option<String>,
+    /// When to end.
+    pub stop: StopRule,
+    /// Print progress to stderr every 2 s.
+    pub progress: bool,
+}
+
+/// How a flight went.
+pub struct FlightOutcome {
+    /// The summary.
+    pub summary: RunSummary,
+    /// Why it ended early, if it did.
+    pub failure: Option<String>,
+}
+
+/// Fly `workflow`: start the supervisor, wait for every role, then supervise until the
+/// stop rule, a failure, the mission's time limit or Ctrl-C; `each_step` sees the
+/// supervisor, the monitor and the step's events (benchmarks trigger swaps from it) and
+/// returns `true` to end the flight.
+pub fn fly(
+    workflow: Workflow,
+    plan: &FlightPlan,
+    mut each_step: impl FnMut(&mut Supervisor, &FlightMonitor, &[SupervisorEvent]) -> Result<bool>,
+) -> Result<FlightOutcome> {
+    let flight = plan.flight.clone();
     let aeris_exe = std::env::current_exe().context("locating the aeris binary")?;
     signals::install_termination_handlers().context("installing signal handlers")?;
 
@@ -107,14 +146,14 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
         workflow,
         flight: flight.clone(),
         aeris_exe,
-        run_dir: run_dir.clone(),
-        autopilot: args.autopilot.clone(),
+        run_dir: plan.run_dir.clone(),
+        autopilot: plan.autopilot.clone(),
     })
     .with_context(|| format!("starting flight `{flight}`"))?;
     eprintln!(
         "aeris: flight {flight}: {} roles started (logs in {})",
         sup.roles().len(),
-        run_dir.join("logs").display()
+        plan.run_dir.join("logs").display()
     );
     eprintln!("aeris: mission: {}", mission.instruction);
     sup.wait_ready(Duration::from_secs(60))
@@ -127,8 +166,9 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
     let mut failure: Option<String> = None;
     let (mut swaps_done, mut swaps_failed) = (0u64, 0u64);
     loop {
-        for event in sup.step().context("supervising")? {
-            match &event {
+        let events = sup.step().context("supervising")?;
+        for event in &events {
+            match event {
                 SupervisorEvent::SwapStarted { .. } | SupervisorEvent::SwapReady { .. } => {
                     eprintln!("aeris: {event}");
                 }
@@ -140,9 +180,6 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
                     swaps_failed += 1;
                     eprintln!("aeris: {event}");
                 }
-                _ => {}
-            }
-            match event {
                 SupervisorEvent::RoleGaveUp { name } => {
                     failure = Some(format!("role `{name}` exhausted its restart budget"));
                 }
@@ -160,6 +197,7 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
             }
         }
         monitor.poll().context("reading flight telemetry")?;
+        let hook_done = each_step(&mut sup, &monitor, &events)?;
         let (step, steps) = monitor.active_step();
         let distance = monitor.distance_to_goal();
         sup.set_progress(
@@ -168,21 +206,31 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
             distance.unwrap_or(-1.0),
             monitor.ct_mean_s() as f32,
         );
-        if monitor.reached_goal() || failure.is_some() {
+        let done = match plan.stop {
+            StopRule::Goal => monitor.reached_goal(),
+            StopRule::Cycles(n) => monitor.cycles() >= n,
+        };
+        if done || hook_done || failure.is_some() {
             break;
         }
         if start.elapsed() > max_duration {
-            failure = Some(format!(
-                "the goal was not reached within {:.0} s",
-                max_duration.as_secs_f64()
-            ));
+            failure = Some(match plan.stop {
+                StopRule::Goal => format!(
+                    "the goal was not reached within {:.0} s",
+                    max_duration.as_secs_f64()
+                ),
+                StopRule::Cycles(n) => format!(
+                    "{n} cycles did not complete within {:.0} s",
+                    max_duration.as_secs_f64()
+                ),
+            });
             break;
         }
         if signals::termination_requested() {
             failure = Some("interrupted".into());
             break;
         }
-        if last_progress.elapsed() >= Duration::from_secs(2) {
+        if plan.progress && last_progress.elapsed() >= Duration::from_secs(2) {
             last_progress = Instant::now();
             let text = usize::from(step)
                 .checked_sub(1)
@@ -213,6 +261,29 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
     summary.swaps_failed = swaps_failed;
     let report = sup.shutdown(Duration::from_secs(3));
     eprintln!("aeris: shutdown: {report}");
+    Ok(FlightOutcome { summary, failure })
+}
+
+/// `aeris run`.
+pub fn run(args: RunArgs) -> Result<ExitCode> {
+    let mut workflow = load(args.workflow.as_deref())?;
+    apply_overrides(&mut workflow, &args.variant, args.max_duration)?;
+    let flight = args
+        .flight
+        .clone()
+        .unwrap_or_else(|| format!("flight-{}", std::process::id()));
+    let run_dir = args
+        .run_dir
+        .clone()
+        .unwrap_or_else(|| std::env::temp_dir().join("aeris").join(&flight));
+    let plan = FlightPlan {
+        flight: flight.clone(),
+        run_dir,
+        autopilot: args.autopilot.clone(),
+        stop: StopRule::Goal,
+        progress: true,
+    };
+    let FlightOutcome { summary, failure } = fly(workflow, &plan, |_, _, _| Ok(false))?;
 
     println!(
         "flight {flight}: {}",
