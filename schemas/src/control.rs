@@ -36,7 +36,7 @@ pub struct SupervisorCommand {
     pub kind: u8,
     /// Reserved, zero.
     pub reserved: [u8; 3],
-    /// How long the new process may take to load, warm up and send its first working
+    /// How long the new process may take to load, warm up and send its first
     /// heartbeat before the swap is rolled back (ms; 0 = the supervisor's default).
     pub ready_timeout_ms: u32,
     /// Role name (as in the workflow).
@@ -64,7 +64,7 @@ impl SupervisorCommand {
 pub enum ReplyStage {
     /// The supervisor took the command and started the new process (`new_pid`).
     Started = 1,
-    /// The new process loaded, warmed up and published its first working heartbeat; the
+    /// The new process loaded, warmed up and published its first heartbeat; the
     /// old one is being stopped.
     Ready = 2,
     /// Done: the new process runs, the old one exited.
