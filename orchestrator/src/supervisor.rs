@@ -34,6 +34,8 @@ use std::time::{Duration, Instant};
 pub const LATENCY_WINDOW: usize = 256;
 /// Lines of a role's log quoted in errors.
 pub const LOG_TAIL_LINES: usize = 8;
+/// Lines of a failed swap's log quoted in its reply (the error a role prints is its last).
+const SWAP_LOG_LINES: usize = 4;
 /// Pause between steps inside [`Supervisor::wait_ready`].
 const POLL: Duration = Duration::from_millis(20);
 /// Pause between checks for exited roles during [`Supervisor::shutdown`].
@@ -1485,7 +1487,7 @@ impl Supervisor {
                 role.old_pids.push(swap.pid);
                 let _ = std::fs::remove_file(&swap.spec_path);
                 let mut reason = format!("{why}; its log {}:", swap.log_path.display());
-                quote_tail(&mut reason, &log_tail(&swap.log_path, LOG_TAIL_LINES));
+                quote_tail(&mut reason, &log_tail(&swap.log_path, SWAP_LOG_LINES));
                 events.push(SupervisorEvent::SwapFailed {
                     name: role.name.clone(),
                     variant: swap.variant,
@@ -1493,36 +1495,11 @@ impl Supervisor {
                 });
                 continue;
             }
-            // commit: the new process is the role; stop the old one
-            let old_pid = role.pid.take();
-            let old_variant = core::mem::replace(&mut role.variant, swap.variant.clone());
-            if let Some(mut old) = role.child.take() {
-                if let Ok(pid) = libc::pid_t::try_from(old.id()) {
-                    // SAFETY: kill has no memory-safety preconditions; the pid is our
-                    // unreaped child, so it cannot have been reused.
-                    unsafe { libc::kill(pid, libc::SIGTERM) };
-                }
-                let pid = old.id();
-                role.old_pids.push(pid);
-                match old.try_wait() {
-                    Ok(None) => self.retiring.push(Retiring {
-                        name: role.name.clone(),
-                        variant: swap.variant.clone(),
-                        pid,
-                        child: old,
-                        since: now,
-                    }),
-                    _ => events.push(SupervisorEvent::SwapDone {
-                        name: role.name.clone(),
-                        variant: swap.variant.clone(),
-                        old_pid: Some(pid),
-                        exit: None,
-                    }),
-                }
-            }
-            let _ = old_variant;
-            // it takes over: the normal policy back, on every thread
+            // commit: the new process is the role (normal policy back, on every thread)
             set_normal_policy(swap.pid);
+            let old_pid = role.pid.take();
+            let old_child = role.child.take();
+            role.variant = swap.variant.clone();
             role.child = Some(swap.child);
             role.pid = Some(swap.pid);
             role.instance = swap.instance;
@@ -1535,10 +1512,6 @@ impl Supervisor {
             // a new model: its latency is a new distribution
             role.window = LatencyWindow::new(LATENCY_WINDOW);
             role.latency_ms = None;
-            if let Some(hb) = swap.ready.filter(|h| h.worked == 1) {
-                role.window.push(hb.cycle_latency_ns as f64 / 1e6);
-                role.latency_ms = role.window.percentiles([50.0, 95.0, 99.0]);
-            }
             events.push(SupervisorEvent::SwapReady {
                 name: role.name.clone(),
                 variant: swap.variant.clone(),
@@ -1547,13 +1520,37 @@ impl Supervisor {
                 instance: swap.instance,
                 ready_ms: swap.started.elapsed().as_millis() as u64,
             });
-            if old_pid.is_none() {
+            // then stop the old one; the swap is done when it has exited
+            let Some(mut old) = old_child else {
                 events.push(SupervisorEvent::SwapDone {
                     name: role.name.clone(),
                     variant: swap.variant,
                     old_pid: None,
                     exit: None,
                 });
+                continue;
+            };
+            let pid = old.id();
+            role.old_pids.push(pid);
+            if let Ok(raw) = libc::pid_t::try_from(pid) {
+                // SAFETY: kill has no memory-safety preconditions; the pid is our unreaped
+                // child, so it cannot have been reused.
+                unsafe { libc::kill(raw, libc::SIGTERM) };
+            }
+            match old.try_wait() {
+                Ok(None) => self.retiring.push(Retiring {
+                    name: role.name.clone(),
+                    variant: swap.variant,
+                    pid,
+                    child: old,
+                    since: now,
+                }),
+                exited => events.push(SupervisorEvent::SwapDone {
+                    name: role.name.clone(),
+                    variant: swap.variant,
+                    old_pid: Some(pid),
+                    exit: exited.ok().flatten().map(RoleExit::from_status),
+                }),
             }
         }
     }

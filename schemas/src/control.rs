@@ -10,7 +10,7 @@ use iceoryx2_bb_derive_macros::ZeroCopySend;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
 /// Longest reply message (bytes).
-pub const REPLY_MESSAGE_MAX: usize = 1024;
+pub const REPLY_MESSAGE_MAX: usize = 4096;
 
 /// What a command asks for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
