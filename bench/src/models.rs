@@ -308,14 +308,15 @@ fn load_rgb(store: &ModelStore, file: &str) -> Result<(Vec<u8>, usize, usize), B
 }
 
 fn sign_frame() -> Result<(Vec<u8>, usize, usize), BenchError> {
+    // the flight camera's geometry (CameraSpec's default: 320 x 240, 90 degrees)
     let (w, h) = (320u32, 240u32);
-    let renderer = aeris_sim::render::Renderer::new(w, h, 60f32.to_radians())
+    let renderer = aeris_sim::render::Renderer::new(w, h, 90f32.to_radians())
         .map_err(|e| BenchError::Config(format!("renderer: {e}")))?;
     let world = aeris_sim::world::World::builtin("village")
         .ok_or_else(|| BenchError::Config("no built-in world `village`".into()))?;
     let mut rgb = vec![0u8; renderer.rgb_len()];
     let mut depth = vec![0u8; renderer.depth_len()];
-    // north of the LAKE VIEW sign, facing south at its height
+    // 6 m north of the LAKE VIEW sign, facing south at its height
     renderer
         .render(
             &world,

@@ -488,10 +488,8 @@ impl LanguageReasoner {
         run.pending.extend_from_slice(&self.fields[i].prefix_tokens);
         run.bytes
             .extend_from_slice(self.fields[i].spec.prefix.as_bytes());
-        let pending = core::mem::take(&mut run.pending);
-        self.eval(&pending, run.pos)?;
-        run.pos += pending.len();
-        run.pending = pending;
+        self.eval(&run.pending, run.pos)?;
+        run.pos += run.pending.len();
         run.pending.clear();
         self.fields[i].sampler.reset();
         Ok(())
