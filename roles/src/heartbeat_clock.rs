@@ -7,10 +7,12 @@
 //! down), it decides on the telemetry alone and the cycle starts then.
 
 /// Share of a heartbeat after a decision from which a fresh S_t is decided on (the rest
-/// absorbs the jitter of the perception pipeline, whose S_t come once per heartbeat).
-pub const FRESH_AFTER: f64 = 0.9;
-/// Heartbeats without a fresh S_t after which the reasoner decides without one.
-pub const STALE_AFTER: f64 = 1.5;
+/// absorbs the jitter of the perception pipeline, whose S_t come once per heartbeat), as
+/// tenths: 9 = 0.9 heartbeats. Integer so the schedule is exact in nanoseconds.
+pub const FRESH_AFTER_TENTHS: u64 = 9;
+/// Heartbeats without a fresh S_t after which the reasoner decides without one, as
+/// tenths: 15 = 1.5 heartbeats.
+pub const STALE_AFTER_TENTHS: u64 = 15;
 
 /// What the next decision is based on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -43,22 +45,22 @@ impl HeartbeatClock {
     /// Whether to decide now, and on what; `fresh_state` says a new valid S_t arrived
     /// since the last decision.
     pub fn due(&self, now_ns: u64, fresh_state: bool) -> Option<Basis> {
-        let period = self.period_ns as f64;
+        let tenths = |n: u64| self.period_ns.saturating_mul(n) / 10;
         let Some(last) = self.last_ns else {
             // nothing decided yet: the first S_t at once, else half a heartbeat from start
-            let waited = now_ns.saturating_sub(self.started_ns) as f64;
+            let waited = now_ns.saturating_sub(self.started_ns);
             return if fresh_state {
                 Some(Basis::State)
-            } else if waited >= (STALE_AFTER - 1.0) * period {
+            } else if waited >= tenths(STALE_AFTER_TENTHS - 10) {
                 Some(Basis::TelemetryOnly)
             } else {
                 None
             };
         };
-        let since = now_ns.saturating_sub(last) as f64;
-        if fresh_state && since >= FRESH_AFTER * period {
+        let since = now_ns.saturating_sub(last);
+        if fresh_state && since >= tenths(FRESH_AFTER_TENTHS) {
             Some(Basis::State)
-        } else if since >= STALE_AFTER * period {
+        } else if since >= tenths(STALE_AFTER_TENTHS) {
             Some(Basis::TelemetryOnly)
         } else {
             None
@@ -89,7 +91,8 @@ mod tests {
             decided += 1;
         }
         assert_eq!(decided, 10);
-        // S_t at 10 Hz: one decision per ~heartbeat, not one per state
+        // S_t at 10 Hz over 20 s: one decision every 0.9 heartbeat (0, 1.8 s, .., 19.8 s),
+        // not one per state
         let mut c = HeartbeatClock::new(2 * S, 0);
         let mut times = Vec::new();
         for k in 0..200u64 {
@@ -99,7 +102,7 @@ mod tests {
                 times.push(t);
             }
         }
-        assert_eq!(times.len(), 11, "{times:?}");
+        assert_eq!(times.len(), 12, "{times:?}");
         assert!(times.windows(2).all(|w| w[1] - w[0] == 18 * S / 10));
     }
 
