@@ -498,28 +498,42 @@ impl LanguageReasoner {
     /// Sample field `i`'s value token by token from the last evaluated logits, until a
     /// token holds the field's terminator (left pending for the next key).
     fn sample_field(&mut self, run: &mut Decoding, i: usize) -> Result<(), LlmError> {
-        let terminator = self.fields[i].spec.terminator as u8;
         loop {
-            if run.generated >= self.config.max_output_tokens {
-                return Err(LlmError::Truncated(run.generated));
-            }
-            let ts = Instant::now();
-            let (token, full) = self.next_token(i, self.batch.n_tokens() - 1)?;
-            self.fields[i].sampler.accept(token);
-            run.sample_s += ts.elapsed().as_secs_f64();
-            run.full_filter += usize::from(full);
-            run.generated += 1;
-            let before = run.bytes.len();
-            self.model
-                .vocab()
-                .token_to_piece_into(token, &mut run.bytes, false, None);
-            if run.bytes[before..].contains(&terminator) || self.model.vocab().is_eog(token) {
+            let (token, ends) = self.choose(run, i, self.batch.n_tokens() - 1)?;
+            if ends {
                 run.pending.push(token);
                 return Ok(());
             }
             self.eval(&[token], run.pos)?;
             run.pos += 1;
         }
+    }
+
+    /// Field `i`'s next token, greedy under its grammar from the logits at batch index `at`,
+    /// taken into the grammar and the text; also whether it ends the field (holds its
+    /// terminator, or ends the output).
+    fn choose(
+        &mut self,
+        run: &mut Decoding,
+        i: usize,
+        at: i32,
+    ) -> Result<(LlamaToken, bool), LlmError> {
+        if run.generated >= self.config.max_output_tokens {
+            return Err(LlmError::Truncated(run.generated));
+        }
+        let ts = Instant::now();
+        let (token, full) = self.next_token(i, at)?;
+        self.fields[i].sampler.accept(token);
+        run.sample_s += ts.elapsed().as_secs_f64();
+        run.full_filter += usize::from(full);
+        run.generated += 1;
+        let before = run.bytes.len();
+        self.model
+            .vocab()
+            .token_to_piece_into(token, &mut run.bytes, false, None);
+        let terminator = self.fields[i].spec.terminator as u8;
+        let ends = run.bytes[before..].contains(&terminator) || self.model.vocab().is_eog(token);
+        Ok((token, ends))
     }
 
     /// Evaluate the pending token, then the keys and draft values of fields `from..to`, in
@@ -574,25 +588,10 @@ impl LanguageReasoner {
                 .extend_from_slice(self.fields[j].spec.prefix.as_bytes());
             let key = self.fields[j].prefix_tokens.len();
             self.fields[j].sampler.reset();
-            let terminator = self.fields[j].spec.terminator as u8;
             let n = value.len();
             for (k, &want) in value.iter().enumerate() {
-                if run.generated >= self.config.max_output_tokens {
-                    return Err(LlmError::Truncated(run.generated));
-                }
                 let at = base + key - 1 + k;
-                let ts = Instant::now();
-                let (token, full) = self.next_token(j, at as i32)?;
-                self.fields[j].sampler.accept(token);
-                run.sample_s += ts.elapsed().as_secs_f64();
-                run.full_filter += usize::from(full);
-                run.generated += 1;
-                let before = run.bytes.len();
-                self.model
-                    .vocab()
-                    .token_to_piece_into(token, &mut run.bytes, false, None);
-                let ends =
-                    run.bytes[before..].contains(&terminator) || self.model.vocab().is_eog(token);
+                let (token, ends) = self.choose(run, j, at as i32)?;
                 if token != want || ends != (k + 1 == n) {
                     // departure: the cache is valid up to the token before `want`
                     let cut = start + at + 1;

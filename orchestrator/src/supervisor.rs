@@ -1146,12 +1146,7 @@ impl Supervisor {
             let hb = match self.heartbeats.next() {
                 Ok(Some(hb)) => hb,
                 Ok(None) => return Ok(()),
-                Err(source) => {
-                    return Err(SupervisorError::Bus {
-                        flight: self.flight.clone(),
-                        source,
-                    });
-                }
+                Err(source) => return Err(self.bus_error(source)),
             };
             let Ok(status) = hb.validate() else {
                 self.invalid_heartbeats += 1;
@@ -1583,18 +1578,21 @@ impl Supervisor {
         }
     }
 
+    /// A transport failure of this supervisor's node.
+    fn bus_error(&self, source: BusError) -> SupervisorError {
+        SupervisorError::Bus {
+            flight: self.flight.clone(),
+            source,
+        }
+    }
+
     /// Take the commands waiting on `supervisor/control`.
     fn serve_control(&mut self, events: &mut Vec<SupervisorEvent>) -> Result<(), SupervisorError> {
         loop {
             let request = match self.control.receive() {
                 Ok(Some(r)) => r,
                 Ok(None) => return Ok(()),
-                Err(source) => {
-                    return Err(SupervisorError::Bus {
-                        flight: self.flight.clone(),
-                        source,
-                    });
-                }
+                Err(source) => return Err(self.bus_error(source)),
             };
             let command = *request.payload();
             let role = command.role.as_str_lossy().to_string();
