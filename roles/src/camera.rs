@@ -43,7 +43,7 @@ impl Role for CameraRole {
         let world = World::builtin(name).ok_or_else(|| {
             RoleError::Config(format!(
                 "unknown world `{name}`; the built-in worlds are: {}",
-                World::builtin_names().join(", ")
+                World::NAMES_HELP
             ))
         })?;
         let cam = &spec.camera;

@@ -36,7 +36,7 @@ use core::time::Duration;
 /// Cycle period of the role.
 pub const PERIOD: Duration = Duration::from_millis(20);
 /// Detection labels; a detection's `class_id` indexes this table.
-pub const LABELS: [&str; 9] = [
+pub const LABELS: [&str; 12] = [
     "helipad",
     "road",
     "building",
@@ -46,6 +46,9 @@ pub const LABELS: [&str; 9] = [
     "lake",
     "yellow sign",
     "tree",
+    "blue roof",
+    "green roof",
+    "bridge",
 ];
 /// Fewest pixels of a class that make a detection.
 pub const MIN_PIXELS: u32 = 12;
@@ -69,7 +72,7 @@ const LUT_LEN: usize = 1 << 15;
 const COLOUR_TOLERANCE: u32 = 30;
 
 /// `(class, colour, ground patch)`: ground patches are only ever seen from above (shade 1).
-const PALETTE: [(u8, [u8; 3], bool); 13] = [
+const PALETTE: [(u8, [u8; 3], bool); 16] = [
     (0, palette::HELIPAD, true),
     (1, palette::ROAD, true),
     (2, palette::GREY_WALL, false),
@@ -82,6 +85,9 @@ const PALETTE: [(u8, [u8; 3], bool); 13] = [
     (7, palette::SIGN_YELLOW, false),
     (8, palette::TREE_SIDE, false),
     (8, palette::TREE_TOP, false),
+    (9, palette::BLUE_ROOF, false),
+    (10, palette::GREEN_ROOF, false),
+    (11, palette::BRIDGE, false),
     (GRASS, palette::GRASS, true),
 ];
 

@@ -190,7 +190,7 @@ fn an_empty_view_recognises_nothing() {
 #[test]
 fn every_rendered_palette_colour_maps_to_its_class() {
     let seg = Segmenter::new();
-    let cases: [(&str, [u8; 3], bool); 12] = [
+    let cases: [(&str, [u8; 3], bool); 15] = [
         ("helipad", palette::HELIPAD, true),
         ("road", palette::ROAD, true),
         ("building", palette::GREY_WALL, false),
@@ -203,6 +203,9 @@ fn every_rendered_palette_colour_maps_to_its_class() {
         ("yellow sign", palette::SIGN_YELLOW, false),
         ("tree", palette::TREE_SIDE, false),
         ("tree", palette::TREE_TOP, false),
+        ("blue roof", palette::BLUE_ROOF, false),
+        ("green roof", palette::GREEN_ROOF, false),
+        ("bridge", palette::BRIDGE, false),
     ];
     for (label, colour, ground) in cases {
         let shades: &[f32] = if ground {

@@ -3,6 +3,7 @@
 //! The built-in simulation, so the default flight needs no external simulator:
 //! - [`world`]: procedurally described scenes of boxes (buildings, towers, signs, ground
 //!   patches) with named landmarks;
+//! - [`scene_gen`]: seeded open and dense scenes for evaluation (`open-7`, `dense-42`);
 //! - [`render`]: a CPU ray-caster producing FPV RGB and depth frames of a world;
 //! - [`multirotor`]: simple multirotor kinematics with velocity and acceleration limits;
 //! - [`mav_vehicle`]: a MAVLink v2 endpoint that behaves like a PX4 multirotor in offboard mode.
@@ -12,4 +13,5 @@
 pub mod mav_vehicle;
 pub mod multirotor;
 pub mod render;
+pub mod scene_gen;
 pub mod world;

@@ -41,6 +41,12 @@ pub mod palette {
     pub const TREE_SIDE: [u8; 3] = [46, 108, 42];
     /// Tops of tree crowns.
     pub const TREE_TOP: [u8; 3] = [52, 128, 48];
+    /// Blue roofs (generated scenes).
+    pub const BLUE_ROOF: [u8; 3] = [30, 40, 235];
+    /// Green roofs (generated scenes).
+    pub const GREEN_ROOF: [u8; 3] = [20, 220, 140];
+    /// Bridge deck and sides (generated scenes).
+    pub const BRIDGE: [u8; 3] = [200, 60, 190];
 }
 
 /// `Hit::landmark` value of a ray that hit bare ground (grass), not a landmark.
@@ -69,6 +75,8 @@ pub enum LandmarkKind {
     Helipad,
     /// A tree (a box crown).
     Tree,
+    /// A bridge deck (an obstacle box over water or a road).
+    Bridge,
 }
 
 impl LandmarkKind {
@@ -84,7 +92,9 @@ impl LandmarkKind {
 /// One named landmark: an axis-aligned box.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Landmark {
-    /// Human name, e.g. "red-roofed building".
+    /// Human name, unique in its world, e.g. "red-roofed building". A name with a `#`
+    /// ("grey building #3") is not one an instruction can refer to: others look the same
+    /// (see [`Landmark::is_referable`]).
     pub name: String,
     /// What it is.
     pub kind: LandmarkKind,
@@ -124,6 +134,33 @@ impl Landmark {
     pub fn is_obstacle(&self) -> bool {
         !self.kind.is_ground()
     }
+
+    /// `true` when an instruction can name this landmark: nothing else in its world looks
+    /// the same (its name carries no `#` number).
+    pub fn is_referable(&self) -> bool {
+        !self.name.contains('#')
+    }
+}
+
+/// A named region that is not drawn itself, e.g. the forest its trees make up.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Area {
+    /// Human name, e.g. "forest".
+    pub name: String,
+    /// Lower corner `[N, E]` (m).
+    pub min: [f32; 2],
+    /// Upper corner `[N, E]` (m).
+    pub max: [f32; 2],
+}
+
+impl Area {
+    /// Centre `[N, E]`.
+    pub fn centre(&self) -> [f32; 2] {
+        [
+            0.5 * (self.min[0] + self.max[0]),
+            0.5 * (self.min[1] + self.max[1]),
+        ]
+    }
 }
 
 /// Where a ray met the world.
@@ -146,9 +183,11 @@ pub struct World {
     pub name: String,
     /// Its landmarks.
     pub landmarks: Vec<Landmark>,
+    /// Named regions made of several landmarks (e.g. a forest); not drawn.
+    pub areas: Vec<Area>,
 }
 
-fn lm(
+pub(crate) fn lm(
     name: &str,
     kind: LandmarkKind,
     min: [f32; 3],
@@ -166,7 +205,13 @@ fn lm(
     }
 }
 
-fn patch(name: &str, kind: LandmarkKind, n: [f32; 2], e: [f32; 2], colour: [u8; 3]) -> Landmark {
+pub(crate) fn patch(
+    name: &str,
+    kind: LandmarkKind,
+    n: [f32; 2],
+    e: [f32; 2],
+    colour: [u8; 3],
+) -> Landmark {
     lm(
         name,
         kind,
@@ -177,7 +222,7 @@ fn patch(name: &str, kind: LandmarkKind, n: [f32; 2], e: [f32; 2], colour: [u8; 
     )
 }
 
-fn tree(name: &str, n: f32, e: f32, height: f32) -> Landmark {
+pub(crate) fn tree(name: &str, n: f32, e: f32, height: f32) -> Landmark {
     lm(
         name,
         LandmarkKind::Tree,
@@ -189,17 +234,22 @@ fn tree(name: &str, n: f32, e: f32, height: f32) -> Landmark {
 }
 
 impl World {
-    /// Names of the built-in worlds.
+    /// Names of the fixed built-in worlds. Generated scenes are built in too, by name:
+    /// `open-<seed>` and `dense-<seed>` (see [`crate::scene_gen`]).
     pub fn builtin_names() -> &'static [&'static str] {
         &["village", "open"]
     }
 
-    /// A built-in world by name.
+    /// What [`World::builtin`] accepts, for error messages.
+    pub const NAMES_HELP: &'static str =
+        "village, open, or a generated scene open-<seed> / dense-<seed> (seed 0..2^64)";
+
+    /// A built-in world by name: a fixed one, or a generated scene (`dense-42`).
     pub fn builtin(name: &str) -> Option<World> {
         match name {
             "village" => Some(Self::village()),
             "open" => Some(Self::open()),
-            _ => None,
+            _ => crate::scene_gen::SceneId::parse(name).map(crate::scene_gen::generate),
         }
     }
 
@@ -214,6 +264,7 @@ impl World {
                 [-6.0, 6.0],
                 palette::HELIPAD,
             )],
+            areas: Vec::new(),
         }
     }
 
@@ -297,12 +348,18 @@ impl World {
         World {
             name: "village".into(),
             landmarks,
+            areas: Vec::new(),
         }
     }
 
     /// The landmark called `name`, if any.
     pub fn landmark_named(&self, name: &str) -> Option<&Landmark> {
         self.landmarks.iter().find(|l| l.name == name)
+    }
+
+    /// The area called `name`, if any.
+    pub fn area_named(&self, name: &str) -> Option<&Area> {
+        self.areas.iter().find(|a| a.name == name)
     }
 
     /// Height (m) of the highest obstacle top over `(n, e)`; 0 when the ground is free.
