@@ -1,0 +1,17 @@
+//! # aeris-eval
+//!
+//! Evaluation on aerial vision-and-language navigation (VLN) episodes (MISSION §7):
+//! - [`episode`]: AerialVLN's episode JSON, with our subgoal annotation, loaded and
+//!   validated with errors that name the bad field;
+//! - [`generate`]: multi-step instructions with collision-free reference trajectories
+//!   over the generated open and dense scenes of `aeris-sim`, in `train`, `val_unseen`
+//!   and `test_unseen` splits whose scenes do not overlap;
+//! - [`metrics`]: NE, SR, OSR, nDTW, SPL and ASR, exactly as the paper defines them;
+//! - [`plot`]: top-down maps of a scene with trajectories, as PNG.
+
+#![deny(missing_docs)]
+
+pub mod episode;
+pub mod generate;
+pub mod metrics;
+pub mod plot;
