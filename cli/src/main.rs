@@ -6,6 +6,7 @@ mod bench_models;
 mod flight;
 mod inspect;
 mod run_cmd;
+mod scene_cmd;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
@@ -68,6 +69,10 @@ enum Command {
     Roles,
     /// Run benchmarks (IPC, gate, control, models, cycle, swap) and print their figures.
     Bench(bench_cmd::BenchArgs),
+    /// Generate and check VLN episodes (AerialVLN JSON format, train/val_unseen/test_unseen).
+    Episodes(scene_cmd::EpisodesArgs),
+    /// Look at a scene: its landmarks, an FPV frame from a pose, a top-down map.
+    Scene(scene_cmd::SceneArgs),
     /// Run one role in this process (the supervisor starts roles this way).
     #[command(hide = true)]
     Role {
@@ -181,6 +186,8 @@ fn main() -> ExitCode {
         Command::Validate { workflow } => run_cmd::validate(&workflow),
         Command::Roles => roles(),
         Command::Bench(args) => bench_cmd::run(args).map(|_| ExitCode::SUCCESS),
+        Command::Episodes(args) => scene_cmd::episodes(args).map(|_| ExitCode::SUCCESS),
+        Command::Scene(args) => scene_cmd::scene(args).map(|_| ExitCode::SUCCESS),
         Command::Role { spec, instance } => run_role(spec, instance),
     };
     match result {

@@ -1,0 +1,317 @@
+//! `aeris episodes ...` and `aeris scene ...`: generate and check VLN episodes, render a
+//! scene's FPV frames and top-down maps.
+
+use aeris_eval::episode::{Episode, load_episodes, save_episodes};
+use aeris_eval::generate::{AirspaceFilter, Split, generate_split};
+use aeris_eval::plot::{MapLayers, save_png, top_down};
+use aeris_sim::render::{CAMERA_MOUNT_HEIGHT_M, Renderer};
+use aeris_sim::world::World;
+use anyhow::{Context, bail};
+use clap::{Args, Subcommand};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `aeris episodes`.
+#[derive(Debug, Args)]
+pub struct EpisodesArgs {
+    #[command(subcommand)]
+    pub command: EpisodesCommand,
+}
+
+/// What `aeris episodes` does.
+#[derive(Debug, Subcommand)]
+pub enum EpisodesCommand {
+    /// Generate a split's episodes (AerialVLN JSON with our subgoal annotation).
+    Generate {
+        /// Split: train, val_unseen or test_unseen (their scenes do not overlap).
+        #[arg(long)]
+        split: String,
+        /// Episodes to generate.
+        #[arg(long, default_value_t = 20)]
+        episodes: usize,
+        /// Airspace: open, dense or full (both, alternating).
+        #[arg(long, default_value = "full")]
+        airspace: String,
+        /// Output file (JSON).
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Load and validate an episode file (ours or AerialVLN's) and summarise it.
+    Check {
+        /// Episode file (JSON).
+        file: PathBuf,
+        /// Print one JSON object instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// Arguments of `aeris scene`.
+#[derive(Debug, Args)]
+pub struct SceneArgs {
+    #[command(subcommand)]
+    pub command: SceneCommand,
+}
+
+/// What `aeris scene` does.
+#[derive(Debug, Subcommand)]
+pub enum SceneCommand {
+    /// List a scene's landmarks (built-in: village, open; generated: open-<seed>,
+    /// dense-<seed>).
+    Show {
+        /// Scene name.
+        scene: String,
+    },
+    /// Render the FPV camera's RGB frame (and optionally depth) from a pose, as PNG.
+    Render {
+        /// Scene name.
+        scene: String,
+        /// Vehicle position N,E,U (m).
+        #[arg(
+            long,
+            value_delimiter = ',',
+            allow_hyphen_values = true,
+            required = true
+        )]
+        at: Vec<f32>,
+        /// Heading (degrees, 0 = north, clockwise).
+        #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+        yaw: f32,
+        /// Frame width (pixels).
+        #[arg(long, default_value_t = 320)]
+        width: u32,
+        /// Frame height (pixels).
+        #[arg(long, default_value_t = 240)]
+        height: u32,
+        /// Horizontal field of view (degrees).
+        #[arg(long, default_value_t = 90.0)]
+        hfov: f32,
+        /// Output PNG.
+        #[arg(long)]
+        out: PathBuf,
+        /// Also write the depth frame (grey, near = dark, 0-65 m) to this PNG.
+        #[arg(long)]
+        depth_out: Option<PathBuf>,
+    },
+    /// Draw the scene from above, with an episode's reference path if given.
+    Map {
+        /// Scene name; with --episodes, defaults to the episode's scene.
+        scene: Option<String>,
+        /// Episode file to take the reference path from.
+        #[arg(long)]
+        episodes: Option<PathBuf>,
+        /// Episode id in that file (default: the first).
+        #[arg(long)]
+        episode: Option<String>,
+        /// Output PNG.
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+/// Run `aeris episodes`.
+pub fn episodes(args: EpisodesArgs) -> anyhow::Result<()> {
+    match args.command {
+        EpisodesCommand::Generate {
+            split,
+            episodes,
+            airspace,
+            out,
+        } => {
+            let split = Split::parse(&split).with_context(|| {
+                format!("unknown split `{split}`: use train, val_unseen or test_unseen")
+            })?;
+            let filter = AirspaceFilter::parse(&airspace).with_context(|| {
+                format!("unknown airspace `{airspace}`: use open, dense or full")
+            })?;
+            if episodes == 0 {
+                bail!("--episodes must be at least 1");
+            }
+            let mut stderr = std::io::stderr();
+            let list = generate_split(split, filter, episodes, &mut |done, total| {
+                let _ = write!(stderr, "\rgenerating episodes: {done}/{total}");
+                if done == total {
+                    let _ = writeln!(stderr);
+                }
+            })?;
+            save_episodes(&out, &list)?;
+            println!(
+                "wrote {} {} episodes ({airspace}) to {}",
+                list.len(),
+                split.as_str(),
+                out.display()
+            );
+            Ok(())
+        }
+        EpisodesCommand::Check { file, json } => {
+            let list = load_episodes(&file)?;
+            summarise(&file, &list, json);
+            Ok(())
+        }
+    }
+}
+
+fn summarise(file: &Path, list: &[Episode], json: bool) {
+    let steps: Vec<usize> = list.iter().map(|e| e.reference_path.len()).collect();
+    let lengths: Vec<f64> = list
+        .iter()
+        .map(|e| aeris_eval::metrics::path_length(&e.reference_positions()))
+        .collect();
+    let annotated = list.iter().filter(|e| !e.subgoals.is_empty()).count();
+    let mean = |v: &[f64]| {
+        if v.is_empty() {
+            0.0
+        } else {
+            v.iter().sum::<f64>() / v.len() as f64
+        }
+    };
+    let mean_steps = mean(&steps.iter().map(|&s| s as f64).collect::<Vec<_>>());
+    let scenes: std::collections::BTreeSet<&str> =
+        list.iter().map(|e| e.scene_id.as_str()).collect();
+    if json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "file": file.display().to_string(),
+                "episodes": list.len(),
+                "scenes": scenes.len(),
+                "annotated": annotated,
+                "mean_reference_steps": mean_steps,
+                "mean_reference_length_m": mean(&lengths),
+            })
+        );
+    } else {
+        println!("{}: {} episodes, valid", file.display(), list.len());
+        println!("  scenes:                 {}", scenes.len());
+        println!("  with subgoal annotation: {annotated}");
+        println!("  reference steps (mean): {mean_steps:.1}");
+        println!("  reference length (mean): {:.1} m", mean(&lengths));
+    }
+}
+
+fn world(name: &str) -> anyhow::Result<World> {
+    World::builtin(name)
+        .with_context(|| format!("unknown scene `{name}`; scenes are: {}", World::NAMES_HELP))
+}
+
+/// Run `aeris scene`.
+pub fn scene(args: SceneArgs) -> anyhow::Result<()> {
+    match args.command {
+        SceneCommand::Show { scene } => {
+            let w = world(&scene)?;
+            println!("{}: {} landmarks", w.name, w.landmarks.len());
+            for l in &w.landmarks {
+                println!(
+                    "  {:<40} N {:7.1}..{:7.1}  E {:7.1}..{:7.1}  top {:5.1} m{}",
+                    l.name,
+                    l.min[0],
+                    l.max[0],
+                    l.min[1],
+                    l.max[1],
+                    l.max[2],
+                    if l.is_referable() {
+                        ""
+                    } else {
+                        "  (not named in instructions)"
+                    }
+                );
+            }
+            for a in &w.areas {
+                println!(
+                    "  {:<40} N {:7.1}..{:7.1}  E {:7.1}..{:7.1}  (area)",
+                    a.name, a.min[0], a.max[0], a.min[1], a.max[1]
+                );
+            }
+            Ok(())
+        }
+        SceneCommand::Render {
+            scene,
+            at,
+            yaw,
+            width,
+            height,
+            hfov,
+            out,
+            depth_out,
+        } => {
+            let w = world(&scene)?;
+            let [n, e, u] = at[..] else {
+                bail!("--at takes three numbers N,E,U");
+            };
+            let r = Renderer::new(width, height, hfov.to_radians())?;
+            let mut rgb = vec![0u8; r.rgb_len()];
+            let mut depth = vec![0u8; r.depth_len()];
+            r.render(
+                &w,
+                [n, e, u + CAMERA_MOUNT_HEIGHT_M],
+                yaw.to_radians(),
+                &mut rgb,
+                &mut depth,
+            )?;
+            let img = image::RgbImage::from_raw(width, height, rgb)
+                .context("frame size does not match the renderer")?;
+            save_png(&img, &out)?;
+            println!("wrote {}", out.display());
+            if let Some(path) = depth_out {
+                let grey: Vec<u8> = depth
+                    .chunks_exact(2)
+                    .map(|c| {
+                        let mm = u16::from_le_bytes([c[0], c[1]]);
+                        if mm == 0 { 255 } else { (mm / 257) as u8 }
+                    })
+                    .collect();
+                let img = image::GrayImage::from_raw(width, height, grey)
+                    .context("depth size does not match the renderer")?;
+                img.save_with_format(&path, image::ImageFormat::Png)
+                    .with_context(|| format!("cannot write {}", path.display()))?;
+                println!("wrote {}", path.display());
+            }
+            Ok(())
+        }
+        SceneCommand::Map {
+            scene,
+            episodes,
+            episode,
+            out,
+        } => {
+            let chosen = match &episodes {
+                Some(file) => {
+                    let list = load_episodes(file)?;
+                    let e = match &episode {
+                        Some(id) => list
+                            .into_iter()
+                            .find(|e| &e.episode_id == id)
+                            .with_context(|| format!("no episode `{id}` in {}", file.display()))?,
+                        None => list
+                            .into_iter()
+                            .next()
+                            .with_context(|| format!("{} has no episodes", file.display()))?,
+                    };
+                    Some(e)
+                }
+                None => None,
+            };
+            let name = match (&scene, &chosen) {
+                (Some(s), _) => s.clone(),
+                (None, Some(e)) => e.scene_id.clone(),
+                (None, None) => bail!("give a scene name or --episodes"),
+            };
+            let w = world(&name)?;
+            let reference = chosen
+                .as_ref()
+                .map(|e| e.reference_positions())
+                .unwrap_or_default();
+            let layers = MapLayers {
+                reference: &reference,
+                executed: &[],
+                goal: chosen.as_ref().map(|e| e.goal()),
+            };
+            save_png(&top_down(&w, &layers)?, &out)?;
+            if let Some(e) = &chosen {
+                println!("{}: {}", e.episode_id, e.instruction.instruction_text);
+            }
+            println!("wrote {}", out.display());
+            Ok(())
+        }
+    }
+}
