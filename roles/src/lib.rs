@@ -39,6 +39,7 @@ pub fn runner(kind: &str, variant: &str) -> Option<RoleRunner> {
         ("perception", "geometric") => RoleHost::run::<perception::PerceptionRole>,
         ("reasoning", "planner") => RoleHost::run::<planner::PlannerRole>,
         ("reasoning", "garbage") => RoleHost::run::<planner::GarbageRole>,
+        ("reasoning", "random") => RoleHost::run::<planner::RandomRole>,
         ("reasoning", "smollm2" | "gemma3") => RoleHost::run::<language::LanguageRole>,
         ("text-reader", "ppocr") => RoleHost::run::<text_reader::TextReaderRole>,
         ("detector", "yolo" | "yolov8" | "palette") => RoleHost::run::<detector::DetectorRole>,

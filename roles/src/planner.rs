@@ -1,4 +1,5 @@
-//! Reasoning role, first variant: a deterministic planner, and a fault injector.
+//! Reasoning role, first variant: a deterministic planner, a fault injector, and the random
+//! baseline of the VLN evaluation ([`RandomRole`]).
 //!
 //! [`PlannerRole`] turns the mission's subgoals into decisions D_t through exactly the path a
 //! language model's decisions take (`reasoning/decision` -> hub gate -> controller). Its
@@ -419,6 +420,137 @@ impl Role for GarbageRole {
             self.io.send(&mut d, report)?;
         }
         report.counters[2] = self.corrupted;
+        Ok(CycleOutcome::Worked)
+    }
+}
+
+/// AerialVLN's discrete actions, which the random baseline draws from uniformly.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RandomAction {
+    /// Forward 5 m.
+    Forward,
+    /// Turn left 15 degrees.
+    TurnLeft,
+    /// Turn right 15 degrees.
+    TurnRight,
+    /// Up 2 m.
+    Up,
+    /// Down 2 m.
+    Down,
+    /// Strafe left 5 m.
+    Left,
+    /// Strafe right 5 m.
+    Right,
+    /// Stop: land where it is.
+    Stop,
+}
+
+impl RandomAction {
+    /// Every action, in AerialVLN's order.
+    pub const ALL: [RandomAction; 8] = [
+        RandomAction::Forward,
+        RandomAction::TurnLeft,
+        RandomAction::TurnRight,
+        RandomAction::Up,
+        RandomAction::Down,
+        RandomAction::Left,
+        RandomAction::Right,
+        RandomAction::Stop,
+    ];
+
+    /// Turn the action into a decision from `position`/`yaw` (`d` carries the step and
+    /// timing fields; speed and radius are kept).
+    pub fn apply(self, d: &mut Decision, position: [f32; 3], yaw: f32, h_min: f32) {
+        let turn = 15f32.to_radians();
+        let (fwd, right) = ([yaw.cos(), yaw.sin()], [(-yaw).sin(), yaw.cos()]);
+        let mut target = position;
+        let mut heading = yaw;
+        let mut action = ActionMode::Goto;
+        match self {
+            RandomAction::Forward => {
+                target[0] += 5.0 * fwd[0];
+                target[1] += 5.0 * fwd[1];
+            }
+            RandomAction::TurnLeft => heading = wrap_pi(yaw - turn),
+            RandomAction::TurnRight => heading = wrap_pi(yaw + turn),
+            RandomAction::Up => target[2] += 2.0,
+            RandomAction::Down => target[2] = (target[2] - 2.0).max(h_min.max(1.0)),
+            RandomAction::Left => {
+                target[0] -= 5.0 * right[0];
+                target[1] -= 5.0 * right[1];
+            }
+            RandomAction::Right => {
+                target[0] += 5.0 * right[0];
+                target[1] += 5.0 * right[1];
+            }
+            RandomAction::Stop => action = ActionMode::Land,
+        }
+        d.target = target;
+        d.yaw = heading;
+        d.altitude = target[2];
+        d.action = action as u8;
+        d.confidence = 1.0 / RandomAction::ALL.len() as f32;
+    }
+}
+
+/// The random baseline (variant `random`): takes off like the planner, then every
+/// heartbeat draws one of AerialVLN's actions uniformly ([`RandomAction`]); `stop` lands
+/// where it is and ends its flight. Seeded by the `seed` parameter.
+pub struct RandomRole {
+    io: ReasonerIo,
+    rng: u64,
+    airborne: bool,
+    stopped: bool,
+    h_min: f32,
+}
+
+impl Role for RandomRole {
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+        let seed = ctx.spec.param_f64("seed").unwrap_or(1.0) as u64;
+        Ok(Self {
+            io: ReasonerIo::new(ctx)?,
+            rng: seed.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1,
+            airborne: false,
+            stopped: false,
+            h_min: ctx.spec.mission.limits.h_min,
+        })
+    }
+
+    fn period(&self) -> Duration {
+        POLL
+    }
+
+    fn cycle(
+        &mut self,
+        _ctx: &mut RoleContext,
+        report: &mut CycleReport,
+    ) -> Result<CycleOutcome, RoleError> {
+        let Some(mut d) = self.io.think(report)? else {
+            return Ok(CycleOutcome::Idle);
+        };
+        let (position, yaw) = match &self.io.last_telemetry {
+            Some(t) => (t.position, t.attitude[2]),
+            None => (self.io.planner.start, 0.0),
+        };
+        let takeoff = d.action == ActionMode::Takeoff as u8;
+        if !self.airborne && takeoff && (position[2] - d.altitude).abs() > 1.0 {
+            // the planner's takeoff stands until the vehicle is up
+        } else {
+            self.airborne = true;
+            if !self.stopped {
+                // xorshift64*: deterministic, allocation-free
+                self.rng ^= self.rng >> 12;
+                self.rng ^= self.rng << 25;
+                self.rng ^= self.rng >> 27;
+                let r = self.rng.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 32;
+                let a = RandomAction::ALL[(r % RandomAction::ALL.len() as u64) as usize];
+                self.stopped = a == RandomAction::Stop;
+                a.apply(&mut d, position, yaw, self.h_min);
+            } else {
+                RandomAction::Stop.apply(&mut d, position, yaw, self.h_min);
+            }
+        }
+        self.io.send(&mut d, report)?;
         Ok(CycleOutcome::Worked)
     }
 }

@@ -96,10 +96,10 @@ pub const ROLE_KINDS: &[RoleKind] = &[
     },
     RoleKind {
         kind: "reasoning",
-        variants: &["planner", "garbage", "smollm2", "gemma3"],
+        variants: &["planner", "garbage", "random", "smollm2", "gemma3"],
         subscribes: &[topics::PERCEPTION_STATE, topics::VEHICLE_TELEMETRY],
         publishes: &[topics::REASONING_DECISION],
-        summary: "(S_t, G, M) -> D_t every heartbeat: planner, GGUF language models under the D_t grammar, `garbage` fault injector",
+        summary: "(S_t, G, M) -> D_t every heartbeat: planner, GGUF language models under the D_t grammar, `garbage` fault injector, `random` VLN baseline",
         swap_refusal: None,
     },
     RoleKind {
