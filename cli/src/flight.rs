@@ -165,6 +165,7 @@ pub struct FlightMonitor {
     last_report: Option<HubReport>,
     last_telemetry: Option<VehicleTelemetry>,
     attention_steps: Vec<u16>,
+    airborne: bool,
 }
 
 impl FlightMonitor {
@@ -193,6 +194,7 @@ impl FlightMonitor {
             last_report: None,
             last_telemetry: None,
             attention_steps: Vec::new(),
+            airborne: false,
         })
     }
 
@@ -239,6 +241,7 @@ impl FlightMonitor {
                     t.hold_ticks,
                 ],
             );
+            self.airborne |= t.position[2] > 1.0 && t.landed == 0;
             self.last_telemetry = Some(t);
         }
         let (last, gaps, ends) = (
@@ -264,6 +267,16 @@ impl FlightMonitor {
     /// Latest vehicle position, if any telemetry arrived.
     pub fn position(&self) -> Option<[f32; 3]> {
         self.last_telemetry.map(|t| t.position)
+    }
+
+    /// `true` when the vehicle is on the ground after having flown (the agent stopped).
+    pub fn landed_after_flight(&self) -> bool {
+        self.airborne && self.last_telemetry.is_some_and(|t| t.landed == 1)
+    }
+
+    /// Cycle times (s) of the committed cycles so far.
+    pub fn ct_samples_s(&self) -> &[f64] {
+        &self.ct_s
     }
 
     /// Distance to the goal (m), if the position is known.

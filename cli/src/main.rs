@@ -3,6 +3,7 @@
 mod bench_cmd;
 mod bench_flight;
 mod bench_models;
+mod eval_cmd;
 mod flight;
 mod inspect;
 mod run_cmd;
@@ -69,6 +70,9 @@ enum Command {
     Roles,
     /// Run benchmarks (IPC, gate, control, models, cycle, swap) and print their figures.
     Bench(bench_cmd::BenchArgs),
+    /// Fly VLN episodes through the full pipeline and score them (NE, SR, OSR, nDTW, SPL,
+    /// ASR, CT, EER), per airspace; writes OUT/episodes.jsonl.
+    Eval(eval_cmd::EvalArgs),
     /// Generate and check VLN episodes (AerialVLN JSON format, train/val_unseen/test_unseen).
     Episodes(scene_cmd::EpisodesArgs),
     /// Look at a scene: its landmarks, an FPV frame from a pose, a top-down map.
@@ -186,6 +190,7 @@ fn main() -> ExitCode {
         Command::Validate { workflow } => run_cmd::validate(&workflow),
         Command::Roles => roles(),
         Command::Bench(args) => bench_cmd::run(args).map(|_| ExitCode::SUCCESS),
+        Command::Eval(args) => eval_cmd::run(args).map(|_| ExitCode::SUCCESS),
         Command::Episodes(args) => scene_cmd::episodes(args).map(|_| ExitCode::SUCCESS),
         Command::Scene(args) => scene_cmd::scene(args).map(|_| ExitCode::SUCCESS),
         Command::Role { spec, instance } => run_role(spec, instance),

@@ -102,6 +102,9 @@ pub enum StopRule {
     Goal,
     /// After this many semantic cycles (benchmarks: heartbeats, goal or not).
     Cycles(u64),
+    /// When the vehicle is on the ground after having flown, wherever that is (VLN
+    /// episodes: the agent stopped).
+    Landed,
 }
 
 /// What a flight needs besides its workflow.
@@ -125,6 +128,8 @@ pub struct FlightOutcome {
     pub summary: RunSummary,
     /// Why it ended early, if it did.
     pub failure: Option<String>,
+    /// Cycle times (s) of every committed cycle.
+    pub ct_samples_s: Vec<f64>,
 }
 
 /// Fly `workflow`: start the supervisor, wait for every role, then supervise until the
@@ -209,6 +214,7 @@ pub fn fly(
         let done = match plan.stop {
             StopRule::Goal => monitor.reached_goal(),
             StopRule::Cycles(n) => monitor.cycles() >= n,
+            StopRule::Landed => monitor.landed_after_flight(),
         };
         if done || hook_done || failure.is_some() {
             break;
@@ -221,6 +227,10 @@ pub fn fly(
                 ),
                 StopRule::Cycles(n) => format!(
                     "{n} cycles did not complete within {:.0} s",
+                    max_duration.as_secs_f64()
+                ),
+                StopRule::Landed => format!(
+                    "the vehicle did not land within {:.0} s",
                     max_duration.as_secs_f64()
                 ),
             });
@@ -261,7 +271,12 @@ pub fn fly(
     summary.swaps_failed = swaps_failed;
     let report = sup.shutdown(Duration::from_secs(3));
     eprintln!("aeris: shutdown: {report}");
-    Ok(FlightOutcome { summary, failure })
+    let ct_samples_s = monitor.ct_samples_s().to_vec();
+    Ok(FlightOutcome {
+        summary,
+        failure,
+        ct_samples_s,
+    })
 }
 
 /// `aeris run`.
@@ -283,7 +298,9 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
         stop: StopRule::Goal,
         progress: true,
     };
-    let FlightOutcome { summary, failure } = fly(workflow, &plan, |_, _, _| Ok(false))?;
+    let FlightOutcome {
+        summary, failure, ..
+    } = fly(workflow, &plan, |_, _, _| Ok(false))?;
 
     println!(
         "flight {flight}: {}",

@@ -32,7 +32,8 @@ pub const CLIMB_STEP_M: f32 = 2.0;
 pub const GRID_M: f32 = 2.0;
 /// Distance (m) between a named landmark's footprint and the point the path goes to.
 pub const APPROACH_M: f32 = 12.0;
-/// Least distance (m) between the centres of consecutive targets (the helipad first).
+/// Least distance (m) between the centres of consecutive targets (the helipad first), and
+/// between the helipad and the last target.
 pub const MIN_LEG_M: f32 = 50.0;
 /// Landing points keep this far from obstacles and water (m).
 pub const LANDING_CLEARANCE_M: f32 = 6.0;
@@ -471,6 +472,8 @@ fn try_episode(
         let candidates: Vec<usize> = (0..pool.len())
             .filter(|&i| !last || !pool[i].over)
             .filter(|&i| dist2(centre(pool[i]), prev) >= MIN_LEG_M * MIN_LEG_M)
+            // and the goal is never near the start
+            .filter(|&i| !last || dist2(centre(pool[i]), [0.0, 0.0]) >= MIN_LEG_M * MIN_LEG_M)
             .collect();
         if candidates.is_empty() {
             return None;
@@ -562,6 +565,14 @@ fn try_episode(
         at = end;
     }
     let goal = path.last().map(|p| [p[0], p[1], p[2]])?;
+    // an agent given the path as waypoints needs one per corner: a mission holds 16
+    let positions: Vec<[f64; 3]> = path
+        .iter()
+        .map(|p| [round_cm(p[0]), round_cm(p[1]), round_cm(p[2])])
+        .collect();
+    if crate::mission::corners(&positions).len() > aeris_schemas::MAX_SUBGOALS {
+        return None;
+    }
     let instruction = sentence(&texts);
     let half = 0.5 * start_yaw as f64;
     Some(Episode {

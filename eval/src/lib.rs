@@ -7,6 +7,7 @@
 //!   over the generated open and dense scenes of `aeris-sim`, in `train`, `val_unseen`
 //!   and `test_unseen` splits whose scenes do not overlap;
 //! - [`metrics`]: NE, SR, OSR, nDTW, SPL and ASR, exactly as the paper defines them;
+//! - [`mission`]: the mission G an agent is given for an episode (oracle, random);
 //! - [`plot`]: top-down maps of a scene with trajectories, as PNG.
 
 #![deny(missing_docs)]
@@ -14,4 +15,5 @@
 pub mod episode;
 pub mod generate;
 pub mod metrics;
+pub mod mission;
 pub mod plot;

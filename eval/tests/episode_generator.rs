@@ -90,6 +90,12 @@ fn subgoals_segment_the_reference_and_name_real_landmarks() {
         }
         assert_eq!(e.goal(), s.last().unwrap().waypoint);
         assert_eq!(e.goal()[2], 0.0, "episodes end on the ground");
+        let g = e.goal();
+        assert!(
+            g[0].hypot(g[1]) > 30.0,
+            "{}: the goal is far from the start",
+            e.episode_id
+        );
         assert_eq!(e.start_position, [0.0, 0.0, 0.0]);
     }
 }

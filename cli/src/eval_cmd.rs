@@ -1,0 +1,361 @@
+//! `aeris eval`: fly VLN episodes through the full multi-process pipeline and score them.
+
+use crate::run_cmd::{FlightOutcome, FlightPlan, StopRule, fly};
+use aeris_eval::episode::{Episode, load_episodes};
+use aeris_eval::generate::{AirspaceFilter, Split, generate_split};
+use aeris_eval::metrics::{EpisodeMetrics, EpisodeRun, MetricsSummary};
+use aeris_eval::mission::{Agent, episode_mission};
+use aeris_orchestrator::Workflow;
+use aeris_runtime::stats::percentile;
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use serde::Serialize;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Arguments of `aeris eval`.
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// Split to generate and fly: train, val_unseen or test_unseen.
+    #[arg(long, default_value = "val_unseen")]
+    pub split: String,
+    /// Fly these episodes instead of generating a split (our JSON or AerialVLN's; the
+    /// scenes must be ones this simulator has).
+    #[arg(long, value_name = "FILE")]
+    pub episodes_file: Option<PathBuf>,
+    /// Episodes to fly.
+    #[arg(long, default_value_t = 10)]
+    pub episodes: usize,
+    /// Airspace: open, dense or full (both, alternating).
+    #[arg(long, default_value = "full")]
+    pub airspace: String,
+    /// Who flies: `oracle` (the planner on the reference path: the upper bound) or
+    /// `random` (uniform AerialVLN actions). The perception-grounded AERIS agent is not
+    /// in this build yet.
+    #[arg(long)]
+    pub baseline: String,
+    /// Output folder for episodes.jsonl and the flights' logs (default:
+    /// runs/eval-SPLIT-BASELINE).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Print one JSON object with the summary on the last line of stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// One line of episodes.jsonl.
+#[derive(Debug, Serialize)]
+struct EpisodeLine<'a> {
+    episode_id: &'a str,
+    scene_id: &'a str,
+    airspace: &'a str,
+    agent: &'a str,
+    instruction: &'a str,
+    positions: &'a [[f64; 3]],
+    reference: &'a [[f64; 3]],
+    goal: [f64; 3],
+    stopped: bool,
+    subgoals_total: usize,
+    subgoals_completed: usize,
+    attention_steps: &'a [u16],
+    ne: Option<f64>,
+    sr: f64,
+    osr: f64,
+    ndtw: f64,
+    spl: f64,
+    asr: Option<f64>,
+    path_length_m: f64,
+    duration_s: f64,
+    ct_mean_s: f64,
+    ct_p95_s: f64,
+    eer: f64,
+    failure: Option<&'a str>,
+}
+
+/// The summary of a group of episodes.
+#[derive(Debug, Clone, Serialize)]
+struct GroupSummary {
+    episodes: usize,
+    ne: Option<f64>,
+    sr: f64,
+    osr: f64,
+    ndtw: f64,
+    spl: f64,
+    asr: Option<f64>,
+    ct_mean_s: f64,
+    ct_p95_s: f64,
+    eer: f64,
+}
+
+#[derive(Default)]
+struct Group {
+    metrics: Vec<EpisodeMetrics>,
+    ct: Vec<f64>,
+    cycles: u64,
+    reused: u64,
+}
+
+impl Group {
+    fn summary(&self) -> GroupSummary {
+        let m = MetricsSummary::of(&self.metrics);
+        let ct = &self.ct;
+        let mean = if ct.is_empty() {
+            0.0
+        } else {
+            ct.iter().sum::<f64>() / ct.len() as f64
+        };
+        GroupSummary {
+            episodes: m.episodes,
+            ne: m.ne,
+            sr: m.sr,
+            osr: m.osr,
+            ndtw: m.ndtw,
+            spl: m.spl,
+            asr: m.asr,
+            ct_mean_s: mean,
+            ct_p95_s: percentile(ct, 95.0).unwrap_or(0.0),
+            eer: if self.cycles == 0 {
+                0.0
+            } else {
+                self.reused as f64 / self.cycles as f64
+            },
+        }
+    }
+}
+
+/// Positions are kept when the vehicle moved 5 m horizontally or 2 m vertically from the
+/// last kept one: AerialVLN's action steps, the reference's sampling.
+fn moved_a_step(last: [f64; 3], p: [f64; 3]) -> bool {
+    (p[0] - last[0]).hypot(p[1] - last[1]) >= 5.0 || (p[2] - last[2]).abs() >= 2.0
+}
+
+/// Run `aeris eval`.
+pub fn run(args: EvalArgs) -> Result<()> {
+    let agent = Agent::parse(&args.baseline)
+        .with_context(|| format!("unknown baseline `{}`: use oracle or random", args.baseline))?;
+    if args.episodes == 0 {
+        bail!("--episodes must be at least 1");
+    }
+    let (label, episodes): (String, Vec<Episode>) = match &args.episodes_file {
+        Some(file) => {
+            let mut list = load_episodes(file)?;
+            list.truncate(args.episodes);
+            (file.display().to_string(), list)
+        }
+        None => {
+            let split = Split::parse(&args.split).with_context(|| {
+                format!(
+                    "unknown split `{}`: use train, val_unseen or test_unseen",
+                    args.split
+                )
+            })?;
+            let filter = AirspaceFilter::parse(&args.airspace).with_context(|| {
+                format!(
+                    "unknown airspace `{}`: use open, dense or full",
+                    args.airspace
+                )
+            })?;
+            let list = generate_split(split, filter, args.episodes, &mut |_, _| {})?;
+            (split.as_str().to_string(), list)
+        }
+    };
+    let out = args.out.clone().unwrap_or_else(|| {
+        PathBuf::from("runs").join(format!("eval-{}-{}", args.split, agent.as_str()))
+    });
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let jsonl_path = out.join("episodes.jsonl");
+    let mut jsonl = std::fs::File::create(&jsonl_path)
+        .with_context(|| format!("creating {}", jsonl_path.display()))?;
+    let total = episodes.len();
+    let mut all = Group::default();
+    let mut open = Group::default();
+    let mut dense = Group::default();
+    for (k, episode) in episodes.iter().enumerate() {
+        let em = episode_mission(episode, agent)?;
+        let mut workflow = Workflow::builtin_default().context("the built-in workflow")?;
+        workflow.mission = em.mission.clone();
+        let reasoning = workflow
+            .roles
+            .iter_mut()
+            .find(|r| r.kind == "reasoning")
+            .context("the built-in workflow has no reasoning role")?;
+        reasoning.variant = agent.reasoning_variant().to_string();
+        if !reasoning.variants.iter().any(|v| v == &reasoning.variant) {
+            reasoning.variants.push(reasoning.variant.clone());
+        }
+        reasoning
+            .params
+            .insert("seed".into(), serde_json::Value::from(k as u64 + 1));
+        workflow
+            .validate()
+            .with_context(|| format!("episode {}: mission", episode.episode_id))?;
+        let flight = format!("eval-{}-{k}", std::process::id());
+        let plan = FlightPlan {
+            run_dir: out.join("runs").join(&flight),
+            flight,
+            autopilot: None,
+            stop: StopRule::Landed,
+            progress: false,
+        };
+        eprintln!(
+            "[{}/{total}] {} ({}): {}",
+            k + 1,
+            episode.episode_id,
+            episode.scene_id,
+            episode.instruction.instruction_text
+        );
+        let start = episode.start_position;
+        let mut positions: Vec<[f64; 3]> = vec![start];
+        let FlightOutcome {
+            summary,
+            failure,
+            ct_samples_s,
+        } = fly(workflow, &plan, |_, monitor, _| {
+            if let Some(p) = monitor.position() {
+                let p = [p[0] as f64, p[1] as f64, p[2] as f64];
+                if positions.last().is_none_or(|&last| moved_a_step(last, p)) {
+                    positions.push(p);
+                }
+            }
+            Ok(false)
+        })
+        .with_context(|| format!("episode {}", episode.episode_id))?;
+        // the final position always counts
+        let last = summary.final_position;
+        if positions.last() != Some(&last) && summary.controller_ticks > 0 {
+            positions.push(last);
+        }
+        let stopped = failure.is_none();
+        // instruction steps completed: those whose mission steps the attention moved past,
+        // and the last one too when the agent stopped within the acceptance radius
+        let done_steps = (summary.max_active_step as usize).saturating_sub(1)
+            + usize::from(stopped && summary.reached_goal);
+        let subgoals_total = episode.subgoals.len().max(1);
+        let subgoals_completed = (0..subgoals_total)
+            .filter(|&j| {
+                em.step_subgoal
+                    .iter()
+                    .enumerate()
+                    .filter(|&(_, &s)| s == j)
+                    .all(|(i, _)| i < done_steps)
+            })
+            .count();
+        let reference = episode.reference_positions();
+        let run = EpisodeRun {
+            positions: &positions,
+            reference: &reference,
+            goal: episode.goal(),
+            stopped,
+            subgoals_completed,
+            subgoals_total: if episode.subgoals.is_empty() {
+                0
+            } else {
+                subgoals_total
+            },
+        };
+        let m = EpisodeMetrics::compute(&run);
+        let airspace = episode.airspace.as_deref().unwrap_or("unknown");
+        let line = EpisodeLine {
+            episode_id: &episode.episode_id,
+            scene_id: &episode.scene_id,
+            airspace,
+            agent: agent.as_str(),
+            instruction: &episode.instruction.instruction_text,
+            positions: &positions,
+            reference: &reference,
+            goal: episode.goal(),
+            stopped,
+            subgoals_total,
+            subgoals_completed,
+            attention_steps: &summary.attention_steps,
+            ne: m.ne,
+            sr: m.sr,
+            osr: m.osr,
+            ndtw: m.ndtw,
+            spl: m.spl,
+            asr: m.asr,
+            path_length_m: m.path_length_m,
+            duration_s: summary.duration_s,
+            ct_mean_s: summary.ct_mean_s,
+            ct_p95_s: summary.ct_p95_s,
+            eer: summary.eer,
+            failure: failure.as_deref(),
+        };
+        writeln!(jsonl, "{}", serde_json::to_string(&line)?)
+            .with_context(|| format!("writing {}", jsonl_path.display()))?;
+        eprintln!(
+            "[{}/{total}] {}: NE {} SR {} OSR {} nDTW {:.3} SPL {:.3} ASR {}/{} ({:.0} s{})",
+            k + 1,
+            episode.episode_id,
+            m.ne.map(|v| format!("{v:.1} m"))
+                .unwrap_or_else(|| "-".into()),
+            m.sr,
+            m.osr,
+            m.ndtw,
+            m.spl,
+            subgoals_completed,
+            subgoals_total,
+            summary.duration_s,
+            failure
+                .as_deref()
+                .map(|f| format!(", {f}"))
+                .unwrap_or_default(),
+        );
+        for group in [
+            Some(&mut all),
+            (airspace == "open").then_some(&mut open),
+            (airspace == "dense").then_some(&mut dense),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            group.metrics.push(m);
+            group.ct.extend_from_slice(&ct_samples_s);
+            group.cycles += summary.cycles;
+            group.reused += summary.decisions_reused;
+        }
+    }
+    let overall = all.summary();
+    println!(
+        "{label}, {} baseline: {} episodes (details in {})",
+        agent.as_str(),
+        overall.episodes,
+        jsonl_path.display()
+    );
+    println!(
+        "  {:<8} {:>4} {:>8} {:>6} {:>6} {:>6} {:>6} {:>6} {:>8} {:>8} {:>6}",
+        "airspace", "n", "NE m", "SR%", "OSR%", "nDTW%", "SPL%", "ASR%", "CT s", "P95 s", "EER%"
+    );
+    let pct = |v: f64| format!("{:.1}", v * 100.0);
+    let groups = [("open", &open), ("dense", &dense), ("full", &all)];
+    for (name, g) in groups {
+        let s = g.summary();
+        if s.episodes == 0 {
+            continue;
+        }
+        println!(
+            "  {:<8} {:>4} {:>8} {:>6} {:>6} {:>6} {:>6} {:>6} {:>8.3} {:>8.3} {:>6}",
+            name,
+            s.episodes,
+            s.ne.map(|v| format!("{v:.1}"))
+                .unwrap_or_else(|| "-".into()),
+            pct(s.sr),
+            pct(s.osr),
+            pct(s.ndtw),
+            pct(s.spl),
+            s.asr.map(pct).unwrap_or_else(|| "-".into()),
+            s.ct_mean_s,
+            s.ct_p95_s,
+            pct(s.eer)
+        );
+    }
+    if args.json {
+        let mut obj = serde_json::to_value(&overall)?;
+        obj["split"] = serde_json::Value::from(label);
+        obj["baseline"] = serde_json::Value::from(agent.as_str());
+        obj["open"] = serde_json::to_value(open.summary())?;
+        obj["dense"] = serde_json::to_value(dense.summary())?;
+        println!("{obj}");
+    }
+    Ok(())
+}

@@ -1,0 +1,75 @@
+//! The oracle's mission follows the reference path: at most 16 steps, straight legs between
+//! its waypoints that stay clear of obstacles, ending with a landing at the goal.
+
+use aeris_eval::generate::{AirspaceFilter, Split, generate_split};
+use aeris_eval::mission::{Agent, corners, episode_mission};
+
+#[test]
+fn oracle_missions_fly_the_reference_corners_clear_of_obstacles() {
+    for split in Split::ALL {
+        let eps = generate_split(split, AirspaceFilter::Full, 16, &mut |_, _| {}).unwrap();
+        for e in &eps {
+            let m = episode_mission(e, Agent::Oracle).unwrap();
+            let steps = &m.mission.subgoals;
+            assert!(steps.len() <= 16, "{}", e.episode_id);
+            assert_eq!(steps[0].action, "takeoff", "{}", e.episode_id);
+            assert_eq!(steps.last().unwrap().action, "land");
+            let goal = e.goal();
+            assert_eq!(
+                steps.last().unwrap().waypoint,
+                [goal[0] as f32, goal[1] as f32, goal[2] as f32]
+            );
+            assert_eq!(m.step_subgoal.len(), steps.len());
+            assert!(m.step_subgoal.windows(2).all(|w| w[0] <= w[1]));
+            assert_eq!(*m.step_subgoal.last().unwrap(), e.subgoals.len() - 1);
+            // straight legs from the start through every waypoint are clear by 2 m
+            let mut at = m.mission.start;
+            for s in steps {
+                let w = s.waypoint;
+                let len =
+                    ((w[0] - at[0]).powi(2) + (w[1] - at[1]).powi(2) + (w[2] - at[2]).powi(2))
+                        .sqrt();
+                let n = (len / 0.25).ceil().max(1.0) as usize;
+                for i in 0..=n {
+                    let t = i as f32 / n as f32;
+                    let p = [
+                        at[0] + (w[0] - at[0]) * t,
+                        at[1] + (w[1] - at[1]) * t,
+                        at[2] + (w[2] - at[2]) * t,
+                    ];
+                    assert!(!m.world.collides(p, 2.0), "{}: {p:?}", e.episode_id);
+                }
+                at = w;
+            }
+            // the geofence holds the whole reference
+            let l = &m.mission.limits;
+            for p in e.reference_positions() {
+                let inside = |v: f64, a: usize| {
+                    v as f32 > l.geofence_min[a] && (v as f32) < l.geofence_max[a]
+                };
+                assert!(
+                    inside(p[0], 0) && inside(p[1], 1),
+                    "{}: {p:?}",
+                    e.episode_id
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn corners_keep_the_ends_and_every_turn() {
+    let p = [
+        [0.0, 0.0, 0.0],
+        [0.0, 0.0, 2.0],
+        [0.0, 0.0, 4.0],
+        [5.0, 0.0, 4.0],
+        [10.0, 0.0, 4.0],
+        [10.0, 5.0, 4.0],
+        [10.0, 5.0, 2.0],
+        [10.0, 5.0, 0.0],
+    ];
+    assert_eq!(corners(&p), vec![0, 2, 4, 5, 7]);
+    assert_eq!(corners(&p[..1]), vec![0]);
+    assert!(corners(&[]).is_empty());
+}

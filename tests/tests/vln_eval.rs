@@ -1,0 +1,155 @@
+//! `aeris eval` flies generated VLN episodes through the full multi-process pipeline: the
+//! oracle baseline (the planner on the reference path) succeeds, the random baseline does
+//! not, and every episode is written to episodes.jsonl with its trajectory and metrics.
+
+use aeris_tests::*;
+use std::process::Command;
+
+fn eval(dir: &std::path::Path, args: &[&str]) -> (serde_json::Value, Vec<serde_json::Value>) {
+    let out = Command::new(aeris_bin())
+        .arg("eval")
+        .args(args)
+        .arg("--json")
+        .arg("--out")
+        .arg(dir)
+        .output()
+        .expect("run aeris eval");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "eval {args:?} failed: {}\n{stdout}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines = std::fs::read_to_string(dir.join("episodes.jsonl")).expect("episodes.jsonl");
+    let episodes = lines
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("a JSON line"))
+        .collect();
+    (last_json_line(&stdout), episodes)
+}
+
+#[test]
+fn the_oracle_succeeds_and_random_does_not() {
+    let dir = TempDir::new("vln-eval");
+    // one open and one dense episode of the unseen validation split
+    let oracle_dir = dir.0.join("oracle");
+    let (summary, episodes) = eval(
+        &oracle_dir,
+        &[
+            "--split",
+            "val_unseen",
+            "--episodes",
+            "2",
+            "--baseline",
+            "oracle",
+        ],
+    );
+    assert_eq!(summary["episodes"], 2, "{summary}");
+    assert_eq!(summary["sr"], 1.0, "{summary}");
+    assert_eq!(summary["osr"], 1.0, "{summary}");
+    assert_eq!(summary["asr"], 1.0, "{summary}");
+    assert_eq!(summary["open"]["episodes"], 1, "{summary}");
+    assert_eq!(summary["dense"]["episodes"], 1, "{summary}");
+    assert!(summary["ne"].as_f64().unwrap() < 3.0, "{summary}");
+    assert!(summary["ndtw"].as_f64().unwrap() > 0.5, "{summary}");
+    for key in ["spl", "ct_mean_s", "ct_p95_s", "eer"] {
+        assert!(summary[key].is_number(), "{key}: {summary}");
+    }
+    assert_eq!(episodes.len(), 2);
+    for e in &episodes {
+        for key in [
+            "episode_id",
+            "airspace",
+            "positions",
+            "reference",
+            "goal",
+            "stopped",
+            "subgoals_total",
+            "subgoals_completed",
+            "ne",
+            "sr",
+            "osr",
+            "ndtw",
+            "spl",
+            "asr",
+        ] {
+            assert!(!e[key].is_null(), "{key} missing: {e}");
+        }
+        assert_eq!(e["stopped"], true, "{e}");
+        let positions = e["positions"].as_array().unwrap();
+        // the executed path starts at the start position and has flown the reference
+        assert_eq!(positions[0], serde_json::json!([0.0, 0.0, 0.0]), "{e}");
+        assert!(positions.len() > 10, "{e}");
+    }
+
+    let (summary, episodes) = eval(
+        &dir.0.join("random"),
+        &[
+            "--split",
+            "val_unseen",
+            "--episodes",
+            "1",
+            "--baseline",
+            "random",
+        ],
+    );
+    assert_eq!(summary["episodes"], 1, "{summary}");
+    // every goal is 50 m or more from the start; a random walk of 5 m steps that stops
+    // with probability 1/8 per heartbeat does not get there
+    assert_eq!(summary["sr"], 0.0, "{summary}");
+    assert_eq!(episodes[0]["sr"], 0.0);
+}
+
+#[test]
+fn bad_arguments_are_clear_errors() {
+    let dir = TempDir::new("vln-eval-args");
+    for (args, needle) in [
+        (vec!["--baseline", "psychic"], "unknown baseline `psychic`"),
+        (
+            vec!["--baseline", "oracle", "--split", "test_seen"],
+            "unknown split `test_seen`",
+        ),
+        (
+            vec!["--baseline", "oracle", "--airspace", "space"],
+            "unknown airspace `space`",
+        ),
+        (
+            vec!["--baseline", "oracle", "--episodes", "0"],
+            "--episodes must be at least 1",
+        ),
+    ] {
+        let out = Command::new(aeris_bin())
+            .arg("eval")
+            .args(&args)
+            .arg("--out")
+            .arg(&dir.0)
+            .output()
+            .expect("run aeris eval");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?}");
+        assert!(stderr.contains(needle), "{args:?}: {stderr}");
+    }
+    // an episode file naming a scene this simulator does not have
+    let file = dir.0.join("aerialvln.json");
+    std::fs::write(
+        &file,
+        r#"{"episodes": [{"episode_id": 1, "trajectory_id": 1, "scene_id": 3,
+            "start_position": [0, 0, 0], "start_rotation": [1, 0, 0, 0],
+            "goals": [{"position": [50, 0, 0]}], "reference_path": [[0, 0, 0], [50, 0, 0]],
+            "instruction": {"instruction_text": "fly north"}}]}"#,
+    )
+    .unwrap();
+    let out = Command::new(aeris_bin())
+        .args(["eval", "--baseline", "oracle", "--episodes-file"])
+        .arg(&file)
+        .arg("--out")
+        .arg(&dir.0)
+        .output()
+        .expect("run aeris eval");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("scene `3` is not a scene this simulator has"),
+        "{stderr}"
+    );
+}
