@@ -75,13 +75,8 @@ struct EpisodeLine<'a> {
 /// The summary of a group of episodes.
 #[derive(Debug, Clone, Serialize)]
 struct GroupSummary {
-    episodes: usize,
-    ne: Option<f64>,
-    sr: f64,
-    osr: f64,
-    ndtw: f64,
-    spl: f64,
-    asr: Option<f64>,
+    #[serde(flatten)]
+    m: MetricsSummary,
     ct_mean_s: f64,
     ct_p95_s: f64,
     eer: f64,
@@ -105,13 +100,7 @@ impl Group {
             ct.iter().sum::<f64>() / ct.len() as f64
         };
         GroupSummary {
-            episodes: m.episodes,
-            ne: m.ne,
-            sr: m.sr,
-            osr: m.osr,
-            ndtw: m.ndtw,
-            spl: m.spl,
-            asr: m.asr,
+            m,
             ct_mean_s: mean,
             ct_p95_s: percentile(ct, 95.0).unwrap_or(0.0),
             eer: if self.cycles == 0 {
@@ -319,7 +308,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
     println!(
         "{label}, {} baseline: {} episodes (details in {})",
         agent.as_str(),
-        overall.episodes,
+        overall.m.episodes,
         jsonl_path.display()
     );
     println!(
@@ -329,7 +318,12 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let pct = |v: f64| format!("{:.1}", v * 100.0);
     let groups = [("open", &open), ("dense", &dense), ("full", &all)];
     for (name, g) in groups {
-        let s = g.summary();
+        let GroupSummary {
+            m: s,
+            ct_mean_s,
+            ct_p95_s,
+            eer,
+        } = g.summary();
         if s.episodes == 0 {
             continue;
         }
@@ -344,9 +338,9 @@ pub fn run(args: EvalArgs) -> Result<()> {
             pct(s.ndtw),
             pct(s.spl),
             s.asr.map(pct).unwrap_or_else(|| "-".into()),
-            s.ct_mean_s,
-            s.ct_p95_s,
-            pct(s.eer)
+            ct_mean_s,
+            ct_p95_s,
+            pct(eer)
         );
     }
     if args.json {

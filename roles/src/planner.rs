@@ -342,6 +342,15 @@ impl Role for PlannerRole {
     }
 }
 
+/// xorshift64*: the next number of the stream in `state` (non-zero); deterministic and
+/// allocation-free, for the fault injector and the random baseline.
+fn xorshift64star(state: &mut u64) -> u64 {
+    *state ^= *state >> 12;
+    *state ^= *state << 25;
+    *state ^= *state >> 27;
+    state.wrapping_mul(0x2545_F491_4F6C_DD1D)
+}
+
 /// A reasoner that corrupts most of its decisions (fault injection).
 pub struct GarbageRole {
     io: ReasonerIo,
@@ -351,11 +360,7 @@ pub struct GarbageRole {
 
 impl GarbageRole {
     fn next_rand(&mut self) -> u64 {
-        // xorshift64*: deterministic, allocation-free
-        self.rng ^= self.rng >> 12;
-        self.rng ^= self.rng << 25;
-        self.rng ^= self.rng >> 27;
-        self.rng.wrapping_mul(0x2545_F491_4F6C_DD1D)
+        xorshift64star(&mut self.rng)
     }
 
     /// Corrupt `d` in the way selected by `kind`; returns false for "leave it valid".
@@ -538,11 +543,7 @@ impl Role for RandomRole {
         } else {
             self.airborne = true;
             if !self.stopped {
-                // xorshift64*: deterministic, allocation-free
-                self.rng ^= self.rng >> 12;
-                self.rng ^= self.rng << 25;
-                self.rng ^= self.rng >> 27;
-                let r = self.rng.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 32;
+                let r = xorshift64star(&mut self.rng) >> 32;
                 let a = RandomAction::ALL[(r % RandomAction::ALL.len() as u64) as usize];
                 self.stopped = a == RandomAction::Stop;
                 a.apply(&mut d, position, yaw, self.h_min);
