@@ -93,7 +93,8 @@ pub enum SceneCommand {
         #[arg(long)]
         depth_out: Option<PathBuf>,
     },
-    /// Draw the scene from above, with an episode's reference path if given.
+    /// Draw the scene from above, with an episode's reference path, or an evaluated
+    /// episode's executed trajectory over its reference.
     Map {
         /// Scene name; with --episodes, defaults to the episode's scene.
         scene: Option<String>,
@@ -103,10 +104,53 @@ pub enum SceneCommand {
         /// Episode id in that file (default: the first).
         #[arg(long)]
         episode: Option<String>,
+        /// episodes.jsonl of `aeris eval`: draw the episode's executed trajectory (red) over
+        /// its reference (white).
+        #[arg(long, value_name = "EPISODES_JSONL", conflicts_with = "episodes")]
+        run: Option<PathBuf>,
         /// Output PNG.
         #[arg(long)]
         out: PathBuf,
     },
+}
+
+/// The executed and reference paths, goal and scene of one line of episodes.jsonl.
+struct RunLine {
+    scene: String,
+    id: String,
+    positions: Vec<[f64; 3]>,
+    reference: Vec<[f64; 3]>,
+    goal: [f64; 3],
+}
+
+fn run_line(file: &Path, episode: Option<&str>) -> anyhow::Result<RunLine> {
+    let text =
+        std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))?;
+    for (n, line) in text.lines().enumerate() {
+        let v: serde_json::Value = serde_json::from_str(line)
+            .with_context(|| format!("{} line {}: not JSON", file.display(), n + 1))?;
+        let id = v["episode_id"].as_str().unwrap_or_default();
+        if episode.is_some_and(|e| e != id) {
+            continue;
+        }
+        let field = |k: &str| -> anyhow::Result<Vec<[f64; 3]>> {
+            serde_json::from_value(v[k].clone())
+                .with_context(|| format!("{} line {}: field `{k}`", file.display(), n + 1))
+        };
+        let goal: [f64; 3] = serde_json::from_value(v["goal"].clone())
+            .with_context(|| format!("{} line {}: field `goal`", file.display(), n + 1))?;
+        return Ok(RunLine {
+            scene: v["scene_id"].as_str().unwrap_or_default().to_string(),
+            id: id.to_string(),
+            positions: field("positions")?,
+            reference: field("reference")?,
+            goal,
+        });
+    }
+    match episode {
+        Some(e) => bail!("no episode `{e}` in {}", file.display()),
+        None => bail!("{} has no episodes", file.display()),
+    }
 }
 
 /// Run `aeris episodes`.
@@ -270,8 +314,28 @@ pub fn scene(args: SceneArgs) -> anyhow::Result<()> {
         }
         SceneCommand::Map {
             scene,
+            episodes: _,
+            episode,
+            run: Some(file),
+            out,
+        } => {
+            let r = run_line(&file, episode.as_deref())?;
+            let w = world(scene.as_deref().unwrap_or(&r.scene))?;
+            let layers = MapLayers {
+                reference: &r.reference,
+                executed: &r.positions,
+                goal: Some(r.goal),
+            };
+            save_png(&top_down(&w, &layers)?, &out)?;
+            println!("{}: executed (red) over reference (white)", r.id);
+            println!("wrote {}", out.display());
+            Ok(())
+        }
+        SceneCommand::Map {
+            scene,
             episodes,
             episode,
+            run: None,
             out,
         } => {
             let chosen = match &episodes {
