@@ -55,6 +55,7 @@ struct EpisodeLine<'a> {
     reference: &'a [[f64; 3]],
     goal: [f64; 3],
     stopped: bool,
+    collided: bool,
     subgoals_total: usize,
     subgoals_completed: usize,
     attention_steps: &'a [u16],
@@ -111,6 +112,10 @@ impl Group {
         }
     }
 }
+
+/// Radius (m) of the sphere around the vehicle's position that must stay clear of
+/// obstacles.
+const COLLISION_RADIUS_M: f32 = 0.3;
 
 /// Positions are kept when the vehicle moved 5 m horizontally or 2 m vertically from the
 /// last kept one: AerialVLN's action steps, the reference's sampling.
@@ -195,18 +200,27 @@ pub fn run(args: EvalArgs) -> Result<()> {
         );
         let start = episode.start_position;
         let mut positions: Vec<[f64; 3]> = vec![start];
+        let mut collided = None;
         let FlightOutcome {
             summary,
             failure,
             ct_samples_s,
         } = fly(workflow, &plan, |_, monitor, _| {
             if let Some(p) = monitor.position() {
+                // touching an obstacle ends the episode, as in AerialVLN (the ground is
+                // not an obstacle: the vehicle lands on it)
+                if em
+                    .world
+                    .collides([p[0], p[1], p[2].max(0.0)], COLLISION_RADIUS_M)
+                {
+                    collided = Some(p);
+                }
                 let p = [p[0] as f64, p[1] as f64, p[2] as f64];
                 if positions.last().is_none_or(|&last| moved_a_step(last, p)) {
                     positions.push(p);
                 }
             }
-            Ok(false)
+            Ok(collided.is_some())
         })
         .with_context(|| format!("episode {}", episode.episode_id))?;
         // the final position always counts
@@ -214,6 +228,13 @@ pub fn run(args: EvalArgs) -> Result<()> {
         if positions.last() != Some(&last) && summary.controller_ticks > 0 {
             positions.push(last);
         }
+        let failure = match (failure, collided) {
+            (None, Some(p)) => Some(format!(
+                "collided with an obstacle at [{:.1}, {:.1}, {:.1}]",
+                p[0], p[1], p[2]
+            )),
+            (f, _) => f,
+        };
         let stopped = failure.is_none();
         // instruction steps completed: those whose mission steps the attention moved past,
         // and the last one too when the agent stopped within the acceptance radius
@@ -254,6 +275,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
             reference: &reference,
             goal: episode.goal(),
             stopped,
+            collided: collided.is_some(),
             subgoals_total,
             subgoals_completed,
             attention_steps: &summary.attention_steps,

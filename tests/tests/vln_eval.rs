@@ -76,6 +76,7 @@ fn the_oracle_succeeds_and_random_does_not() {
             assert!(!e[key].is_null(), "{key} missing: {e}");
         }
         assert_eq!(e["stopped"], true, "{e}");
+        assert_eq!(e["collided"], false, "{e}");
         let positions = e["positions"].as_array().unwrap();
         // the executed path starts at the start position and has flown the reference
         assert_eq!(positions[0], serde_json::json!([0.0, 0.0, 0.0]), "{e}");
