@@ -6,7 +6,7 @@ use aeris_eval::generate::{AirspaceFilter, Split, generate_split};
 use aeris_eval::metrics::{EpisodeMetrics, EpisodeRun, MetricsSummary};
 use aeris_eval::mission::{Agent, episode_mission};
 use aeris_orchestrator::Workflow;
-use aeris_runtime::stats::percentile;
+use aeris_runtime::stats::{mean_std, percentile};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use serde::Serialize;
@@ -94,16 +94,10 @@ struct Group {
 impl Group {
     fn summary(&self) -> GroupSummary {
         let m = MetricsSummary::of(&self.metrics);
-        let ct = &self.ct;
-        let mean = if ct.is_empty() {
-            0.0
-        } else {
-            ct.iter().sum::<f64>() / ct.len() as f64
-        };
         GroupSummary {
             m,
-            ct_mean_s: mean,
-            ct_p95_s: percentile(ct, 95.0).unwrap_or(0.0),
+            ct_mean_s: mean_std(&self.ct).map_or(0.0, |(mean, _)| mean),
+            ct_p95_s: percentile(&self.ct, 95.0).unwrap_or(0.0),
             eer: if self.cycles == 0 {
                 0.0
             } else {

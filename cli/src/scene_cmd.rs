@@ -4,6 +4,7 @@
 use aeris_eval::episode::{Episode, load_episodes, save_episodes};
 use aeris_eval::generate::{AirspaceFilter, Split, generate_split};
 use aeris_eval::plot::{MapLayers, save_png, top_down};
+use aeris_runtime::stats::mean_std;
 use aeris_sim::render::{CAMERA_MOUNT_HEIGHT_M, Renderer};
 use aeris_sim::world::World;
 use anyhow::{Context, bail};
@@ -196,20 +197,14 @@ pub fn episodes(args: EpisodesArgs) -> anyhow::Result<()> {
 }
 
 fn summarise(file: &Path, list: &[Episode], json: bool) {
-    let steps: Vec<usize> = list.iter().map(|e| e.reference_path.len()).collect();
+    let steps: Vec<f64> = list.iter().map(|e| e.reference_path.len() as f64).collect();
     let lengths: Vec<f64> = list
         .iter()
         .map(|e| aeris_eval::metrics::path_length(&e.reference_positions()))
         .collect();
     let annotated = list.iter().filter(|e| !e.subgoals.is_empty()).count();
-    let mean = |v: &[f64]| {
-        if v.is_empty() {
-            0.0
-        } else {
-            v.iter().sum::<f64>() / v.len() as f64
-        }
-    };
-    let mean_steps = mean(&steps.iter().map(|&s| s as f64).collect::<Vec<_>>());
+    let mean = |v: &[f64]| mean_std(v).map_or(0.0, |(m, _)| m);
+    let mean_steps = mean(&steps);
     let scenes: std::collections::BTreeSet<&str> =
         list.iter().map(|e| e.scene_id.as_str()).collect();
     if json {

@@ -14,8 +14,9 @@
 //! scenes no `train` episode uses ([`Split::scene_seeds`]).
 
 use crate::episode::{Episode, Goal, Instruction, SubgoalAnnotation};
+use aeris_sim::multirotor::wrap_pi;
 use aeris_sim::scene_gen::{Airspace, SceneId};
-use aeris_sim::world::{Landmark, LandmarkKind, World};
+use aeris_sim::world::{Extent, Landmark, LandmarkKind, World};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -229,13 +230,16 @@ struct Grid {
 
 impl Grid {
     fn new(world: &World, altitude: f32) -> Grid {
-        let (mut lo, mut hi) = ([-60.0f32, -60.0f32], [60.0f32, 60.0f32]);
-        for l in &world.landmarks {
-            for a in 0..2 {
-                lo[a] = lo[a].min(l.min[a] - 40.0);
-                hi[a] = hi[a].max(l.max[a] + 40.0);
-            }
+        // the scene and at least 20 m around the start, with 40 m to go round obstacles
+        let mut x = Extent::around([-20.0, -20.0, 0.0]);
+        x.include([20.0, 20.0, 0.0]);
+        if let Some(w) = world.extent() {
+            x.union(&w);
         }
+        let (lo, hi) = (
+            [x.min[0] - 40.0, x.min[1] - 40.0],
+            [x.max[0] + 40.0, x.max[1] + 40.0],
+        );
         let rows = ((hi[0] - lo[0]) / GRID_M).ceil() as i32;
         let cols = ((hi[1] - lo[1]) / GRID_M).ceil() as i32;
         let blocking: Vec<&Landmark> = world
@@ -401,19 +405,10 @@ fn bearing(a: [f32; 2], b: [f32; 2]) -> f32 {
     (b[1] - a[1]).atan2(b[0] - a[0])
 }
 
-fn wrap(a: f32) -> f32 {
-    let t = core::f32::consts::TAU;
-    let r = (a + core::f32::consts::PI).rem_euclid(t) - core::f32::consts::PI;
-    if r <= -core::f32::consts::PI {
-        r + t
-    } else {
-        r
-    }
-}
-
 /// "turn left and " / "turn right and " / "" for a heading change from `from` to `to`.
 fn turn_words(from: f32, to: f32) -> &'static str {
-    let d = wrap(to - from).to_degrees();
+    // wrap_pi maps a half turn to -180 degrees; negated, a half turn is a right turn
+    let d = -wrap_pi(from - to).to_degrees();
     if d > 35.0 {
         "turn right and "
     } else if d < -35.0 {

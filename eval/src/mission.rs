@@ -13,7 +13,7 @@ use crate::episode::Episode;
 use aeris_runtime::MissionSpec;
 use aeris_runtime::spec::{LimitsSpec, SubgoalSpec};
 use aeris_schemas::MAX_SUBGOALS;
-use aeris_sim::world::World;
+use aeris_sim::world::{Extent, World};
 
 /// Cruise speed of evaluation flights (m/s).
 pub const CRUISE_M_S: f32 = 6.0;
@@ -226,20 +226,14 @@ pub fn episode_mission(episode: &Episode, agent: Agent) -> Result<EpisodeMission
 
 /// Limits covering the scene, the reference path and the start.
 fn scene_limits(world: &World, reference: &[[f64; 3]], start: [f32; 3]) -> LimitsSpec {
-    let (mut lo, mut hi) = (start, start);
-    let mut grow = |p: [f32; 3]| {
-        for a in 0..3 {
-            lo[a] = lo[a].min(p[a]);
-            hi[a] = hi[a].max(p[a]);
-        }
-    };
-    for l in &world.landmarks {
-        grow(l.min);
-        grow(l.max);
+    let mut x = Extent::around(start);
+    if let Some(w) = world.extent() {
+        x.union(&w);
     }
     for p in reference {
-        grow(f32s(*p));
+        x.include(f32s(*p));
     }
+    let (lo, hi) = (x.min, x.max);
     LimitsSpec {
         h_max: hi[2] + 40.0,
         geofence_min: [lo[0] - 60.0, lo[1] - 60.0, 0.0],

@@ -5,7 +5,7 @@
 //! path red, the start a black square, the goal a black cross inside its 20 m success
 //! circle.
 
-use aeris_sim::world::{LandmarkKind, World};
+use aeris_sim::world::{Extent, LandmarkKind, World};
 use image::{Rgb, RgbImage};
 use imageproc::drawing::{
     draw_cross_mut, draw_filled_rect_mut, draw_hollow_circle_mut, draw_hollow_rect_mut,
@@ -58,25 +58,24 @@ pub struct MapLayers<'a> {
 /// The top-down map of `world` with `layers`, covering every landmark and path with a
 /// 20 m margin.
 pub fn top_down(world: &World, layers: &MapLayers<'_>) -> Result<RgbImage, PlotError> {
-    let (mut lo, mut hi) = ([f32::MAX; 2], [f32::MIN; 2]);
-    let mut grow = |n: f32, e: f32| {
-        lo = [lo[0].min(n), lo[1].min(e)];
-        hi = [hi[0].max(n), hi[1].max(e)];
-    };
-    for l in &world.landmarks {
-        grow(l.min[0], l.min[1]);
-        grow(l.max[0], l.max[1]);
+    let mut x = world.extent();
+    let points = layers
+        .reference
+        .iter()
+        .chain(layers.executed)
+        .chain(&layers.goal);
+    for p in points {
+        let p = [p[0] as f32, p[1] as f32, p[2] as f32];
+        match &mut x {
+            Some(x) => x.include(p),
+            None => x = Some(Extent::around(p)),
+        }
     }
-    for p in layers.reference.iter().chain(layers.executed) {
-        grow(p[0] as f32, p[1] as f32);
-    }
-    if let Some(g) = layers.goal {
-        grow(g[0] as f32, g[1] as f32);
-    }
-    if lo[0] > hi[0] {
-        lo = [-50.0; 2];
-        hi = [50.0; 2];
-    }
+    let x = x.unwrap_or(Extent {
+        min: [-50.0, -50.0, 0.0],
+        max: [50.0, 50.0, 0.0],
+    });
+    let (lo, hi) = ([x.min[0], x.min[1]], [x.max[0], x.max[1]]);
     let margin = 20.0;
     let (lo, hi) = (
         [lo[0] - margin, lo[1] - margin],

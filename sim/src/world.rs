@@ -142,6 +142,36 @@ impl Landmark {
     }
 }
 
+/// An axis-aligned box `[N, E, U]` grown point by point: the extent of a scene, a path, a map.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Extent {
+    /// Lower corner.
+    pub min: [f32; 3],
+    /// Upper corner.
+    pub max: [f32; 3],
+}
+
+impl Extent {
+    /// The extent of the single point `p`.
+    pub fn around(p: [f32; 3]) -> Extent {
+        Extent { min: p, max: p }
+    }
+
+    /// Grow to hold `p`.
+    pub fn include(&mut self, p: [f32; 3]) {
+        for ((lo, hi), v) in self.min.iter_mut().zip(&mut self.max).zip(p) {
+            *lo = lo.min(v);
+            *hi = hi.max(v);
+        }
+    }
+
+    /// Grow to hold `other`.
+    pub fn union(&mut self, other: &Extent) {
+        self.include(other.min);
+        self.include(other.max);
+    }
+}
+
 /// A named region that is not drawn itself, e.g. the forest its trees make up.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Area {
@@ -355,6 +385,21 @@ impl World {
     /// The landmark called `name`, if any.
     pub fn landmark_named(&self, name: &str) -> Option<&Landmark> {
         self.landmarks.iter().find(|l| l.name == name)
+    }
+
+    /// The box holding every landmark; `None` for a world without landmarks.
+    pub fn extent(&self) -> Option<Extent> {
+        let mut it = self.landmarks.iter();
+        let first = it.next()?;
+        let mut x = Extent {
+            min: first.min,
+            max: first.max,
+        };
+        for l in it {
+            x.include(l.min);
+            x.include(l.max);
+        }
+        Some(x)
     }
 
     /// The area called `name`, if any.
