@@ -14,6 +14,8 @@ export AERIS_PYTHON="$PWD/.venv/bin/python"
 # runs llama-cpp-sys-2's build script three times; ccache turns the second and third
 # compilations of llama.cpp into cache hits (~6 min each on 2 cores otherwise).
 export CMAKE_C_COMPILER_LAUNCHER=ccache CMAKE_CXX_COMPILER_LAUNCHER=ccache
+# A clean clone gains nothing from incremental state (~1 GB in target/): keep the disk small.
+export CARGO_INCREMENTAL=0
 export CCACHE_DIR="${CCACHE_DIR:-$HOME/.cache/aeris/ccache}" CCACHE_NOHASHDIR=1 CCACHE_BASEDIR="$PWD"
 
 cargo fmt --all -- --check
