@@ -128,17 +128,21 @@ impl ModelStore {
 mod tests {
     use super::*;
 
-    fn temp_cache(tag: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("aeris-store-{tag}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(dir.join("m")).unwrap();
+    /// A cache folder with an empty `m/` that is removed when the guard drops.
+    fn temp_cache(tag: &str) -> tempfile::TempDir {
+        let dir = tempfile::Builder::new()
+            .prefix(&format!("aeris-store-{tag}-"))
+            .tempdir()
+            .unwrap();
+        std::fs::create_dir_all(dir.path().join("m")).unwrap();
         dir
     }
 
     #[test]
     fn a_missing_cache_names_the_provisioning_command() {
-        let dir = temp_cache("missing");
-        let err = ModelStore::open(Some(&dir)).unwrap_err();
+        let guard = temp_cache("missing");
+        let dir = guard.path();
+        let err = ModelStore::open(Some(dir)).unwrap_err();
         assert!(matches!(err, ModelError::NotProvisioned { .. }));
         assert!(
             err.to_string().contains("scripts/provision-models.sh"),
@@ -148,7 +152,8 @@ mod tests {
 
     #[test]
     fn verifies_files_against_the_manifest() {
-        let dir = temp_cache("verify");
+        let guard = temp_cache("verify");
+        let dir = guard.path();
         std::fs::write(dir.join("m/a.onnx"), b"model bytes").unwrap();
         let good = sha256_file(&dir.join("m/a.onnx")).unwrap();
         std::fs::write(
@@ -156,7 +161,7 @@ mod tests {
             format!("{good}  m/a.onnx\n{good}  m/gone.onnx\n"),
         )
         .unwrap();
-        let store = ModelStore::open(Some(&dir)).unwrap();
+        let store = ModelStore::open(Some(dir)).unwrap();
         assert_eq!(store.verified("m/a.onnx").unwrap(), dir.join("m/a.onnx"));
         assert!(matches!(
             store.verified("m/gone.onnx"),
@@ -182,11 +187,12 @@ mod tests {
             "abc  m/a.onnx\n",
             &format!("{}  ../etc/passwd\n", "0".repeat(64)),
         ] {
-            let dir = temp_cache("malformed");
+            let guard = temp_cache("malformed");
+            let dir = guard.path();
             std::fs::write(dir.join(MANIFEST), text).unwrap();
             assert!(
                 matches!(
-                    ModelStore::open(Some(&dir)),
+                    ModelStore::open(Some(dir)),
                     Err(ModelError::Manifest { .. })
                 ),
                 "{text}"

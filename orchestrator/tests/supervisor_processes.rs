@@ -38,7 +38,9 @@ esac
 fn fake_exe() -> &'static Path {
     static EXE: OnceLock<PathBuf> = OnceLock::new();
     EXE.get_or_init(|| {
-        let dir = std::env::temp_dir().join(format!("aeris-orch-fake-{}", std::process::id()));
+        // under target/tmp, which cargo owns: nothing is left behind in the system temp folder
+        let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+            .join(format!("aeris-orch-fake-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let exe = dir.join("fake-aeris");
         std::fs::write(&exe, FAKE_AERIS).unwrap();
