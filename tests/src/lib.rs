@@ -172,6 +172,27 @@ pub fn run_output(dir: &std::path::Path) -> (String, String) {
     )
 }
 
+/// The last `lines` lines of every role log of the flight run in `dir` (by
+/// [`spawn_run`]), for failure messages: the temporary folder is gone after the test.
+pub fn run_logs_tail(dir: &std::path::Path, lines: usize) -> String {
+    let mut out = String::new();
+    let Ok(entries) = std::fs::read_dir(dir.join("run").join("logs")) else {
+        return "(no role logs)".into();
+    };
+    let mut paths: Vec<_> = entries.filter_map(|e| e.ok().map(|e| e.path())).collect();
+    paths.sort();
+    for p in paths {
+        let text = std::fs::read_to_string(&p).unwrap_or_default();
+        let all: Vec<&str> = text.lines().collect();
+        out.push_str(&format!("== {}\n", p.display()));
+        for l in &all[all.len().saturating_sub(lines)..] {
+            out.push_str(l);
+            out.push('\n');
+        }
+    }
+    out
+}
+
 /// The default workflow's mission.
 pub fn default_mission() -> aeris_runtime::MissionSpec {
     let workflow = default_workflow();

@@ -39,7 +39,11 @@ fn garbage_decisions_never_reach_the_autopilot() {
     })
     .expect("flight finished");
     let (stdout, stderr) = run_output(&dir.0);
-    assert!(finished.success(), "aeris run failed: {finished}\n{stderr}");
+    assert!(
+        finished.success(),
+        "aeris run failed: {finished}\n{stderr}\n{}",
+        run_logs_tail(&dir.0, 20)
+    );
     let summary = last_json_line(&stdout);
 
     assert!(
