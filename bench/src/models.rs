@@ -273,7 +273,7 @@ impl Probe for LlmProbe {
             self.planner = self.fresh.clone();
             self.previous = None;
         }
-        let plan = DecisionView::from_decision(&self.planner.decide(position, 0.0, landed));
+        let plan = DecisionView::from_decision(&self.planner.decide(position, 0.0, landed, None));
         let obs = Observation {
             position,
             yaw: 0.0,
@@ -383,7 +383,7 @@ fn load_probe(
                 ..ReasonerConfig::default()
             };
             let brief = aeris_roles::language::mission_brief(mission).map_err(model_err)?;
-            let planner = Planner::new(mission)
+            let planner = Planner::new(mission, &aeris_runtime::spec::CameraSpec::default())
                 .ok_or_else(|| BenchError::Config("the mission names an unknown action".into()))?;
             Box::new(LlmProbe {
                 reasoner: LanguageReasoner::load(store, file, brief, config).map_err(model_err)?,

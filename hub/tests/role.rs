@@ -16,7 +16,7 @@ fn spec(flight: &str) -> RoleSpec {
     let subgoal = |text: &str, action: &str, waypoint: [f32; 3]| SubgoalSpec {
         text: text.into(),
         action: action.into(),
-        waypoint,
+        waypoint: Some(waypoint),
     };
     RoleSpec {
         flight: flight.into(),

@@ -22,8 +22,9 @@ pub struct StepBrief {
     pub text: String,
     /// The action that completes it.
     pub action: ActionMode,
-    /// The waypoint `[N, E, U]` that marks its completion.
-    pub waypoint: [f32; 3],
+    /// The waypoint `[N, E, U]` that marks its completion; `None` when the step names a
+    /// landmark to find instead (the plan then carries where it was seen).
+    pub waypoint: Option<[f32; 3]>,
 }
 
 /// The mission G as the reasoner needs it.
@@ -109,16 +110,29 @@ pub fn user_message(mission: &MissionBrief, obs: &Observation<'_>) -> String {
     let mut m = String::with_capacity(1024);
     let _ = writeln!(m, "Mission: {}", sanitize(&mission.instruction, 400));
     for (i, s) in mission.steps.iter().enumerate() {
-        let _ = writeln!(
-            m,
-            "Step {}: {} ({} at north {:.0}, east {:.0}, altitude {:.0})",
-            i + 1,
-            sanitize(&s.text, 120),
-            s.action.name(),
-            s.waypoint[0],
-            s.waypoint[1],
-            s.waypoint[2]
-        );
+        match s.waypoint {
+            Some(w) => {
+                let _ = writeln!(
+                    m,
+                    "Step {}: {} ({} at north {:.0}, east {:.0}, altitude {:.0})",
+                    i + 1,
+                    sanitize(&s.text, 120),
+                    s.action.name(),
+                    w[0],
+                    w[1],
+                    w[2]
+                );
+            }
+            None => {
+                let _ = writeln!(
+                    m,
+                    "Step {}: {} ({}, place to be found by the camera)",
+                    i + 1,
+                    sanitize(&s.text, 120),
+                    s.action.name(),
+                );
+            }
+        }
     }
     let _ = writeln!(
         m,
@@ -217,12 +231,12 @@ mod tests {
                 StepBrief {
                     text: "take off".into(),
                     action: ActionMode::Takeoff,
-                    waypoint: [0.0, 0.0, 10.0],
+                    waypoint: Some([0.0, 0.0, 10.0]),
                 },
                 StepBrief {
                     text: "fly north".into(),
                     action: ActionMode::Goto,
-                    waypoint: [30.0, 0.0, 10.0],
+                    waypoint: Some([30.0, 0.0, 10.0]),
                 },
             ],
             limits: DecisionLimits {

@@ -19,7 +19,7 @@ fn village() -> MissionBrief {
     let step = |text: &str, action, waypoint| StepBrief {
         text: text.into(),
         action,
-        waypoint,
+        waypoint: Some(waypoint),
     };
     MissionBrief {
         instruction: "Take off from the helipad to 12 metres, fly north along the road to the \

@@ -38,6 +38,20 @@ fn side_word(cx: f32) -> &'static str {
     }
 }
 
+/// The text a composed S_t says was read on signs (the words inside `reads "..."` of its
+/// summary): `Some("")` when it carries a text block that read nothing, `None` when it
+/// carries no text block (no reader in the flight, or not for this frame).
+pub fn read_text(state: &PerceptionState) -> Option<&str> {
+    if state.blocks & block::TEXT == 0 {
+        return None;
+    }
+    let summary = state.summary.as_str_lossy();
+    let Some(rest) = summary.strip_prefix("reads \"") else {
+        return Some("");
+    };
+    Some(rest.split('"').next().unwrap_or(""))
+}
+
 /// Compose S_t from the blocks at hand (each `None` when missing): copy every block and
 /// write the summary (text read first, then the detections with side and range, then the
 /// best cue). `state`'s frame fields come from the first block present.
@@ -243,6 +257,7 @@ mod tests {
             s.summary.as_str(),
             Some("reads \"LAKE VIEW\"; bus ahead 21 m; cue: a sign that says LAKE VIEW (0.61)")
         );
+        assert_eq!(read_text(&s), Some("LAKE VIEW"));
         assert_eq!(s.blocks, block::ALL);
         assert_eq!(s.frame_seq, 7);
         assert_eq!(s.subgoal_relevance(), &[0.0, 0.0, 0.61]);

@@ -15,7 +15,9 @@
 //! the first heartbeat, so a swapped-in reasoner is ready when the supervisor sees it.
 //!
 //! Parameters: `model` (cache-relative GGUF, default per variant), `threads` (default 2),
-//! `context_tokens` (default 2048), `models_dir`.
+//! `context_tokens` (default 2048), `models_dir`, `plan` (bool, default true; false leaves
+//! the planner's plan out of the prompt: the generic model on its own, the evaluation's
+//! zero-shot ablation).
 //! Heartbeat stages: `read`, `prompt` (evaluating the new prompt tokens), `generate`,
 //! `publish`; the cycle latency is the decision latency. Counters: `[decisions,
 //! tokens_per_s x 100 (last decision), generated tokens (last decision), failures,
@@ -88,6 +90,8 @@ pub struct LanguageRole {
     cycle: u64,
     failures: u64,
     source: u32,
+    /// Whether the prompt shows the planner's plan.
+    show_plan: bool,
 }
 
 impl LanguageRole {
@@ -130,16 +134,23 @@ impl Role for LanguageRole {
                 .clamp(256.0, 32768.0) as u32,
             ..ReasonerConfig::default()
         };
+        let show_plan = match ctx.spec.params.get("plan") {
+            None => true,
+            Some(v) => v.as_bool().ok_or_else(|| {
+                RoleError::Config(format!("reasoning param `plan` must be a bool, got {v}"))
+            })?,
+        };
         let store = open_store(ctx)?;
         let brief = mission_brief(&ctx.spec.mission)?;
-        let mut planner = Planner::new(&ctx.spec.mission)
-            .ok_or_else(|| RoleError::Config("the mission names an unknown action".into()))?;
+        let mut planner = Planner::new(&ctx.spec.mission, &ctx.spec.camera).ok_or_else(|| {
+            RoleError::Config("the mission names an unknown action or the camera is invalid".into())
+        })?;
         let start = ctx.spec.mission.start;
         let mut reasoner = LanguageReasoner::load(&store, &file, brief, config)
             .map_err(|e| RoleError::Config(format!("reasoning/{variant}: {e}")))?;
         // warm-up: the first decision pays for page faults and graph allocation
         // (on a copy of the planner: the flight's own starts at the first subgoal)
-        let plan = DecisionView::from_decision(&planner.clone().decide(start, 0.0, true));
+        let plan = DecisionView::from_decision(&planner.clone().decide(start, 0.0, true, None));
         let warm = Observation {
             position: start,
             yaw: 0.0,
@@ -174,6 +185,7 @@ impl Role for LanguageRole {
             cycle: 0,
             failures: 0,
             source: ctx.spec.instance,
+            show_plan,
         })
     }
 
@@ -203,14 +215,14 @@ impl Role for LanguageRole {
             (None, Some(s)) => (s.position, s.yaw, s.position[2] < 0.3),
             (None, None) => (self.start, 0.0, true),
         };
-        let plan = DecisionView::from_decision(&self.planner.decide(position, yaw, landed));
+        let plan = DecisionView::from_decision(&self.planner.decide(position, yaw, landed, state));
         let obs = Observation {
             position,
             yaw,
             landed,
             state,
             previous: self.previous.as_ref(),
-            plan: Some(&plan),
+            plan: self.show_plan.then_some(&plan),
         };
         let reasoning_start = monotonic_ns();
         report.stage("read", reasoning_start - t0);

@@ -17,6 +17,7 @@ pub mod compose;
 pub mod controller;
 pub mod cues;
 pub mod detector;
+pub mod grounding;
 pub mod heartbeat_clock;
 pub mod language;
 pub mod occupancy;

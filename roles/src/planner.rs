@@ -15,20 +15,60 @@
 //!
 //! Heartbeat counters: `[decisions, subgoal_index (0-based), corrupted, 0, 0, 0, 0, 0]`.
 
+use crate::grounding::{
+    LandmarkPhrase, Relation, SignReading, height_of, sight, sign_reading, turn_of,
+};
 use crate::heartbeat_clock::{Basis, HeartbeatClock};
 use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::spec::CameraSpec;
 use aeris_runtime::{
     CycleOutcome, CycleReport, Role, RoleContext, RoleError, bus::TypedPublisher,
     bus::TypedSubscriber,
 };
+use aeris_schemas::state::CUE_MAX;
 use aeris_schemas::{
-    ActionMode, Decision, MAX_SUBGOALS, PerceptionState, VehicleTelemetry, topics,
+    ActionMode, Decision, Detection, FixedText, MAX_SUBGOALS, PerceptionState, VehicleTelemetry,
+    topics,
 };
 use aeris_sim::multirotor::wrap_pi;
+use aeris_sim::render::CameraModel;
 use core::time::Duration;
 
 /// A turn step is done when the yaw is this close to the bearing of its waypoint.
 const TURN_TOLERANCE_RAD: f32 = 0.15;
+/// Cruise height (m above the start) of a mission whose take-off names no height.
+pub const DEFAULT_CRUISE_HEIGHT_M: f32 = 20.0;
+/// "fly to X" / "land next to X" stop this far (m) short of X's seen surface.
+pub const STANDOFF_M: f32 = 12.0;
+/// Slack (m) on the stand-off point and on "fly over X" when X's position is an estimate.
+pub const GROUNDED_REACH_M: f32 = 8.0;
+/// Yaw offsets (rad) from the search heading, one heartbeat each, while the landmark of a
+/// step is not in view: ahead, then ever wider left/right, then behind.
+const SCAN_OFFSETS: [f32; 6] = [0.0, -1.05, 1.05, -2.09, 2.09, core::f32::consts::PI];
+/// Length (m) of a search leg along the search heading after a scan found nothing.
+pub const SEARCH_LEG_M: f32 = 40.0;
+/// Search legs flown before the planner gives up on a landmark and lands where it is.
+pub const MAX_SEARCH_LEGS: u32 = 4;
+/// A sign seen this close (m) whose text the reader read otherwise than the step quotes
+/// is another sign (PP-OCR reads the 8 m billboards from about 30 m).
+const READ_RANGE_M: f32 = 30.0;
+/// Sightings this close (m) to a landmark an earlier step found are of that landmark.
+const SAME_PLACE_M: f32 = 15.0;
+/// Length (m) of a leg toward a landmark seen beyond the depth sensor's range.
+const APPROACH_LEG_M: f32 = 30.0;
+/// "land next to X" looks for clear ground from this far (m) short of X's seen surface,
+/// backing off toward the vehicle: the nearest clear ground on the approach side.
+pub const NEXT_TO_M: f32 = 4.0;
+/// Heartbeats a landing waits over the stand-off point for clear ground to show.
+const TOUCHDOWN_WAIT: u32 = 3;
+/// Half-side (m) of the square around a touchdown point that must hold no obstacle.
+const TOUCHDOWN_CLEAR_M: f32 = 4.0;
+/// Below the transit height by more than this (m), a grounded step climbs in place first.
+const CLIMB_FIRST_M: f32 = 3.0;
+/// Height (m) kept above the obstacle tops seen on the way.
+const OBSTACLE_MARGIN_M: f32 = 6.0;
+/// How far ahead (m) the transit height looks at the occupancy grid.
+const LOOKAHEAD_M: f32 = 40.0;
 
 /// Bearing from `from` to `to` (rad, 0 = north, clockwise), or `fallback` when they coincide.
 fn heading(from: [f32; 3], to: [f32; 3], fallback: f32) -> f32 {
@@ -40,14 +80,64 @@ fn heading(from: [f32; 3], to: [f32; 3], fallback: f32) -> f32 {
     }
 }
 
+/// What a step flies to.
+#[derive(Debug, Clone, Copy)]
+enum StepTarget {
+    /// The waypoint the mission gives.
+    At([f32; 3]),
+    /// The landmark the step's text names, found in S_t.
+    Find(LandmarkPhrase),
+    /// Neither: done after one decision (a land step lands where it is).
+    Here,
+}
+
 /// One subgoal as the planner needs it (copied from the mission at start).
 #[derive(Debug, Clone, Copy)]
 struct Step {
     action: ActionMode,
-    waypoint: [f32; 3],
+    target: StepTarget,
+    /// Heading change the step's text asks for before it flies (rad).
+    turn: f32,
+}
+
+/// The memory of a grounded step: where its landmark was seen and how the search goes.
+#[derive(Debug, Clone, Copy, Default)]
+struct Search {
+    /// Heading to search along, fixed when the step starts.
+    heading: Option<f32>,
+    /// The landmark's ground point `[N, E]` from its latest ranged sighting.
+    found: Option<[f32; 2]>,
+    /// A point being flown to: toward an unranged sighting, or a search leg.
+    toward: Option<[f32; 2]>,
+    /// Heartbeats spent scanning at the current spot.
+    scan: usize,
+    /// Search legs flown.
+    legs: u32,
+    /// Signs seen close up that read otherwise than the step quotes (ground points).
+    rejected: [Option<[f32; 2]>; 4],
+    /// Signs rejected so far.
+    rejections: usize,
+    /// A sign read close up as another text: where, and how many times in a row.
+    strike: Option<([f32; 2], u8)>,
+    /// The quoted text was read close to the landmark found.
+    confirmed: bool,
+    /// Where a "land next to" step touches down: short of the landmark, on ground the
+    /// occupancy grid shows clear.
+    touchdown: Option<[f32; 2]>,
+    /// Heartbeats waited over the stand-off point for a clear touchdown.
+    waited: u32,
+    /// An occupancy grid came with S_t during this step (else there is no clear ground
+    /// to wait for).
+    grid_seen: bool,
 }
 
 /// The planner's pure logic: memory (the subgoal in progress) and the decision rule.
+///
+/// A step with a waypoint is flown to it. A step without one (the VLN setting) is grounded
+/// in S_t ([`crate::grounding`]): its landmark is looked for among the detections (after
+/// the turn its text asks for, then scanning around, then flying search legs), located
+/// from the detection's bearing and range, and approached at a height that clears the
+/// obstacle tops the occupancy grid shows ahead.
 #[derive(Debug, Clone)]
 pub struct Planner {
     steps: [Option<Step>; MAX_SUBGOALS],
@@ -58,19 +148,51 @@ pub struct Planner {
     cruise: f32,
     radius: f32,
     h_min: f32,
+    h_max: f32,
+    fence: ([f32; 3], [f32; 3]),
+    camera: CameraModel,
+    cruise_height: f32,
+    /// Height of grounded legs (m): the cruise height, raised over obstacles seen ahead.
+    transit: f32,
+    search: Search,
+    /// Where each completed grounded step found its landmark.
+    visited: [Option<([f32; 2], LandmarkPhrase)>; MAX_SUBGOALS],
+    /// Signs rejected in the whole flight.
+    rejections: u64,
+    /// The latest rejected sign: its ground point and what it read.
+    last_rejection: Option<([f32; 2], FixedText<CUE_MAX>)>,
 }
 
 impl Planner {
-    /// A planner for the mission in `spec`; `None` when an action name is unknown (the
-    /// mission was validated, so this does not happen for supervisor-written specs).
-    pub fn new(mission: &aeris_runtime::MissionSpec) -> Option<Self> {
+    /// A planner for the mission in `spec` seen through `camera`; `None` when an action
+    /// name is unknown or the camera's geometry is invalid (a validated spec has neither).
+    pub fn new(mission: &aeris_runtime::MissionSpec, camera: &CameraSpec) -> Option<Self> {
         let mut steps = [None; MAX_SUBGOALS];
+        let mut cruise_height = None;
         for (slot, s) in steps.iter_mut().zip(mission.subgoals.iter()) {
+            let action = s.action_mode()?;
+            let target = match (s.waypoint, action) {
+                (Some(w), _) => StepTarget::At(w),
+                (None, ActionMode::Takeoff | ActionMode::Ascend) => {
+                    let h = height_of(&s.text).unwrap_or(DEFAULT_CRUISE_HEIGHT_M);
+                    StepTarget::At([mission.start[0], mission.start[1], mission.start[2] + h])
+                }
+                (None, _) => LandmarkPhrase::parse(&s.text)
+                    .map(StepTarget::Find)
+                    .unwrap_or(StepTarget::Here),
+            };
+            if let (StepTarget::At(w), ActionMode::Takeoff) = (target, action) {
+                cruise_height.get_or_insert(w[2]);
+            }
             *slot = Some(Step {
-                action: s.action_mode()?,
-                waypoint: s.waypoint,
+                action,
+                target,
+                turn: turn_of(&s.text),
             });
         }
+        let l = &mission.limits;
+        let camera =
+            CameraModel::new(camera.width, camera.height, camera.hfov_deg.to_radians()).ok()?;
         Some(Self {
             steps,
             count: mission.subgoals.len().min(MAX_SUBGOALS),
@@ -79,8 +201,30 @@ impl Planner {
             start: mission.start,
             cruise: mission.cruise_speed,
             radius: mission.acceptance_radius_m,
-            h_min: mission.limits.h_min,
+            h_min: l.h_min,
+            h_max: l.h_max,
+            fence: (l.geofence_min, l.geofence_max),
+            camera,
+            cruise_height: cruise_height
+                .unwrap_or(mission.start[2] + DEFAULT_CRUISE_HEIGHT_M)
+                .clamp(l.h_min, l.h_max),
+            transit: 0.0,
+            search: Search::default(),
+            visited: [None; MAX_SUBGOALS],
+            rejections: 0,
+            last_rejection: None,
         })
+    }
+
+    /// Signs rejected so far in the flight (read close up, another text than quoted), and
+    /// the latest one's ground point and reading.
+    pub fn rejections(&self) -> (u64, Option<([f32; 2], &str)>) {
+        (
+            self.rejections,
+            self.last_rejection
+                .as_ref()
+                .map(|(p, t)| (*p, t.as_str_lossy())),
+        )
     }
 
     /// Index (0-based) of the subgoal in progress.
@@ -96,19 +240,34 @@ impl Planner {
             .saturating_sub(1)
             .min(self.count.saturating_sub(1));
         self.issued = 0;
+        self.search = Search::default();
     }
 
     /// Whether the step in progress is done, given how many decisions were already issued
     /// for it (a hover holds for one heartbeat; stop never completes).
-    fn reached(
-        step: &Step,
-        position: [f32; 3],
-        yaw: f32,
-        landed: bool,
-        radius: f32,
-        issued: u32,
-    ) -> bool {
-        let w = step.waypoint;
+    fn reached(&self, step: &Step, position: [f32; 3], yaw: f32, landed: bool) -> bool {
+        let (radius, issued) = (self.radius, self.issued);
+        let w = match step.target {
+            StepTarget::At(w) => w,
+            StepTarget::Here => {
+                return match step.action {
+                    ActionMode::Land => landed,
+                    ActionMode::Stop => false,
+                    _ => issued >= 1,
+                };
+            }
+            StepTarget::Find(phrase) => {
+                let Some(p) = self.search.found else {
+                    return false;
+                };
+                let d = (position[0] - p[0]).hypot(position[1] - p[1]);
+                return match (step.action, phrase.relation) {
+                    (ActionMode::Land, _) => landed && d <= STANDOFF_M + GROUNDED_REACH_M,
+                    (_, Relation::Over) => d <= GROUNDED_REACH_M,
+                    _ => d <= STANDOFF_M + GROUNDED_REACH_M,
+                };
+            }
+        };
         match step.action {
             ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend => {
                 (position[2] - w[2]).abs() <= 1.0
@@ -123,53 +282,405 @@ impl Planner {
         }
     }
 
-    /// Advance the memory on the vehicle's state and return the decision for this cycle
-    /// (timing fields left for the caller).
-    pub fn decide(&mut self, position: [f32; 3], yaw: f32, landed: bool) -> Decision {
-        while self.current + 1 < self.count {
-            let Some(step) = self.steps[self.current] else {
+    /// Advance the memory on the vehicle's state and on `state`, the S_t this decision is
+    /// based on (`None` for a decision on telemetry alone), and return the decision for
+    /// this cycle (timing fields left for the caller).
+    pub fn decide(
+        &mut self,
+        position: [f32; 3],
+        yaw: f32,
+        landed: bool,
+        state: Option<&PerceptionState>,
+    ) -> Decision {
+        while let Some(step) = self.steps[self.current] {
+            if let StepTarget::Find(phrase) = step.target {
+                self.observe(&phrase, position, state);
+            }
+            if self.current + 1 >= self.count || !self.reached(&step, position, yaw, landed) {
                 break;
-            };
-            if !Self::reached(&step, position, yaw, landed, self.radius, self.issued) {
-                break;
+            }
+            if let (StepTarget::Find(phrase), Some(p)) = (step.target, self.search.found) {
+                self.visited[self.current] = Some((p, phrase));
             }
             self.current += 1;
             self.issued = 0;
+            self.search = Search::default();
         }
         self.issued = self.issued.saturating_add(1);
         let step = self.steps[self.current].unwrap_or(Step {
             action: ActionMode::Hover,
-            waypoint: position,
+            target: StepTarget::Here,
+            turn: 0.0,
         });
-        let w = step.waypoint;
-        let (target, altitude) = match step.action {
-            ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend => {
-                ([position[0], position[1], w[2]], w[2])
+        let (action, target, altitude, facing) = match step.target {
+            StepTarget::At(w) => {
+                let (target, altitude) = match step.action {
+                    ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend => {
+                        ([position[0], position[1], w[2]], w[2])
+                    }
+                    // land: fly (or stay) over the touchdown point at the current height;
+                    // the gate binds the descent to U=0
+                    ActionMode::Land => ([w[0], w[1], w[2]], position[2].max(self.h_min).max(w[2])),
+                    _ => (w, w[2].max(self.h_min)),
+                };
+                (step.action, target, altitude, None)
             }
-            // land: fly (or stay) over the touchdown point at the current height; the gate
-            // binds the descent to U=0
-            ActionMode::Land => ([w[0], w[1], w[2]], position[2].max(self.h_min).max(w[2])),
-            _ => (w, w[2].max(self.h_min)),
+            StepTarget::Here => match step.action {
+                ActionMode::Land | ActionMode::Stop => (
+                    step.action,
+                    [position[0], position[1], 0.0],
+                    position[2].max(self.h_min),
+                    None,
+                ),
+                _ => (
+                    ActionMode::Hover,
+                    position,
+                    position[2].max(self.h_min),
+                    None,
+                ),
+            },
+            StepTarget::Find(phrase) => self.grounded(&step, &phrase, position, yaw),
         };
+        let target = self.inside_fence(target);
         let dn = target[0] - position[0];
         let de = target[1] - position[1];
-        let heading = if dn.hypot(de) > 1.0 {
-            de.atan2(dn)
-        } else {
-            yaw
+        let heading = match facing {
+            Some(h) => h,
+            None if dn.hypot(de) > 1.0 => de.atan2(dn),
+            None => yaw,
         };
         Decision {
             target,
             yaw: wrap_pi(heading),
             speed: self.cruise,
-            altitude,
+            altitude: altitude.clamp(self.h_min, self.h_max),
             acceptance_radius: self.radius,
             confidence: 1.0,
             step: (self.current + 1) as u16,
-            action: step.action as u8,
+            action: action as u8,
             ..Decision::default()
         }
     }
+
+    /// Take in what `state` shows of the landmark of the step in progress and of the
+    /// obstacles ahead.
+    fn observe(
+        &mut self,
+        phrase: &LandmarkPhrase,
+        position: [f32; 3],
+        state: Option<&PerceptionState>,
+    ) {
+        let Some(s) = state else {
+            return;
+        };
+        // a landmark that an earlier step found and that is certainly another one (a
+        // sign with another text) is not this step's
+        let (camera, visited) = (&self.camera, &self.visited[..self.current]);
+        let elsewhere = |d: &Detection| {
+            let Some(p) = sight(d, s.position, s.yaw, camera).point else {
+                return true;
+            };
+            !visited.iter().flatten().any(|(q, other)| {
+                phrase.differs_from(other) && (p[0] - q[0]).hypot(p[1] - q[1]) <= SAME_PLACE_M
+            })
+        };
+        let rejected = self.search.rejected;
+        let elsewhere = |d: &Detection| {
+            elsewhere(d)
+                && sight(d, s.position, s.yaw, camera).point.is_none_or(|p| {
+                    !rejected
+                        .iter()
+                        .flatten()
+                        .any(|q| (p[0] - q[0]).hypot(p[1] - q[1]) <= SAME_PLACE_M)
+                })
+        };
+        // a sign close enough to read that reads otherwise is not the quoted one
+        let quoted = phrase.sign_text.as_str_lossy();
+        let reading = match crate::compose::read_text(s) {
+            Some(read) if !quoted.is_empty() => sign_reading(read, quoted),
+            _ => SignReading::Nothing,
+        };
+        if let Some(d) = phrase.best_match_where(s, elsewhere) {
+            let seen = sight(d, s.position, s.yaw, &self.camera);
+            let close = seen
+                .point
+                .filter(|p| (p[0] - s.position[0]).hypot(p[1] - s.position[1]) <= READ_RANGE_M);
+            if reading == SignReading::Quoted && close.is_some() {
+                self.search.confirmed = true;
+            }
+            // a misreading (one frame at a slant) must not cost the right sign: two
+            // readings of another text at the same place, and none of the quoted one
+            let strikes = match (reading, close, self.search.strike) {
+                (SignReading::Other, Some(p), Some((q, n)))
+                    if (p[0] - q[0]).hypot(p[1] - q[1]) <= SAME_PLACE_M =>
+                {
+                    n + 1
+                }
+                (SignReading::Other, Some(_), _) => 1,
+                _ => 0,
+            };
+            if let Some(p) = close
+                && strikes > 0
+            {
+                self.search.strike = Some((p, strikes));
+            }
+            if strikes >= 2
+                && !self.search.confirmed
+                && let Some(p) = close
+            {
+                self.search.strike = None;
+                let slot = self.search.rejections % self.search.rejected.len();
+                self.search.rejected[slot] = Some(p);
+                self.search.rejections += 1;
+                self.rejections += 1;
+                self.last_rejection = Some((
+                    p,
+                    FixedText::from_str_truncated(crate::compose::read_text(s).unwrap_or("")),
+                ));
+                self.search.found = None;
+                self.search.toward = None;
+                self.search.scan = 0;
+                return;
+            }
+            match seen.point {
+                Some(p) => {
+                    self.search.found = Some(p);
+                    self.search.toward = None;
+                }
+                None if self.search.found.is_none() => {
+                    self.search.toward = Some(ahead(s.position, seen.bearing, APPROACH_LEG_M));
+                }
+                None => {}
+            }
+        }
+        self.search.grid_seen |= s.occupancy.is_present();
+        if let (Some(p), Relation::NextTo) = (self.search.found, phrase.relation) {
+            let standoff = short_of([position[0], position[1]], p, NEXT_TO_M);
+            // kept from the last frame that showed clear ground there: the grid does not
+            // see under the vehicle, so from above a roof would read unknown
+            if let Some(t) = clear_touchdown(&s.occupancy, standoff, [position[0], position[1]]) {
+                self.search.touchdown = Some(t);
+            }
+        }
+        let goal = self
+            .search
+            .found
+            .or(self.search.toward)
+            .unwrap_or([position[0], position[1]]);
+        self.transit = transit_altitude(s, position, goal, self.transit).min(self.h_max - 1.0);
+    }
+
+    /// The decision of a grounded step: `(action, target, altitude, facing)`.
+    fn grounded(
+        &mut self,
+        step: &Step,
+        phrase: &LandmarkPhrase,
+        position: [f32; 3],
+        yaw: f32,
+    ) -> (ActionMode, [f32; 3], f32, Option<f32>) {
+        let search_heading = *self.search.heading.get_or_insert(wrap_pi(yaw + step.turn));
+        let altitude = self.transit.max(self.cruise_height);
+        let here = [position[0], position[1]];
+        // an obstacle ahead raised the transit height: climb in place before going on
+        let climbing = position[2] < altitude - CLIMB_FIRST_M;
+        let climb = |facing: Option<f32>| {
+            (
+                ActionMode::Goto,
+                [position[0], position[1], altitude],
+                altitude,
+                facing,
+            )
+        };
+        if let Some(p) = self.search.found {
+            if climbing && step.action != ActionMode::Land {
+                return climb(Some((p[1] - here[1]).atan2(p[0] - here[0])));
+            }
+            let goal = match phrase.relation {
+                Relation::Over => p,
+                Relation::NextTo => self
+                    .search
+                    .touchdown
+                    .unwrap_or_else(|| short_of(here, p, STANDOFF_M)),
+                Relation::To => short_of(here, p, STANDOFF_M),
+            };
+            // no clear ground seen next to it yet: wait over the stand-off point (the grid
+            // fills in as the camera looks around), then land there after all
+            let waiting = step.action == ActionMode::Land
+                && self.search.touchdown.is_none()
+                && self.search.grid_seen
+                && phrase.relation == Relation::NextTo
+                && self.search.waited < TOUCHDOWN_WAIT;
+            if waiting && (here[0] - goal[0]).hypot(here[1] - goal[1]) <= GROUNDED_REACH_M {
+                self.search.waited += 1;
+            }
+            let action = if step.action == ActionMode::Land && !waiting {
+                ActionMode::Land
+            } else {
+                ActionMode::Goto
+            };
+            let u = if action == ActionMode::Land {
+                0.0
+            } else {
+                altitude
+            };
+            // a landing approaches at the transit height too: the gate binds the descent
+            // once over the touchdown point
+            let alt = if action == ActionMode::Land {
+                altitude.max(position[2]).max(self.h_min)
+            } else {
+                altitude
+            };
+            // face the landmark, not the stand-off point, once there
+            let facing = (here[0] - p[0]).hypot(here[1] - p[1]) > 1.0;
+            let face = facing.then(|| (p[1] - here[1]).atan2(p[0] - here[0]));
+            return (action, [goal[0], goal[1], u], alt, face);
+        }
+        if let Some(t) = self.search.toward {
+            if (here[0] - t[0]).hypot(here[1] - t[1]) > GROUNDED_REACH_M {
+                if climbing {
+                    return climb(Some((t[1] - here[1]).atan2(t[0] - here[0])));
+                }
+                return (ActionMode::Goto, [t[0], t[1], altitude], altitude, None);
+            }
+            self.search.toward = None;
+            self.search.scan = 0;
+        }
+        if self.search.scan < SCAN_OFFSETS.len() {
+            let face = wrap_pi(search_heading + SCAN_OFFSETS[self.search.scan]);
+            self.search.scan += 1;
+            return (
+                ActionMode::Goto,
+                [position[0], position[1], altitude],
+                altitude,
+                Some(face),
+            );
+        }
+        if self.search.legs < MAX_SEARCH_LEGS {
+            self.search.legs += 1;
+            self.search.scan = 0;
+            let t = ahead(position, search_heading, SEARCH_LEG_M);
+            self.search.toward = Some(t);
+            return (ActionMode::Goto, [t[0], t[1], altitude], altitude, None);
+        }
+        // not found: give up and land here (the episode ends where the search did)
+        (
+            ActionMode::Land,
+            [position[0], position[1], 0.0],
+            position[2].max(self.h_min),
+            None,
+        )
+    }
+
+    /// `p` moved inside the geofence (by a metre's margin).
+    fn inside_fence(&self, p: [f32; 3]) -> [f32; 3] {
+        let (lo, hi) = self.fence;
+        let mut out = p;
+        for i in 0..3 {
+            if lo[i] + 1.0 <= hi[i] - 1.0 {
+                out[i] = out[i].clamp(lo[i] + if i == 2 { 0.0 } else { 1.0 }, hi[i] - 1.0);
+            }
+        }
+        out
+    }
+}
+
+/// The point `len` metres from `from` along `bearing`.
+fn ahead(from: [f32; 3], bearing: f32, len: f32) -> [f32; 2] {
+    [from[0] + len * bearing.cos(), from[1] + len * bearing.sin()]
+}
+
+/// The point `standoff` metres short of `p` on the line from `here`; `here` itself when
+/// it is already that close.
+fn short_of(here: [f32; 2], p: [f32; 2], standoff: f32) -> [f32; 2] {
+    let (dn, de) = (here[0] - p[0], here[1] - p[1]);
+    let d = dn.hypot(de);
+    if d <= standoff {
+        return here;
+    }
+    [p[0] + dn / d * standoff, p[1] + de / d * standoff]
+}
+
+/// A touchdown point near `standoff` on ground the grid shows clear: the first point, from
+/// `standoff` backing off toward `from` in 2 m steps (up to 30 m), whose cells within
+/// [`TOUCHDOWN_CLEAR_M`] are all observed free ground; `None` when there is none (or no
+/// grid).
+fn clear_touchdown(
+    grid: &aeris_schemas::OccupancyGrid,
+    standoff: [f32; 2],
+    from: [f32; 2],
+) -> Option<[f32; 2]> {
+    if !grid.is_present() {
+        return None;
+    }
+    let clear = |p: [f32; 2]| {
+        let r = TOUCHDOWN_CLEAR_M;
+        let mut dn = -r;
+        while dn <= r {
+            let mut de = -r;
+            while de <= r {
+                if grid
+                    .height_at([p[0] + dn, p[1] + de])
+                    .is_none_or(|h| h > 0.5)
+                {
+                    return false;
+                }
+                de += 1.0;
+            }
+            dn += 1.0;
+        }
+        true
+    };
+    let (dn, de) = (from[0] - standoff[0], from[1] - standoff[1]);
+    let d = dn.hypot(de);
+    let (un, ue) = if d > 1e-3 {
+        (dn / d, de / d)
+    } else {
+        (0.0, 0.0)
+    };
+    let mut back = 0.0;
+    while back <= 30.0 {
+        let p = [standoff[0] + un * back, standoff[1] + ue * back];
+        if clear(p) {
+            return Some(p);
+        }
+        back += 2.0;
+    }
+    None
+}
+
+/// The height to fly toward `goal` at: `previous`, raised to clear by
+/// [`OBSTACLE_MARGIN_M`] every obstacle top the occupancy grid of `s` shows within
+/// [`LOOKAHEAD_M`] on the way. It never comes down before the landing: the grid is rebuilt
+/// from every frame and does not see under the vehicle, so a roof just flown over would
+/// read as unknown, not as an obstacle.
+fn transit_altitude(s: &PerceptionState, position: [f32; 3], goal: [f32; 2], previous: f32) -> f32 {
+    let grid = &s.occupancy;
+    if !grid.is_present() {
+        return previous;
+    }
+    let (dn, de) = (goal[0] - position[0], goal[1] - position[1]);
+    let dist = dn.hypot(de);
+    if dist < 1e-3 {
+        return previous;
+    }
+    let (un, ue) = (dn / dist, de / dist);
+    let len = dist.min(LOOKAHEAD_M);
+    let mut top = 0.0f32;
+    let mut t = 0.0;
+    while t <= len {
+        // the line and two parallels 4 m to either side (the vehicle's clearance)
+        for side in [-4.0f32, 0.0, 4.0] {
+            let p = [
+                position[0] + un * t - ue * side,
+                position[1] + ue * t + un * side,
+            ];
+            if let Some(h) = grid.height_at(p) {
+                top = top.max(h);
+            }
+        }
+        t += 2.0;
+    }
+    previous.max(top + OBSTACLE_MARGIN_M)
 }
 
 fn distance(a: [f32; 3], b: [f32; 3]) -> f32 {
@@ -225,8 +736,9 @@ pub fn hub_active_step(ctx: &RoleContext, wait: Duration) -> Result<Option<u16>,
 
 impl ReasonerIo {
     fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
-        let mut planner = Planner::new(&ctx.spec.mission)
-            .ok_or_else(|| RoleError::Config("the mission names an unknown action".into()))?;
+        let mut planner = Planner::new(&ctx.spec.mission, &ctx.spec.camera).ok_or_else(|| {
+            RoleError::Config("the mission names an unknown action or the camera is invalid".into())
+        })?;
         if let Some(step) = hub_active_step(ctx, RESUME_WAIT)? {
             planner.resume(step);
         }
@@ -273,15 +785,26 @@ impl ReasonerIo {
         };
         self.fresh_state = false;
         self.clock.decided(t0);
-        let reasoning_start = monotonic_ns();
-        let mut d = self.planner.decide(position, yaw, landed);
-        self.cycle += 1;
-        d.cycle = self.cycle;
-        d.source = self.source;
         let state = match basis {
             Basis::State => self.last_state.as_ref(),
             Basis::TelemetryOnly => None,
         };
+        let reasoning_start = monotonic_ns();
+        let before = self.planner.rejections().0;
+        let mut d = self.planner.decide(position, yaw, landed, state);
+        if let (n, Some((p, read))) = self.planner.rejections()
+            && n > before
+        {
+            // rare (a few per flight): worth a line in the role's log
+            eprintln!(
+                "reasoning: step {}: the sign at [{:.0}, {:.0}] reads \"{read}\", not the one \
+                 the instruction quotes; searching on",
+                d.step, p[0], p[1]
+            );
+        }
+        self.cycle += 1;
+        d.cycle = self.cycle;
+        d.source = self.source;
         match state {
             Some(s) => {
                 d.cycle_start_ns = s.capture_ns;
@@ -568,17 +1091,17 @@ mod tests {
                 SubgoalSpec {
                     text: "take off".into(),
                     action: "takeoff".into(),
-                    waypoint: [0.0, 0.0, 10.0],
+                    waypoint: Some([0.0, 0.0, 10.0]),
                 },
                 SubgoalSpec {
                     text: "fly north".into(),
                     action: "goto".into(),
-                    waypoint: [30.0, 0.0, 10.0],
+                    waypoint: Some([30.0, 0.0, 10.0]),
                 },
                 SubgoalSpec {
                     text: "land".into(),
                     action: "land".into(),
-                    waypoint: [30.0, 10.0, 0.0],
+                    waypoint: Some([30.0, 10.0, 0.0]),
                 },
             ],
             world: "village".into(),
@@ -594,14 +1117,14 @@ mod tests {
     fn advances_through_subgoals_and_every_decision_is_valid() {
         let m = mission();
         let limits = m.decision_limits();
-        let mut p = Planner::new(&m).unwrap();
-        let d = p.decide([0.0, 0.0, 0.0], 0.0, true);
+        let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
+        let d = p.decide([0.0, 0.0, 0.0], 0.0, true, None);
         assert_eq!(
             (d.step, ActionMode::from_u8(d.action)),
             (1, Some(ActionMode::Takeoff))
         );
         assert!(d.validate(&limits).is_ok());
-        let d = p.decide([0.0, 0.0, 9.5], 0.0, false);
+        let d = p.decide([0.0, 0.0, 9.5], 0.0, false, None);
         assert_eq!(
             (d.step, ActionMode::from_u8(d.action)),
             (2, Some(ActionMode::Goto))
@@ -609,24 +1132,24 @@ mod tests {
         assert_eq!(d.target, [30.0, 0.0, 10.0]);
         assert!(d.validate(&limits).is_ok());
         // not there yet: memory holds
-        let d = p.decide([15.0, 0.0, 10.0], 0.0, false);
+        let d = p.decide([15.0, 0.0, 10.0], 0.0, false, None);
         assert_eq!(d.step, 2);
-        let d = p.decide([29.0, 0.5, 10.0], 0.0, false);
+        let d = p.decide([29.0, 0.5, 10.0], 0.0, false, None);
         assert_eq!(
             (d.step, ActionMode::from_u8(d.action)),
             (3, Some(ActionMode::Land))
         );
         assert!(d.validate(&limits).is_ok());
         // the last step stays active
-        let d = p.decide([30.0, 10.0, 0.0], 0.0, true);
+        let d = p.decide([30.0, 10.0, 0.0], 0.0, true, None);
         assert_eq!(d.step, 3);
     }
 
     #[test]
     fn a_huge_or_odd_yaw_never_hangs_and_stays_in_range() {
-        let mut p = Planner::new(&mission()).unwrap();
+        let mut p = Planner::new(&mission(), &CameraSpec::default()).unwrap();
         for yaw in [1.0e9, -3.0e38, f32::MAX, 7.0] {
-            let d = p.decide([0.0, 0.0, 0.0], yaw, true);
+            let d = p.decide([0.0, 0.0, 0.0], yaw, true, None);
             assert!(d.yaw.abs() <= core::f32::consts::PI, "{yaw} -> {}", d.yaw);
         }
     }
@@ -639,7 +1162,7 @@ mod tests {
             SubgoalSpec {
                 text: "hover".into(),
                 action: "hover".into(),
-                waypoint: [0.0, 0.0, 10.0],
+                waypoint: Some([0.0, 0.0, 10.0]),
             },
         );
         m.subgoals.insert(
@@ -647,21 +1170,21 @@ mod tests {
             SubgoalSpec {
                 text: "face east".into(),
                 action: "turn".into(),
-                waypoint: [0.0, 30.0, 10.0],
+                waypoint: Some([0.0, 30.0, 10.0]),
             },
         );
-        let mut p = Planner::new(&m).unwrap();
+        let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
         assert_eq!(
-            p.decide([0.0, 0.0, 10.0], 0.0, false).step,
+            p.decide([0.0, 0.0, 10.0], 0.0, false, None).step,
             2,
             "takeoff done -> hover"
         );
         assert_eq!(
-            p.decide([0.0, 0.0, 10.0], 0.0, false).step,
+            p.decide([0.0, 0.0, 10.0], 0.0, false, None).step,
             3,
             "hovered one heartbeat -> turn"
         );
-        let d = p.decide([0.0, 0.0, 10.0], 0.0, false);
+        let d = p.decide([0.0, 0.0, 10.0], 0.0, false, None);
         assert_eq!(
             (d.step, ActionMode::from_u8(d.action)),
             (3, Some(ActionMode::Turn)),
@@ -669,7 +1192,7 @@ mod tests {
         );
         assert!((d.yaw - core::f32::consts::FRAC_PI_2).abs() < 1e-3);
         assert_eq!(
-            p.decide([0.0, 0.0, 10.0], 1.55, false).step,
+            p.decide([0.0, 0.0, 10.0], 1.55, false, None).step,
             4,
             "facing east -> next"
         );
@@ -677,13 +1200,283 @@ mod tests {
 
     #[test]
     fn yaw_points_at_the_target() {
-        let mut p = Planner::new(&mission()).unwrap();
-        let _ = p.decide([0.0, 0.0, 10.0], 0.0, false);
-        let d = p.decide([30.0, -20.0, 10.0], 0.0, false);
+        let mut p = Planner::new(&mission(), &CameraSpec::default()).unwrap();
+        let _ = p.decide([0.0, 0.0, 10.0], 0.0, false, None);
+        let d = p.decide([30.0, -20.0, 10.0], 0.0, false, None);
         assert!(
             (d.yaw - core::f32::consts::FRAC_PI_2).abs() < 1e-3,
             "{}",
             d.yaw
         );
+    }
+
+    /// The VLN setting: steps name landmarks, no waypoints.
+    fn vln_mission() -> aeris_runtime::MissionSpec {
+        let step = |text: &str, action: &str| SubgoalSpec {
+            text: text.into(),
+            action: action.into(),
+            waypoint: None,
+        };
+        aeris_runtime::MissionSpec {
+            instruction: "take off, fly to the red-roofed building, land by the sign".into(),
+            subgoals: vec![
+                step("take off from the helipad to 15 metres", "takeoff"),
+                step("turn right and fly to the red-roofed building", "goto"),
+                step("land next to the yellow sign that says HOTEL", "land"),
+            ],
+            world: "village".into(),
+            start: [0.0; 3],
+            cruise_speed: 5.0,
+            acceptance_radius_m: 3.0,
+            max_duration_s: 300.0,
+            limits: LimitsSpec {
+                h_max: 80.0,
+                geofence_min: [-300.0, -300.0, 0.0],
+                geofence_max: [300.0, 300.0, 80.0],
+                ..LimitsSpec::default()
+            },
+        }
+    }
+
+    fn seen(
+        label: &str,
+        bbox: [f32; 4],
+        range_m: f32,
+        position: [f32; 3],
+        yaw: f32,
+    ) -> PerceptionState {
+        let mut s = PerceptionState {
+            position,
+            yaw,
+            detection_count: 1,
+            ..PerceptionState::default()
+        };
+        s.detections[0].label.set(label);
+        s.detections[0].score = 0.8;
+        s.detections[0].bbox = bbox;
+        s.detections[0].range_m = range_m;
+        s
+    }
+
+    #[test]
+    fn a_grounded_step_turns_as_told_scans_and_flies_to_what_it_sees() {
+        let m = vln_mission();
+        let limits = m.decision_limits();
+        let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
+        // the take-off height comes from the text
+        let d = p.decide([0.0; 3], 0.0, true, None);
+        assert_eq!((d.step, d.target[2]), (1, 15.0));
+        // up: "turn right" -> face east first, holding position
+        let empty = PerceptionState::default();
+        let d = p.decide([0.0, 0.0, 15.0], 0.0, false, Some(&empty));
+        assert_eq!(d.step, 2);
+        assert!(
+            (d.yaw - core::f32::consts::FRAC_PI_2).abs() < 1e-3,
+            "{}",
+            d.yaw
+        );
+        assert!(horizontal(d.target, [0.0, 0.0, 15.0]) < 1e-3);
+        // nothing seen: the scan turns left of the search heading next
+        let d = p.decide([0.0, 0.0, 15.0], d.yaw, false, Some(&empty));
+        assert!(d.yaw < core::f32::consts::FRAC_PI_2 - 0.5, "{}", d.yaw);
+        // the red roof straight ahead (east) at 40 m: fly to 12 m short of it
+        let at = [0.0, 0.0, 15.0];
+        let east = core::f32::consts::FRAC_PI_2;
+        let s = seen("red roof", [0.45, 0.0, 0.1, 0.1], 40.0, at, east);
+        let d = p.decide(at, east, false, Some(&s));
+        assert!(d.validate(&limits).is_ok());
+        assert_eq!(
+            (d.step, ActionMode::from_u8(d.action)),
+            (2, Some(ActionMode::Goto))
+        );
+        assert!(
+            d.target[1] > 10.0 && d.target[0].abs() < 5.0,
+            "{:?}",
+            d.target
+        );
+        let seen_at = p.search.found.unwrap();
+        let gap = (d.target[0] - seen_at[0]).hypot(d.target[1] - seen_at[1]);
+        assert!((gap - STANDOFF_M).abs() < 0.1, "{gap}");
+        // a decision on telemetry alone keeps the memory
+        let d2 = p.decide([0.0, 5.0, 15.0], east, false, None);
+        assert_eq!(d2.step, 2);
+        // arrived at the stand-off point: the landing step searches for the sign
+        let d = p.decide(d.target, east, false, Some(&empty));
+        assert_eq!(d.step, 3);
+        let here = d.target;
+        let s = seen("yellow sign", [0.3, 0.3, 0.1, 0.1], 25.0, here, east);
+        let d = p.decide(here, east, false, Some(&s));
+        assert_eq!(
+            (d.step, ActionMode::from_u8(d.action)),
+            (3, Some(ActionMode::Land))
+        );
+        assert_eq!(d.target[2], 0.0);
+        assert!(d.validate(&limits).is_ok());
+    }
+
+    #[test]
+    fn a_landmark_never_seen_ends_in_a_landing_after_the_search_legs() {
+        let m = vln_mission();
+        let limits = m.decision_limits();
+        let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
+        let empty = PerceptionState::default();
+        let mut at = [0.0, 0.0, 15.0];
+        let mut yaw = 0.0;
+        let mut last = None;
+        for _ in 0..200 {
+            let d = p.decide(at, yaw, false, Some(&empty));
+            assert!(d.validate(&limits).is_ok(), "{d:?}");
+            // the vehicle goes where it is told at once
+            at = d.target;
+            yaw = d.yaw;
+            last = Some(d);
+            if ActionMode::from_u8(d.action) == Some(ActionMode::Land) {
+                break;
+            }
+        }
+        let d = last.unwrap();
+        assert_eq!(
+            (d.step, ActionMode::from_u8(d.action)),
+            (2, Some(ActionMode::Land))
+        );
+        // it searched along east (turn right) for the legs' length
+        assert!(
+            (d.target[1] - MAX_SEARCH_LEGS as f32 * SEARCH_LEG_M).abs() < 1.0,
+            "{:?}",
+            d.target
+        );
+    }
+
+    #[test]
+    fn the_transit_height_clears_obstacles_seen_ahead_and_never_drops() {
+        let m = vln_mission();
+        let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
+        let _ = p.decide([0.0; 3], 0.0, true, None);
+        let at = [0.0, 0.0, 15.0];
+        // the red roof 60 m north, a 30 m wall 20 m ahead on the way
+        let mut s = seen("red roof", [0.45, 0.3, 0.1, 0.1], 60.0, at, 0.0);
+        s.occupancy.resolution_m = 2.0;
+        s.occupancy.origin = [0.0, 0.0];
+        s.occupancy.cells = [0; aeris_schemas::OCCUPANCY_CELLS];
+        let wall = s.occupancy.cell_of([20.0, 0.0]).unwrap();
+        s.occupancy.cells[wall] = 30;
+        let d = p.decide(at, 0.0, false, Some(&s));
+        assert_eq!(d.step, 2);
+        assert!(d.altitude >= 36.0 && d.target[2] >= 36.0, "{d:?}");
+        // the wall no longer in the grid: the height stays
+        s.occupancy.cells[wall] = 0;
+        let d = p.decide([10.0, 0.0, 36.0], 0.0, false, Some(&s));
+        assert!(d.altitude >= 36.0, "{}", d.altitude);
+    }
+
+    #[test]
+    fn a_sign_with_another_text_is_not_taken_for_the_next_one() {
+        let mut m = vln_mission();
+        m.subgoals[1].text = "fly to the yellow sign that says STADIUM".into();
+        let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
+        let _ = p.decide([0.0; 3], 0.0, true, None);
+        let at = [0.0, 0.0, 15.0];
+        // STADIUM's sign ahead (north), found and reached
+        let s = seen("yellow sign", [0.45, 0.3, 0.1, 0.1], 30.0, at, 0.0);
+        let d = p.decide(at, 0.0, false, Some(&s));
+        assert_eq!(d.step, 2);
+        let stadium = p.search.found.unwrap();
+        let d = p.decide(d.target, 0.0, false, None);
+        assert_eq!(d.step, 3, "reached the stand-off point");
+        // the same sign seen again: not HOTEL's, the search goes on
+        let here = d.target;
+        let dn = stadium[0] - here[0];
+        let s = seen("yellow sign", [0.45, 0.3, 0.1, 0.1], dn, here, 0.0);
+        let d = p.decide(here, 0.0, false, Some(&s));
+        assert_eq!(p.search.found, None, "{d:?}");
+        // a yellow sign elsewhere (behind, 40 m south) is taken
+        let s = seen(
+            "yellow sign",
+            [0.45, 0.3, 0.1, 0.1],
+            40.0,
+            here,
+            core::f32::consts::PI,
+        );
+        let d = p.decide(here, core::f32::consts::PI, false, Some(&s));
+        let found = p.search.found.expect("the other sign");
+        assert!(found[0] < here[0] - 30.0, "{found:?}");
+        assert_eq!(ActionMode::from_u8(d.action), Some(ActionMode::Land));
+    }
+
+    #[test]
+    fn a_sign_read_close_up_with_another_text_is_rejected() {
+        let mut m = vln_mission();
+        m.subgoals.remove(1);
+        let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
+        let _ = p.decide([0.0; 3], 0.0, true, None);
+        let at = [0.0, 0.0, 15.0];
+        // a yellow sign 20 m ahead that the reader reads as MUSEUM: once may be a
+        // misreading, twice it is not HOTEL's
+        let mut s = seen("yellow sign", [0.45, 0.3, 0.1, 0.1], 20.0, at, 0.0);
+        s.blocks |= aeris_schemas::block::TEXT;
+        s.summary = aeris_schemas::FixedText::from_str_truncated(
+            "reads \"MUSEUM\"; yellow sign ahead 20 m",
+        );
+        let d = p.decide(at, 0.0, false, Some(&s));
+        assert_eq!(d.step, 2);
+        assert!(p.search.found.is_some(), "one misreading rejects nothing");
+        let _ = p.decide(at, 0.0, false, Some(&s));
+        assert_eq!(p.search.found, None);
+        assert_eq!(p.rejections().0, 1);
+        assert_eq!(p.rejections().1.unwrap().1, "MUSEUM");
+        // seen again from afar without a reading: still not taken
+        let s = seen(
+            "yellow sign",
+            [0.45, 0.3, 0.1, 0.1],
+            45.0,
+            [-25.0, 0.0, 15.0],
+            0.0,
+        );
+        let _ = p.decide([-25.0, 0.0, 15.0], 0.0, false, Some(&s));
+        assert_eq!(p.search.found, None);
+        // the one that reads HOTEL is
+        let mut s = seen(
+            "yellow sign",
+            [0.45, 0.3, 0.1, 0.1],
+            20.0,
+            at,
+            core::f32::consts::PI,
+        );
+        s.blocks |= aeris_schemas::block::TEXT;
+        s.summary = aeris_schemas::FixedText::from_str_truncated("reads \"H0TEL\"");
+        let d = p.decide(at, core::f32::consts::PI, false, Some(&s));
+        assert!(p.search.found.is_some());
+        assert_eq!(ActionMode::from_u8(d.action), Some(ActionMode::Land));
+    }
+
+    #[test]
+    fn a_touchdown_on_a_roof_backs_off_to_clear_ground() {
+        let mut g = aeris_schemas::OccupancyGrid {
+            resolution_m: 2.0,
+            cells: [0; aeris_schemas::OCCUPANCY_CELLS],
+            ..Default::default()
+        };
+        // a 12 m building covering N 10..20
+        for n in (10..20).step_by(2) {
+            for e in (-10..10).step_by(2) {
+                let c = g.cell_of([n as f32 + 0.5, e as f32 + 0.5]).unwrap();
+                g.cells[c] = 12;
+            }
+        }
+        let p = clear_touchdown(&g, [15.0, 0.0], [40.0, 0.0]).unwrap();
+        assert!(p[0] >= 24.0 && p[1] == 0.0, "{p:?}");
+        assert_eq!(
+            clear_touchdown(&g, [40.0, 0.0], [50.0, 0.0]),
+            Some([40.0, 0.0])
+        );
+        // unobserved ground is not clear ground
+        let c = g.cell_of([41.0, 1.0]).unwrap();
+        g.cells[c] = aeris_schemas::OCCUPANCY_UNKNOWN;
+        assert_ne!(
+            clear_touchdown(&g, [40.0, 0.0], [50.0, 0.0]),
+            Some([40.0, 0.0])
+        );
+        let none = aeris_schemas::OccupancyGrid::default();
+        assert_eq!(clear_touchdown(&none, [15.0, 0.0], [40.0, 0.0]), None);
     }
 }

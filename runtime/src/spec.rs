@@ -69,8 +69,11 @@ pub struct SubgoalSpec {
     pub text: String,
     /// Action that completes it: takeoff, goto, hover, turn, ascend, descend, land, stop.
     pub action: String,
-    /// Waypoint `[N, E, U]` that marks its completion.
-    pub waypoint: [f32; 3],
+    /// Waypoint `[N, E, U]` that marks its completion, when the mission gives it; without
+    /// one the reasoner must find the step's landmark in S_t (the VLN setting: the
+    /// instruction names places, not coordinates).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub waypoint: Option<[f32; 3]>,
 }
 
 impl SubgoalSpec {
@@ -210,12 +213,13 @@ impl MissionSpec {
         }
     }
 
-    /// The goal: the last subgoal's waypoint.
-    pub fn goal(&self) -> [f32; 3] {
-        self.subgoals
-            .last()
-            .map(|s| s.waypoint)
-            .unwrap_or(self.start)
+    /// The goal: the last subgoal's waypoint, when the mission gives it (the start for a
+    /// mission without subgoals).
+    pub fn goal(&self) -> Option<[f32; 3]> {
+        match self.subgoals.last() {
+            Some(s) => s.waypoint,
+            None => Some(self.start),
+        }
     }
 
     /// Check the mission is flyable on its own terms.
@@ -247,7 +251,9 @@ impl MissionSpec {
                     action: s.action.clone(),
                 });
             }
-            let w = s.waypoint;
+            let Some(w) = s.waypoint else {
+                continue;
+            };
             if !aeris_schemas::all_finite(&w) || !limits.inside_geofence(w) || w[2] > limits.h_max {
                 return Err(MissionError::WaypointOutside {
                     index: i + 1,
