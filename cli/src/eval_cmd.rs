@@ -29,13 +29,37 @@ pub struct EvalArgs {
     /// Airspace: open, dense or full (both, alternating).
     #[arg(long, default_value = "full")]
     pub airspace: String,
-    /// Who flies: `oracle` (the planner on the reference path: the upper bound) or
-    /// `random` (uniform AerialVLN actions). The perception-grounded AERIS agent is not
-    /// in this build yet.
+    /// Fly a baseline instead of AERIS: `oracle` (the planner on the reference path: the
+    /// upper bound) or `random` (uniform AerialVLN actions).
     #[arg(long)]
-    pub baseline: String,
+    pub baseline: Option<String>,
+    /// Reasoning variant of the AERIS agent: `planner` (deterministic, grounded in S_t;
+    /// the default), `smollm2` or `gemma3` (language models from the provisioned cache,
+    /// shown the planner's plan).
+    #[arg(long)]
+    pub reasoning: Option<String>,
+    /// Perception of the AERIS agent: `models` (the model roles of workflows/models.toml:
+    /// PP-OCRv4 sign reader, colour-palette detector, MiniLM cues, depth occupancy, compose;
+    /// the default) or `geometric` (one process segmenting frames by colour, no sign
+    /// reading). Baselines fly with `geometric`.
+    #[arg(long)]
+    pub perception: Option<String>,
+    /// Ablation: the hub's ATT off (the active step is the reasoner's declared step).
+    #[arg(long)]
+    pub no_att: bool,
+    /// Ablation: the language model without the planner's plan in its prompt (a generic
+    /// model on its own). Needs a language-model variant (default smollm2).
+    #[arg(long)]
+    pub zero_shot: bool,
+    /// Ablation: one fixed model instead of the role-adaptive stack. Not available: the
+    /// adaptive variant selection is not built, every evaluation runs one fixed variant.
+    #[arg(long)]
+    pub single_slm: bool,
+    /// Ablation: no dynamic re-binding. Not available: dynamic scheduling is not built.
+    #[arg(long)]
+    pub no_ds: bool,
     /// Output folder for episodes.jsonl and the flights' logs (default:
-    /// runs/eval-SPLIT-BASELINE).
+    /// runs/eval-SPLIT-AGENT, e.g. runs/eval-val_unseen-aeris-planner).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Print one JSON object with the summary on the last line of stdout.
@@ -71,6 +95,8 @@ struct EpisodeLine<'a> {
     ct_p95_s: f64,
     eer: f64,
     failure: Option<&'a str>,
+    /// The flight's run folder: cycles.jsonl, role specs and logs (`aeris plot`).
+    run_dir: &'a std::path::Path,
 }
 
 /// The summary of a group of episodes.
@@ -119,8 +145,8 @@ fn moved_a_step(last: [f64; 3], p: [f64; 3]) -> bool {
 
 /// Run `aeris eval`.
 pub fn run(args: EvalArgs) -> Result<()> {
-    let agent = Agent::parse(&args.baseline)
-        .with_context(|| format!("unknown baseline `{}`: use oracle or random", args.baseline))?;
+    let setup = EvalSetup::from_args(&args)?;
+    let agent = setup.agent;
     if args.episodes == 0 {
         bail!("--episodes must be at least 1");
     }
@@ -148,7 +174,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         }
     };
     let out = args.out.clone().unwrap_or_else(|| {
-        PathBuf::from("runs").join(format!("eval-{}-{}", args.split, agent.as_str()))
+        PathBuf::from("runs").join(format!("eval-{}-{}", args.split, setup.label))
     });
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let jsonl_path = out.join("episodes.jsonl");
@@ -160,20 +186,46 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let mut dense = Group::default();
     for (k, episode) in episodes.iter().enumerate() {
         let em = episode_mission(episode, agent)?;
-        let mut workflow = Workflow::builtin_default().context("the built-in workflow")?;
+        let mut workflow = if setup.models {
+            let mut w = Workflow::builtin_models().context("the built-in model workflow")?;
+            // the roofs, bridges and signs the instructions name are the palette's classes;
+            // the COCO detector has none of them
+            w.roles
+                .iter_mut()
+                .find(|r| r.kind == "detector")
+                .context("the model workflow has no detector")?
+                .variant = "palette".into();
+            w
+        } else {
+            Workflow::builtin_default().context("the built-in workflow")?
+        };
         workflow.mission = em.mission.clone();
         let reasoning = workflow
             .roles
             .iter_mut()
             .find(|r| r.kind == "reasoning")
             .context("the built-in workflow has no reasoning role")?;
-        reasoning.variant = agent.reasoning_variant().to_string();
+        reasoning.variant = setup.reasoning.clone();
         if !reasoning.variants.iter().any(|v| v == &reasoning.variant) {
             reasoning.variants.push(reasoning.variant.clone());
         }
         reasoning
             .params
             .insert("seed".into(), serde_json::Value::from(k as u64 + 1));
+        if setup.zero_shot {
+            reasoning
+                .params
+                .insert("plan".into(), serde_json::Value::from(false));
+        }
+        if setup.no_att {
+            workflow
+                .roles
+                .iter_mut()
+                .find(|r| r.kind == "hub")
+                .context("the built-in workflow has no hub")?
+                .params
+                .insert("no_att".into(), serde_json::Value::from(true));
+        }
         workflow
             .validate()
             .with_context(|| format!("episode {}: mission", episode.episode_id))?;
@@ -231,9 +283,13 @@ pub fn run(args: EvalArgs) -> Result<()> {
         };
         let stopped = failure.is_none();
         // instruction steps completed: those whose mission steps the attention moved past,
-        // and the last one too when the agent stopped within the acceptance radius
-        let done_steps = (summary.max_active_step as usize).saturating_sub(1)
-            + usize::from(stopped && summary.reached_goal);
+        // and the last one too when the agent stopped at the goal (within the acceptance
+        // radius of a mission that knows it, or the success radius of the episode's)
+        let at_goal = summary.reached_goal
+            || aeris_eval::metrics::distance(summary.final_position, episode.goal())
+                <= aeris_eval::metrics::SUCCESS_RADIUS_M;
+        let done_steps =
+            (summary.max_active_step as usize).saturating_sub(1) + usize::from(stopped && at_goal);
         let subgoals_total = episode.subgoals.len().max(1);
         let subgoals_completed = (0..subgoals_total)
             .filter(|&j| {
@@ -263,7 +319,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
             episode_id: &episode.episode_id,
             scene_id: &episode.scene_id,
             airspace,
-            agent: agent.as_str(),
+            agent: &setup.label,
             instruction: &episode.instruction.instruction_text,
             positions: &positions,
             reference: &reference,
@@ -285,6 +341,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
             ct_p95_s: summary.ct_p95_s,
             eer: summary.eer,
             failure: failure.as_deref(),
+            run_dir: &plan.run_dir,
         };
         writeln!(jsonl, "{}", serde_json::to_string(&line)?)
             .with_context(|| format!("writing {}", jsonl_path.display()))?;
@@ -322,8 +379,8 @@ pub fn run(args: EvalArgs) -> Result<()> {
     }
     let overall = all.summary();
     println!(
-        "{label}, {} baseline: {} episodes (details in {})",
-        agent.as_str(),
+        "{label}, agent {}: {} episodes (details in {})",
+        setup.label,
         overall.m.episodes,
         jsonl_path.display()
     );
@@ -362,10 +419,109 @@ pub fn run(args: EvalArgs) -> Result<()> {
     if args.json {
         let mut obj = serde_json::to_value(&overall)?;
         obj["split"] = serde_json::Value::from(label);
-        obj["baseline"] = serde_json::Value::from(agent.as_str());
+        obj["agent"] = serde_json::Value::from(setup.label.as_str());
+        obj["baseline"] = match agent {
+            Agent::Aeris => serde_json::Value::Null,
+            a => serde_json::Value::from(a.as_str()),
+        };
+        obj["reasoning"] = serde_json::Value::from(setup.reasoning.as_str());
         obj["open"] = serde_json::to_value(open.summary())?;
         obj["dense"] = serde_json::to_value(dense.summary())?;
         println!("{obj}");
     }
     Ok(())
+}
+
+/// Who flies and how, from the command line.
+struct EvalSetup {
+    agent: Agent,
+    /// Reasoning variant of the flights.
+    reasoning: String,
+    no_att: bool,
+    zero_shot: bool,
+    /// Fly with the model perception roles (else the geometric one).
+    models: bool,
+    /// `aeris-planner`, `aeris-smollm2-zero-shot`, `oracle`, ...: the `agent` of
+    /// episodes.jsonl and the default output folder's suffix.
+    label: String,
+}
+
+impl EvalSetup {
+    fn from_args(args: &EvalArgs) -> Result<Self> {
+        if args.single_slm {
+            bail!(
+                "--single-slm is not available: the role-adaptive variant selection it ablates \
+                 is not built, so every evaluation already runs one fixed variant \
+                 (choose it with --reasoning)"
+            );
+        }
+        if args.no_ds {
+            bail!(
+                "--no-ds is not available: dynamic re-binding is not built, so every \
+                 evaluation already runs without it"
+            );
+        }
+        let agent = match &args.baseline {
+            None => Agent::Aeris,
+            Some(name) => match Agent::parse(name) {
+                Some(a @ (Agent::Oracle | Agent::Random)) => a,
+                _ => bail!("unknown baseline `{name}`: use oracle or random"),
+            },
+        };
+        if agent != Agent::Aeris
+            && (args.reasoning.is_some()
+                || args.no_att
+                || args.zero_shot
+                || args.perception.is_some())
+        {
+            bail!(
+                "--reasoning, --perception, --no-att and --zero-shot apply to the AERIS agent, \
+                 not to a --baseline"
+            );
+        }
+        let models = match args.perception.as_deref() {
+            None => agent == Agent::Aeris,
+            Some("models") => true,
+            Some("geometric") => false,
+            Some(other) => bail!("unknown perception `{other}`: use models or geometric"),
+        };
+        let reasoning = match (&args.reasoning, args.zero_shot) {
+            (Some(r), _) => r.clone(),
+            (None, true) => "smollm2".to_string(),
+            (None, false) => agent.reasoning_variant().to_string(),
+        };
+        let language = matches!(reasoning.as_str(), "smollm2" | "gemma3");
+        if agent == Agent::Aeris && !(language || reasoning == "planner") {
+            bail!("unknown reasoning variant `{reasoning}`: use planner, smollm2 or gemma3");
+        }
+        if args.zero_shot && !language {
+            bail!(
+                "--zero-shot ablates the language model's plan: use --reasoning smollm2 or gemma3"
+            );
+        }
+        let label = match agent {
+            Agent::Aeris => {
+                let mut l = format!("aeris-{reasoning}");
+                if !models {
+                    l.push_str("-geometric");
+                }
+                if args.no_att {
+                    l.push_str("-no-att");
+                }
+                if args.zero_shot {
+                    l.push_str("-zero-shot");
+                }
+                l
+            }
+            a => a.as_str().to_string(),
+        };
+        Ok(Self {
+            agent,
+            reasoning,
+            no_att: args.no_att,
+            zero_shot: args.zero_shot,
+            models,
+            label,
+        })
+    }
 }

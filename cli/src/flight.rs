@@ -146,6 +146,33 @@ const MISSED: usize = 1;
 const REFUSED: usize = 2;
 const HOLDS: usize = 3;
 
+/// Most cycles a flight's trace keeps (a day at the default 2 s heartbeat).
+pub const MAX_TRACE_CYCLES: usize = 43_200;
+
+/// One semantic cycle as the hub reported it, with the vehicle's pose at that moment:
+/// the rows of `cycles.jsonl`, what `aeris plot timing` and `aeris plot fpv` draw.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CycleTrace {
+    /// Semantic cycle number.
+    pub cycle: u64,
+    /// Seconds since the monitor started when the hub reported the cycle.
+    pub t_s: f64,
+    /// Cycle time (s), 0 when the cycle reused a decision.
+    pub ct_s: f64,
+    /// Stage durations (s): perception, reasoning, routing, binding.
+    pub stages_s: [f64; 4],
+    /// A fresh decision was committed.
+    pub committed: bool,
+    /// The last valid decision was reused (late, invalid or missing).
+    pub reused: bool,
+    /// Active instruction step (1-based).
+    pub active_step: u16,
+    /// Vehicle position `[N, E, U]`, when telemetry had arrived.
+    pub position: Option<[f32; 3]>,
+    /// Vehicle yaw (rad), when telemetry had arrived.
+    pub yaw: Option<f32>,
+}
+
 /// Subscribes to a flight's hub reports and telemetry and keeps the tallies.
 pub struct FlightMonitor {
     reports: TypedSubscriber<HubReport>,
@@ -154,7 +181,8 @@ pub struct FlightMonitor {
     last_setpoint: Option<(u64, u64)>,
     setpoint_gaps_ms: Vec<f64>,
     setpoint_gap_ends_ns: Vec<u64>,
-    goal: [f32; 3],
+    /// `None` when the mission does not say where its goal is (the VLN setting).
+    goal: Option<[f32; 3]>,
     radius: f32,
     land_goal: bool,
     subgoals: u16,
@@ -163,6 +191,9 @@ pub struct FlightMonitor {
     hub: RestartSafeCounters<9>,
     controller: RestartSafeCounters<4>,
     last_report: Option<HubReport>,
+    trace: Vec<CycleTrace>,
+    started_ns: u64,
+    invalid_reports: u64,
     last_telemetry: Option<VehicleTelemetry>,
     attention_steps: Vec<u16>,
     airborne: bool,
@@ -195,6 +226,9 @@ impl FlightMonitor {
             last_telemetry: None,
             attention_steps: Vec::new(),
             airborne: false,
+            trace: Vec::new(),
+            started_ns: aeris_runtime::clock::monotonic_ns(),
+            invalid_reports: 0,
         })
     }
 
@@ -202,6 +236,7 @@ impl FlightMonitor {
     pub fn poll(&mut self) -> Result<(), BusError> {
         while let Some(r) = self.reports.next()? {
             if r.validate().is_err() {
+                self.invalid_reports += 1;
                 continue;
             }
             if r.committed == 1 {
@@ -226,6 +261,20 @@ impl FlightMonitor {
             );
             if self.attention_steps.last() != Some(&r.active_step) {
                 self.attention_steps.push(r.active_step);
+            }
+            if self.trace.len() < MAX_TRACE_CYCLES {
+                let t = self.last_telemetry;
+                self.trace.push(CycleTrace {
+                    cycle: r.cycle,
+                    t_s: r.publish_ns.saturating_sub(self.started_ns) as f64 * 1e-9,
+                    ct_s: r.ct_ns as f64 * 1e-9,
+                    stages_s: r.stage_ns.map(|ns| ns as f64 * 1e-9),
+                    committed: r.committed == 1,
+                    reused: r.reused == 1,
+                    active_step: r.active_step,
+                    position: t.map(|t| t.position),
+                    yaw: t.map(|t| t.attitude[2]),
+                });
             }
             self.last_report = Some(r);
         }
@@ -264,6 +313,16 @@ impl FlightMonitor {
         Ok(())
     }
 
+    /// Hub reports that failed validation (and were not counted).
+    pub fn invalid_reports(&self) -> u64 {
+        self.invalid_reports
+    }
+
+    /// The per-cycle trace so far (at most [`MAX_TRACE_CYCLES`]).
+    pub fn trace(&self) -> &[CycleTrace] {
+        &self.trace
+    }
+
     /// Latest vehicle position, if any telemetry arrived.
     pub fn position(&self) -> Option<[f32; 3]> {
         self.last_telemetry.map(|t| t.position)
@@ -279,9 +338,9 @@ impl FlightMonitor {
         &self.ct_s
     }
 
-    /// Distance to the goal (m), if the position is known.
+    /// Distance to the goal (m), if the position and the goal are known.
     pub fn distance_to_goal(&self) -> Option<f32> {
-        self.position().map(|p| dist(p, self.goal))
+        Some(dist(self.position()?, self.goal?))
     }
 
     /// `true` when the goal is reached: within the acceptance radius (landed, for a land goal).

@@ -6,6 +6,7 @@ mod bench_models;
 mod eval_cmd;
 mod flight;
 mod inspect;
+mod plot_cmd;
 mod run_cmd;
 mod scene_cmd;
 
@@ -77,6 +78,9 @@ enum Command {
     Episodes(scene_cmd::EpisodesArgs),
     /// Look at a scene: its landmarks, an FPV frame from a pose, a top-down map.
     Scene(scene_cmd::SceneArgs),
+    /// Pictures of a flight or an evaluated episode: heartbeat timing trace, FPV strip
+    /// with the active step, top-down map.
+    Plot(plot_cmd::PlotArgs),
     /// Run one role in this process (the supervisor starts roles this way).
     #[command(hide = true)]
     Role {
@@ -193,6 +197,7 @@ fn main() -> ExitCode {
         Command::Eval(args) => eval_cmd::run(args).map(|_| ExitCode::SUCCESS),
         Command::Episodes(args) => scene_cmd::episodes(args).map(|_| ExitCode::SUCCESS),
         Command::Scene(args) => scene_cmd::scene(args).map(|_| ExitCode::SUCCESS),
+        Command::Plot(args) => plot_cmd::run(args).map(|_| ExitCode::SUCCESS),
         Command::Role { spec, instance } => run_role(spec, instance),
     };
     match result {

@@ -260,6 +260,12 @@ pub fn fly(
                 monitor.rejected(),
                 sup.total_restarts(),
             );
+            if monitor.invalid_reports() > 0 {
+                eprintln!(
+                    "aeris: {} hub reports failed validation and were not counted",
+                    monitor.invalid_reports()
+                );
+            }
         }
         std::thread::sleep(Duration::from_millis(20));
     }
@@ -271,12 +277,27 @@ pub fn fly(
     summary.swaps_failed = swaps_failed;
     let report = sup.shutdown(Duration::from_secs(3));
     eprintln!("aeris: shutdown: {report}");
+    let trace_path = plan.run_dir.join("cycles.jsonl");
+    write_trace(&trace_path, monitor.trace())
+        .with_context(|| format!("writing {}", trace_path.display()))?;
     let ct_samples_s = monitor.ct_samples_s().to_vec();
     Ok(FlightOutcome {
         summary,
         failure,
         ct_samples_s,
     })
+}
+
+/// Write a flight's cycle trace, one JSON object per line.
+fn write_trace(path: &std::path::Path, trace: &[crate::flight::CycleTrace]) -> Result<()> {
+    use std::io::Write;
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
+    for c in trace {
+        serde_json::to_writer(&mut out, c)?;
+        out.write_all(b"\n")?;
+    }
+    out.flush()?;
+    Ok(())
 }
 
 /// `aeris run`.

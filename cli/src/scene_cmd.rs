@@ -313,19 +313,7 @@ pub fn scene(args: SceneArgs) -> anyhow::Result<()> {
             episode,
             run: Some(file),
             out,
-        } => {
-            let r = run_line(&file, episode.as_deref())?;
-            let w = world(scene.as_deref().unwrap_or(&r.scene))?;
-            let layers = MapLayers {
-                reference: &r.reference,
-                executed: &r.positions,
-                goal: Some(r.goal),
-            };
-            save_png(&top_down(&w, &layers)?, &out)?;
-            println!("{}: executed (red) over reference (white)", r.id);
-            println!("wrote {}", out.display());
-            Ok(())
-        }
+        } => run_map(&file, episode.as_deref(), scene.as_deref(), &out),
         SceneCommand::Map {
             scene,
             episodes,
@@ -373,4 +361,25 @@ pub fn scene(args: SceneArgs) -> anyhow::Result<()> {
             Ok(())
         }
     }
+}
+
+/// The top-down map of one evaluated episode of `file` (episodes.jsonl of `aeris eval`):
+/// its executed path over its reference, in its scene (or `scene`), written to `out`.
+pub fn run_map(
+    file: &Path,
+    episode: Option<&str>,
+    scene: Option<&str>,
+    out: &Path,
+) -> anyhow::Result<()> {
+    let r = run_line(file, episode)?;
+    let w = world(scene.unwrap_or(&r.scene))?;
+    let layers = MapLayers {
+        reference: &r.reference,
+        executed: &r.positions,
+        goal: Some(r.goal),
+    };
+    save_png(&top_down(&w, &layers)?, out)?;
+    println!("{}: executed (red) over reference (white)", r.id);
+    println!("wrote {}", out.display());
+    Ok(())
 }

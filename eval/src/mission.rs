@@ -3,8 +3,13 @@
 //! - **oracle** (sanity upper bound): the planner is given the reference path itself, as
 //!   waypoints at its corners, each labelled with the text of the instruction step it
 //!   belongs to; it ends with a landing at the goal.
-//! - **random**: the instruction's steps as annotated (the random reasoner only uses the
-//!   first, take-off, and otherwise draws AerialVLN's actions uniformly).
+//! - **aeris** (the system under evaluation): the instruction and its steps as annotated —
+//!   text and action, never a waypoint; the planner grounds every step's landmark in S_t
+//!   (`aeris_roles::grounding`). An episode without step annotation (an AerialVLN file)
+//!   becomes two steps: take off, then the whole instruction, landing at the last place it
+//!   names.
+//! - **random**: the same steps (the random reasoner only flies the first, take-off, and
+//!   otherwise draws AerialVLN's actions uniformly).
 //!
 //! Either way the flight's limits cover the scene: a geofence around every landmark and
 //! the reference path, heights up to 40 m above the tallest landmark.
@@ -21,6 +26,8 @@ pub const CRUISE_M_S: f32 = 6.0;
 /// Who flies an episode.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Agent {
+    /// The AERIS pipeline on the instruction alone.
+    Aeris,
     /// The planner on the reference path.
     Oracle,
     /// Uniform random AerialVLN actions.
@@ -28,9 +35,10 @@ pub enum Agent {
 }
 
 impl Agent {
-    /// `oracle` or `random`.
+    /// `aeris`, `oracle` or `random`.
     pub fn as_str(self) -> &'static str {
         match self {
+            Agent::Aeris => "aeris",
             Agent::Oracle => "oracle",
             Agent::Random => "random",
         }
@@ -39,6 +47,7 @@ impl Agent {
     /// The agent called `name`.
     pub fn parse(name: &str) -> Option<Agent> {
         match name {
+            "aeris" => Some(Agent::Aeris),
             "oracle" => Some(Agent::Oracle),
             "random" => Some(Agent::Random),
             _ => None,
@@ -48,7 +57,7 @@ impl Agent {
     /// The reasoning variant that flies for this agent.
     pub fn reasoning_variant(self) -> &'static str {
         match self {
-            Agent::Oracle => "planner",
+            Agent::Aeris | Agent::Oracle => "planner",
             Agent::Random => "random",
         }
     }
@@ -152,19 +161,34 @@ pub fn episode_mission(episode: &Episode, agent: Agent) -> Result<EpisodeMission
             .unwrap_or(texts.len() - 1)
     };
     let (subgoals, step_subgoal) = match agent {
-        Agent::Random if !episode.subgoals.is_empty() => (
+        Agent::Aeris | Agent::Random if !episode.subgoals.is_empty() => (
             episode
                 .subgoals
                 .iter()
                 .map(|s| SubgoalSpec {
                     text: s.text.clone(),
                     action: s.action.clone(),
-                    waypoint: f32s(s.waypoint),
+                    waypoint: None,
                 })
                 .collect(),
             (0..episode.subgoals.len()).collect(),
         ),
-        _ => {
+        Agent::Aeris | Agent::Random => (
+            vec![
+                SubgoalSpec {
+                    text: "take off".into(),
+                    action: "takeoff".into(),
+                    waypoint: None,
+                },
+                SubgoalSpec {
+                    text: episode.instruction.instruction_text.clone(),
+                    action: "land".into(),
+                    waypoint: None,
+                },
+            ],
+            vec![0, 0],
+        ),
+        Agent::Oracle => {
             // the reference's corners: the climb's top, every turn, the top of the descent
             let idx = corners(&reference);
             let mut subgoals = Vec::new();
@@ -184,14 +208,14 @@ pub fn episode_mission(episode: &Episode, agent: Agent) -> Result<EpisodeMission
                     subgoals.push(SubgoalSpec {
                         text: texts[subgoal_of(i)].0.clone(),
                         action: "goto".into(),
-                        waypoint: p,
+                        waypoint: Some(p),
                     });
                     steps.push(subgoal_of(i));
                 }
                 subgoals.push(SubgoalSpec {
                     text: texts[subgoal_of(i)].0.clone(),
                     action: action.into(),
-                    waypoint: if last { goal } else { p },
+                    waypoint: Some(if last { goal } else { p }),
                 });
                 steps.push(subgoal_of(i));
             }
@@ -213,8 +237,11 @@ pub fn episode_mission(episode: &Episode, agent: Agent) -> Result<EpisodeMission
         start,
         cruise_speed: CRUISE_M_S,
         acceptance_radius_m: 3.0,
-        // climbs and turns at lower speeds: twice the cruise time, plus a minute
-        max_duration_s: 60.0 + 2.0 * f64::from(length / CRUISE_M_S),
+        // climbs and turns at lower speeds: twice the cruise time, plus a minute; a
+        // grounded agent also scans and flies search legs: two minutes more
+        max_duration_s: 60.0
+            + 2.0 * f64::from(length / CRUISE_M_S)
+            + if agent == Agent::Oracle { 0.0 } else { 120.0 },
         limits,
     };
     Ok(EpisodeMission {

@@ -1,5 +1,6 @@
 //! The oracle's mission follows the reference path: at most 16 steps, straight legs between
-//! its waypoints that stay clear of obstacles, ending with a landing at the goal.
+//! its waypoints that stay clear of obstacles, ending with a landing at the goal. The AERIS
+//! agent's mission carries the instruction's steps and no coordinates at all.
 
 use aeris_eval::generate::{AirspaceFilter, Split, generate_split};
 use aeris_eval::mission::{Agent, corners, episode_mission};
@@ -17,7 +18,7 @@ fn oracle_missions_fly_the_reference_corners_clear_of_obstacles() {
             let goal = e.goal();
             assert_eq!(
                 steps.last().unwrap().waypoint,
-                [goal[0] as f32, goal[1] as f32, goal[2] as f32]
+                Some([goal[0] as f32, goal[1] as f32, goal[2] as f32])
             );
             assert_eq!(m.step_subgoal.len(), steps.len());
             assert!(m.step_subgoal.windows(2).all(|w| w[0] <= w[1]));
@@ -25,7 +26,7 @@ fn oracle_missions_fly_the_reference_corners_clear_of_obstacles() {
             // straight legs from the start through every waypoint are clear by 2 m
             let mut at = m.mission.start;
             for s in steps {
-                let w = s.waypoint;
+                let w = s.waypoint.expect("the oracle knows every waypoint");
                 let len =
                     ((w[0] - at[0]).powi(2) + (w[1] - at[1]).powi(2) + (w[2] - at[2]).powi(2))
                         .sqrt();
@@ -55,6 +56,37 @@ fn oracle_missions_fly_the_reference_corners_clear_of_obstacles() {
             }
         }
     }
+}
+
+#[test]
+fn the_aeris_mission_names_places_and_gives_no_coordinates() {
+    let eps = generate_split(Split::ValUnseen, AirspaceFilter::Full, 4, &mut |_, _| {}).unwrap();
+    for e in &eps {
+        for agent in [Agent::Aeris, Agent::Random] {
+            let m = episode_mission(e, agent).unwrap();
+            let texts: Vec<&str> = m.mission.subgoals.iter().map(|s| s.text.as_str()).collect();
+            let annotated: Vec<&str> = e.subgoals.iter().map(|s| s.text.as_str()).collect();
+            assert_eq!(texts, annotated, "{}", e.episode_id);
+            assert!(m.mission.subgoals.iter().all(|s| s.waypoint.is_none()));
+            assert_eq!(m.mission.goal(), None);
+            m.mission.validate().unwrap();
+        }
+    }
+    // an AerialVLN file without step annotation: take off, then the whole instruction
+    let mut bare = eps[0].clone();
+    bare.subgoals.clear();
+    let m = episode_mission(&bare, Agent::Aeris).unwrap();
+    let actions: Vec<&str> = m
+        .mission
+        .subgoals
+        .iter()
+        .map(|s| s.action.as_str())
+        .collect();
+    assert_eq!(actions, ["takeoff", "land"]);
+    assert_eq!(
+        m.mission.subgoals[1].text,
+        bare.instruction.instruction_text
+    );
 }
 
 #[test]

@@ -379,8 +379,8 @@ fn sign_text_at(l: &crate::world::Landmark, text: &str, normal: [f32; 3], p: [f3
 }
 
 /// 5x7 bitmap of an ASCII letter or digit (rows top to bottom, bit 4 = leftmost column);
-/// blank for anything else.
-fn glyph(b: u8) -> [u8; 7] {
+/// blank for anything else. Signs and plot captions share it.
+pub fn glyph(b: u8) -> [u8; 7] {
     const LETTERS: [[u8; 7]; 26] = [
         [0x0E, 0x11, 0x11, 0x1F, 0x11, 0x11, 0x11], // A
         [0x1E, 0x11, 0x11, 0x1E, 0x11, 0x11, 0x1E], // B

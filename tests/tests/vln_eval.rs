@@ -1,6 +1,7 @@
 //! `aeris eval` flies generated VLN episodes through the full multi-process pipeline: the
 //! oracle baseline (the planner on the reference path) succeeds, the random baseline does
-//! not, and every episode is written to episodes.jsonl with its trajectory and metrics.
+//! not, the AERIS agent flies from the instruction alone, and every episode is written to
+//! episodes.jsonl with its trajectory, metrics and run folder, which `aeris plot` draws.
 
 use aeris_tests::*;
 use std::process::Command;
@@ -101,6 +102,97 @@ fn the_oracle_succeeds_and_random_does_not() {
     assert_eq!(episodes[0]["sr"], 0.0);
 }
 
+fn plot(args: &[&str]) -> String {
+    let out = Command::new(aeris_bin())
+        .arg("plot")
+        .args(args)
+        .output()
+        .expect("run aeris plot");
+    let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(
+        out.status.success(),
+        "plot {args:?} failed: {}\n{stdout}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
+/// Width and height of a PNG file, read from its header.
+fn png_size(path: &std::path::Path) -> (u32, u32) {
+    let bytes = std::fs::read(path).expect("the PNG exists");
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{}", path.display());
+    let be = |i: usize| u32::from_be_bytes(bytes[i..i + 4].try_into().unwrap());
+    (be(16), be(20))
+}
+
+#[test]
+fn the_aeris_agent_flies_from_the_instruction_alone_and_its_flight_can_be_plotted() {
+    let dir = TempDir::new("vln-eval-aeris");
+    let (summary, episodes) = eval(
+        &dir.0,
+        // the one-process perception keeps the suite short; the model roles are the
+        // default of `aeris eval` and have their own tests
+        &[
+            "--split",
+            "val_unseen",
+            "--episodes",
+            "1",
+            "--airspace",
+            "open",
+            "--perception",
+            "geometric",
+        ],
+    );
+    assert_eq!(summary["agent"], "aeris-planner-geometric", "{summary}");
+    assert_eq!(summary["episodes"], 1, "{summary}");
+    let e = &episodes[0];
+    assert_eq!(e["agent"], "aeris-planner-geometric");
+    // it took off (the first step) and flew somewhere from the start
+    assert!(e["subgoals_completed"].as_u64().unwrap() >= 1, "{e}");
+    assert!(e["positions"].as_array().unwrap().len() > 3, "{e}");
+    for key in ["ne", "sr", "osr", "ndtw", "spl"] {
+        assert!(e[key].is_number(), "{key}: {e}");
+    }
+    // the pictures of that episode
+    let run = std::path::PathBuf::from(e["run_dir"].as_str().expect("run_dir"));
+    let trace = std::fs::read_to_string(run.join("cycles.jsonl")).expect("cycles.jsonl");
+    let cycles = trace.lines().count();
+    assert!(cycles > 5, "{trace}");
+    let timing = dir.0.join("timing.png");
+    let out = plot(&[
+        "timing",
+        "--run",
+        run.to_str().unwrap(),
+        "--out",
+        timing.to_str().unwrap(),
+    ]);
+    assert!(out.contains(&format!("{cycles} cycles")), "{out}");
+    assert!(png_size(&timing).0 >= 560);
+    let fpv = dir.0.join("fpv.png");
+    plot(&[
+        "fpv",
+        "--run",
+        run.to_str().unwrap(),
+        "--frames",
+        "4",
+        "--out",
+        fpv.to_str().unwrap(),
+    ]);
+    let (w, h) = png_size(&fpv);
+    // four 320x240 frames side by side, captions under them
+    assert!(w >= 4 * 320 && h > 240, "{w}x{h}");
+    let map = dir.0.join("map.png");
+    let jsonl = dir.0.join("episodes.jsonl");
+    plot(&[
+        "map",
+        "--run",
+        jsonl.to_str().unwrap(),
+        "--out",
+        map.to_str().unwrap(),
+    ]);
+    assert!(png_size(&map).0 > 100);
+}
+
 #[test]
 fn bad_arguments_are_clear_errors() {
     let dir = TempDir::new("vln-eval-args");
@@ -117,6 +209,24 @@ fn bad_arguments_are_clear_errors() {
         (
             vec!["--baseline", "oracle", "--episodes", "0"],
             "--episodes must be at least 1",
+        ),
+        (vec!["--single-slm"], "--single-slm is not available"),
+        (vec!["--no-ds"], "--no-ds is not available"),
+        (
+            vec!["--zero-shot", "--reasoning", "planner"],
+            "--zero-shot ablates the language model's plan",
+        ),
+        (
+            vec!["--baseline", "oracle", "--no-att"],
+            "apply to the AERIS agent, not to a --baseline",
+        ),
+        (
+            vec!["--reasoning", "oracle"],
+            "unknown reasoning variant `oracle`",
+        ),
+        (
+            vec!["--perception", "telepathy"],
+            "unknown perception `telepathy`",
         ),
     ] {
         let out = Command::new(aeris_bin())
