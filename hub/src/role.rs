@@ -40,12 +40,7 @@ pub const TRACE_CAPACITY: usize = 4096;
 
 /// Build the hub's core from a role spec (mission, timing, `no_att`, `att_temperature`).
 pub fn core_from_spec(spec: &RoleSpec) -> Result<HubCore, RoleError> {
-    let no_att = match spec.params.get("no_att") {
-        None => false,
-        Some(v) => v.as_bool().ok_or_else(|| {
-            RoleError::Config(format!("hub param `no_att` must be a bool, got {v}"))
-        })?,
-    };
+    let no_att = spec.param_bool("no_att", false)?;
     let temperature = match spec.params.get("att_temperature") {
         None => DEFAULT_ATT_TEMPERATURE,
         Some(v) => match v.as_f64() {
@@ -109,12 +104,7 @@ impl HubRole {
 impl Role for HubRole {
     fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
         let core = core_from_spec(&ctx.spec)?;
-        let realtime = match ctx.spec.params.get("realtime") {
-            None => true,
-            Some(v) => v.as_bool().ok_or_else(|| {
-                RoleError::Config(format!("hub param `realtime` must be a bool, got {v}"))
-            })?,
-        };
+        let realtime = ctx.spec.param_bool("realtime", true)?;
         if realtime && !try_sched_fifo(HUB_FIFO_PRIORITY) {
             eprintln!(
                 "aeris hub `{}`: SCHED_FIFO not permitted, running with the normal scheduler",

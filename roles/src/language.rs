@@ -134,12 +134,7 @@ impl Role for LanguageRole {
                 .clamp(256.0, 32768.0) as u32,
             ..ReasonerConfig::default()
         };
-        let show_plan = match ctx.spec.params.get("plan") {
-            None => true,
-            Some(v) => v.as_bool().ok_or_else(|| {
-                RoleError::Config(format!("reasoning param `plan` must be a bool, got {v}"))
-            })?,
-        };
+        let show_plan = ctx.spec.param_bool("plan", true)?;
         let store = open_store(ctx)?;
         let brief = mission_brief(&ctx.spec.mission)?;
         let mut planner = Planner::new(&ctx.spec.mission, &ctx.spec.camera).ok_or_else(|| {

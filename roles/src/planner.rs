@@ -260,7 +260,7 @@ impl Planner {
                 let Some(p) = self.search.found else {
                     return false;
                 };
-                let d = (position[0] - p[0]).hypot(position[1] - p[1]);
+                let d = ground_distance([position[0], position[1]], p);
                 return match (step.action, phrase.relation) {
                     (ActionMode::Land, _) => landed && d <= STANDOFF_M + GROUNDED_REACH_M,
                     (_, Relation::Over) => d <= GROUNDED_REACH_M,
@@ -373,30 +373,28 @@ impl Planner {
         let Some(s) = state else {
             return;
         };
-        // a landmark that an earlier step found and that is certainly another one (a
-        // sign with another text) is not this step's
-        let (camera, visited) = (&self.camera, &self.visited[..self.current]);
+        // not this step's landmark: one an earlier step found that is certainly another
+        // (a sign with another text), or a sign this step rejected
+        let (camera, visited, rejected) = (
+            &self.camera,
+            &self.visited[..self.current],
+            &self.search.rejected,
+        );
         let elsewhere = |d: &Detection| {
             let Some(p) = sight(d, s.position, s.yaw, camera).point else {
                 return true;
             };
-            !visited.iter().flatten().any(|(q, other)| {
-                phrase.differs_from(other) && (p[0] - q[0]).hypot(p[1] - q[1]) <= SAME_PLACE_M
-            })
-        };
-        let rejected = self.search.rejected;
-        let elsewhere = |d: &Detection| {
-            elsewhere(d)
-                && sight(d, s.position, s.yaw, camera).point.is_none_or(|p| {
-                    !rejected
-                        .iter()
-                        .flatten()
-                        .any(|q| (p[0] - q[0]).hypot(p[1] - q[1]) <= SAME_PLACE_M)
-                })
+            let near = |q: &[f32; 2]| ground_distance(p, *q) <= SAME_PLACE_M;
+            !visited
+                .iter()
+                .flatten()
+                .any(|(q, other)| phrase.differs_from(other) && near(q))
+                && !rejected.iter().flatten().any(near)
         };
         // a sign close enough to read that reads otherwise is not the quoted one
         let quoted = phrase.sign_text.as_str_lossy();
-        let reading = match crate::compose::read_text(s) {
+        let read = crate::compose::read_text(s);
+        let reading = match read {
             Some(read) if !quoted.is_empty() => sign_reading(read, quoted),
             _ => SignReading::Nothing,
         };
@@ -404,7 +402,7 @@ impl Planner {
             let seen = sight(d, s.position, s.yaw, &self.camera);
             let close = seen
                 .point
-                .filter(|p| (p[0] - s.position[0]).hypot(p[1] - s.position[1]) <= READ_RANGE_M);
+                .filter(|p| ground_distance(*p, [s.position[0], s.position[1]]) <= READ_RANGE_M);
             if reading == SignReading::Quoted && close.is_some() {
                 self.search.confirmed = true;
             }
@@ -412,7 +410,7 @@ impl Planner {
             // readings of another text at the same place, and none of the quoted one
             let strikes = match (reading, close, self.search.strike) {
                 (SignReading::Other, Some(p), Some((q, n)))
-                    if (p[0] - q[0]).hypot(p[1] - q[1]) <= SAME_PLACE_M =>
+                    if ground_distance(p, q) <= SAME_PLACE_M =>
                 {
                     n + 1
                 }
@@ -433,10 +431,7 @@ impl Planner {
                 self.search.rejected[slot] = Some(p);
                 self.search.rejections += 1;
                 self.rejections += 1;
-                self.last_rejection = Some((
-                    p,
-                    FixedText::from_str_truncated(crate::compose::read_text(s).unwrap_or("")),
-                ));
+                self.last_rejection = Some((p, FixedText::from_str_truncated(read.unwrap_or(""))));
                 self.search.found = None;
                 self.search.toward = None;
                 self.search.scan = 0;
@@ -510,7 +505,7 @@ impl Planner {
                 && self.search.grid_seen
                 && phrase.relation == Relation::NextTo
                 && self.search.waited < TOUCHDOWN_WAIT;
-            if waiting && (here[0] - goal[0]).hypot(here[1] - goal[1]) <= GROUNDED_REACH_M {
+            if waiting && ground_distance(here, goal) <= GROUNDED_REACH_M {
                 self.search.waited += 1;
             }
             let action = if step.action == ActionMode::Land && !waiting {
@@ -531,12 +526,12 @@ impl Planner {
                 altitude
             };
             // face the landmark, not the stand-off point, once there
-            let facing = (here[0] - p[0]).hypot(here[1] - p[1]) > 1.0;
+            let facing = ground_distance(here, p) > 1.0;
             let face = facing.then(|| (p[1] - here[1]).atan2(p[0] - here[0]));
             return (action, [goal[0], goal[1], u], alt, face);
         }
         if let Some(t) = self.search.toward {
-            if (here[0] - t[0]).hypot(here[1] - t[1]) > GROUNDED_REACH_M {
+            if ground_distance(here, t) > GROUNDED_REACH_M {
                 if climbing {
                     return climb(Some((t[1] - here[1]).atan2(t[0] - here[0])));
                 }
@@ -582,6 +577,11 @@ impl Planner {
         }
         out
     }
+}
+
+/// Distance (m) between two ground points `[N, E]`.
+fn ground_distance(a: [f32; 2], b: [f32; 2]) -> f32 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
 }
 
 /// The point `len` metres from `from` along `bearing`.

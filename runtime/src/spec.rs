@@ -362,4 +362,18 @@ impl RoleSpec {
     pub fn param_f64(&self, key: &str) -> Option<f64> {
         self.params.get(key).and_then(|v| v.as_f64())
     }
+
+    /// A boolean parameter, `default` when absent; a value of another type is a
+    /// configuration error naming the role kind and the parameter.
+    pub fn param_bool(&self, key: &str, default: bool) -> Result<bool, crate::RoleError> {
+        match self.params.get(key) {
+            None => Ok(default),
+            Some(v) => v.as_bool().ok_or_else(|| {
+                crate::RoleError::Config(format!(
+                    "{} param `{key}` must be a bool, got {v}",
+                    self.kind
+                ))
+            }),
+        }
+    }
 }
