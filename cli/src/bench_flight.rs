@@ -79,6 +79,7 @@ fn plan(a: &FlightBenchArgs, tag: &str, stop: StopRule) -> FlightPlan {
         autopilot: None,
         stop,
         progress: true,
+        dynamic: None,
     }
 }
 

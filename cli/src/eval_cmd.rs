@@ -236,6 +236,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
             autopilot: None,
             stop: StopRule::Landed,
             progress: false,
+            dynamic: None,
         };
         eprintln!(
             "[{}/{total}] {} ({}): {}",

@@ -70,6 +70,10 @@ pub struct RunSummary {
     pub swaps_failed: u64,
     /// Role restarts by the supervisor.
     pub role_restarts: u64,
+    /// Live moves of roles between executors (dynamic scheduling and `aeris migrate`).
+    pub migrations: u64,
+    /// Roles found alive but silent and replaced.
+    pub stalls: u64,
     /// Subgoals in the mission.
     pub subgoals_total: u64,
     /// Highest active step the hub's ATT reached (1-based).
@@ -443,6 +447,8 @@ impl FlightMonitor {
             swaps_done: 0,
             swaps_failed: 0,
             role_restarts,
+            migrations: 0,
+            stalls: 0,
             subgoals_total: self.subgoals as u64,
             max_active_step: self.attention_steps.iter().copied().max().unwrap_or(0) as u64,
             attention_steps: self.attention_steps.clone(),

@@ -61,6 +61,11 @@ pub fn status(flight: Option<String>, json: bool) -> Result<()> {
                 "latency_p99_ms": r.latency_ms[2],
                 "restarts": r.restarts,
                 "heartbeat_gaps": r.heartbeat_gaps,
+                "executor": r.executor.as_str_lossy(),
+                "budget_ms": (r.budget_ms > 0.0).then_some(r.budget_ms),
+                "migrations": r.migrations,
+                "stalls": r.stalls,
+                "binding": r.binding.as_str_lossy(),
             })
         })
         .collect();
@@ -72,13 +77,14 @@ pub fn status(flight: Option<String>, json: bool) -> Result<()> {
             "subgoals": board.subgoals,
             "distance_to_goal_m": (board.distance_to_goal_m >= 0.0).then_some(board.distance_to_goal_m),
             "ct_mean_s": board.ct_mean_s,
+            "migrations": board.migrations,
             "roles": roles,
         });
         println!("{out}");
         return Ok(());
     }
     println!(
-        "flight {flight}  supervisor pid {}  step {}/{}  distance to goal {}  CT mean {:.3} s",
+        "flight {flight}  supervisor pid {}  step {}/{}  distance to goal {}  CT mean {:.3} s  migrations {}",
         board.supervisor_pid,
         board.active_step,
         board.subgoals,
@@ -87,11 +93,24 @@ pub fn status(flight: Option<String>, json: bool) -> Result<()> {
         } else {
             "?".into()
         },
-        board.ct_mean_s
+        board.ct_mean_s,
+        board.migrations
     );
     println!(
-        "{:<12} {:>7} {:<6} {:<15} {:<12} {:>9} {:>9} {:>9} {:>8}",
-        "ROLE", "PID", "CPUS", "VARIANT", "STATUS", "HB AGE", "P50 ms", "P95 ms", "RESTARTS"
+        "{:<12} {:>7} {:<12} {:<6} {:<15} {:<12} {:>9} {:>9} {:>9} {:>9} {:>8} {:>5} {:>6}",
+        "ROLE",
+        "PID",
+        "EXECUTOR",
+        "CPUS",
+        "VARIANT",
+        "STATUS",
+        "HB AGE",
+        "P50 ms",
+        "P95 ms",
+        "BUDGET ms",
+        "RESTARTS",
+        "MOVES",
+        "STALLS"
     );
     for r in &roles {
         let age = r["heartbeat_age_ms"]
@@ -99,16 +118,31 @@ pub fn status(flight: Option<String>, json: bool) -> Result<()> {
             .map(|a| format!("{a:.0} ms"))
             .unwrap_or_else(|| "-".into());
         println!(
-            "{:<12} {:>7} {:<6} {:<15} {:<12} {:>9} {:>9.3} {:>9.3} {:>8}",
+            "{:<12} {:>7} {:<12} {:<6} {:<15} {:<12} {:>9} {:>9.3} {:>9.3} {:>9} {:>8} {:>5} {:>6}",
             r["name"].as_str().unwrap_or(""),
             r["pid"],
+            r["executor"].as_str().unwrap_or(""),
             r["cpus"].as_str().unwrap_or(""),
             r["variant"].as_str().unwrap_or(""),
             r["status"].as_str().unwrap_or(""),
             age,
             r["latency_p50_ms"].as_f64().unwrap_or(0.0),
             r["latency_p95_ms"].as_f64().unwrap_or(0.0),
-            r["restarts"]
+            r["budget_ms"]
+                .as_f64()
+                .map(|b| format!("{b:.0}"))
+                .unwrap_or_else(|| "-".into()),
+            r["restarts"].as_u64().unwrap_or(0),
+            r["migrations"].as_u64().unwrap_or(0),
+            r["stalls"].as_u64().unwrap_or(0)
+        );
+    }
+    println!("binding:");
+    for r in &roles {
+        println!(
+            "  {:<12} {}",
+            r["name"].as_str().unwrap_or(""),
+            r["binding"].as_str().unwrap_or("")
         );
     }
     Ok(())
@@ -306,6 +340,32 @@ pub fn swap(
             "role `{role}` now runs `{variant}` as pid {} (instance {}), old pid {} stopped, {} ms",
             done.new_pid, done.new_instance, done.old_pid, done.elapsed_ms
         );
+    }
+    Ok(())
+}
+
+/// `aeris migrate ROLE CPUS`.
+pub fn migrate(flight: Option<String>, role: &str, cpus: &str, json: bool) -> Result<()> {
+    let flight = resolve_flight(flight)?;
+    let bus = tool_bus(&flight, "migrate")?;
+    let outcome = aeris_orchestrator::control::request_migrate(&bus, role, cpus);
+    if json {
+        let (ok, error, message, pid) = match &outcome {
+            Ok(r) => (true, None, r.message.as_str_lossy().to_string(), r.new_pid),
+            Err(e) => (false, Some(e.to_string()), String::new(), 0),
+        };
+        println!(
+            "{}",
+            serde_json::json!({
+                "flight": flight, "role": role, "target": cpus, "ok": ok, "error": error,
+                "pid": pid, "message": message,
+            })
+        );
+    }
+    let done = outcome
+        .with_context(|| format!("moving role `{role}` to `{cpus}` in flight `{flight}` failed"))?;
+    if !json {
+        println!("{}", done.message.as_str_lossy());
     }
     Ok(())
 }

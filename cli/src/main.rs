@@ -62,6 +62,20 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Move a running role's process, live, to another executor or CPU list: every thread
+    /// is re-bound, the pid stays, nothing restarts. Later restarts start there too.
+    Migrate {
+        /// Role name (see `aeris status`).
+        role: String,
+        /// An executor of the workflow, `cpuN` for one CPU, or a CPU list such as `0-1`.
+        cpus: String,
+        /// Flight (default: the only one running).
+        #[arg(long)]
+        flight: Option<String>,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
     /// Check a workflow file and print what it would start.
     Validate {
         /// Workflow file (TOML).
@@ -191,6 +205,12 @@ fn main() -> ExitCode {
             timeout,
             json,
         } => inspect::swap(flight, &role, &variant, timeout, json).map(|_| ExitCode::SUCCESS),
+        Command::Migrate {
+            role,
+            cpus,
+            flight,
+            json,
+        } => inspect::migrate(flight, &role, &cpus, json).map(|_| ExitCode::SUCCESS),
         Command::Validate { workflow } => run_cmd::validate(&workflow),
         Command::Roles => roles(),
         Command::Bench(args) => bench_cmd::run(args).map(|_| ExitCode::SUCCESS),

@@ -36,6 +36,10 @@ pub struct RunArgs {
     /// (default: the mission's max_duration_s).
     #[arg(long, value_name = "SECONDS")]
     pub max_duration: Option<f64>,
+    /// Dynamic scheduling off: roles stay on their declared executors whatever their
+    /// latency (stall detection and restarts stay on).
+    #[arg(long)]
+    pub no_ds: bool,
 }
 
 fn load(path: Option<&Path>) -> Result<Workflow> {
@@ -120,6 +124,9 @@ pub struct FlightPlan {
     pub stop: StopRule,
     /// Print progress to stderr every 2 s.
     pub progress: bool,
+    /// Dynamic scheduling: `Some(false)` turns the workflow's `[scheduling] dynamic` off,
+    /// `Some(true)` on, `None` keeps it.
+    pub dynamic: Option<bool>,
 }
 
 /// How a flight went.
@@ -161,6 +168,9 @@ pub fn fly(
         plan.run_dir.join("logs").display()
     );
     eprintln!("aeris: mission: {}", mission.instruction);
+    if let Some(on) = plan.dynamic {
+        sup.set_dynamic(on);
+    }
     sup.wait_ready(Duration::from_secs(60))
         .context("waiting for every role's first heartbeat")?;
 
@@ -198,6 +208,10 @@ pub fn fly(
                 SupervisorEvent::RoleExited { name, status } => {
                     eprintln!("aeris: role {name} exited: {status}");
                 }
+                SupervisorEvent::RoleMigrated(_)
+                | SupervisorEvent::MigrationFailed { .. }
+                | SupervisorEvent::RoleStalled { .. }
+                | SupervisorEvent::InitialBinding { .. } => eprintln!("aeris: {event}"),
                 _ => {}
             }
         }
@@ -273,6 +287,8 @@ pub fn fly(
     let _ = monitor.poll();
     let restarts = sup.total_restarts();
     let mut summary = monitor.summary(&flight, duration, restarts as u64);
+    summary.migrations = u64::from(sup.total_migrations());
+    summary.stalls = sup.roles().iter().map(|r| u64::from(r.stalls())).sum();
     summary.swaps_done = swaps_done;
     summary.swaps_failed = swaps_failed;
     let report = sup.shutdown(Duration::from_secs(3));
@@ -318,6 +334,7 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
         autopilot: args.autopilot.clone(),
         stop: StopRule::Goal,
         progress: true,
+        dynamic: args.no_ds.then_some(false),
     };
     let FlightOutcome {
         summary, failure, ..
@@ -364,11 +381,13 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
         summary.sequence_reorders
     );
     println!(
-        "  controller ticks {} missed {} refused setpoints {}; role restarts {}",
+        "  controller ticks {} missed {} refused setpoints {}; role restarts {}, stalls {}, live migrations {}",
         summary.controller_ticks,
         summary.controller_missed_ticks,
         summary.controller_refused_setpoints,
-        summary.role_restarts
+        summary.role_restarts,
+        summary.stalls,
+        summary.migrations
     );
     if args.json {
         println!(

@@ -1,5 +1,6 @@
 //! The client side of a running flight's `supervisor/control` service: what `aeris swap`
-//! and the swap benchmark use to ask the supervisor for a hot swap.
+//! and the swap benchmark use to ask the supervisor for a hot swap, and `aeris migrate` for
+//! a live move.
 
 use aeris_runtime::bus::{BusError, FlightBus};
 use aeris_schemas::{ReplyStage, SupervisorCommand, SupervisorReply};
@@ -11,7 +12,7 @@ const POLL: Duration = Duration::from_millis(5);
 /// Time beyond the ready timeout for the old process to exit and the reply to arrive.
 const SLACK: Duration = Duration::from_secs(15);
 
-/// Why a swap request did not end with the new variant running.
+/// Why a control request (swap or move) did not end as asked.
 #[derive(Debug, thiserror::Error)]
 pub enum ControlError {
     /// The control service could not be reached (no supervisor runs this flight).
@@ -21,7 +22,7 @@ pub enum ControlError {
     #[error("{0}")]
     Failed(String),
     /// The supervisor ended the request without a final reply (it stopped or died).
-    #[error("the supervisor stopped answering before the swap finished")]
+    #[error("the supervisor stopped answering before the request finished")]
     Disconnected,
     /// No final reply in time.
     #[error("no final reply within {0:.0} s")]
@@ -37,17 +38,47 @@ pub fn request_swap(
     role: &str,
     variant: &str,
     ready_timeout: Duration,
-    mut on_reply: impl FnMut(&SupervisorReply),
+    on_reply: impl FnMut(&SupervisorReply),
 ) -> Result<SupervisorReply, ControlError> {
-    let client = bus.control_client()?;
     let ms = ready_timeout.as_millis().min(u32::MAX as u128) as u32;
-    let pending = client.send(&SupervisorCommand::swap(role, variant, ms))?;
     let budget = if ms == 0 {
         crate::supervisor::DEFAULT_SWAP_READY_TIMEOUT
     } else {
         ready_timeout
     } + crate::supervisor::RETIRE_GRACE
         + SLACK;
+    request(
+        bus,
+        &SupervisorCommand::swap(role, variant, ms),
+        budget,
+        on_reply,
+    )
+}
+
+/// Ask the flight's supervisor to move `role`, live, to `target` (an executor name or a CPU
+/// list) and wait for the outcome. Returns the final reply (its message says from where to
+/// where, how many threads, how long).
+pub fn request_migrate(
+    bus: &FlightBus,
+    role: &str,
+    target: &str,
+) -> Result<SupervisorReply, ControlError> {
+    request(
+        bus,
+        &SupervisorCommand::migrate(role, target),
+        SLACK,
+        |_| {},
+    )
+}
+
+fn request(
+    bus: &FlightBus,
+    command: &SupervisorCommand,
+    budget: Duration,
+    mut on_reply: impl FnMut(&SupervisorReply),
+) -> Result<SupervisorReply, ControlError> {
+    let client = bus.control_client()?;
+    let pending = client.send(command)?;
     let start = Instant::now();
     loop {
         // read the connection state first: replies sent before a disconnect are still read

@@ -17,6 +17,10 @@ pub struct PlannedRole {
     pub spec: RoleSpec,
     /// CPUs to bind the process to (`None` = inherit the supervisor's affinity).
     pub cpus: Option<CpuSet>,
+    /// Name of its executor (`None` = unbound).
+    pub executor: Option<String>,
+    /// Its latency budget (ms), see [`Workflow::role_budget_ms`].
+    pub budget_ms: Option<f64>,
     /// Restart policy.
     pub restart: RestartPolicy,
     /// Restart budget.
@@ -152,6 +156,8 @@ pub fn plan_launch(
                     instance: 0,
                 },
                 cpus,
+                executor: r.executor.clone(),
+                budget_ms: w.role_budget_ms(r),
                 restart: r.restart,
                 max_restarts: r.max_restarts,
                 backoff_ms: r.backoff_ms,

@@ -9,12 +9,19 @@
 //! - [`supervisor`]: starts every role as its own process bound to its executor's CPUs,
 //!   watches heartbeats (latency percentiles, sequence gaps), restarts failed roles with
 //!   backoff, keeps the status board, and hot-swaps role variants make-before-break;
-//! - [`control`]: asking a running flight's supervisor for a hot swap (`aeris swap`).
+//! - [`executors`]: the executor registry (declared and discovered CPU sets, load from
+//!   /proc) and per-process scheduler figures;
+//! - [`rebind`]: the latency-driven re-binding policy (fewest moves, hysteresis) as pure
+//!   functions;
+//! - [`control`]: asking a running flight's supervisor for a hot swap (`aeris swap`) or a
+//!   live move (`aeris migrate`).
 
 #![deny(missing_docs)]
 
 pub mod control;
+pub mod executors;
 pub mod launch;
+pub mod rebind;
 pub mod restart;
 pub mod supervisor;
 pub mod workflow;
@@ -25,4 +32,6 @@ pub use supervisor::{
     RoleRuntime, RoleState, ShutdownEntry, ShutdownOutcome, ShutdownReport, SilentRole, Supervisor,
     SupervisorError, SupervisorEvent, SupervisorOptions, SwapError,
 };
-pub use workflow::{Executor, ExecutorCpus, RoleDecl, Workflow, WorkflowError, WorkflowFileError};
+pub use workflow::{
+    Executor, ExecutorCpus, RoleDecl, SchedulingSpec, Workflow, WorkflowError, WorkflowFileError,
+};

@@ -4,15 +4,29 @@
 //! The caller drives it: [`Supervisor::start`], then [`Supervisor::step`] every ~20 ms
 //! (non-blocking), then [`Supervisor::shutdown`].
 //!
+//! With dynamic scheduling on (`[scheduling] dynamic`, the default), every
+//! `interval_ms` the supervisor samples executor load and each role's scheduler time, checks
+//! the initial binding once every role has figures, and re-binds the fewest roles that
+//! restore the latency budget ([`crate::rebind`]); a move is live ([`Supervisor::migrate`]:
+//! every thread of the process, same pid). A running role that falls silent while stopped
+//! or making no CPU progress is stalled: it is killed and its restart policy applies.
+//!
 //! Role processes get `prctl(PR_SET_PDEATHSIG, SIGKILL)`, so they never outlive the
 //! supervisor. Linux delivers that signal when the **thread** that forked them ends, so
 //! drive a supervisor from one long-lived thread (the one that calls `start` and `step`).
 //! Each role runs in its own process group: a Ctrl-C in the terminal reaches only the
 //! supervisor, which then stops the roles in order.
 
+use crate::executors::{
+    ExecutorRegistry, SchedTime, process_sched_time, process_state, process_threads,
+};
 use crate::launch::{PlanError, PlannedRole, plan_launch};
+use crate::rebind::{ExecutorLoad, RebindConfig, RebindPolicy, RoleLoad, plan_fewest_moves};
 use crate::restart::{RestartDecision, RestartPolicy, RoleExit, restart_decision};
-use crate::workflow::Workflow;
+use crate::workflow::{SchedulingSpec, Workflow};
+use std::collections::VecDeque;
+
+mod dynamic;
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::bus::{
     BusError, ControlRequest, ControlServer, FlightBus, StatusBoardWriter, TypedSubscriber,
@@ -23,6 +37,7 @@ use aeris_schemas::{
     CommandKind, FixedText, MAX_ROLES, ReplyStage, RoleHeartbeat, RoleStatus, RoleStatusEntry,
     SupervisorReply, SupervisorStatus, topics,
 };
+use dynamic::rebind_config;
 use std::fs::OpenOptions;
 use std::io::{Read, Seek, SeekFrom, Write};
 use std::os::unix::process::CommandExt;
@@ -286,7 +301,7 @@ fn role_down_text(role: &str, state: &str, log_path: &Path, tail: &[String]) -> 
 }
 
 /// Something that happened to a role during a [`Supervisor::step`].
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum SupervisorEvent {
     /// The role process was started for the first time.
     RoleStarted {
@@ -377,6 +392,118 @@ pub enum SupervisorEvent {
         /// Why, with the tail of the new process's log.
         reason: String,
     },
+    /// A role's process was moved, live, to another executor: every thread, same pid.
+    RoleMigrated(Migration),
+    /// A running role was alive but silent: it was killed, and its restart policy applies.
+    RoleStalled {
+        /// Role name.
+        name: String,
+        /// The stalled process.
+        pid: u32,
+        /// Milliseconds since its last heartbeat.
+        silent_ms: u64,
+        /// What gave it away ("stopped (state T)", "no CPU time", "silent").
+        why: String,
+    },
+    /// An automatic move could not be made; the role stays where it was.
+    MigrationFailed {
+        /// Role name.
+        name: String,
+        /// Why.
+        reason: String,
+    },
+    /// The initial binding was checked against the budgets (kept, or re-bound).
+    InitialBinding {
+        /// `true` when roles were moved.
+        rebound: bool,
+        /// One line per role: where it runs and why.
+        reasons: Vec<String>,
+    },
+}
+
+/// One live move of a role between executors.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Migration {
+    /// Role name.
+    pub role: String,
+    /// Its pid (unchanged by the move).
+    pub pid: u32,
+    /// Executor it left (name, or the CPU list when unnamed).
+    pub from: String,
+    /// Executor it went to.
+    pub to: String,
+    /// CPUs it runs on now.
+    pub cpus: String,
+    /// Threads moved.
+    pub threads: usize,
+    /// Time the move took (µs), affinity checked on every thread.
+    pub took_us: u64,
+    /// Why: `None` by hand (`aeris migrate`), else the latency that triggered it.
+    pub trigger: Option<MigrationTrigger>,
+    /// CLOCK_MONOTONIC ns when the move completed.
+    pub done_ns: u64,
+}
+
+/// The figures behind an automatic move.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MigrationTrigger {
+    /// The role's latency signal (ms) when the policy acted.
+    pub latency_ms: f64,
+    /// Its budget (ms).
+    pub budget_ms: f64,
+    /// The latency predicted after the move (ms).
+    pub predicted_ms: f64,
+    /// `true` when it was part of the initial binding.
+    pub initial: bool,
+}
+
+/// Why a live move was refused (nothing was moved).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum MigrateError {
+    /// No role of that name.
+    #[error("the flight has no role `{role}` (roles: {known})")]
+    UnknownRole {
+        /// The name asked for.
+        role: String,
+        /// The flight's roles, comma-separated.
+        known: String,
+    },
+    /// The target is neither an executor nor a CPU list of this machine.
+    #[error("`{target}` is neither an executor ({executors}) nor a usable CPU list: {reason}")]
+    BadTarget {
+        /// The target as given.
+        target: String,
+        /// Known executors, comma-separated.
+        executors: String,
+        /// Why the CPU list is unusable.
+        reason: String,
+    },
+    /// The role has no running process.
+    #[error("role `{role}` is not running ({state})")]
+    NotRunning {
+        /// Role name.
+        role: String,
+        /// Its state.
+        state: String,
+    },
+    /// A hot swap of the role is under way.
+    #[error("role `{role}` is being swapped; move it once the swap is done")]
+    SwapInProgress {
+        /// Role name.
+        role: String,
+    },
+    /// The kernel refused the affinity (CPUs outside the supervisor's cpuset, no permission).
+    #[error("cannot move role `{role}` (pid {pid}) to CPUs {cpus}: {reason}")]
+    Affinity {
+        /// Role name.
+        role: String,
+        /// Its pid.
+        pid: u32,
+        /// The CPUs.
+        cpus: String,
+        /// The kernel's answer.
+        reason: String,
+    },
 }
 
 impl core::fmt::Display for SupervisorEvent {
@@ -442,6 +569,42 @@ impl core::fmt::Display for SupervisorEvent {
                 f,
                 "role `{name}`: swap to `{variant}` rolled back, the old process keeps running: {reason}"
             ),
+            SupervisorEvent::RoleMigrated(m) => {
+                write!(
+                    f,
+                    "role `{}` (pid {}) moved from {} to {} (CPUs {}, {} threads, {} µs)",
+                    m.role, m.pid, m.from, m.to, m.cpus, m.threads, m.took_us
+                )?;
+                match &m.trigger {
+                    Some(t) => write!(
+                        f,
+                        ": {}latency {:.1} ms over its {:.1} ms budget, {:.1} ms predicted there",
+                        if t.initial { "initial binding, " } else { "" },
+                        t.latency_ms,
+                        t.budget_ms,
+                        t.predicted_ms
+                    ),
+                    None => write!(f, " by hand"),
+                }
+            }
+            SupervisorEvent::RoleStalled {
+                name,
+                pid,
+                silent_ms,
+                why,
+            } => write!(
+                f,
+                "role `{name}` (pid {pid}) stalled: no heartbeat for {silent_ms} ms, {why}; killed"
+            ),
+            SupervisorEvent::MigrationFailed { name, reason } => {
+                write!(f, "role `{name}` could not be moved: {reason}")
+            }
+            SupervisorEvent::InitialBinding { rebound, reasons } => write!(
+                f,
+                "initial binding {}: {}",
+                if *rebound { "re-bound" } else { "kept" },
+                reasons.join("; ")
+            ),
         }
     }
 }
@@ -490,7 +653,27 @@ pub struct RoleRuntime {
     pool: Vec<String>,
     instance: u32,
     swap: Option<SwapInProgress>,
+    executor: String,
+    budget_ms: Option<f64>,
+    migrations: u32,
+    stalls: u32,
+    binding: String,
+    /// A `Running` heartbeat came from the current process (stall detection starts then).
+    running: bool,
+    /// When the last heartbeat of the current process arrived.
+    heard_at: Option<Instant>,
+    /// CPU time of the process when its silence was first noticed.
+    silence_probe: Option<u64>,
+    /// Scheduler time samples, one per scheduling tick (newest last).
+    sched: VecDeque<(Instant, SchedTime)>,
+    /// Latencies of the last few worked cycles (the DS signal).
+    recent: LatencyWindow,
 }
+
+/// Worked cycles in a role's recent-latency window (the DS signal).
+const RECENT_CYCLES: usize = 8;
+/// Scheduler samples kept per role (the demand window).
+const SCHED_SAMPLES: usize = 9;
 
 /// The new side of a make-before-break swap, until its first heartbeat after warm-up.
 #[derive(Debug)]
@@ -593,6 +776,26 @@ impl RoleRuntime {
     pub fn swapping_to(&self) -> Option<&str> {
         self.swap.as_ref().map(|s| s.variant.as_str())
     }
+    /// Name of its executor (empty = unbound).
+    pub fn executor(&self) -> &str {
+        &self.executor
+    }
+    /// Its latency budget (ms).
+    pub fn budget_ms(&self) -> Option<f64> {
+        self.budget_ms
+    }
+    /// Live moves so far.
+    pub fn migrations(&self) -> u32 {
+        self.migrations
+    }
+    /// Stalls detected so far.
+    pub fn stalls(&self) -> u32 {
+        self.stalls
+    }
+    /// Why it is bound where it is.
+    pub fn binding(&self) -> &str {
+        &self.binding
+    }
 
     fn describe_state(&self) -> String {
         match (self.state, self.pid) {
@@ -613,6 +816,15 @@ impl RoleRuntime {
         }
     }
 
+    /// Forget what belonged to the previous process (a new one starts or took over).
+    fn new_incarnation(&mut self) {
+        self.running = false;
+        self.heard_at = None;
+        self.silence_probe = None;
+        self.sched.clear();
+        self.recent = LatencyWindow::new(RECENT_CYCLES);
+    }
+
     /// Record a heartbeat; returns `true` when it is the first of the current process.
     fn record(&mut self, hb: &RoleHeartbeat, status: RoleStatus) -> bool {
         let first = self.incarnation_heartbeats == 0;
@@ -628,8 +840,12 @@ impl RoleRuntime {
         let working = matches!(status, RoleStatus::Running | RoleStatus::Degraded);
         if working && hb.worked == 1 {
             self.window.push(hb.cycle_latency_ns as f64 / 1e6);
+            self.recent.push(hb.cycle_latency_ns as f64 / 1e6);
             self.latency_ms = self.window.percentiles([50.0, 95.0, 99.0]);
         }
+        self.running |= working;
+        self.heard_at = Some(Instant::now());
+        self.silence_probe = None;
         self.last_heartbeat = Some(*hb);
         self.heartbeats += 1;
         self.incarnation_heartbeats += 1;
@@ -743,6 +959,13 @@ pub struct Supervisor {
     control: ControlServer,
     requests: Vec<(String, ControlRequest, Instant)>,
     bus: FlightBus,
+    registry: ExecutorRegistry,
+    scheduling: SchedulingSpec,
+    idle_heartbeat_ms: u64,
+    policy: RebindPolicy,
+    next_tick: Instant,
+    initial_checked: bool,
+    migrations: u32,
 }
 
 impl core::fmt::Debug for Supervisor {
@@ -929,6 +1152,8 @@ impl Supervisor {
             autopilot,
         } = options;
         let online = CpuSet::of_task(0).unwrap_or_else(|_| CpuSet::available());
+        let scheduling = workflow.scheduling;
+        let idle_heartbeat_ms = workflow.timing.idle_heartbeat_ms;
         let plan = plan_launch(
             &workflow,
             &flight,
@@ -994,6 +1219,13 @@ impl Supervisor {
             control,
             requests: Vec::new(),
             bus,
+            registry: ExecutorRegistry::discover(&plan.executors, &online),
+            policy: RebindPolicy::new(rebind_config(&scheduling), plan.roles.len()),
+            scheduling,
+            idle_heartbeat_ms,
+            next_tick: Instant::now(),
+            initial_checked: false,
+            migrations: 0,
         };
         for planned in plan.roles {
             sup.add_role(planned, &roles_dir, &logs_dir)?;
@@ -1018,6 +1250,8 @@ impl Supervisor {
         let PlannedRole {
             spec,
             cpus,
+            executor,
+            budget_ms,
             restart,
             max_restarts,
             backoff_ms,
@@ -1061,6 +1295,19 @@ impl Supervisor {
             pool,
             instance: 0,
             swap: None,
+            binding: match &executor {
+                Some(e) => format!("declared: executor `{e}`"),
+                None => "unbound: the supervisor's CPUs".into(),
+            },
+            executor: executor.unwrap_or_default(),
+            budget_ms,
+            migrations: 0,
+            stalls: 0,
+            running: false,
+            heard_at: None,
+            silence_probe: None,
+            sched: VecDeque::with_capacity(SCHED_SAMPLES),
+            recent: LatencyWindow::new(RECENT_CYCLES),
         });
         Ok(())
     }
@@ -1107,6 +1354,7 @@ impl Supervisor {
                 role.pid = Some(pid);
                 role.state = RoleState::Running;
                 role.incarnation_heartbeats = 0;
+                role.new_incarnation();
                 Ok(pid)
             }
             Err(source) => Err(SupervisorError::Spawn {
@@ -1130,9 +1378,11 @@ impl Supervisor {
         self.serve_control(&mut events)?;
         self.drain_heartbeats(&mut events)?;
         self.reap(&mut events)?;
+        self.detect_stalls(&mut events);
         self.advance_swaps(&mut events);
         self.reap_retiring(&mut events);
         self.restart_due(&mut events);
+        self.schedule(&mut events);
         self.answer_requests(&events);
         self.publish_board();
         Ok(events)
@@ -1182,6 +1432,7 @@ impl Supervisor {
 
     fn reap(&mut self, events: &mut Vec<SupervisorEvent>) -> Result<(), SupervisorError> {
         let now = Instant::now();
+        let mut exited = false;
         for role in &mut self.roles {
             let Some(child) = role.child.as_mut() else {
                 continue;
@@ -1204,6 +1455,8 @@ impl Supervisor {
             role.child = None;
             role.last_exit = Some(exit);
             role.incarnation_heartbeats = 0;
+            role.new_incarnation();
+            exited = true;
             events.push(SupervisorEvent::RoleExited {
                 name: role.name.clone(),
                 status: exit,
@@ -1224,6 +1477,11 @@ impl Supervisor {
                     RoleState::GaveUp
                 }
             };
+        }
+        if exited {
+            // a dead process cannot remove its own iceoryx2 node and ports: do it now, not
+            // only when its replacement starts (a role kept down has none)
+            aeris_runtime::bus::cleanup_dead_nodes();
         }
         Ok(())
     }
@@ -1292,8 +1550,15 @@ impl Supervisor {
                 latency_ms: [lat[0] as f32, lat[1] as f32, lat[2] as f32],
                 restarts: role.restarts,
                 heartbeat_gaps: role.heartbeat_gaps.min(u32::MAX as u64) as u32,
+                executor: FixedText::from_str_truncated(&role.executor),
+                budget_ms: role.budget_ms.unwrap_or(0.0) as f32,
+                migrations: role.migrations,
+                stalls: role.stalls,
+                reserved2: 0,
+                binding: FixedText::from_str_truncated(&role.binding),
             };
         }
+        s.migrations = self.migrations;
         self.board.update(&self.status);
     }
 
@@ -1504,6 +1769,9 @@ impl Supervisor {
             role.last_heartbeat = swap.ready;
             role.heartbeats += 1;
             role.incarnation_heartbeats = 1;
+            role.new_incarnation();
+            role.running = true;
+            role.heard_at = Some(now);
             // a new model: its latency is a new distribution
             role.window = LatencyWindow::new(LATENCY_WINDOW);
             role.latency_ms = None;
@@ -1596,7 +1864,7 @@ impl Supervisor {
             };
             let command = *request.payload();
             let role = command.role.as_str_lossy().to_string();
-            let variant = command.variant.as_str_lossy().to_string();
+            let variant = command.target.as_str_lossy().to_string();
             let reply = match CommandKind::from_u8(command.kind) {
                 None => SupervisorReply::new(
                     ReplyStage::Failed,
@@ -1617,6 +1885,20 @@ impl Supervisor {
                         Err(e) => SupervisorReply::new(ReplyStage::Failed, &e.to_string()),
                     }
                 }
+                Some(CommandKind::Migrate) => match self.migrate(&role, &variant) {
+                    Ok(m) => {
+                        let mut r = SupervisorReply::new(
+                            ReplyStage::Done,
+                            &SupervisorEvent::RoleMigrated(m.clone()).to_string(),
+                        );
+                        r.old_pid = m.pid;
+                        r.new_pid = m.pid;
+                        r.elapsed_ms = m.took_us / 1000;
+                        events.append(&mut self.pending);
+                        r
+                    }
+                    Err(e) => SupervisorReply::new(ReplyStage::Failed, &e.to_string()),
+                },
             };
             let _ = self.control.reply(&request, &reply);
         }
@@ -1961,6 +2243,16 @@ mod tests {
             pool: vec!["gate".into()],
             instance: 1,
             swap: None,
+            executor: String::new(),
+            budget_ms: None,
+            migrations: 0,
+            stalls: 0,
+            binding: String::new(),
+            running: false,
+            heard_at: None,
+            silence_probe: None,
+            sched: VecDeque::new(),
+            recent: LatencyWindow::new(RECENT_CYCLES),
         }
     }
 

@@ -82,6 +82,9 @@ pub struct RoleDecl {
     pub max_restarts: u32,
     /// First restart backoff (ms), doubling up to 5 s.
     pub backoff_ms: u64,
+    /// Latency budget (ms) as written; `None` takes the kind's default
+    /// ([`Workflow::role_budget_ms`]).
+    pub budget_ms: Option<f64>,
     /// Free-form parameters handed to the role.
     pub params: serde_json::Map<String, serde_json::Value>,
     /// Topics it subscribes to (the catalog's unless overridden).
@@ -115,6 +118,43 @@ pub struct Workflow {
     pub executors: Vec<Executor>,
     /// Roles in declaration order.
     pub roles: Vec<RoleDecl>,
+    /// Dynamic scheduling and stall detection (`[scheduling]`).
+    pub scheduling: SchedulingSpec,
+}
+
+/// The `[scheduling]` table: latency-driven re-binding and stall detection.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SchedulingSpec {
+    /// Re-bind roles between executors when their latency exceeds their budget (DS).
+    pub dynamic: bool,
+    /// How often the supervisor samples load and evaluates the binding (ms).
+    pub interval_ms: u64,
+    /// Consecutive over-budget samples before roles move.
+    pub trigger_samples: u32,
+    /// A moved role stays put this long; after a failed search, the wait before the next (ms).
+    pub cooldown_ms: u64,
+    /// Roles over budget must fit this fraction below it after a move (0..0.9).
+    pub margin: f64,
+    /// A running role silent this long while stopped or making no CPU progress is stalled
+    /// and replaced (ms; default half the heartbeat period).
+    pub stall_timeout_ms: u64,
+    /// A running role silent this long is stalled whatever its state (ms).
+    pub stall_hard_timeout_ms: u64,
+}
+
+impl SchedulingSpec {
+    /// The defaults for a flight with `timing`.
+    pub fn defaults(timing: &TimingSpec) -> Self {
+        Self {
+            dynamic: true,
+            interval_ms: 250,
+            trigger_samples: 2,
+            cooldown_ms: 10_000,
+            margin: 0.2,
+            stall_timeout_ms: (timing.heartbeat_period_ms / 2).max(3 * timing.idle_heartbeat_ms),
+            stall_hard_timeout_ms: timing.heartbeat_period_ms.saturating_mul(5).max(10_000),
+        }
+    }
 }
 
 /// Why a workflow is unusable.
@@ -237,6 +277,24 @@ pub enum WorkflowError {
         /// Role name.
         role: String,
         /// The value as written.
+        value: String,
+    },
+    /// A `[scheduling]` value is out of range.
+    #[error("[scheduling] {field} = {value}: {reason}")]
+    Scheduling {
+        /// The field.
+        field: &'static str,
+        /// The value as written.
+        value: String,
+        /// What it must be.
+        reason: &'static str,
+    },
+    /// A role's `budget_ms` is not a positive number.
+    #[error("role `{role}`: budget_ms = {value} must be a positive number of milliseconds")]
+    BadBudget {
+        /// Role name.
+        role: String,
+        /// The value.
         value: String,
     },
     /// A role names an executor that is not declared.
@@ -366,6 +424,20 @@ struct RawWorkflow {
     executors: BTreeMap<String, RawExecutor>,
     #[serde(default)]
     roles: Vec<RawRole>,
+    #[serde(default)]
+    scheduling: RawScheduling,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScheduling {
+    dynamic: Option<bool>,
+    interval_ms: Option<u64>,
+    trigger_samples: Option<u32>,
+    cooldown_ms: Option<u64>,
+    margin: Option<f64>,
+    stall_timeout_ms: Option<u64>,
+    stall_hard_timeout_ms: Option<u64>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -401,6 +473,7 @@ struct RawRole {
     restart: Option<String>,
     max_restarts: Option<u32>,
     backoff_ms: Option<u64>,
+    budget_ms: Option<f64>,
     #[serde(default)]
     params: serde_json::Map<String, serde_json::Value>,
     subscribes: Option<Vec<String>>,
@@ -566,11 +639,23 @@ impl Workflow {
                 restart,
                 max_restarts: r.max_restarts.unwrap_or(DEFAULT_MAX_RESTARTS),
                 backoff_ms: r.backoff_ms.unwrap_or(DEFAULT_BACKOFF_MS),
+                budget_ms: r.budget_ms,
                 params: r.params,
                 subscribes,
                 publishes,
             });
         }
+        let d = SchedulingSpec::defaults(&timing);
+        let rs = raw.scheduling;
+        let scheduling = SchedulingSpec {
+            dynamic: rs.dynamic.unwrap_or(d.dynamic),
+            interval_ms: rs.interval_ms.unwrap_or(d.interval_ms),
+            trigger_samples: rs.trigger_samples.unwrap_or(d.trigger_samples),
+            cooldown_ms: rs.cooldown_ms.unwrap_or(d.cooldown_ms),
+            margin: rs.margin.unwrap_or(d.margin),
+            stall_timeout_ms: rs.stall_timeout_ms.unwrap_or(d.stall_timeout_ms),
+            stall_hard_timeout_ms: rs.stall_hard_timeout_ms.unwrap_or(d.stall_hard_timeout_ms),
+        };
         Ok(Workflow {
             timing,
             feedback,
@@ -578,6 +663,7 @@ impl Workflow {
             mission: raw.mission,
             executors,
             roles,
+            scheduling,
         })
     }
 
@@ -585,6 +671,7 @@ impl Workflow {
     /// required kinds, topics, and that the services graph has no cycle.
     pub fn validate(&self) -> Result<(), WorkflowError> {
         self.validate_timing()?;
+        self.validate_scheduling()?;
         self.validate_camera()?;
         self.mission.validate().map_err(WorkflowError::Mission)?;
         for ex in &self.executors {
@@ -602,6 +689,71 @@ impl Workflow {
         self.validate_topics()?;
         if let Some((path, topics)) = self.find_cycle() {
             return Err(WorkflowError::Cycle { path, topics });
+        }
+        Ok(())
+    }
+
+    /// The latency budget of `role` (ms): its `budget_ms`, else its kind's share of the
+    /// heartbeat — half for reasoning, a quarter for each perception kind, one period for the
+    /// periodic camera, hub and controller; `None` for the simulated vehicle (part of the
+    /// world, not of the stack), which is never re-bound for its own latency.
+    pub fn role_budget_ms(&self, role: &RoleDecl) -> Option<f64> {
+        if role.budget_ms.is_some() {
+            return role.budget_ms;
+        }
+        let hb = self.timing.heartbeat_period_ms as f64;
+        match role.kind.as_str() {
+            "reasoning" => Some(hb * 0.5),
+            "camera" => Some(1000.0 / self.camera.fps.max(1.0)),
+            "hub" | "controller" => Some(1000.0 / self.timing.control_rate_hz),
+            "vehicle" => None,
+            _ => Some(hb * 0.25),
+        }
+    }
+
+    fn validate_scheduling(&self) -> Result<(), WorkflowError> {
+        let s = &self.scheduling;
+        let bad = |field, value: String, reason| WorkflowError::Scheduling {
+            field,
+            value,
+            reason,
+        };
+        if s.interval_ms < 20 {
+            return Err(bad(
+                "interval_ms",
+                s.interval_ms.to_string(),
+                "must be at least 20 ms",
+            ));
+        }
+        if s.trigger_samples == 0 {
+            return Err(bad("trigger_samples", "0".into(), "must be at least 1"));
+        }
+        if !(s.margin.is_finite() && (0.0..=0.9).contains(&s.margin)) {
+            return Err(bad("margin", s.margin.to_string(), "must be in 0..=0.9"));
+        }
+        if s.stall_timeout_ms < 2 * self.timing.idle_heartbeat_ms {
+            return Err(bad(
+                "stall_timeout_ms",
+                s.stall_timeout_ms.to_string(),
+                "must be at least twice idle_heartbeat_ms (a live idle role would look stalled)",
+            ));
+        }
+        if s.stall_hard_timeout_ms < s.stall_timeout_ms {
+            return Err(bad(
+                "stall_hard_timeout_ms",
+                s.stall_hard_timeout_ms.to_string(),
+                "must be at least stall_timeout_ms",
+            ));
+        }
+        for r in &self.roles {
+            if let Some(b) = r.budget_ms
+                && !(b.is_finite() && b > 0.0)
+            {
+                return Err(WorkflowError::BadBudget {
+                    role: r.name.clone(),
+                    value: b.to_string(),
+                });
+            }
         }
         Ok(())
     }

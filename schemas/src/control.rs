@@ -1,4 +1,5 @@
-//! Commands to a running flight's supervisor (`aeris swap ...`) and its replies, over the
+//! Commands to a running flight's supervisor (`aeris swap ...`, `aeris migrate ...`) and its
+//! replies, over the
 //! iceoryx2 request-response service [`crate::topics::SUPERVISOR_CONTROL`].
 //!
 //! One request gets a stream of replies: started, ready, done (or failed at any point). The
@@ -18,18 +19,24 @@ pub const REPLY_MESSAGE_MAX: usize = 4096;
 pub enum CommandKind {
     /// Replace a running role by another variant of its pool, make-before-break.
     Swap = 1,
+    /// Move a running role's process (every thread) to another CPU set, live.
+    Migrate = 2,
 }
 
 impl CommandKind {
     /// Decode a wire byte.
     pub fn from_u8(v: u8) -> Option<Self> {
-        (v == 1).then_some(CommandKind::Swap)
+        match v {
+            1 => Some(CommandKind::Swap),
+            2 => Some(CommandKind::Migrate),
+            _ => None,
+        }
     }
 }
 
 /// A command to the supervisor.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
-#[type_name("aeris::SupervisorCommand@s3")]
+#[type_name("aeris::SupervisorCommand@s4")]
 #[repr(C)]
 pub struct SupervisorCommand {
     /// [`CommandKind`] wire byte.
@@ -41,8 +48,9 @@ pub struct SupervisorCommand {
     pub ready_timeout_ms: u32,
     /// Role name (as in the workflow).
     pub role: FixedText<NAME_MAX>,
-    /// Variant to run.
-    pub variant: FixedText<NAME_MAX>,
+    /// Where the command takes the role: the variant to run (swap) or the CPU list or
+    /// executor name to move it to (migrate).
+    pub target: FixedText<NAME_MAX>,
 }
 
 impl SupervisorCommand {
@@ -53,7 +61,18 @@ impl SupervisorCommand {
             reserved: [0; 3],
             ready_timeout_ms,
             role: FixedText::from_str_truncated(role),
-            variant: FixedText::from_str_truncated(variant),
+            target: FixedText::from_str_truncated(variant),
+        }
+    }
+
+    /// A live move of `role` to `cpus` (a CPU list such as `0-1`, or an executor name).
+    pub fn migrate(role: &str, cpus: &str) -> Self {
+        Self {
+            kind: CommandKind::Migrate as u8,
+            reserved: [0; 3],
+            ready_timeout_ms: 0,
+            role: FixedText::from_str_truncated(role),
+            target: FixedText::from_str_truncated(cpus),
         }
     }
 }
@@ -94,7 +113,7 @@ impl ReplyStage {
 
 /// One reply of the supervisor.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
-#[type_name("aeris::SupervisorReply@s3")]
+#[type_name("aeris::SupervisorReply@s4")]
 #[repr(C)]
 pub struct SupervisorReply {
     /// [`ReplyStage`] wire byte.
@@ -149,7 +168,10 @@ mod tests {
         }
         let c = SupervisorCommand::swap("reasoning", "gemma3", 0);
         assert_eq!(CommandKind::from_u8(c.kind), Some(CommandKind::Swap));
-        assert_eq!(c.variant.as_str(), Some("gemma3"));
-        assert_eq!(CommandKind::from_u8(2), None);
+        assert_eq!(c.target.as_str(), Some("gemma3"));
+        let m = SupervisorCommand::migrate("hub", "0-1");
+        assert_eq!(CommandKind::from_u8(m.kind), Some(CommandKind::Migrate));
+        assert_eq!(m.target.as_str(), Some("0-1"));
+        assert_eq!(CommandKind::from_u8(3), None);
     }
 }

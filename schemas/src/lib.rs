@@ -37,7 +37,7 @@ pub use state::{
     Cue, Detection, MAX_CUES, MAX_DETECTIONS, OCCUPANCY_CELLS, OCCUPANCY_SIDE, OCCUPANCY_UNKNOWN,
     OccupancyGrid, PerceptionState, SUMMARY_MAX, StateError, block,
 };
-pub use supervisor::{MAX_ROLES, RoleStatusEntry, SupervisorStatus};
+pub use supervisor::{BINDING_TEXT_MAX, MAX_ROLES, RoleStatusEntry, SupervisorStatus};
 pub use telemetry::{TelemetryError, VehicleTelemetry};
 pub use text::FixedText;
 pub use version::{FlightManifest, ManifestError, SCHEMA_LAYOUT_HASH, SCHEMA_VERSION};

@@ -34,11 +34,26 @@ pub struct RoleStatusEntry {
     pub restarts: u32,
     /// Heartbeat sequence gaps observed.
     pub heartbeat_gaps: u32,
+    /// Name of the executor the role is bound to (empty = unbound).
+    pub executor: FixedText<NAME_MAX>,
+    /// The role's share of the heartbeat budget (ms; 0 = none, never re-bound).
+    pub budget_ms: f32,
+    /// Live moves between executors so far.
+    pub migrations: u32,
+    /// Times the role was found alive but silent (stalled) and replaced.
+    pub stalls: u32,
+    /// Reserved, zero.
+    pub reserved2: u32,
+    /// Why the role is bound where it is (initial binding, or the move that put it there).
+    pub binding: FixedText<BINDING_TEXT_MAX>,
 }
+
+/// Longest "why it is bound there" text on the board.
+pub const BINDING_TEXT_MAX: usize = 96;
 
 /// The whole board (`aeris/{flight}/supervisor`, a blackboard entry).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("aeris::SupervisorStatus@s3")]
+#[type_name("aeris::SupervisorStatus@s4")]
 #[repr(C)]
 pub struct SupervisorStatus {
     /// Board update counter.
@@ -53,8 +68,8 @@ pub struct SupervisorStatus {
     pub active_step: u16,
     /// Number of subgoals.
     pub subgoals: u16,
-    /// Reserved, zero.
-    pub reserved: u32,
+    /// Live migrations of all roles so far.
+    pub migrations: u32,
     /// Distance to the goal (m), negative when unknown.
     pub distance_to_goal_m: f32,
     /// Mean cycle time so far (s).
@@ -72,7 +87,7 @@ impl Default for SupervisorStatus {
             role_count: 0,
             active_step: 0,
             subgoals: 0,
-            reserved: 0,
+            migrations: 0,
             distance_to_goal_m: -1.0,
             ct_mean_s: 0.0,
             roles: [RoleStatusEntry::default(); MAX_ROLES],

@@ -1,0 +1,323 @@
+//! The executor registry: the CPU sets roles may be bound to, with their capacity and the
+//! load the kernel reports, and the per-process scheduler figures the re-binding policy
+//! reads.
+//!
+//! Executors come from the workflow (`[executors.NAME] cpus = ...`, resolved by the launch
+//! plan) and from the machine: one `cpuN` executor per CPU the supervisor may run on that no
+//! declared executor already is. Load comes from `/proc/stat` (per-CPU busy time) and
+//! `/proc/pressure/cpu` (machine-wide run-queue pressure); a role process's CPU demand and
+//! run-queue wait come from `/proc/PID/task/*/schedstat` (every thread summed).
+
+use aeris_runtime::affinity::CpuSet;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Where an executor came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ExecutorOrigin {
+    /// Declared in the workflow.
+    Declared,
+    /// Found on the machine (one per CPU the supervisor may use).
+    Discovered,
+}
+
+/// One executor: a CPU set with its capacity and current load.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExecutorInfo {
+    /// Name (`[executors.NAME]`, or `cpuN` for a discovered one).
+    pub name: String,
+    /// Its CPUs.
+    pub cpus: CpuSet,
+    /// Declared or discovered.
+    pub origin: ExecutorOrigin,
+    /// Busy CPU time over the last sampling interval, in cores (0..=capacity).
+    pub busy: f64,
+}
+
+impl ExecutorInfo {
+    /// Capacity in cores: the number of CPUs.
+    pub fn capacity(&self) -> f64 {
+        self.cpus.cpus().len() as f64
+    }
+}
+
+/// Busy and total jiffies of one CPU, from `/proc/stat`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct CpuTicks {
+    /// Ticks spent not idle (user, nice, system, irq, softirq, steal).
+    pub busy: u64,
+    /// All ticks.
+    pub total: u64,
+}
+
+/// Parse the per-CPU lines of `/proc/stat` text: CPU index -> ticks.
+pub fn parse_proc_stat(text: &str) -> BTreeMap<usize, CpuTicks> {
+    let mut out = BTreeMap::new();
+    for line in text.lines() {
+        let mut fields = line.split_ascii_whitespace();
+        let Some(head) = fields.next() else { continue };
+        let Some(index) = head
+            .strip_prefix("cpu")
+            .and_then(|n| n.parse::<usize>().ok())
+        else {
+            continue;
+        };
+        let v: Vec<u64> = fields.filter_map(|f| f.parse().ok()).collect();
+        if v.len() < 4 {
+            continue;
+        }
+        // user nice system idle iowait irq softirq steal (guest time is already in user)
+        let idle = v[3] + v.get(4).copied().unwrap_or(0);
+        let total: u64 = v.iter().take(8).sum();
+        out.insert(
+            index,
+            CpuTicks {
+                busy: total.saturating_sub(idle),
+                total,
+            },
+        );
+    }
+    out
+}
+
+/// Read `/proc/stat` (empty when unreadable).
+pub fn read_proc_stat() -> BTreeMap<usize, CpuTicks> {
+    std::fs::read_to_string("/proc/stat")
+        .map(|t| parse_proc_stat(&t))
+        .unwrap_or_default()
+}
+
+/// Machine-wide CPU pressure: the share of the last 10 s in which some runnable task waited
+/// for a CPU (`/proc/pressure/cpu`, "some avg10", as a fraction). `None` without PSI.
+pub fn cpu_pressure() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/pressure/cpu").ok()?;
+    let line = text.lines().find(|l| l.starts_with("some"))?;
+    let avg10 = line
+        .split_ascii_whitespace()
+        .find_map(|f| f.strip_prefix("avg10="))?;
+    avg10.parse::<f64>().ok().map(|p| p / 100.0)
+}
+
+/// Scheduler time of one process, every thread summed (`/proc/PID/task/*/schedstat`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SchedTime {
+    /// Time on a CPU (ns).
+    pub run_ns: u64,
+    /// Time runnable but waiting in a run queue (ns).
+    pub wait_ns: u64,
+}
+
+/// Parse one `schedstat` line: "run_ns wait_ns timeslices".
+pub fn parse_schedstat(text: &str) -> Option<SchedTime> {
+    let mut f = text.split_ascii_whitespace();
+    Some(SchedTime {
+        run_ns: f.next()?.parse().ok()?,
+        wait_ns: f.next()?.parse().ok()?,
+    })
+}
+
+/// The scheduler time of process `pid`, every thread summed; `None` when the process is
+/// gone or the kernel keeps no schedstat.
+pub fn process_sched_time(pid: u32) -> Option<SchedTime> {
+    let tasks = std::fs::read_dir(format!("/proc/{pid}/task")).ok()?;
+    let mut sum = SchedTime::default();
+    let mut any = false;
+    for task in tasks.flatten() {
+        let path = task.path().join("schedstat");
+        // a thread may exit between the listing and the read
+        if let Some(t) = std::fs::read_to_string(&path)
+            .ok()
+            .and_then(|s| parse_schedstat(&s))
+        {
+            sum.run_ns += t.run_ns;
+            sum.wait_ns += t.wait_ns;
+            any = true;
+        }
+    }
+    any.then_some(sum)
+}
+
+/// The state letter of process `pid` from `/proc/PID/stat` (`R`, `S`, `D`, `T` stopped,
+/// `t` traced, `Z` zombie...); `None` when it is gone.
+pub fn process_state(pid: u32) -> Option<char> {
+    let text = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    parse_stat_state(&text)
+}
+
+/// The state letter of a `/proc/PID/stat` line (after the parenthesised command name, which
+/// may itself contain spaces and parentheses).
+pub fn parse_stat_state(text: &str) -> Option<char> {
+    let after = &text[text.rfind(')')? + 1..];
+    after.trim_start().chars().next()
+}
+
+/// The thread ids of process `pid`.
+pub fn process_threads(pid: u32) -> std::io::Result<Vec<i32>> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(Path::new("/proc").join(pid.to_string()).join("task"))? {
+        if let Some(tid) = entry?.file_name().to_str().and_then(|s| s.parse().ok()) {
+            out.push(tid);
+        }
+    }
+    Ok(out)
+}
+
+/// Executors and their load.
+#[derive(Debug, Clone)]
+pub struct ExecutorRegistry {
+    executors: Vec<ExecutorInfo>,
+    last: BTreeMap<usize, CpuTicks>,
+    pressure: Option<f64>,
+}
+
+impl ExecutorRegistry {
+    /// The declared executors (name, resolved CPU set) plus one `cpuN` executor per CPU of
+    /// `online` that no declared executor is exactly.
+    pub fn discover(declared: &[(String, CpuSet)], online: &CpuSet) -> Self {
+        let mut executors: Vec<ExecutorInfo> = declared
+            .iter()
+            .map(|(name, cpus)| ExecutorInfo {
+                name: name.clone(),
+                cpus: cpus.clone(),
+                origin: ExecutorOrigin::Declared,
+                busy: 0.0,
+            })
+            .collect();
+        for &cpu in online.cpus() {
+            let Ok(set) = CpuSet::parse(&cpu.to_string()) else {
+                continue;
+            };
+            if executors.iter().any(|e| e.cpus == set) {
+                continue;
+            }
+            executors.push(ExecutorInfo {
+                name: format!("cpu{cpu}"),
+                cpus: set,
+                origin: ExecutorOrigin::Discovered,
+                busy: 0.0,
+            });
+        }
+        Self {
+            executors,
+            last: read_proc_stat(),
+            pressure: cpu_pressure(),
+        }
+    }
+
+    /// Every executor.
+    pub fn executors(&self) -> &[ExecutorInfo] {
+        &self.executors
+    }
+
+    /// The executor named `name`.
+    pub fn by_name(&self, name: &str) -> Option<&ExecutorInfo> {
+        self.executors.iter().find(|e| e.name == name)
+    }
+
+    /// The executor whose CPU set is exactly `cpus`.
+    pub fn by_cpus(&self, cpus: &CpuSet) -> Option<&ExecutorInfo> {
+        self.executors.iter().find(|e| &e.cpus == cpus)
+    }
+
+    /// Machine-wide CPU pressure at the last sample (see [`cpu_pressure`]).
+    pub fn pressure(&self) -> Option<f64> {
+        self.pressure
+    }
+
+    /// Read `/proc/stat` again and set every executor's busy cores over the interval since
+    /// the last sample.
+    pub fn sample(&mut self) {
+        let now = read_proc_stat();
+        self.apply(&now);
+        self.last = now;
+        self.pressure = cpu_pressure();
+    }
+
+    fn apply(&mut self, now: &BTreeMap<usize, CpuTicks>) {
+        for e in &mut self.executors {
+            e.busy = e
+                .cpus
+                .cpus()
+                .iter()
+                .filter_map(|c| {
+                    let (a, b) = (self.last.get(c)?, now.get(c)?);
+                    let total = b.total.checked_sub(a.total)?;
+                    let busy = b.busy.checked_sub(a.busy)?;
+                    (total > 0).then(|| busy as f64 / total as f64)
+                })
+                .sum();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const STAT: &str = "cpu  10 0 10 80 0 0 0 0 0 0\n\
+                        cpu0 5 0 5 40 0 0 0 0 0 0\n\
+                        cpu1 5 0 5 40 0 0 0 0 0 0\n\
+                        intr 1 2 3\n";
+
+    #[test]
+    fn proc_stat_gives_busy_and_total_ticks_per_cpu() {
+        let t = parse_proc_stat(STAT);
+        assert_eq!(t.len(), 2);
+        assert_eq!(
+            t[&1],
+            CpuTicks {
+                busy: 10,
+                total: 50
+            }
+        );
+    }
+
+    #[test]
+    fn executors_get_busy_cores_from_two_samples() {
+        let zero = CpuSet::parse("0").unwrap();
+        let online = CpuSet::parse("0-1").unwrap();
+        let mut reg = ExecutorRegistry::discover(&[("control".into(), zero)], &online);
+        // cpu0 is declared as `control`; cpu1 is discovered
+        let names: Vec<&str> = reg.executors().iter().map(|e| e.name.as_str()).collect();
+        assert_eq!(names, ["control", "cpu1"]);
+        reg.last = parse_proc_stat(STAT);
+        // cpu0: 50 more ticks, 50 busy; cpu1: 100 more ticks, 25 busy
+        let later = "cpu0 30 0 30 40 0 0 0 0\ncpu1 20 0 15 115 0 0 0 0\n";
+        reg.apply(&parse_proc_stat(later));
+        assert!((reg.executors()[0].busy - 1.0).abs() < 1e-9);
+        assert!((reg.executors()[1].busy - 0.25).abs() < 1e-9);
+        assert_eq!(reg.by_name("cpu1").unwrap().capacity(), 1.0);
+    }
+
+    #[test]
+    fn stat_lines_and_schedstat_parse() {
+        assert_eq!(parse_stat_state("123 (aeris role) T 1 2"), Some('T'));
+        assert_eq!(parse_stat_state("123 (a (b) c) S 1 2"), Some('S'));
+        assert_eq!(parse_stat_state("garbage"), None);
+        assert_eq!(
+            parse_schedstat("100 20 3\n"),
+            Some(SchedTime {
+                run_ns: 100,
+                wait_ns: 20
+            })
+        );
+        assert_eq!(parse_schedstat("x"), None);
+    }
+
+    #[test]
+    fn this_process_has_threads_a_state_and_sched_time() {
+        let pid = std::process::id();
+        assert!(process_threads(pid).unwrap().contains(&(pid as i32)));
+        assert!(matches!(process_state(pid), Some('R' | 'S')));
+        // CONFIG_SCHED_INFO kernels keep schedstat; where they do, time only grows
+        if let Some(a) = process_sched_time(pid) {
+            let mut x = 0u64;
+            for i in 0..200_000u64 {
+                x = x.wrapping_add(std::hint::black_box(i));
+            }
+            std::hint::black_box(x);
+            let b = process_sched_time(pid).unwrap();
+            assert!(b.run_ns >= a.run_ns);
+        }
+    }
+}

@@ -1,0 +1,564 @@
+//! Latency-driven re-binding: which roles to move between executors, as pure functions of
+//! what the supervisor measured, so the policy is testable without processes.
+//!
+//! Model. Each role has a latency budget (its share of the heartbeat). Its measured latency
+//! splits into a base cost and a slowdown: `base = latency / slowdown`, where `slowdown =
+//! (run + wait) / run` from the scheduler (time waiting in a run queue stretches a cycle).
+//! An executor of `capacity` cores carries a load in cores: what its CPUs were busy with
+//! beyond our roles' own demand (plus the run-queue wait our roles saw there: demand the
+//! busy figure cannot show once a CPU is saturated), plus the demand of the roles bound to
+//! it. Its slowdown is `max(1, load / capacity)`. A role that stays where it is keeps its
+//! measured latency, scaled by how its executor's slowdown changes; a role that moves gets
+//! `base * slowdown` of its new executor.
+//!
+//! Policy. A role is over budget when its latency exceeds its budget. After
+//! [`RebindConfig::trigger_ticks`] consecutive over-budget ticks of any role, the planner
+//! searches move sets in increasing size (one move, then two, ...) and takes the first size
+//! with a plan in which every role fits its budget and the roles that were over it fit with
+//! [`RebindConfig::margin`] to spare (ties: the lowest worst latency/budget ratio). Moved roles
+//! then stay put for [`RebindConfig::cooldown_ticks`]; when no plan exists, the planner
+//! waits as long before it tries again. Together with the margin this keeps noise around a
+//! budget from moving roles back and forth.
+
+/// What the policy knows about one role at a tick.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RoleLoad {
+    /// Role name (for reports).
+    pub name: String,
+    /// Index of its executor in the executor list.
+    pub executor: usize,
+    /// Its latency budget (ms); roles without one are never over budget.
+    pub budget_ms: Option<f64>,
+    /// Its recent latency (ms): the larger of the windowed p95 and the latency its current
+    /// scheduler slowdown predicts; `None` before it has worked.
+    pub latency_ms: Option<f64>,
+    /// Measured slowdown `(run + wait) / run` (>= 1).
+    pub slowdown: f64,
+    /// CPU demand in cores (run time over wall time).
+    pub demand: f64,
+    /// Run-queue wait in cores (wait time over wall time).
+    pub waiting: f64,
+    /// `false` pins the role where it is.
+    pub movable: bool,
+}
+
+impl RoleLoad {
+    fn ratio(&self) -> f64 {
+        match (self.latency_ms, self.budget_ms) {
+            (Some(l), Some(b)) if b > 0.0 => l / b,
+            _ => 0.0,
+        }
+    }
+
+    /// `true` when its latency exceeds its budget.
+    pub fn over_budget(&self) -> bool {
+        self.ratio() > 1.0
+    }
+}
+
+/// What the policy knows about one executor at a tick.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExecutorLoad {
+    /// Name.
+    pub name: String,
+    /// Cores.
+    pub capacity: f64,
+    /// Busy cores over the last interval (all tasks, ours included).
+    pub busy: f64,
+}
+
+/// One move of a plan.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Move {
+    /// Role index.
+    pub role: usize,
+    /// Executor it leaves.
+    pub from: usize,
+    /// Executor it goes to.
+    pub to: usize,
+}
+
+/// A re-binding: the moves and the latency each role is predicted to have after them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RebindPlan {
+    /// The moves (fewest that restore the budget).
+    pub moves: Vec<Move>,
+    /// Predicted latency of every role (ms), by role index (`None`: no latency yet).
+    pub predicted_ms: Vec<Option<f64>>,
+}
+
+/// Load (cores) on each executor that is not ours: busy beyond our roles' demand, plus the
+/// wait our roles saw there.
+fn external_load(roles: &[RoleLoad], executors: &[ExecutorLoad]) -> Vec<f64> {
+    executors
+        .iter()
+        .enumerate()
+        .map(|(e, ex)| {
+            let ours = roles.iter().filter(|r| r.executor == e);
+            let demand: f64 = ours.clone().map(|r| r.demand).sum();
+            let waiting: f64 = ours.map(|r| r.waiting).sum();
+            (ex.busy - demand).max(0.0) + waiting
+        })
+        .collect()
+}
+
+fn slowdowns(
+    roles: &[RoleLoad],
+    executors: &[ExecutorLoad],
+    external: &[f64],
+    assignment: &[usize],
+) -> Vec<f64> {
+    let mut load = external.to_vec();
+    for (r, &e) in roles.iter().zip(assignment) {
+        if let Some(l) = load.get_mut(e) {
+            *l += r.demand;
+        }
+    }
+    executors
+        .iter()
+        .zip(load)
+        .map(|(ex, l)| (l / ex.capacity.max(1e-9)).max(1.0))
+        .collect()
+}
+
+/// Predicted latency of every role (ms) when roles are bound as `assignment` (executor
+/// index per role).
+pub fn predict(
+    roles: &[RoleLoad],
+    executors: &[ExecutorLoad],
+    assignment: &[usize],
+) -> Vec<Option<f64>> {
+    let external = external_load(roles, executors);
+    let current: Vec<usize> = roles.iter().map(|r| r.executor).collect();
+    let now = slowdowns(roles, executors, &external, &current);
+    let then = slowdowns(roles, executors, &external, assignment);
+    roles
+        .iter()
+        .zip(assignment)
+        .map(|(r, &e)| {
+            let latency = r.latency_ms?;
+            let s_then = *then.get(e)?;
+            Some(if e == r.executor {
+                // stays: the measured latency, scaled by the change of its executor
+                latency * s_then / now[e]
+            } else {
+                latency / r.slowdown.max(1.0) * s_then
+            })
+        })
+        .collect()
+}
+
+/// The plan with the fewest moves (at most `max_moves`) after which every role fits its
+/// budget and the roles over budget now fit it with `margin` (0..1) to spare; `None` when no
+/// role is over budget or no such plan exists.
+pub fn plan_fewest_moves(
+    roles: &[RoleLoad],
+    executors: &[ExecutorLoad],
+    margin: f64,
+    max_moves: usize,
+    frozen: &[bool],
+) -> Option<RebindPlan> {
+    if !roles.iter().any(RoleLoad::over_budget) || executors.len() < 2 {
+        return None;
+    }
+    let movable: Vec<usize> = (0..roles.len())
+        .filter(|&r| roles[r].movable && !frozen.get(r).copied().unwrap_or(false))
+        .collect();
+    let fits = |predicted: &[Option<f64>]| -> Option<f64> {
+        let mut worst = 0.0f64;
+        for (r, p) in roles.iter().zip(predicted) {
+            let (Some(b), Some(p)) = (r.budget_ms, *p) else {
+                continue;
+            };
+            let limit = if r.over_budget() {
+                b * (1.0 - margin)
+            } else {
+                b
+            };
+            if p > limit {
+                return None;
+            }
+            worst = worst.max(p / b);
+        }
+        Some(worst)
+    };
+    let current: Vec<usize> = roles.iter().map(|r| r.executor).collect();
+    for size in 1..=max_moves.min(movable.len()) {
+        let mut best: Option<(f64, Vec<Move>, Vec<Option<f64>>)> = None;
+        for subset in combinations(movable.len(), size) {
+            let picked: Vec<usize> = subset.iter().map(|&i| movable[i]).collect();
+            // every assignment of the picked roles to executors other than their own
+            let choices = executors.len() - 1;
+            let total = choices.checked_pow(size as u32)?;
+            for code in 0..total {
+                let mut assignment = current.clone();
+                let mut c = code;
+                let mut moves = Vec::with_capacity(size);
+                for &r in &picked {
+                    let k = c % choices;
+                    c /= choices;
+                    let to = if k >= current[r] { k + 1 } else { k };
+                    assignment[r] = to;
+                    moves.push(Move {
+                        role: r,
+                        from: current[r],
+                        to,
+                    });
+                }
+                let predicted = predict(roles, executors, &assignment);
+                if let Some(worst) = fits(&predicted)
+                    && best.as_ref().is_none_or(|(w, _, _)| worst < *w)
+                {
+                    best = Some((worst, moves, predicted));
+                }
+            }
+        }
+        if let Some((_, moves, predicted_ms)) = best {
+            return Some(RebindPlan {
+                moves,
+                predicted_ms,
+            });
+        }
+    }
+    None
+}
+
+/// Index subsets of `0..n` of size `k`, in lexicographic order.
+fn combinations(n: usize, k: usize) -> Vec<Vec<usize>> {
+    let mut out = Vec::new();
+    if k == 0 || k > n {
+        return out;
+    }
+    let mut idx: Vec<usize> = (0..k).collect();
+    loop {
+        out.push(idx.clone());
+        let mut i = k;
+        loop {
+            if i == 0 {
+                return out;
+            }
+            i -= 1;
+            if idx[i] < n - k + i {
+                break;
+            }
+            if i == 0 {
+                return out;
+            }
+        }
+        idx[i] += 1;
+        for j in i + 1..k {
+            idx[j] = idx[j - 1] + 1;
+        }
+    }
+}
+
+/// Settings of the re-binding policy.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RebindConfig {
+    /// Consecutive over-budget ticks before the policy acts.
+    pub trigger_ticks: u32,
+    /// Roles over budget must fit this fraction below their budget after the move.
+    pub margin: f64,
+    /// Ticks a moved role stays put, and the wait before retrying when no plan exists.
+    pub cooldown_ticks: u32,
+    /// Most roles moved at once.
+    pub max_moves: usize,
+}
+
+impl Default for RebindConfig {
+    fn default() -> Self {
+        Self {
+            trigger_ticks: 2,
+            margin: 0.2,
+            cooldown_ticks: 40,
+            max_moves: 3,
+        }
+    }
+}
+
+/// The re-binding policy with its memory (streaks, cooldowns): feed it one tick at a time.
+#[derive(Debug, Clone)]
+pub struct RebindPolicy {
+    config: RebindConfig,
+    streak: Vec<u32>,
+    cooldown: Vec<u32>,
+    hold_off: u32,
+}
+
+impl RebindPolicy {
+    /// A policy for `roles` roles.
+    pub fn new(config: RebindConfig, roles: usize) -> Self {
+        Self {
+            config,
+            streak: vec![0; roles],
+            cooldown: vec![0; roles],
+            hold_off: 0,
+        }
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &RebindConfig {
+        &self.config
+    }
+
+    /// Consecutive over-budget ticks of role `r`.
+    pub fn streak(&self, r: usize) -> u32 {
+        self.streak.get(r).copied().unwrap_or(0)
+    }
+
+    /// Forget the streak of role `r` and keep it where it is for a cooldown (after a move
+    /// made by hand, or a restart that reset its figures).
+    pub fn settle(&mut self, r: usize) {
+        if let Some(s) = self.streak.get_mut(r) {
+            *s = 0;
+        }
+        if let Some(c) = self.cooldown.get_mut(r) {
+            *c = self.config.cooldown_ticks;
+        }
+    }
+
+    /// One tick: update the streaks and return the moves to make now, if any.
+    pub fn tick(&mut self, roles: &[RoleLoad], executors: &[ExecutorLoad]) -> Option<RebindPlan> {
+        if self.streak.len() != roles.len() {
+            self.streak = vec![0; roles.len()];
+            self.cooldown = vec![0; roles.len()];
+        }
+        for (r, role) in roles.iter().enumerate() {
+            self.streak[r] = if role.over_budget() {
+                self.streak[r].saturating_add(1)
+            } else {
+                0
+            };
+            self.cooldown[r] = self.cooldown[r].saturating_sub(1);
+        }
+        if self.hold_off > 0 {
+            self.hold_off -= 1;
+            return None;
+        }
+        if !self.streak.iter().any(|&s| s >= self.config.trigger_ticks) {
+            return None;
+        }
+        let frozen: Vec<bool> = self.cooldown.iter().map(|&c| c > 0).collect();
+        match plan_fewest_moves(
+            roles,
+            executors,
+            self.config.margin,
+            self.config.max_moves,
+            &frozen,
+        ) {
+            Some(plan) => {
+                for m in &plan.moves {
+                    self.settle(m.role);
+                }
+                for s in &mut self.streak {
+                    *s = 0;
+                }
+                Some(plan)
+            }
+            None => {
+                self.hold_off = self.config.cooldown_ticks;
+                None
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn role(name: &str, executor: usize, budget: f64, latency: f64, demand: f64) -> RoleLoad {
+        RoleLoad {
+            name: name.into(),
+            executor,
+            budget_ms: Some(budget),
+            latency_ms: Some(latency),
+            slowdown: 1.0,
+            demand,
+            waiting: 0.0,
+            movable: true,
+        }
+    }
+
+    fn ex(name: &str, busy: f64) -> ExecutorLoad {
+        ExecutorLoad {
+            name: name.into(),
+            capacity: 1.0,
+            busy,
+        }
+    }
+
+    /// Two CPUs; a hog saturates CPU 1 where the reasoner, the camera and perception run.
+    fn hog_case() -> (Vec<RoleLoad>, Vec<ExecutorLoad>) {
+        let mut reasoning = role("reasoning", 1, 1000.0, 1800.0, 0.3);
+        reasoning.slowdown = 3.0;
+        reasoning.waiting = 0.6;
+        let mut camera = role("camera", 1, 100.0, 60.0, 0.1);
+        camera.slowdown = 2.0;
+        camera.waiting = 0.1;
+        let roles = vec![
+            role("hub", 0, 20.0, 0.5, 0.05),
+            role("controller", 0, 20.0, 0.4, 0.05),
+            camera,
+            role("perception", 1, 500.0, 30.0, 0.05),
+            reasoning,
+        ];
+        (roles, vec![ex("control", 0.2), ex("perception", 1.0)])
+    }
+
+    #[test]
+    fn one_move_takes_the_slow_role_off_the_hogged_executor() {
+        let (roles, executors) = hog_case();
+        let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]).expect("a plan");
+        assert_eq!(
+            plan.moves,
+            [Move {
+                role: 4,
+                from: 1,
+                to: 0
+            }]
+        );
+        // base 600 ms on an executor at 0.2 + 0.1 + 0.3 cores: no slowdown
+        assert!((plan.predicted_ms[4].unwrap() - 600.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn the_fewest_moves_win_even_when_two_roles_are_over_budget() {
+        // A and B share CPU 1 (1.3 cores of demand on one core): both 30 % slow and over
+        // budget. Moving A alone frees CPU 1 for B: one move, not two.
+        let roles = vec![
+            RoleLoad {
+                slowdown: 1.3,
+                ..role("a", 1, 120.0, 130.0, 0.7)
+            },
+            RoleLoad {
+                slowdown: 1.3,
+                ..role("b", 1, 120.0, 130.0, 0.6)
+            },
+        ];
+        let executors = vec![ex("cpu0", 0.0), ex("cpu1", 1.0)];
+        let plan = plan_fewest_moves(&roles, &executors, 0.1, 3, &[]).expect("a plan");
+        assert_eq!(plan.moves.len(), 1);
+        for p in plan.predicted_ms.iter().flatten() {
+            assert!(*p <= 120.0 * 0.9 + 1e-9, "{p}");
+        }
+    }
+
+    #[test]
+    fn two_moves_when_one_is_not_enough() {
+        // three executors: two hogged, each with a role over budget
+        let mut a = role("a", 1, 150.0, 300.0, 0.2);
+        a.slowdown = 3.0;
+        a.waiting = 0.4;
+        let mut b = role("b", 2, 150.0, 300.0, 0.2);
+        b.slowdown = 3.0;
+        b.waiting = 0.4;
+        let executors = vec![
+            ExecutorLoad {
+                capacity: 2.0,
+                ..ex("big", 0.0)
+            },
+            ex("cpu1", 1.0),
+            ex("cpu2", 1.0),
+        ];
+        let plan = plan_fewest_moves(&[a, b], &executors, 0.2, 3, &[]).expect("a plan");
+        assert_eq!(plan.moves.len(), 2);
+        assert!(plan.moves.iter().all(|m| m.to == 0));
+    }
+
+    #[test]
+    fn no_plan_when_every_executor_is_saturated_or_roles_are_pinned() {
+        let (roles, mut executors) = hog_case();
+        executors[0].busy = 1.0;
+        let mut hub = roles.clone();
+        // the control CPU is saturated too: moving the reasoner there does not fit
+        for r in hub.iter_mut().filter(|r| r.executor == 0) {
+            r.waiting = 2.0;
+        }
+        assert_eq!(plan_fewest_moves(&hub, &executors, 0.2, 3, &[]), None);
+        let (roles2, executors2) = hog_case();
+        let frozen = [false, false, false, false, true];
+        let plan = plan_fewest_moves(&roles2, &executors2, 0.2, 3, &frozen);
+        assert!(
+            plan.is_none_or(|p| p.moves.iter().all(|m| m.role != 4)),
+            "a frozen role was moved"
+        );
+        // nobody over budget: nothing to do
+        let calm = vec![role("a", 0, 100.0, 50.0, 0.2)];
+        assert_eq!(
+            plan_fewest_moves(&calm, &[ex("x", 0.2), ex("y", 0.0)], 0.2, 3, &[]),
+            None
+        );
+    }
+
+    #[test]
+    fn the_policy_waits_for_a_streak_and_then_moves_once() {
+        let (roles, executors) = hog_case();
+        let mut policy = RebindPolicy::new(RebindConfig::default(), roles.len());
+        assert_eq!(policy.tick(&roles, &executors), None, "one tick is noise");
+        let plan = policy.tick(&roles, &executors).expect("acts on the second");
+        assert_eq!(plan.moves.len(), 1);
+        // the same observations again (figures not refreshed yet): the moved role is
+        // cooling down and nothing else is over budget
+        let mut after = roles.clone();
+        after[4].executor = 0;
+        for _ in 0..10 {
+            assert_eq!(policy.tick(&after, &executors), None);
+        }
+    }
+
+    #[test]
+    fn noise_around_the_budget_never_moves_a_role_back_and_forth() {
+        // The reasoner's latency wanders 10 % around its budget on one CPU while the other
+        // CPU is as busy: no move restores it with margin, so nothing moves, ever.
+        let mut policy = RebindPolicy::new(RebindConfig::default(), 1);
+        let executors = vec![ex("cpu0", 0.5), ex("cpu1", 0.5)];
+        let mut moves = 0;
+        let mut state = 0x2545_f491_u64;
+        let mut executor = 1;
+        for _ in 0..2000 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let jitter = (state % 2001) as f64 / 1000.0 - 1.0; // -1..1
+            let latency = 1000.0 * (1.0 + 0.1 * jitter);
+            let r = RoleLoad {
+                slowdown: 1.0,
+                ..role("reasoning", executor, 1000.0, latency, 0.3)
+            };
+            if let Some(plan) = policy.tick(&[r], &executors) {
+                moves += plan.moves.len();
+                executor = plan.moves[0].to;
+            }
+        }
+        assert_eq!(moves, 0);
+    }
+
+    #[test]
+    fn a_moved_role_is_not_moved_back_while_the_interference_stays() {
+        // After the move the reasoner is fine on CPU 0; its figures wander just under the
+        // budget. Returning to the hogged CPU is never predicted to fit, so it stays.
+        let (roles, executors) = hog_case();
+        let mut policy = RebindPolicy::new(RebindConfig::default(), roles.len());
+        policy.tick(&roles, &executors);
+        let plan = policy.tick(&roles, &executors).unwrap();
+        let mut now = roles.clone();
+        now[4].executor = plan.moves[0].to;
+        now[4].slowdown = 1.0;
+        now[4].waiting = 0.0;
+        let executors = vec![ex("control", 0.5), ex("perception", 1.0)];
+        for i in 0..500 {
+            now[4].latency_ms = Some(if i % 5 < 2 { 1050.0 } else { 700.0 });
+            if let Some(p) = policy.tick(&now, &executors) {
+                assert!(p.moves.iter().all(|m| m.to != 1), "moved back: {p:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn combinations_are_complete() {
+        assert_eq!(combinations(4, 2).len(), 6);
+        assert_eq!(combinations(3, 3), vec![vec![0, 1, 2]]);
+        assert!(combinations(2, 3).is_empty());
+    }
+}

@@ -1,0 +1,455 @@
+//! The supervisor's dynamic side: live moves between executors, latency-driven re-binding
+//! (the initial check and every tick after), and stall detection.
+
+use super::*;
+use std::io::Write as _;
+
+/// Consecutive ticks of figures a role needs before the initial binding is checked.
+const INITIAL_PROBE_TICKS: usize = 8;
+/// Below this much CPU time in a window, a role's slowdown is not measured (ms of run time).
+const MIN_RUN_FOR_SLOWDOWN_NS: u64 = 2_000_000;
+/// Affinity passes over a process's threads before a move gives up on threads that keep
+/// appearing.
+const MOVE_PASSES: usize = 4;
+
+/// The policy settings of a flight's `[scheduling]` table.
+pub(super) fn rebind_config(s: &SchedulingSpec) -> RebindConfig {
+    let ticks = |ms: u64| (ms / s.interval_ms.max(1)).clamp(1, u32::MAX as u64) as u32;
+    RebindConfig {
+        trigger_ticks: s.trigger_samples,
+        margin: s.margin,
+        cooldown_ticks: ticks(s.cooldown_ms),
+        max_moves: 3,
+    }
+}
+
+/// Slowdown `(run + wait) / run` and the run and wait shares of wall time between two
+/// scheduler samples.
+fn shares(a: &(Instant, SchedTime), b: &(Instant, SchedTime)) -> Option<(f64, f64, f64)> {
+    let wall = b.0.checked_duration_since(a.0)?.as_nanos() as f64;
+    if wall <= 0.0 {
+        return None;
+    }
+    let run = b.1.run_ns.checked_sub(a.1.run_ns)?;
+    let wait = b.1.wait_ns.checked_sub(a.1.wait_ns)?;
+    let slowdown = if run >= MIN_RUN_FOR_SLOWDOWN_NS {
+        (run + wait) as f64 / run as f64
+    } else {
+        1.0
+    };
+    Some((slowdown, run as f64 / wall, wait as f64 / wall))
+}
+
+impl Supervisor {
+    /// The executor registry (declared and discovered CPU sets with their last load).
+    pub fn registry(&self) -> &ExecutorRegistry {
+        &self.registry
+    }
+
+    /// The flight's scheduling settings.
+    pub fn scheduling(&self) -> &SchedulingSpec {
+        &self.scheduling
+    }
+
+    /// Turn latency-driven re-binding on or off (stall detection stays on).
+    pub fn set_dynamic(&mut self, on: bool) {
+        self.scheduling.dynamic = on;
+    }
+
+    /// Live moves of all roles so far.
+    pub fn total_migrations(&self) -> u32 {
+        self.migrations
+    }
+
+    /// Move role `role`'s running process, live, to `target`: an executor name or a CPU
+    /// list. Every thread is bound (passes repeat until every thread, new ones included,
+    /// reports the new affinity); the pid stays, nothing restarts, no port closes. Later
+    /// restarts of the role start on the new CPUs.
+    pub fn migrate(&mut self, role: &str, target: &str) -> Result<Migration, MigrateError> {
+        self.migrate_with(role, target, None)
+    }
+
+    fn resolve_target(&self, target: &str) -> Result<(String, CpuSet), MigrateError> {
+        if let Some(e) = self.registry.by_name(target) {
+            return Ok((e.name.clone(), e.cpus.clone()));
+        }
+        let bad = |reason: String| MigrateError::BadTarget {
+            target: target.to_string(),
+            executors: self
+                .registry
+                .executors()
+                .iter()
+                .map(|e| format!("{} = CPUs {}", e.name, e.cpus))
+                .collect::<Vec<_>>()
+                .join(", "),
+            reason,
+        };
+        let set = CpuSet::parse(target).map_err(|e| bad(e.to_string()))?;
+        set.check_exists().map_err(|e| bad(e.to_string()))?;
+        let name = self
+            .registry
+            .by_cpus(&set)
+            .map(|e| e.name.clone())
+            .unwrap_or_else(|| format!("cpus {set}"));
+        Ok((name, set))
+    }
+
+    fn migrate_with(
+        &mut self,
+        role: &str,
+        target: &str,
+        trigger: Option<MigrationTrigger>,
+    ) -> Result<Migration, MigrateError> {
+        let Some(i) = self.roles.iter().position(|r| r.name == role) else {
+            return Err(MigrateError::UnknownRole {
+                role: role.to_string(),
+                known: self
+                    .roles
+                    .iter()
+                    .map(|r| r.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            });
+        };
+        let (to_name, set) = self.resolve_target(target)?;
+        let r = &mut self.roles[i];
+        if r.swap.is_some() {
+            return Err(MigrateError::SwapInProgress {
+                role: r.name.clone(),
+            });
+        }
+        let (Some(pid), true) = (r.pid, r.state == RoleState::Running) else {
+            return Err(MigrateError::NotRunning {
+                role: r.name.clone(),
+                state: r.describe_state(),
+            });
+        };
+        let started = Instant::now();
+        let affinity = |reason: String| MigrateError::Affinity {
+            role: role.to_string(),
+            pid,
+            cpus: set.to_string(),
+            reason,
+        };
+        let mut threads = 0;
+        let mut settled = false;
+        for _ in 0..MOVE_PASSES {
+            threads = set
+                .bind_process(pid as i32)
+                .map_err(|e| affinity(e.to_string()))?;
+            // a thread started during the pass inherits the old mask from its creator only
+            // if the creator had not moved yet: check every thread
+            let tids = process_threads(pid).map_err(|e| affinity(e.to_string()))?;
+            if tids
+                .iter()
+                .all(|&t| CpuSet::of_task(t).map_or(true, |s| s == set))
+            {
+                settled = true;
+                threads = tids.len();
+                break;
+            }
+        }
+        if !settled {
+            return Err(affinity(format!(
+                "threads kept appearing with the old affinity after {MOVE_PASSES} passes"
+            )));
+        }
+        let from = if r.executor.is_empty() {
+            format!("cpus {}", r.cpus)
+        } else {
+            r.executor.clone()
+        };
+        r.cpus = set.to_string();
+        r.cpu_set = Some(set.clone());
+        r.executor = to_name.clone();
+        r.migrations += 1;
+        r.binding = match &trigger {
+            Some(t) if t.initial => format!(
+                "initial binding: {:.0} ms on {from} > {:.0}% of {:.0} ms budget, {:.0} ms predicted",
+                t.latency_ms,
+                100.0 * (1.0 - self.scheduling.margin),
+                t.budget_ms,
+                t.predicted_ms
+            ),
+            Some(t) => format!(
+                "moved from {from}: {:.0} ms > {:.0} ms budget, {:.0} ms predicted",
+                t.latency_ms, t.budget_ms, t.predicted_ms
+            ),
+            None => format!("moved by hand from {from}"),
+        };
+        // the spec a restart reads names the new CPUs too
+        if let Ok(mut spec) = aeris_runtime::RoleSpec::load(&r.spec_path) {
+            spec.cpus = r.cpus.clone();
+            if let Ok(json) = serde_json::to_string_pretty(&spec) {
+                let _ = std::fs::write(&r.spec_path, json);
+            }
+        }
+        // its figures were measured elsewhere
+        r.sched.clear();
+        r.recent = LatencyWindow::new(RECENT_CYCLES);
+        self.policy.settle(i);
+        self.migrations += 1;
+        let m = Migration {
+            role: role.to_string(),
+            pid,
+            from,
+            to: to_name,
+            cpus: set.to_string(),
+            threads,
+            took_us: started.elapsed().as_micros() as u64,
+            trigger,
+            done_ns: monotonic_ns(),
+        };
+        self.log_scheduling(&m);
+        self.pending.push(SupervisorEvent::RoleMigrated(m.clone()));
+        Ok(m)
+    }
+
+    /// Append a move to `RUN_DIR/scheduling.jsonl`.
+    fn log_scheduling(&self, m: &Migration) {
+        let line = serde_json::json!({
+            "t_ns": m.done_ns,
+            "role": m.role,
+            "pid": m.pid,
+            "from": m.from,
+            "to": m.to,
+            "cpus": m.cpus,
+            "threads": m.threads,
+            "took_us": m.took_us,
+            "trigger_latency_ms": m.trigger.as_ref().map(|t| t.latency_ms),
+            "budget_ms": m.trigger.as_ref().map(|t| t.budget_ms),
+            "predicted_ms": m.trigger.as_ref().map(|t| t.predicted_ms),
+            "initial": m.trigger.as_ref().is_some_and(|t| t.initial),
+        });
+        if let Ok(mut f) = OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(self.run_dir.join("scheduling.jsonl"))
+        {
+            let _ = writeln!(f, "{line}");
+        }
+    }
+
+    /// Kill running roles that are alive but silent: stopped (SIGSTOP, state `T`) after
+    /// three idle-heartbeat periods of silence; silent for `stall_timeout_ms` without any CPU
+    /// time (blocked, deadlocked); or silent for `stall_hard_timeout_ms` whatever they do.
+    /// The exit is reaped by the next step and the restart policy applies.
+    pub(super) fn detect_stalls(&mut self, events: &mut Vec<SupervisorEvent>) {
+        let now = Instant::now();
+        let quick = Duration::from_millis(3 * self.idle_heartbeat_ms);
+        let timeout = Duration::from_millis(self.scheduling.stall_timeout_ms);
+        let hard = Duration::from_millis(self.scheduling.stall_hard_timeout_ms);
+        for role in &mut self.roles {
+            let (Some(pid), Some(heard), true, true) = (
+                role.pid,
+                role.heard_at,
+                role.running,
+                role.state == RoleState::Running,
+            ) else {
+                continue;
+            };
+            let silent = now.saturating_duration_since(heard);
+            if silent < quick {
+                continue;
+            }
+            let run_ns = process_sched_time(pid).map(|t| t.run_ns);
+            let probe = *role.silence_probe.get_or_insert(run_ns.unwrap_or(0));
+            let state = process_state(pid);
+            let why = if matches!(state, Some('T' | 't')) {
+                Some(format!("stopped (state {})", state.unwrap_or('T')))
+            } else if silent >= timeout
+                && run_ns.is_some_and(|r| r.saturating_sub(probe) < 1_000_000)
+            {
+                Some(format!("no CPU time for {} ms", silent.as_millis()))
+            } else if silent >= hard {
+                Some("still silent after the hard stall timeout".to_string())
+            } else {
+                None
+            };
+            let Some(why) = why else { continue };
+            if let Some(child) = role.child.as_mut() {
+                // SIGKILL ends a stopped process too; the next reap restarts it
+                let _ = child.kill();
+            }
+            role.stalls += 1;
+            role.running = false;
+            events.push(SupervisorEvent::RoleStalled {
+                name: role.name.clone(),
+                pid,
+                silent_ms: silent.as_millis() as u64,
+                why,
+            });
+        }
+    }
+
+    /// One scheduling tick when due: sample the executors and every role's scheduler time;
+    /// with dynamic scheduling on, check the initial binding once every role has figures,
+    /// then let the policy re-bind.
+    pub(super) fn schedule(&mut self, events: &mut Vec<SupervisorEvent>) {
+        let now = Instant::now();
+        if now < self.next_tick {
+            return;
+        }
+        self.next_tick = now + Duration::from_millis(self.scheduling.interval_ms);
+        self.registry.sample();
+        for role in &mut self.roles {
+            let Some(t) = role.pid.and_then(process_sched_time) else {
+                continue;
+            };
+            if role.sched.len() == SCHED_SAMPLES {
+                role.sched.pop_front();
+            }
+            role.sched.push_back((now, t));
+        }
+        if !self.scheduling.dynamic {
+            return;
+        }
+        let (roles, executors) = self.observe();
+        if !self.initial_checked {
+            let ready = self.roles.iter().all(|r| {
+                r.budget_ms.is_none() || !r.running || r.sched.len() >= INITIAL_PROBE_TICKS
+            }) && self
+                .roles
+                .iter()
+                .any(|r| r.sched.len() >= INITIAL_PROBE_TICKS);
+            if ready {
+                self.initial_checked = true;
+                self.initial_binding(&roles, &executors, events);
+            }
+            return;
+        }
+        if let Some(plan) = self.policy.tick(&roles, &executors) {
+            for m in plan.moves {
+                let role = &roles[m.role];
+                let trigger = MigrationTrigger {
+                    latency_ms: role.latency_ms.unwrap_or(0.0),
+                    budget_ms: role.budget_ms.unwrap_or(0.0),
+                    predicted_ms: plan.predicted_ms[m.role].unwrap_or(0.0),
+                    initial: false,
+                };
+                let to = executors[m.to].name.clone();
+                if let Err(e) = self.migrate_with(&role.name, &to, Some(trigger)) {
+                    events.push(SupervisorEvent::MigrationFailed {
+                        name: role.name.clone(),
+                        reason: format!("re-binding to {to}: {e}"),
+                    });
+                }
+            }
+            events.append(&mut self.pending);
+        }
+    }
+
+    /// The policy's view of the flight now.
+    fn observe(&mut self) -> (Vec<RoleLoad>, Vec<ExecutorLoad>) {
+        let registry = &self.registry;
+        let executors: Vec<ExecutorLoad> = self
+            .registry
+            .executors()
+            .iter()
+            .map(|e| ExecutorLoad {
+                name: e.name.clone(),
+                capacity: e.capacity(),
+                busy: e.busy,
+            })
+            .collect();
+        let roles = self
+            .roles
+            .iter_mut()
+            .map(|r| {
+                let executor = r
+                    .cpu_set
+                    .as_ref()
+                    .and_then(|set| registry.executors().iter().position(|e| &e.cpus == set))
+                    .unwrap_or(usize::MAX);
+                let n = r.sched.len();
+                // the whole window for demand, the last two samples for slowdown and wait
+                let slow = (n >= 2)
+                    .then(|| shares(&r.sched[0], &r.sched[n - 1]))
+                    .flatten();
+                let fast = (n >= 3)
+                    .then(|| shares(&r.sched[n - 3], &r.sched[n - 1]))
+                    .flatten();
+                let (slow_s, demand, _) = slow.unwrap_or((1.0, 0.0, 0.0));
+                let (fast_s, _, waiting) = fast.or(slow).unwrap_or((1.0, 0.0, 0.0));
+                let percentiles = r.recent.percentiles([50.0, 95.0]);
+                // a slowdown that just grew stretches the cycles that are still running:
+                // the signal does not wait for them to finish
+                let latency_ms = percentiles
+                    .map(|[p50, p95]| p95.max(p50 * (fast_s / slow_s.max(1.0)).max(1.0)));
+                RoleLoad {
+                    name: r.name.clone(),
+                    executor,
+                    budget_ms: r.budget_ms,
+                    latency_ms,
+                    slowdown: fast_s,
+                    demand,
+                    waiting,
+                    movable: executor != usize::MAX && r.state == RoleState::Running,
+                }
+            })
+            .collect();
+        (roles, executors)
+    }
+
+    /// pi_0: the declared binding measured over the probe window; roles that do not fit
+    /// their budget with the margin are re-bound with the fewest moves.
+    fn initial_binding(
+        &mut self,
+        roles: &[RoleLoad],
+        executors: &[ExecutorLoad],
+        events: &mut Vec<SupervisorEvent>,
+    ) {
+        let margin = self.scheduling.margin;
+        // against the budget less the margin: a binding must fit with room to spare
+        let tight: Vec<RoleLoad> = roles
+            .iter()
+            .map(|r| RoleLoad {
+                budget_ms: r.budget_ms.map(|b| b * (1.0 - margin)),
+                ..r.clone()
+            })
+            .collect();
+        let plan = plan_fewest_moves(&tight, executors, 0.0, 3, &[]);
+        let mut reasons = Vec::new();
+        let mut rebound = false;
+        if let Some(plan) = &plan {
+            for m in &plan.moves {
+                let role = &roles[m.role];
+                let trigger = MigrationTrigger {
+                    latency_ms: role.latency_ms.unwrap_or(0.0),
+                    budget_ms: role.budget_ms.unwrap_or(0.0),
+                    predicted_ms: plan.predicted_ms[m.role].unwrap_or(0.0),
+                    initial: true,
+                };
+                let to = executors[m.to].name.clone();
+                if self.migrate_with(&role.name, &to, Some(trigger)).is_ok() {
+                    rebound = true;
+                }
+            }
+        }
+        for (i, r) in roles.iter().enumerate() {
+            let runtime = &mut self.roles[i];
+            let fits = match (r.latency_ms, r.budget_ms) {
+                (Some(l), Some(b)) => format!("{l:.1} of {b:.0} ms"),
+                (None, Some(b)) => format!("no cycle yet, budget {b:.0} ms"),
+                (_, None) => "no budget".into(),
+            };
+            if runtime.migrations == 0 {
+                runtime.binding = format!(
+                    "{}; initial check: {fits}",
+                    runtime.binding.split(';').next().unwrap_or("")
+                );
+            }
+            reasons.push(format!(
+                "{} on {} ({fits})",
+                runtime.name,
+                if runtime.executor.is_empty() {
+                    "unbound"
+                } else {
+                    &runtime.executor
+                }
+            ));
+        }
+        events.append(&mut self.pending);
+        events.push(SupervisorEvent::InitialBinding { rebound, reasons });
+    }
+}
