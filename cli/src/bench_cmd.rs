@@ -28,6 +28,9 @@ pub enum BenchCommand {
     Cycle(crate::bench_flight::CycleArgs),
     /// Hot swaps during the model flight: missed heartbeats and setpoint gaps per swap.
     Swap(crate::bench_flight::SwapArgs),
+    /// Dynamic scheduling on and off under a CPU hog landing on the heaviest role's CPUs:
+    /// CT, EER, live migrations, time from the hog's landing to the completed move.
+    Ds(crate::bench_ds::DsArgs),
     /// One model of `bench models` (started by it).
     #[command(name = "model-probe", hide = true)]
     ModelProbe(crate::bench_models::ModelProbeArgs),
@@ -139,6 +142,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         BenchCommand::Models(a) => crate::bench_models::run(a),
         BenchCommand::Cycle(a) => crate::bench_flight::cycle(a),
         BenchCommand::Swap(a) => crate::bench_flight::swap(a),
+        BenchCommand::Ds(a) => crate::bench_ds::ds(a),
         BenchCommand::ModelProbe(a) => crate::bench_models::probe(a),
         BenchCommand::IpcPong(a) => {
             let spec = PongSpec::from_json(&a.spec).context("bench ipc-pong: bad --spec")?;

@@ -252,6 +252,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
             summary,
             failure,
             ct_samples_s,
+            ..
         } = fly(workflow, &plan, |_, monitor, _| {
             if let Some(p) = monitor.position() {
                 // touching an obstacle ends the episode, as in AerialVLN (the ground is

@@ -1,6 +1,7 @@
 //! The `aeris` command line.
 
 mod bench_cmd;
+mod bench_ds;
 mod bench_flight;
 mod bench_models;
 mod eval_cmd;
@@ -83,7 +84,7 @@ enum Command {
     },
     /// List the role kinds and variants this build can run.
     Roles,
-    /// Run benchmarks (IPC, gate, control, models, cycle, swap) and print their figures.
+    /// Run benchmarks (IPC, gate, control, models, cycle, swap, ds) and print their figures.
     Bench(bench_cmd::BenchArgs),
     /// Fly VLN episodes through the full pipeline and score them (NE, SR, OSR, nDTW, SPL,
     /// ASR, CT, EER), per airspace; writes OUT/episodes.jsonl.

@@ -137,6 +137,8 @@ pub struct FlightOutcome {
     pub failure: Option<String>,
     /// Cycle times (s) of every committed cycle.
     pub ct_samples_s: Vec<f64>,
+    /// The per-cycle trace (what `cycles.jsonl` holds).
+    pub trace: Vec<crate::flight::CycleTrace>,
 }
 
 /// Fly `workflow`: start the supervisor, wait for every role, then supervise until the
@@ -301,6 +303,7 @@ pub fn fly(
         summary,
         failure,
         ct_samples_s,
+        trace: monitor.trace().to_vec(),
     })
 }
 

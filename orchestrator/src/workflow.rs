@@ -152,7 +152,9 @@ impl SchedulingSpec {
             cooldown_ms: 10_000,
             margin: 0.2,
             stall_timeout_ms: (timing.heartbeat_period_ms / 2).max(3 * timing.idle_heartbeat_ms),
-            stall_hard_timeout_ms: timing.heartbeat_period_ms.saturating_mul(5).max(10_000),
+            // a role busy in one long cycle (a language model's first prefill on a crowded
+            // CPU takes over 10 s) is working, not stalled: only a very long silence counts
+            stall_hard_timeout_ms: timing.heartbeat_period_ms.saturating_mul(30).max(60_000),
         }
     }
 }

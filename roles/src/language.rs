@@ -14,7 +14,7 @@
 //! ([`HeartbeatClock`]). The model is loaded and warmed up (one decision) in `new`, before
 //! the first heartbeat, so a swapped-in reasoner is ready when the supervisor sees it.
 //!
-//! Parameters: `model` (cache-relative GGUF, default per variant), `threads` (default 2),
+//! Parameters: `model` (cache-relative GGUF, default per variant), `threads` (default 2, at most the CPUs of its executor),
 //! `context_tokens` (default 2048), `models_dir`, `plan` (bool, default true; false leaves
 //! the planner's plan out of the prompt: the generic model on its own, the evaluation's
 //! zero-shot ablation).
@@ -121,12 +121,20 @@ impl Role for LanguageRole {
             .or(default_model(&variant))
             .ok_or_else(|| RoleError::Config(format!("no model for variant `{variant}`")))?
             .to_string();
+        // never more threads than CPUs the process may run on: ggml's workers spin at their
+        // barriers, and two spinning on one CPU (a role bound to a one-CPU executor) starve
+        // each other and every role beside them (measured: no decision in 300 s)
+        let cpus = aeris_runtime::affinity::CpuSet::of_task(0)
+            .map(|s| s.cpus().len())
+            .unwrap_or(1)
+            .max(1);
         let config = ReasonerConfig {
-            threads: ctx
+            threads: (ctx
                 .spec
                 .param_f64("threads")
                 .unwrap_or(2.0)
-                .clamp(1.0, 64.0) as i32,
+                .clamp(1.0, 64.0) as i32)
+                .min(cpus as i32),
             context_tokens: ctx
                 .spec
                 .param_f64("context_tokens")
