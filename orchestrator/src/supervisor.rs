@@ -662,7 +662,7 @@ pub struct RoleRuntime {
     running: bool,
     /// When the last heartbeat of the current process arrived.
     heard_at: Option<Instant>,
-    /// CPU time of the process when its silence was first noticed.
+    /// Run + run-queue wait time of the process when its silence was first noticed.
     silence_probe: Option<u64>,
     /// Scheduler time samples, one per scheduling tick (newest last).
     sched: VecDeque<(Instant, SchedTime)>,

@@ -40,6 +40,8 @@ fn the_default_flight_comes_up_reports_and_stops_cleanly() {
         autopilot: None,
     })
     .unwrap();
+    // this test checks the declared binding (heartbeats name it): no automatic moves
+    sup.set_dynamic(false);
     if let Err(e) = sup.wait_ready(PATIENCE) {
         panic!("{e}");
     }

@@ -231,8 +231,9 @@ impl Supervisor {
     }
 
     /// Kill running roles that are alive but silent: stopped (SIGSTOP, state `T`) after
-    /// three idle-heartbeat periods of silence; silent for `stall_timeout_ms` without any CPU
-    /// time (blocked, deadlocked); or silent for `stall_hard_timeout_ms` whatever they do.
+    /// three idle-heartbeat periods of silence; silent for `stall_timeout_ms` neither running
+    /// nor waiting for a CPU (blocked, deadlocked: a role starved by a loaded machine waits in
+    /// a run queue and is not stalled); or silent for `stall_hard_timeout_ms` whatever it does.
     /// The exit is reaped by the next step and the restart policy applies.
     pub(super) fn detect_stalls(&mut self, events: &mut Vec<SupervisorEvent>) {
         let now = Instant::now();
@@ -252,7 +253,8 @@ impl Supervisor {
             if silent < quick {
                 continue;
             }
-            let run_ns = process_sched_time(pid).map(|t| t.run_ns);
+            // time on a CPU plus time runnable in a run queue: grows unless it sleeps
+            let run_ns = process_sched_time(pid).map(|t| t.run_ns + t.wait_ns);
             let probe = *role.silence_probe.get_or_insert(run_ns.unwrap_or(0));
             let state = process_state(pid);
             let why = if matches!(state, Some('T' | 't')) {
@@ -260,7 +262,10 @@ impl Supervisor {
             } else if silent >= timeout
                 && run_ns.is_some_and(|r| r.saturating_sub(probe) < 1_000_000)
             {
-                Some(format!("no CPU time for {} ms", silent.as_millis()))
+                Some(format!(
+                    "neither running nor runnable for {} ms",
+                    silent.as_millis()
+                ))
             } else if silent >= hard {
                 Some("still silent after the hard stall timeout".to_string())
             } else {
