@@ -21,7 +21,9 @@ use crate::executors::{
     ExecutorRegistry, SchedTime, process_sched_time, process_state, process_threads,
 };
 use crate::launch::{PlanError, PlannedRole, plan_launch};
-use crate::rebind::{ExecutorLoad, RebindConfig, RebindPolicy, RoleLoad, plan_fewest_moves};
+use crate::rebind::{
+    ExecutorLoad, RebindConfig, RebindPlan, RebindPolicy, RoleLoad, plan_fewest_moves,
+};
 use crate::restart::{RestartDecision, RestartPolicy, RoleExit, restart_decision};
 use crate::workflow::{SchedulingSpec, Workflow};
 use std::collections::VecDeque;
@@ -1618,12 +1620,7 @@ impl Supervisor {
         let Some(i) = self.roles.iter().position(|r| r.name == role) else {
             return Err(SwapError::UnknownRole {
                 role: role.to_string(),
-                known: self
-                    .roles
-                    .iter()
-                    .map(|r| r.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", "),
+                known: self.role_names(),
             });
         };
         let instance = self.next_instance;
@@ -1964,6 +1961,15 @@ impl Supervisor {
                 self.requests.swap_remove(k);
             }
         }
+    }
+
+    /// The flight's role names, comma-separated (for errors).
+    fn role_names(&self) -> String {
+        self.roles
+            .iter()
+            .map(|r| r.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
     }
 
     /// Every role, in start order.

@@ -5,6 +5,7 @@
 //!   restarted; SIGCONT to the old pid then finds nothing;
 //! - the flight still reaches its goal.
 
+use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::bus::FlightBus;
 use aeris_schemas::{RoleStatusEntry, SupervisorStatus};
 use aeris_tests::*;
@@ -19,38 +20,14 @@ fn entry(board: &SupervisorStatus, role: &str) -> Option<RoleStatusEntry> {
         .copied()
 }
 
-/// The affinity of every thread of `pid`, as CPU index lists.
-fn thread_affinities(pid: u32) -> Vec<(i32, Vec<usize>)> {
-    let mut out = Vec::new();
-    for task in std::fs::read_dir(format!("/proc/{pid}/task")).expect("task list") {
-        let tid: i32 = task.unwrap().file_name().to_str().unwrap().parse().unwrap();
-        // SAFETY: zeroed cpu_set_t is valid; the kernel fills it.
-        let mut set: libc::cpu_set_t = unsafe { std::mem::zeroed() };
-        // SAFETY: `set` is writable and of the size passed.
-        let rc = unsafe {
-            libc::sched_getaffinity(tid, std::mem::size_of::<libc::cpu_set_t>(), &mut set)
-        };
-        if rc != 0 {
-            continue; // the thread exited meanwhile
-        }
-        let cpus = (0..libc::CPU_SETSIZE as usize)
-            // SAFETY: reading bits of a valid set.
-            .filter(|c| unsafe { libc::CPU_ISSET(*c, &set) })
-            .collect();
-        out.push((tid, cpus));
-    }
-    out
-}
-
-fn cpu_list(text: &str) -> Vec<usize> {
-    let mut out = Vec::new();
-    for part in text.split(',') {
-        match part.split_once('-') {
-            Some((a, b)) => out.extend(a.parse::<usize>().unwrap()..=b.parse::<usize>().unwrap()),
-            None => out.push(part.parse().unwrap()),
-        }
-    }
-    out
+/// The affinity of every thread of `pid`.
+fn thread_affinities(pid: u32) -> Vec<(i32, CpuSet)> {
+    std::fs::read_dir(format!("/proc/{pid}/task"))
+        .expect("task list")
+        .filter_map(|t| t.ok()?.file_name().to_str()?.parse::<i32>().ok())
+        // a thread that exited meanwhile has no affinity to read
+        .filter_map(|tid| Some((tid, CpuSet::of_task(tid).ok()?)))
+        .collect()
 }
 
 #[test]
@@ -71,7 +48,7 @@ fn a_role_moves_live_and_a_stopped_role_is_replaced_while_the_flight_completes()
     .unwrap_or_else(|| panic!("flight never came up: {:?}", run_output(&dir.0)));
     let before = entry(&board, "reasoning").unwrap();
     let hub = entry(&board, "hub").unwrap();
-    let target_cpus = cpu_list(hub.cpus.as_str().unwrap());
+    let target_cpus = CpuSet::parse(hub.cpus.as_str().unwrap()).unwrap();
 
     // --- live move by hand
     let out = Command::new(aeris_bin())

@@ -103,12 +103,7 @@ impl Supervisor {
         let Some(i) = self.roles.iter().position(|r| r.name == role) else {
             return Err(MigrateError::UnknownRole {
                 role: role.to_string(),
-                known: self
-                    .roles
-                    .iter()
-                    .map(|r| r.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", "),
+                known: self.role_names(),
             });
         };
         let (to_name, set) = self.resolve_target(target)?;
@@ -324,24 +319,40 @@ impl Supervisor {
             return;
         }
         if let Some(plan) = self.policy.tick(&roles, &executors) {
-            for m in plan.moves {
-                let role = &roles[m.role];
-                let trigger = MigrationTrigger {
-                    latency_ms: role.latency_ms.unwrap_or(0.0),
-                    budget_ms: role.budget_ms.unwrap_or(0.0),
-                    predicted_ms: plan.predicted_ms[m.role].unwrap_or(0.0),
-                    initial: false,
-                };
-                let to = executors[m.to].name.clone();
-                if let Err(e) = self.migrate_with(&role.name, &to, Some(trigger)) {
-                    events.push(SupervisorEvent::MigrationFailed {
-                        name: role.name.clone(),
-                        reason: format!("re-binding to {to}: {e}"),
-                    });
-                }
-            }
+            self.apply_plan(&plan, &roles, &executors, false, events);
             events.append(&mut self.pending);
         }
+    }
+
+    /// Make the moves of `plan`; a move the kernel refuses is reported and the role stays.
+    /// Returns `true` when at least one role moved.
+    fn apply_plan(
+        &mut self,
+        plan: &RebindPlan,
+        roles: &[RoleLoad],
+        executors: &[ExecutorLoad],
+        initial: bool,
+        events: &mut Vec<SupervisorEvent>,
+    ) -> bool {
+        let mut moved = false;
+        for m in &plan.moves {
+            let role = &roles[m.role];
+            let trigger = MigrationTrigger {
+                latency_ms: role.latency_ms.unwrap_or(0.0),
+                budget_ms: role.budget_ms.unwrap_or(0.0),
+                predicted_ms: plan.predicted_ms[m.role].unwrap_or(0.0),
+                initial,
+            };
+            let to = &executors[m.to].name;
+            match self.migrate_with(&role.name, to, Some(trigger)) {
+                Ok(_) => moved = true,
+                Err(e) => events.push(SupervisorEvent::MigrationFailed {
+                    name: role.name.clone(),
+                    reason: format!("re-binding to {to}: {e}"),
+                }),
+            }
+        }
+        moved
     }
 
     /// The policy's view of the flight now.
@@ -415,22 +426,9 @@ impl Supervisor {
             .collect();
         let plan = plan_fewest_moves(&tight, executors, 0.0, 3, &[]);
         let mut reasons = Vec::new();
-        let mut rebound = false;
-        if let Some(plan) = &plan {
-            for m in &plan.moves {
-                let role = &roles[m.role];
-                let trigger = MigrationTrigger {
-                    latency_ms: role.latency_ms.unwrap_or(0.0),
-                    budget_ms: role.budget_ms.unwrap_or(0.0),
-                    predicted_ms: plan.predicted_ms[m.role].unwrap_or(0.0),
-                    initial: true,
-                };
-                let to = executors[m.to].name.clone();
-                if self.migrate_with(&role.name, &to, Some(trigger)).is_ok() {
-                    rebound = true;
-                }
-            }
-        }
+        let rebound = plan
+            .as_ref()
+            .is_some_and(|p| self.apply_plan(p, roles, executors, true, events));
         for (i, r) in roles.iter().enumerate() {
             let runtime = &mut self.roles[i];
             let fits = match (r.latency_ms, r.budget_ms) {
