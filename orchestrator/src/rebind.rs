@@ -15,7 +15,11 @@
 //! [`RebindConfig::trigger_ticks`] consecutive over-budget ticks of any role, the planner
 //! searches move sets in increasing size (one move, then two, ...) and takes the first size
 //! with a plan in which every role fits its budget and the roles that were over it fit with
-//! [`RebindConfig::margin`] to spare (ties: the lowest worst latency/budget ratio). Moved roles
+//! [`RebindConfig::margin`] to spare (ties: the lowest worst latency/budget ratio). When no
+//! such plan exists (a small machine where every executor is loaded), it takes the fewest
+//! moves that bring the worst latency/budget ratio down by at least the margin without
+//! pushing a role that fits over its budget: relief, not a cure, but a reasoner at 1.4x its
+//! budget meets a heartbeat deadline a reasoner at 5x misses. Moved roles
 //! then stay put for [`RebindConfig::cooldown_ticks`]; when no plan exists, the planner
 //! waits as long before it tries again. Together with the margin this keeps noise around a
 //! budget from moving roles back and forth.
@@ -85,6 +89,9 @@ pub struct RebindPlan {
     pub moves: Vec<Move>,
     /// Predicted latency of every role (ms), by role index (`None`: no latency yet).
     pub predicted_ms: Vec<Option<f64>>,
+    /// `true` when every role is predicted to fit its budget; `false` for a relief plan
+    /// (the worst latency/budget ratio falls by the margin, some role stays over).
+    pub restores: bool,
 }
 
 /// Load (cores) on each executor that is not ours: busy beyond our roles' demand, plus the
@@ -148,9 +155,15 @@ pub fn predict(
         .collect()
 }
 
+/// The least a relief plan must lower the worst latency/budget ratio by (a fraction), even
+/// when the margin asked for is smaller.
+pub const MIN_RELIEF: f64 = 0.1;
+
 /// The plan with the fewest moves (at most `max_moves`) after which every role fits its
-/// budget and the roles over budget now fit it with `margin` (0..1) to spare; `None` when no
-/// role is over budget or no such plan exists.
+/// budget and the roles over budget now fit it with `margin` (0..1) to spare; failing that,
+/// the fewest moves that lower the worst latency/budget ratio by `margin` while every role
+/// that fits now still fits (a relief plan, [`RebindPlan::restores`] `false`). `None` when
+/// no role is over budget or neither kind of plan exists.
 pub fn plan_fewest_moves(
     roles: &[RoleLoad],
     executors: &[ExecutorLoad],
@@ -164,27 +177,30 @@ pub fn plan_fewest_moves(
     let movable: Vec<usize> = (0..roles.len())
         .filter(|&r| roles[r].movable && !frozen.get(r).copied().unwrap_or(false))
         .collect();
-    let fits = |predicted: &[Option<f64>]| -> Option<f64> {
+    let worst_now = roles.iter().map(RoleLoad::ratio).fold(0.0, f64::max);
+    // (worst ratio, restores every budget) of an assignment; `None` when it breaks a role
+    // that fits now
+    let judge = |predicted: &[Option<f64>]| -> Option<(f64, bool)> {
         let mut worst = 0.0f64;
+        let mut restores = true;
         for (r, p) in roles.iter().zip(predicted) {
             let (Some(b), Some(p)) = (r.budget_ms, *p) else {
                 continue;
             };
-            let limit = if r.over_budget() {
-                b * (1.0 - margin)
-            } else {
-                b
-            };
-            if p > limit {
+            if r.over_budget() {
+                restores &= p <= b * (1.0 - margin);
+            } else if p > b {
                 return None;
             }
             worst = worst.max(p / b);
         }
-        Some(worst)
+        Some((worst, restores))
     };
     let current: Vec<usize> = roles.iter().map(|r| r.executor).collect();
+    type Candidate = (f64, Vec<Move>, Vec<Option<f64>>);
+    let mut relief: Option<Candidate> = None;
     for size in 1..=max_moves.min(movable.len()) {
-        let mut best: Option<(f64, Vec<Move>, Vec<Option<f64>>)> = None;
+        let mut best: Option<Candidate> = None;
         for subset in combinations(movable.len(), size) {
             let picked: Vec<usize> = subset.iter().map(|&i| movable[i]).collect();
             // every assignment of the picked roles to executors other than their own
@@ -206,10 +222,21 @@ pub fn plan_fewest_moves(
                     });
                 }
                 let predicted = predict(roles, executors, &assignment);
-                if let Some(worst) = fits(&predicted)
-                    && best.as_ref().is_none_or(|(w, _, _)| worst < *w)
+                let Some((worst, restores)) = judge(&predicted) else {
+                    continue;
+                };
+                let slot = if restores {
+                    &mut best
+                } else if relief.is_none() || relief.as_ref().is_some_and(|r| r.1.len() == size)
                 {
-                    best = Some((worst, moves, predicted));
+                    &mut relief
+                } else {
+                    continue;
+                };
+                if slot.as_ref().is_none_or(|(w, _, _)| worst < *w)
+                    && (restores || worst <= worst_now * (1.0 - margin.max(MIN_RELIEF)))
+                {
+                    *slot = Some((worst, moves, predicted));
                 }
             }
         }
@@ -217,10 +244,15 @@ pub fn plan_fewest_moves(
             return Some(RebindPlan {
                 moves,
                 predicted_ms,
+                restores: true,
             });
         }
     }
-    None
+    relief.map(|(_, moves, predicted_ms)| RebindPlan {
+        moves,
+        predicted_ms,
+        restores: false,
+    })
 }
 
 /// Index subsets of `0..n` of size `k`, in lexicographic order.
@@ -553,6 +585,42 @@ mod tests {
                 assert!(p.moves.iter().all(|m| m.to != 1), "moved back: {p:?}");
             }
         }
+    }
+
+    #[test]
+    fn relief_when_no_executor_restores_the_budget() {
+        // the reasoner is 6x over on the hogged CPU; on the control CPU it would still be
+        // 1.2x over its budget, but far closer to it: the only move that helps
+        let mut reasoning = role("reasoning", 1, 1000.0, 6000.0, 0.2);
+        reasoning.slowdown = 5.0;
+        reasoning.waiting = 0.8;
+        let roles = vec![
+            role("hub", 0, 20.0, 0.5, 0.05),
+            role("text", 0, 500.0, 200.0, 0.5),
+            role("camera", 1, 100.0, 40.0, 0.05),
+            reasoning,
+        ];
+        let executors = vec![ex("control", 0.55), ex("perception", 1.0)];
+        let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]).expect("relief");
+        assert!(!plan.restores);
+        assert_eq!(
+            plan.moves,
+            [Move {
+                role: 3,
+                from: 1,
+                to: 0
+            }]
+        );
+        let p = plan.predicted_ms[3].unwrap();
+        assert!(p > 1000.0 && p < 2000.0, "{p}");
+        // a move that only shuffles the worst ratio by less than the margin is no relief
+        let mut slight = roles.clone();
+        slight[3].latency_ms = Some(1300.0);
+        slight[3].slowdown = 1.05;
+        assert_eq!(plan_fewest_moves(&slight, &executors, 0.2, 3, &[]), None);
+        // and the full cure wins over relief when it exists
+        let (roles, executors) = hog_case();
+        assert!(plan_fewest_moves(&roles, &executors, 0.2, 3, &[]).unwrap().restores);
     }
 
     #[test]
