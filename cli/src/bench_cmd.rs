@@ -31,6 +31,10 @@ pub enum BenchCommand {
     /// Dynamic scheduling on and off under a CPU hog landing on the heaviest role's CPUs:
     /// CT, EER, live migrations, time from the hog's landing to the completed move.
     Ds(crate::bench_ds::DsArgs),
+    /// Fault injection over one default flight: SIGKILL and SIGSTOP of every role, a
+    /// garbage reasoner, a shared-memory service removed; detection and recovery times,
+    /// missed controller ticks, lost decisions, invalid setpoints per fault.
+    Faults(crate::bench_faults::FaultsArgs),
     /// One model of `bench models` (started by it).
     #[command(name = "model-probe", hide = true)]
     ModelProbe(crate::bench_models::ModelProbeArgs),
@@ -143,6 +147,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         BenchCommand::Cycle(a) => crate::bench_flight::cycle(a),
         BenchCommand::Swap(a) => crate::bench_flight::swap(a),
         BenchCommand::Ds(a) => crate::bench_ds::ds(a),
+        BenchCommand::Faults(a) => crate::bench_faults::faults(a),
         BenchCommand::ModelProbe(a) => crate::bench_models::probe(a),
         BenchCommand::IpcPong(a) => {
             let spec = PongSpec::from_json(&a.spec).context("bench ipc-pong: bad --spec")?;

@@ -2,6 +2,7 @@
 
 mod bench_cmd;
 mod bench_ds;
+mod bench_faults;
 mod bench_flight;
 mod bench_models;
 mod eval_cmd;

@@ -109,6 +109,8 @@ pub enum StopRule {
     /// When the vehicle is on the ground after having flown, wherever that is (VLN
     /// episodes: the agent stopped).
     Landed,
+    /// Only when the step hook says so (benchmarks that inject faults and then fly on).
+    Hook,
 }
 
 /// What a flight needs besides its workflow.
@@ -213,6 +215,7 @@ pub fn fly(
                 SupervisorEvent::RoleMigrated(_)
                 | SupervisorEvent::MigrationFailed { .. }
                 | SupervisorEvent::RoleStalled { .. }
+                | SupervisorEvent::ServiceLost { .. }
                 | SupervisorEvent::InitialBinding { .. } => eprintln!("aeris: {event}"),
                 _ => {}
             }
@@ -231,6 +234,7 @@ pub fn fly(
             StopRule::Goal => monitor.reached_goal(),
             StopRule::Cycles(n) => monitor.cycles() >= n,
             StopRule::Landed => monitor.landed_after_flight(),
+            StopRule::Hook => false,
         };
         if done || hook_done || failure.is_some() {
             break;
@@ -247,6 +251,10 @@ pub fn fly(
                 ),
                 StopRule::Landed => format!(
                     "the vehicle did not land within {:.0} s",
+                    max_duration.as_secs_f64()
+                ),
+                StopRule::Hook => format!(
+                    "the benchmark did not finish within {:.0} s",
                     max_duration.as_secs_f64()
                 ),
             });

@@ -227,8 +227,7 @@ pub fn plan_fewest_moves(
                 };
                 let slot = if restores {
                     &mut best
-                } else if relief.is_none() || relief.as_ref().is_some_and(|r| r.1.len() == size)
-                {
+                } else if relief.is_none() || relief.as_ref().is_some_and(|r| r.1.len() == size) {
                     &mut relief
                 } else {
                     continue;
@@ -620,7 +619,11 @@ mod tests {
         assert_eq!(plan_fewest_moves(&slight, &executors, 0.2, 3, &[]), None);
         // and the full cure wins over relief when it exists
         let (roles, executors) = hog_case();
-        assert!(plan_fewest_moves(&roles, &executors, 0.2, 3, &[]).unwrap().restores);
+        assert!(
+            plan_fewest_moves(&roles, &executors, 0.2, 3, &[])
+                .unwrap()
+                .restores
+        );
     }
 
     #[test]

@@ -407,6 +407,15 @@ pub enum SupervisorEvent {
         /// What gave it away ("stopped (state T)", "no CPU time", "silent").
         why: String,
     },
+    /// A service of the flight disappeared from under running roles (its files were
+    /// removed from outside); the roles registered at it were killed so that their restarts
+    /// create a fresh service and join it.
+    ServiceLost {
+        /// The service (relative to the flight).
+        service: String,
+        /// The roles killed, with the pids they had.
+        roles: Vec<(String, u32)>,
+    },
     /// An automatic move could not be made; the role stays where it was.
     MigrationFailed {
         /// Role name.
@@ -600,6 +609,14 @@ impl core::fmt::Display for SupervisorEvent {
             ),
             SupervisorEvent::MigrationFailed { name, reason } => {
                 write!(f, "role `{name}` could not be moved: {reason}")
+            }
+            SupervisorEvent::ServiceLost { service, roles } => {
+                write!(f, "service `{service}` was removed under ")?;
+                for (i, (name, pid)) in roles.iter().enumerate() {
+                    let sep = if i == 0 { "" } else { ", " };
+                    write!(f, "{sep}`{name}` (pid {pid})")?;
+                }
+                write!(f, "; killed them to rebuild it")
             }
             SupervisorEvent::InitialBinding { rebound, reasons } => write!(
                 f,
@@ -968,6 +985,8 @@ pub struct Supervisor {
     next_tick: Instant,
     initial_checked: bool,
     migrations: u32,
+    next_audit: Instant,
+    known_services: Vec<(String, Vec<(String, u32)>)>,
 }
 
 impl core::fmt::Debug for Supervisor {
@@ -1228,6 +1247,8 @@ impl Supervisor {
             next_tick: Instant::now(),
             initial_checked: false,
             migrations: 0,
+            next_audit: Instant::now(),
+            known_services: Vec::new(),
         };
         for planned in plan.roles {
             sup.add_role(planned, &roles_dir, &logs_dir)?;
@@ -1385,6 +1406,7 @@ impl Supervisor {
         self.reap_retiring(&mut events);
         self.restart_due(&mut events);
         self.schedule(&mut events);
+        self.audit_services(&mut events);
         self.answer_requests(&events);
         self.publish_board();
         Ok(events)

@@ -17,8 +17,12 @@
 //! cycle (at most 0.1 s per step, so a stalled process does not teleport the vehicle).
 //!
 //! Heartbeat [`CycleReport`]: stage `step`; counters
-//! `[setpoints, setpoints_outside_fence, steps, missed, commands, setpoints_rejected, armed, mode]`
-//! where armed is 0/1 and mode is 1 position, 2 hold, 3 offboard, 4 land.
+//! `[setpoints, setpoints_outside_fence, steps, missed, setpoint_ticks_missed, setpoints_rejected, armed, mode]`
+//! where armed is 0/1, mode is 1 position, 2 hold, 3 offboard, 4 land, and
+//! setpoint_ticks_missed counts the controller ticks (at the workflow's control rate) whose
+//! setpoint never reached the vehicle: an interval between two setpoints longer than two
+//! control periods counts `round(interval / period) - 1` (see
+//! [`aeris_sim::mav_vehicle::SimVehicleStats::setpoint_ticks_missed`]).
 
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
@@ -135,6 +139,8 @@ impl Role for VehicleRole {
         let mut config = SimVehicleConfig {
             start: spec.mission.start,
             fence: Some((limits.geofence_min, fence_max)),
+            setpoint_period_s: (spec.timing.control_rate_hz > 0.0)
+                .then(|| (1.0 / spec.timing.control_rate_hz) as f32),
             ..SimVehicleConfig::default()
         };
         let state_file = match spec.params.get("state_file") {
@@ -215,7 +221,7 @@ impl Role for VehicleRole {
             st.setpoints_outside_fence,
             st.steps,
             ctx.missed_deadlines,
-            st.commands,
+            st.setpoint_ticks_missed,
             st.setpoints_rejected,
             u64::from(self.sim.state().armed),
             self.sim.mode().index(),

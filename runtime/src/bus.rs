@@ -919,6 +919,85 @@ pub fn list_flight_services(flight: &str) -> Vec<String> {
     out
 }
 
+/// Services of `flight` with the names of the nodes registered at each (node names relative
+/// to the flight: role names, `supervisor`, ...). A service whose dynamic part cannot be
+/// read lists no nodes.
+pub fn flight_service_nodes(flight: &str) -> Vec<(String, Vec<String>)> {
+    let prefix = format!("aeris/s{SCHEMA_VERSION}/{flight}/");
+    let node_prefix = format!("{flight}/");
+    let mut out: Vec<(String, Vec<String>)> = Vec::new();
+    let _ = <Ipc as iceoryx2::service::Service>::list(Config::global_config(), |s| {
+        let name = s.static_details.name().as_str();
+        if let Some(rest) = name.strip_prefix(&prefix) {
+            let mut nodes: Vec<String> = s
+                .dynamic_details
+                .iter()
+                .flat_map(|d| d.nodes.iter())
+                .filter_map(|n| {
+                    let details = match n {
+                        NodeState::Alive(v) => v.details().as_ref(),
+                        NodeState::Dead(v) => v.details().as_ref(),
+                        _ => None,
+                    }?;
+                    details
+                        .name()
+                        .as_str()
+                        .strip_prefix(&node_prefix)
+                        .map(str::to_string)
+                })
+                .collect();
+            nodes.sort();
+            nodes.dedup();
+            out.push((rest.to_string(), nodes));
+        }
+        CallbackProgression::Continue
+    });
+    out.sort();
+    out.dedup_by(|a, b| a.0 == b.0);
+    out
+}
+
+/// Delete the files of `flight`'s service `topic` the way an outside tool would (a `/dev/shm`
+/// clean-up, systemd's `RemoveIPC`): its static config and every shared-memory file named
+/// after its hash. Processes that mapped them keep their mappings; nobody new can open the
+/// service. Fault injection for `aeris bench faults`; returns the files removed.
+pub fn remove_flight_service_files(flight: &str, topic: &str) -> std::io::Result<usize> {
+    let full = format!("aeris/s{SCHEMA_VERSION}/{flight}/{topic}");
+    let mut hash = None;
+    let _ = <Ipc as iceoryx2::service::Service>::list(Config::global_config(), |s| {
+        if s.static_details.name().as_str() == full {
+            hash = Some(s.static_details.service_hash().as_str().to_string());
+            return CallbackProgression::Stop;
+        }
+        CallbackProgression::Continue
+    });
+    let Some(hash) = hash else {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::NotFound,
+            format!("no service `{topic}` in flight `{flight}`"),
+        ));
+    };
+    let global = &Config::global_config().global;
+    let root = std::path::PathBuf::from(global.root_path().to_string());
+    let dirs = [
+        root.join(global.service.directory.to_string()),
+        std::path::PathBuf::from("/dev/shm"),
+    ];
+    let mut removed = 0;
+    for dir in dirs {
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        for e in entries.flatten() {
+            if e.file_name().to_string_lossy().contains(&hash) {
+                std::fs::remove_file(e.path())?;
+                removed += 1;
+            }
+        }
+    }
+    Ok(removed)
+}
+
 /// Flights that have a manifest on this host.
 pub fn list_flights() -> Vec<String> {
     let mut out = Vec::new();

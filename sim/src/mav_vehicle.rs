@@ -340,6 +340,11 @@ pub struct SimVehicleConfig {
     /// against (the vehicle still flies it, like an autopilot with its own fence would
     /// report it); counted in [`SimVehicleStats::setpoints_outside_fence`].
     pub fence: Option<([f32; 3], [f32; 3])>,
+    /// The period the controller streams setpoints at (s); when set, an interval between
+    /// two usable setpoints longer than two periods counts `round(interval / period) - 1`
+    /// missed ticks in [`SimVehicleStats::setpoint_ticks_missed`] (the autopilot's view of
+    /// the controller: jitter within two periods is not a miss).
+    pub setpoint_period_s: Option<f32>,
 }
 
 impl Default for SimVehicleConfig {
@@ -354,6 +359,7 @@ impl Default for SimVehicleConfig {
             land_speed: 0.7,
             auto_disarm_s: 2.0,
             fence: None,
+            setpoint_period_s: None,
         }
     }
 }
@@ -382,6 +388,9 @@ pub struct SimVehicleStats {
     /// Position setpoints outside the configured fence or not finite (see
     /// [`SimVehicleConfig::fence`]); the controller must never send one.
     pub setpoints_outside_fence: u64,
+    /// Controller ticks missed as seen from here (see
+    /// [`SimVehicleConfig::setpoint_period_s`]; 0 without it).
+    pub setpoint_ticks_missed: u64,
 }
 
 /// A snapshot of the simulated vehicle.
@@ -415,7 +424,8 @@ pub enum SimVehicleError {
 
 enum Inbound {
     Command(COMMAND_LONG_DATA),
-    Setpoint(SET_POSITION_TARGET_LOCAL_NED_DATA),
+    /// With the time it arrived at the link.
+    Setpoint(SET_POSITION_TARGET_LOCAL_NED_DATA, Instant),
 }
 
 const INBOX_CAPACITY: usize = 256;
@@ -435,6 +445,8 @@ pub struct SimVehicle {
     mode: FlightMode,
     time_s: f64,
     last_setpoint_s: Option<f64>,
+    /// Link arrival of the last usable setpoint.
+    last_arrival: Option<Instant>,
     offboard_cmd: Option<Command>,
     hold_position: [f32; 3],
     hold_yaw: f32,
@@ -493,7 +505,7 @@ fn rx_loop(
             Ok(Some((_, MavMessage::SET_POSITION_TARGET_LOCAL_NED(s))))
                 if targets_me(s.target_system, None, sys, comp) =>
             {
-                Inbound::Setpoint(s)
+                Inbound::Setpoint(s, Instant::now())
             }
             Ok(_) | Err(LinkError::Decode) => continue,
             Err(_) => {
@@ -572,6 +584,7 @@ impl SimVehicle {
             mode,
             time_s: 0.0,
             last_setpoint_s: None,
+            last_arrival: None,
             offboard_cmd: None,
             hold_position: state.position,
             hold_yaw: state.yaw,
@@ -671,7 +684,7 @@ impl SimVehicle {
         loop {
             match self.inbox.try_recv() {
                 Ok(Inbound::Command(c)) => self.handle_command(&c),
-                Ok(Inbound::Setpoint(s)) => self.handle_setpoint(&s),
+                Ok(Inbound::Setpoint(s, at)) => self.handle_setpoint(&s, at),
                 Err(TryRecvError::Empty) | Err(TryRecvError::Disconnected) => break,
             }
         }
@@ -821,7 +834,7 @@ impl SimVehicle {
         }));
     }
 
-    fn handle_setpoint(&mut self, s: &SET_POSITION_TARGET_LOCAL_NED_DATA) {
+    fn handle_setpoint(&mut self, s: &SET_POSITION_TARGET_LOCAL_NED_DATA, at: Instant) {
         if s.coordinate_frame != MavFrame::MAV_FRAME_LOCAL_NED {
             self.stats.setpoints_rejected += 1;
             return;
@@ -874,6 +887,15 @@ impl SimVehicle {
         }
         self.offboard_cmd = Some(cmd);
         self.last_setpoint_s = Some(self.time_s);
+        if let (Some(period), Some(last)) = (self.config.setpoint_period_s, self.last_arrival)
+            && period > 0.0
+        {
+            let ticks = at.saturating_duration_since(last).as_secs_f32() / period;
+            if ticks > 2.0 {
+                self.stats.setpoint_ticks_missed += (ticks.round() as u64).saturating_sub(1);
+            }
+        }
+        self.last_arrival = Some(at);
         self.stats.setpoints += 1;
     }
 

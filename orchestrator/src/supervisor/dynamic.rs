@@ -12,6 +12,9 @@ const MIN_RUN_FOR_SLOWDOWN_NS: u64 = 2_000_000;
 /// appearing.
 const MOVE_PASSES: usize = 4;
 
+/// How often the flight's services are listed to find one removed from outside.
+const SERVICE_AUDIT_PERIOD: Duration = Duration::from_millis(500);
+
 /// The policy settings of a flight's `[scheduling]` table.
 pub(super) fn rebind_config(s: &SchedulingSpec) -> RebindConfig {
     let ticks = |ms: u64| (ms / s.interval_ms.max(1)).clamp(1, u32::MAX as u64) as u32;
@@ -279,6 +282,68 @@ impl Supervisor {
                 silent_ms: silent.as_millis() as u64,
                 why,
             });
+        }
+    }
+
+    /// Every [`SERVICE_AUDIT_PERIOD`]: list the flight's services and the roles registered
+    /// at each. A service seen before that is gone while a role registered at it still runs
+    /// the same process was removed from outside (a `/dev/shm` clean-up): the processes keep
+    /// their mappings but nobody new can join it, so a later restart of any of them would
+    /// talk into a fresh service nobody else is on. Kill them now; their restarts create
+    /// the service again and all join it.
+    pub(super) fn audit_services(&mut self, events: &mut Vec<SupervisorEvent>) {
+        let now = Instant::now();
+        if now < self.next_audit {
+            return;
+        }
+        self.next_audit = now + SERVICE_AUDIT_PERIOD;
+        let current = aeris_runtime::bus::flight_service_nodes(&self.flight);
+        let mut lost = Vec::new();
+        for (service, attached) in &self.known_services {
+            if current.iter().any(|(s, _)| s == service) {
+                continue;
+            }
+            let victims: Vec<(usize, u32)> = attached
+                .iter()
+                .filter_map(|(name, pid)| {
+                    let i = self.roles.iter().position(|r| &r.name == name)?;
+                    let r = &self.roles[i];
+                    (r.running && r.pid == Some(*pid)).then_some((i, *pid))
+                })
+                .collect();
+            if !victims.is_empty() {
+                lost.push((service.clone(), victims));
+            }
+        }
+        self.known_services = current
+            .into_iter()
+            .map(|(service, nodes)| {
+                let attached = nodes
+                    .into_iter()
+                    .filter_map(|n| {
+                        let r = self.roles.iter().find(|r| r.name == n)?;
+                        Some((n, r.pid?))
+                    })
+                    .collect();
+                (service, attached)
+            })
+            .collect();
+        for (service, victims) in lost {
+            let mut roles = Vec::new();
+            for (i, pid) in victims {
+                let role = &mut self.roles[i];
+                if !role.running {
+                    continue; // already killed for another lost service
+                }
+                if let Some(child) = role.child.as_mut() {
+                    let _ = child.kill();
+                }
+                role.running = false;
+                roles.push((role.name.clone(), pid));
+            }
+            if !roles.is_empty() {
+                events.push(SupervisorEvent::ServiceLost { service, roles });
+            }
         }
     }
 
