@@ -124,7 +124,7 @@ fn roles_are_hot_swapped_during_a_flight_and_broken_variants_roll_back() {
         toml::Value::Array(vec!["compose".into(), "vlm".into()]),
     );
     let path = write_workflow(&dir.0, "models.toml", &w);
-    let mut run = spawn_run(&dir.0, &flight, &[path.to_str().unwrap()]);
+    let mut run = spawn_run(&dir.0, &flight, &[path.to_str().unwrap(), "--no-ds"]);
 
     let observer = FlightBus::builder(&flight)
         .node_name("test-observer")
