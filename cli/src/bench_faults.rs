@@ -153,13 +153,13 @@ impl Counters {
         if let Some(r) = &self.reasoner_role {
             self.reasoner.update(sup, r);
         }
-        let s = monitor.summary("", 0.0, 0);
+        let (received, _) = monitor.decisions_received_committed();
         Snapshot {
             missed: self.vehicle.total(VEH_MISSED),
             invalid: self.vehicle.total(VEH_OUTSIDE) + self.vehicle.total(VEH_REJECTED),
             published: self.reasoner.total(REASONER_PUBLISHED),
-            received: s.decisions_received + s.decisions_superseded,
-            rejected: s.decisions_rejected,
+            received,
+            rejected: monitor.rejected(),
         }
     }
 }
@@ -444,13 +444,13 @@ pub fn faults(a: FaultsArgs) -> Result<()> {
                             Duration::from_secs(a.recover_timeout_s),
                         )?;
                         inj.swapped_back_ns = Some(monotonic_ns());
-                        inj.committed_at_swap_back = monitor.summary("", 0.0, 0).cycles_committed;
+                        inj.committed_at_swap_back = monitor.decisions_received_committed().1;
                     }
                     if inj.swapped_back_ns.is_some()
                         && sup
                             .role(&role)
                             .is_some_and(|r| r.variant() == reasoner_variant)
-                        && monitor.summary("", 0.0, 0).cycles_committed > inj.committed_at_swap_back
+                        && monitor.decisions_received_committed().1 > inj.committed_at_swap_back
                     {
                         inj.recover_ns.get_or_insert(now);
                     }

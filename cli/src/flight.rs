@@ -407,6 +407,15 @@ impl FlightMonitor {
         self.hub.total(REJECTED)
     }
 
+    /// Decisions received (superseded ones included) and committed so far, over every hub
+    /// process of the flight.
+    pub fn decisions_received_committed(&self) -> (u64, u64) {
+        (
+            self.hub.total(RECEIVED) + self.hub.total(SUPERSEDED),
+            self.hub.total(COMMITTED),
+        )
+    }
+
     /// The summary of the flight so far.
     pub fn summary(&self, flight: &str, duration_s: f64, role_restarts: u64) -> RunSummary {
         let (ct_mean, ct_std) = mean_std(&self.ct_s).unwrap_or((0.0, 0.0));
