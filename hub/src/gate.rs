@@ -402,7 +402,8 @@ fn cell_centre(g: &OccupancyGrid, i: usize) -> [f32; 2] {
 
 /// The first cell touched by the segment `from -> to` (in order along it) holding an
 /// obstacle with top `>= threshold`. Exact grid traversal (Amanatides & Woo) of the part of
-/// the segment inside the grid; at most `2 * SIDE + 2` cells are visited.
+/// the segment inside the grid, ending in the cell of its end point; at most `2 * SIDE - 1`
+/// cells are visited.
 fn first_blocking(g: &OccupancyGrid, from: [f32; 2], to: [f32; 2], threshold: f32) -> Option<Hit> {
     let side = OCCUPANCY_SIDE as f64;
     let res = g.resolution_m as f64;
@@ -439,8 +440,14 @@ fn first_blocking(g: &OccupancyGrid, from: [f32; 2], to: [f32; 2], threshold: f3
         return None;
     }
     let last = OCCUPANCY_SIDE as i64 - 1;
-    let mut ix = ((x0 + t0 * dx).floor() as i64).clamp(0, last);
-    let mut iy = ((y0 + t0 * dy).floor() as i64).clamp(0, last);
+    let cell_at = |t: f64| {
+        (
+            ((x0 + t * dx).floor() as i64).clamp(0, last),
+            ((y0 + t * dy).floor() as i64).clamp(0, last),
+        )
+    };
+    let (mut ix, mut iy) = cell_at(t0);
+    let (end_x, end_y) = cell_at(t1);
     let axis = |d: f64, start: f64, i: i64| -> (i64, f64, f64) {
         if d > 0.0 {
             (1, ((i + 1) as f64 - start) / d, 1.0 / d)
@@ -452,8 +459,13 @@ fn first_blocking(g: &OccupancyGrid, from: [f32; 2], to: [f32; 2], threshold: f3
     };
     let (step_x, mut t_max_x, dt_x) = axis(dx, x0, ix);
     let (step_y, mut t_max_y, dt_y) = axis(dy, y0, iy);
+    // The walk takes exactly the steps from the first cell to the cell of the end point, so
+    // it always ends there. (Stopping when the next crossing time passes t1 let the rounding
+    // of the accumulated crossing times decide whether the cell of an end point lying on a
+    // cell boundary was visited: a target on the edge of a wall's cell could skip the wall.)
+    let (mut left_x, mut left_y) = ((end_x - ix).abs(), (end_y - iy).abs());
     let mut t_enter = t0;
-    for _ in 0..(2 * OCCUPANCY_SIDE + 2) {
+    loop {
         let cell = ix as usize * OCCUPANCY_SIDE + iy as usize;
         if let Some(top) = obstacle(g.cells[cell])
             && top >= threshold
@@ -464,23 +476,24 @@ fn first_blocking(g: &OccupancyGrid, from: [f32; 2], to: [f32; 2], threshold: f3
                 top,
             });
         }
-        if t_max_x.min(t_max_y) > t1 {
-            break;
-        }
-        if t_max_x < t_max_y {
+        let in_x = match (left_x, left_y) {
+            (0, 0) => return None,
+            (_, 0) => true,
+            (0, _) => false,
+            _ => t_max_x < t_max_y,
+        };
+        if in_x {
             ix += step_x;
+            left_x -= 1;
             t_enter = t_max_x;
             t_max_x += dt_x;
         } else {
             iy += step_y;
+            left_y -= 1;
             t_enter = t_max_y;
             t_max_y += dt_y;
         }
-        if !(0..=last).contains(&ix) || !(0..=last).contains(&iy) {
-            break;
-        }
     }
-    None
 }
 
 #[cfg(test)]
@@ -620,6 +633,35 @@ mod tests {
         let sp = g.admit(&d, [0.0; 3], Some(&grid)).unwrap();
         assert_eq!(sp.clamped, 1);
         assert!(sp.position[0] < 10.0 - 2.0, "{:?}", sp.position);
+    }
+
+    /// Regression (found by the `gate_json` fuzz corpus, `fuzz/regressions/gate_json/`): a
+    /// target exactly on the near edge of a blocking cell is inside that cell, but the walk
+    /// stopped one cell short when the rounding of its accumulated crossing times put the
+    /// last crossing just past the end (here 20 x 0.05 = 1.0000000000000002 > 1), and the
+    /// decision was admitted with no clearance to a wall higher than its altitude.
+    #[test]
+    fn a_target_on_the_edge_of_a_blocking_cell_is_pulled_back() {
+        let g = gate();
+        let mut grid = free_grid();
+        grid.origin = [20.0, 0.0];
+        // a wall 20 m high at N in [30, 31)
+        for e in -32..32 {
+            set(&mut grid, 30.5, e as f32 + 0.5, 20);
+        }
+        for mode in [ActionMode::Hover, ActionMode::Goto, ActionMode::Stop] {
+            let d = decision(mode, [30.0, 0.0, 12.0], 12.0);
+            let sp = g.admit(&d, [10.0, 5.0, 12.0], Some(&grid)).unwrap();
+            assert_eq!(sp.clamped, 1, "{mode:?}: {sp:?}");
+            // 3 m before the wall along the way from [10, 5]
+            let back = [30.0 - 20.0 * 3.0 / 425f32.sqrt(), 5.0 * 3.0 / 425f32.sqrt()];
+            assert!((sp.position[0] - back[0]).abs() < 1e-3, "{mode:?}: {sp:?}");
+            assert!((sp.position[1] - back[1]).abs() < 1e-3, "{mode:?}: {sp:?}");
+        }
+        // coming from the north, N = 31 is the first point outside the wall's cell
+        let d = decision(ActionMode::Goto, [31.0, 0.0, 12.0], 12.0);
+        let sp = g.admit(&d, [50.0, 3.0, 12.0], Some(&grid)).unwrap();
+        assert_eq!((sp.position, sp.clamped), ([31.0, 0.0, 12.0], 0));
     }
 
     #[test]
