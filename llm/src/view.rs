@@ -99,6 +99,29 @@ impl DecisionView {
     }
 }
 
+/// Fuzzing support (the `gate_json` target in `fuzz/` and its corpus replay test), not API:
+/// read `text` the way the reasoner reads a model's output ([`DecisionView::parse`], then
+/// [`DecisionView::to_decision`]) and hand the decision to `admit` (the decision gate);
+/// when it is admitted, its view (the memory line of the next prompt) must be written in a
+/// form that parses back to the same view. Panics when that fails.
+#[doc(hidden)]
+pub fn fuzz_check_text(text: &str, admit: impl FnOnce(&Decision) -> bool) {
+    let Ok(view) = DecisionView::parse(text) else {
+        return;
+    };
+    let Ok(decision) = view.to_decision() else {
+        return;
+    };
+    if admit(&decision) {
+        let memory = DecisionView::from_decision(&decision);
+        let json = memory.to_json();
+        let back = DecisionView::parse(&json)
+            .unwrap_or_else(|e| panic!("memory line {json} of {text:?} does not parse: {e}"));
+        assert_eq!(back, memory, "memory line {json} of {text:?}");
+        assert!(back.to_decision().is_ok(), "memory line {json}");
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
