@@ -10,6 +10,11 @@
 //! autopilot (counted by the vehicle at the MAVLink boundary); decisions the reasoner
 //! published that the hub never received; setpoints the autopilot got outside the fence or
 //! unusable. The flight then goes on to its goal.
+//!
+//! Controllers: with a hot standby (a second controller role, `params.standby = true`), the
+//! SIGKILL and SIGSTOP rows of the controller hit whichever controller holds the autopilot
+//! lease at that moment (heartbeat counter 5), and the row names it; standby controllers get
+//! no rows of their own by default.
 
 use crate::flight::FlightMonitor;
 use crate::run_cmd::{FlightPlan, StopRule, apply_overrides, fly};
@@ -47,7 +52,8 @@ pub struct FaultsArgs {
     /// Faults to inject, comma-separated (default: all four kinds).
     #[arg(long, value_delimiter = ',')]
     pub faults: Vec<FaultKind>,
-    /// Roles to SIGKILL / SIGSTOP, comma-separated (default: every role of the workflow).
+    /// Roles to SIGKILL / SIGSTOP, comma-separated (default: every role of the workflow but
+    /// standby controllers; a controller row hits the controller holding the lease).
     #[arg(long, value_delimiter = ',')]
     pub roles: Vec<String>,
     /// Give up on a fault's recovery after this many seconds (the row shows no recovery).
@@ -212,7 +218,11 @@ fn plan_faults(a: &FaultsArgs, w: &Workflow) -> Result<Vec<Fault>> {
         }
     }
     let roles: Vec<String> = if a.roles.is_empty() {
-        names
+        w.roles
+            .iter()
+            .filter(|r| !r.is_standby_controller())
+            .map(|r| r.name.clone())
+            .collect()
     } else {
         a.roles.clone()
     };
@@ -255,6 +265,23 @@ fn plan_faults(a: &FaultsArgs, w: &Workflow) -> Result<Vec<Fault>> {
         }
     }
     Ok(out)
+}
+
+/// The controller holding the autopilot lease (heartbeat counter 5 is 1) when `role` is one
+/// of `controllers`; otherwise `role`.
+fn lease_holder(sup: &Supervisor, controllers: &[String], role: &str) -> String {
+    if !controllers.iter().any(|c| c == role) {
+        return role.to_string();
+    }
+    controllers
+        .iter()
+        .find(|c| {
+            sup.role(c)
+                .and_then(|r| r.last_heartbeat())
+                .is_some_and(|h| h.counters[5] == 1)
+        })
+        .cloned()
+        .unwrap_or_else(|| role.to_string())
 }
 
 fn signal(sup: &Supervisor, role: &str, sig: i32) -> Result<()> {
@@ -310,6 +337,12 @@ pub fn faults(a: FaultsArgs) -> Result<()> {
             .find(|r| r.kind == "reasoning")
             .map(|r| r.name.clone()),
     };
+    let controllers: Vec<String> = w
+        .roles
+        .iter()
+        .filter(|r| r.kind == "controller")
+        .map(|r| r.name.clone())
+        .collect();
     let reasoner_variant = w
         .roles
         .iter()
@@ -350,7 +383,10 @@ pub fn faults(a: FaultsArgs) -> Result<()> {
                 if now >= *until_ns {
                     phase = match queue.next() {
                         None => Phase::Done,
-                        Some(fault) => {
+                        Some(mut fault) => {
+                            if matches!(fault.kind, FaultKind::Sigkill | FaultKind::Sigstop) {
+                                fault.role = lease_holder(sup, &controllers, &fault.role);
+                            }
                             let mut inj = Injection {
                                 fault: fault.clone(),
                                 t0_ns: now,

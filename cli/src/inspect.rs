@@ -3,8 +3,8 @@
 use aeris_runtime::bus::{self, FlightBus};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_schemas::{
-    BoundSetpoint, Decision, HubReport, PerceptionState, RoleHeartbeat, RoleStatus,
-    VehicleTelemetry, ZeroCopySend, topics,
+    BoundSetpoint, ControllerLease, Decision, HubReport, PerceptionState, RoleHeartbeat,
+    RoleStatus, VehicleTelemetry, ZeroCopySend, topics,
 };
 use anyhow::{Context, Result, bail};
 use core::fmt::Debug;
@@ -156,6 +156,7 @@ fn type_of(topic: &str) -> &'static str {
         topics::HUB_SETPOINT => "BoundSetpoint",
         topics::HUB_REPORT => "HubReport",
         topics::VEHICLE_TELEMETRY => "VehicleTelemetry",
+        topics::CONTROLLER_LEASE => "ControllerLease",
         topics::HEARTBEAT => "RoleHeartbeat",
         "supervisor" => "SupervisorStatus (blackboard)",
         _ => "?",
@@ -211,6 +212,7 @@ fn each_sample(
         topics::HUB_SETPOINT => typed::<BoundSetpoint>(bus, topic)?,
         topics::HUB_REPORT => typed::<HubReport>(bus, topic)?,
         topics::VEHICLE_TELEMETRY => typed::<VehicleTelemetry>(bus, topic)?,
+        topics::CONTROLLER_LEASE => typed::<ControllerLease>(bus, topic)?,
         topics::HEARTBEAT => typed::<RoleHeartbeat>(bus, topic)?,
         other => bail!(
             "unknown topic `{other}`; known topics: {}",

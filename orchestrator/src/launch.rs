@@ -91,7 +91,9 @@ pub fn free_udp_port() -> std::io::Result<u16> {
 /// Plan the flight `flight` of `workflow`.
 ///
 /// With `autopilot = Some(url)` the vehicle roles are dropped and every controller gets
-/// `params.autopilot = url`. Otherwise, when a controller's autopilot is `auto`, `free_port`
+/// `params.autopilot = url`; standby controllers (`params.standby = true`) are dropped too
+/// unless the URL is `udpout:` or `tcpout:` (a `udpin:`/`tcpin:` port or a serial device
+/// can be opened by one process only). Otherwise, when a controller's autopilot is `auto`, `free_port`
 /// picks a UDP port P: vehicles with `listen = "auto"` get `udpin:127.0.0.1:P` and
 /// controllers with `autopilot = "auto"` get `udpout:127.0.0.1:P`.
 pub fn plan_launch(
@@ -109,6 +111,10 @@ pub fn plan_launch(
     match autopilot {
         Some(url) => {
             w.roles.retain(|r| r.kind != "vehicle");
+            // a hot standby shares the link only where two processes can each open it
+            if !(url.starts_with("udpout:") || url.starts_with("tcpout:")) {
+                w.roles.retain(|r| !r.is_standby_controller());
+            }
             for r in w.roles.iter_mut().filter(|r| r.kind == "controller") {
                 r.params.insert("autopilot".into(), url.into());
             }
@@ -221,9 +227,15 @@ mod tests {
             Some("udpout:127.0.0.1:14999")
         );
         assert_eq!(role("controller").spec.cpus, "0");
+        // the hot standby shares the link, on the other executor
+        assert_eq!(
+            role("controller-standby").spec.param_str("autopilot"),
+            Some("udpout:127.0.0.1:14999")
+        );
+        assert_eq!(role("controller-standby").spec.cpus, "1");
         assert_eq!(role("camera").spec.cpus, "1");
         assert_eq!(role("reasoning").cpus, Some(CpuSet::parse("1").unwrap()));
-        assert_eq!(plan.roles.len(), 6);
+        assert_eq!(plan.roles.len(), 7);
         assert!(plan.roles.iter().all(|r| r.spec.flight == "plan-test"));
     }
 
@@ -249,6 +261,27 @@ mod tests {
             controller.spec.param_str("autopilot"),
             Some("udpout:10.0.0.2:14540")
         );
+        let controllers = |url: &str| {
+            plan_launch(&w, "plan-test", Some(url), &four_cpus(), || Ok(1))
+                .unwrap()
+                .roles
+                .iter()
+                .filter(|r| r.spec.kind == "controller")
+                .map(|r| r.spec.name.clone())
+                .collect::<Vec<_>>()
+        };
+        // two processes can each open a udpout/tcpout link: the standby stays
+        assert_eq!(
+            controllers("udpout:10.0.0.2:14540"),
+            ["controller", "controller-standby"]
+        );
+        assert_eq!(
+            controllers("tcpout:10.0.0.2:5760"),
+            ["controller", "controller-standby"]
+        );
+        // a listening port or a serial device admits one: the standby is dropped
+        assert_eq!(controllers("udpin:0.0.0.0:14540"), ["controller"]);
+        assert_eq!(controllers("serial:/dev/ttyACM0:57600"), ["controller"]);
     }
 
     #[test]

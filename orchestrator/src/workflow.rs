@@ -98,6 +98,12 @@ impl RoleDecl {
     pub fn param_str(&self, key: &str) -> Option<&str> {
         self.params.get(key).and_then(|v| v.as_str())
     }
+
+    /// A hot-standby controller (`kind = "controller"`, `params.standby = true`).
+    pub fn is_standby_controller(&self) -> bool {
+        self.kind == "controller"
+            && self.params.get("standby").and_then(|v| v.as_bool()) == Some(true)
+    }
 }
 
 /// A validated workflow.
@@ -896,7 +902,16 @@ impl Workflow {
                 _ => Ok(()),
             };
             match r.kind.as_str() {
-                "controller" => string_param("autopilot")?,
+                "controller" => {
+                    string_param("autopilot")?;
+                    if r.params.get("standby").is_some_and(|v| !v.is_boolean()) {
+                        return Err(WorkflowError::BadParam {
+                            role: r.name.clone(),
+                            param: "standby",
+                            reason: "must be true or false",
+                        });
+                    }
+                }
                 "vehicle" => string_param("listen")?,
                 _ => {}
             }
@@ -966,7 +981,9 @@ impl Workflow {
     }
 
     /// Service dependency edges `(from, to, topic)`: role `to` subscribes to `topic` that role
-    /// `from` publishes. Feedback topics and `heartbeat` make no edges.
+    /// `from` publishes. Feedback topics and `heartbeat` make no edges, nor does a topic
+    /// that `to` publishes itself: peers exchanging one topic (the controllers'
+    /// `controller/lease`) have no order between them.
     pub fn service_edges(&self) -> Vec<(usize, usize, String)> {
         let mut edges = Vec::new();
         for (from, a) in self.roles.iter().enumerate() {
@@ -976,6 +993,7 @@ impl Workflow {
                 }
                 for (to, b) in self.roles.iter().enumerate() {
                     if b.subscribes.contains(topic)
+                        && !b.publishes.contains(topic)
                         && !edges.iter().any(|(f, t, _)| *f == from && *t == to)
                     {
                         edges.push((from, to, topic.clone()));

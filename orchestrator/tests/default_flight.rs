@@ -97,7 +97,7 @@ fn the_default_flight_comes_up_reports_and_stops_cleanly() {
         }
     }
     let board = sup.bus().read_status_board().unwrap();
-    assert_eq!(board.roles().len(), 6);
+    assert_eq!(board.roles().len(), 7);
     for (entry, role) in board.roles().iter().zip(sup.roles()) {
         assert_eq!(entry.name.as_str(), Some(role.name()));
         assert_eq!(entry.pid, role.pid().unwrap());

@@ -152,7 +152,7 @@ fn starts_every_role_bound_and_tracks_heartbeats_and_the_board() {
     let run = RunDir::new("full");
     let mut sup =
         Supervisor::start(options(Workflow::builtin_default().unwrap(), "full", &run)).unwrap();
-    assert_eq!(sup.roles().len(), 6);
+    assert_eq!(sup.roles().len(), 7);
 
     // specs: loadable, the vehicle linked to the controller, CPUs recorded
     let spec = |n: &str| RoleSpec::load(sup.role(n).unwrap().spec_path()).unwrap();
@@ -247,7 +247,7 @@ fn starts_every_role_bound_and_tracks_heartbeats_and_the_board() {
     sup.set_progress(2, 4, 31.5, 1.25);
     let board = bus.read_status_board().unwrap();
     assert_eq!(board.supervisor_pid, std::process::id());
-    assert_eq!(board.roles().len(), 6);
+    assert_eq!(board.roles().len(), 7);
     assert_eq!((board.active_step, board.subgoals), (2, 4));
     assert_eq!(board.distance_to_goal_m, 31.5);
     let entry = board
@@ -437,7 +437,7 @@ fn dropping_the_supervisor_kills_and_reaps_every_role() {
     let sup =
         Supervisor::start(options(Workflow::builtin_default().unwrap(), "drop", &run)).unwrap();
     let pids: Vec<u32> = sup.roles().iter().filter_map(|r| r.pid()).collect();
-    assert_eq!(pids.len(), 6);
+    assert_eq!(pids.len(), 7);
     assert!(pids.iter().all(|p| process_exists(*p)));
     drop(sup);
     for pid in pids {
@@ -559,7 +559,7 @@ fn roles_die_with_a_killed_supervisor() {
         .lines()
         .map(|l| l.parse().unwrap())
         .collect();
-    assert_eq!(pids.len(), 6);
+    assert_eq!(pids.len(), 7);
     assert!(pids.iter().all(|p| !process_gone(*p)));
     helper.kill().unwrap(); // SIGKILL: no Drop, no shutdown runs in the supervisor
     helper.wait().unwrap();

@@ -9,6 +9,8 @@
 //!   `serial:PORT:BAUD`), default [`DEFAULT_AUTOPILOT`];
 //! - `realtime`: bool, default `true`: try SCHED_FIFO priority 50 for the cycle thread, and
 //!   fall back to the normal scheduler with one line on stderr when not permitted.
+//! - `standby`: bool, default `false`: this controller is the hot standby of another (it
+//!   loses a tie for the lease at the flight's start).
 //!
 //! Every tick (period `1 / timing.control_rate_hz`, default 50 Hz):
 //! 1. **read**: drain `hub/setpoint`, refuse (and count) every [`BoundSetpoint`] that fails
@@ -34,11 +36,30 @@
 //!    `MAV_CMD_COMPONENT_ARM_DISARM` (arm) every 0.5 s until the heartbeat reports armed and
 //!    offboard; `vehicle/telemetry` ([`VehicleTelemetry`] in `[N, E, U]`).
 //!
-//! Heartbeat [`CycleReport`]: stages `read`, `track`, `send`; counters
-//! `[ticks, missed, refused, hold_ticks, sent, 0, 0, 0]`:
-//! ticks = `ctx.cycles`, missed = `ctx.missed_deadlines`, refused = setpoints refused by
-//! validation, hold_ticks = ticks spent holding for lack of a fresh valid setpoint, sent =
-//! SET_POSITION_TARGET_LOCAL_NED messages written to the link.
+//! **Hot standby** (the autopilot lease, [`LeaseArbiter`]): a flight may run two controllers
+//! on one autopilot link (the second with `params.standby = true`). Only the holder of the
+//! lease writes to the autopilot; it publishes a [`ControllerLease`] on `controller/lease`
+//! at every poll (the role polls [`POLLS_PER_TICK`] times per control period), carrying its
+//! tracker's reference, anchor and hold latch. The other one is a standby: it keeps the
+//! hub's newest setpoints and the holder's `vehicle/telemetry`, and claims the lease
+//! (epoch + 1) when no lease has been heard for one control period; its tracker then adopts
+//! the holder's last published state ([`Tracker::adopt`]) and it sends in the same poll: the
+//! autopilot sees at most a period and a poll without a setpoint, and the reference goes on
+//! from where it was, when the holder is killed or stopped. A holder that
+//! hears a higher claim steps down before its next send. A controller listens
+//! [`LEASE_LISTEN_PERIODS`] control periods after it starts before it claims (a standby
+//! twice as long), so a restarted controller joins as the standby and at a flight's start
+//! the primary (`standby` false) claims first; two claims of one epoch go to the primary.
+//! A lone controller simply claims the lease and flies.
+//!
+//! Heartbeat [`CycleReport`] (one per control tick): stages `read`, `track`, `send`;
+//! counters `[ticks, missed, refused, hold_ticks, sent, active, takeovers, epoch]`:
+//! ticks and missed = control ticks run and skipped in this term of the lease, refused =
+//! setpoints refused by validation, hold_ticks = ticks spent holding for lack of a fresh
+//! valid setpoint, sent = SET_POSITION_TARGET_LOCAL_NED messages written to the link,
+//! active = 1 while holding the lease, takeovers = leases claimed, epoch = the lease term
+//! held (0 when standby). Telemetry counts the same, from this process's first tick as the
+//! holder (its sequence starts again at 1, like a restarted publisher's).
 //!
 //! The cycle does not allocate: the subscriber, publisher, link and buffers are made in
 //! `new`; the mavlink crate serialises into a stack buffer and writes it with one syscall.
@@ -48,7 +69,8 @@ use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::role::try_sched_fifo;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
 use aeris_schemas::{
-    ActionMode, BoundSetpoint, DecisionLimits, SetpointError, VehicleTelemetry, topics,
+    ActionMode, BoundSetpoint, ControllerLease, DecisionLimits, LEASE_HAS_HOLD,
+    LEASE_HAS_REFERENCE, SetpointError, VehicleTelemetry, topics,
 };
 use aeris_sim::mav_vehicle::{
     LINK_POLL, LinkError, MavLink, PX4_MAIN_MODE_OFFBOARD, PendingLink, prepare_link, px4_main_mode,
@@ -84,6 +106,126 @@ const HEARTBEAT_PERIOD_NS: u64 = 1_000_000_000;
 /// A vehicle below the floor plus this is on the ground when the autopilot reports no
 /// landed state (m).
 const GROUND_MARGIN_M: f32 = 0.15;
+/// Polls of the autopilot lease per control period.
+pub const POLLS_PER_TICK: u32 = 4;
+/// Control periods a primary controller listens for a lease holder after it starts before
+/// it claims the lease itself (a standby listens twice as long).
+pub const LEASE_LISTEN_PERIODS: u64 = 10;
+
+/// What [`LeaseArbiter::decide`] did this poll.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LeaseChange {
+    /// Nothing changed.
+    Kept,
+    /// This controller claimed the lease: it is the holder from now on.
+    TookOver,
+    /// A higher claim was heard: this controller is a standby from now on.
+    SteppedDown,
+}
+
+/// The autopilot lease as one controller sees it (pure: no I/O, no allocation).
+#[derive(Debug, Clone, Copy)]
+pub struct LeaseArbiter {
+    pid: u32,
+    rank: u8,
+    silence_ns: u64,
+    listen_until_ns: u64,
+    epoch: u64,
+    active: bool,
+    highest_seen: Option<(u64, u8, u32)>,
+    last_heard_ns: Option<u64>,
+    takeovers: u64,
+}
+
+impl LeaseArbiter {
+    /// A standby controller `pid` started at `now_ns`: it claims the lease after
+    /// `listen_ns` of silence from start, and later when no other holder was heard for
+    /// `silence_ns`. `primary` wins a tie of epochs.
+    pub fn new(pid: u32, primary: bool, now_ns: u64, silence_ns: u64, listen_ns: u64) -> Self {
+        Self {
+            pid,
+            rank: u8::from(primary),
+            silence_ns,
+            listen_until_ns: now_ns.saturating_add(listen_ns),
+            epoch: 0,
+            active: false,
+            highest_seen: None,
+            last_heard_ns: None,
+            takeovers: 0,
+        }
+    }
+
+    /// Take in a lease another controller published; samples of this process are ignored.
+    /// `now_ns` bounds the sample's stamp (a stamp from the future counts as now).
+    pub fn observe(&mut self, lease: &ControllerLease, now_ns: u64) {
+        if lease.holder_pid == self.pid {
+            return;
+        }
+        let key = lease.key();
+        if self.highest_seen.is_none_or(|h| key > h) {
+            self.highest_seen = Some(key);
+        }
+        let stamp = lease.stamp_ns.min(now_ns);
+        if self.last_heard_ns.is_none_or(|t| stamp > t) {
+            self.last_heard_ns = Some(stamp);
+        }
+    }
+
+    /// Claim or give up the lease at `now_ns` on what was observed.
+    pub fn decide(&mut self, now_ns: u64) -> LeaseChange {
+        let heard_recently = self
+            .last_heard_ns
+            .is_some_and(|t| now_ns.saturating_sub(t) <= self.silence_ns);
+        if self.active {
+            let outranked = self.highest_seen.is_some_and(|h| h > self.key());
+            if outranked && heard_recently {
+                self.active = false;
+                self.epoch = 0;
+                return LeaseChange::SteppedDown;
+            }
+            return LeaseChange::Kept;
+        }
+        if heard_recently || now_ns < self.listen_until_ns {
+            return LeaseChange::Kept;
+        }
+        self.epoch = self.highest_seen.map_or(0, |h| h.0) + 1;
+        self.active = true;
+        self.takeovers += 1;
+        LeaseChange::TookOver
+    }
+
+    /// This controller holds the lease.
+    pub fn is_active(&self) -> bool {
+        self.active
+    }
+
+    /// The epoch held (0 when standby).
+    pub fn epoch(&self) -> u64 {
+        self.epoch
+    }
+
+    /// Leases claimed so far.
+    pub fn takeovers(&self) -> u64 {
+        self.takeovers
+    }
+
+    fn key(&self) -> (u64, u8, u32) {
+        (self.epoch, self.rank, self.pid)
+    }
+
+    /// The lease sample to publish at `now_ns` (`sent`: setpoints sent in this term).
+    /// (The tracking state is left empty: [`Tracker::write_handover`] fills it in.)
+    pub fn lease(&self, now_ns: u64, sent: u64) -> ControllerLease {
+        ControllerLease {
+            epoch: self.epoch,
+            stamp_ns: now_ns,
+            sent,
+            holder_pid: self.pid,
+            rank: self.rank,
+            ..ControllerLease::default()
+        }
+    }
+}
 
 /// How the tracker turns setpoints into position targets.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -268,6 +410,43 @@ impl Tracker {
     /// Ticks spent holding for lack of a fresh valid setpoint.
     pub fn hold_ticks(&self) -> u64 {
         self.hold_ticks
+    }
+
+    /// Write this tracker's reference, anchor and hold latch into `lease`, for a standby
+    /// that may have to go on from here.
+    pub fn write_handover(&self, lease: &mut ControllerLease) {
+        lease.flags = 0;
+        if let Some(c) = self.carrot {
+            lease.reference = c;
+            lease.flags |= LEASE_HAS_REFERENCE;
+        }
+        match self.anchor {
+            Some((mode, a)) => {
+                lease.anchor_mode = mode as u8;
+                lease.anchor = a;
+            }
+            None => lease.anchor_mode = 0,
+        }
+        if let Some((h, yaw)) = self.hold {
+            lease.hold = h;
+            lease.hold_yaw = yaw;
+            lease.flags |= LEASE_HAS_HOLD;
+        }
+    }
+
+    /// Go on from the reference, anchor and hold latch another tracker wrote into `lease`
+    /// (non-finite parts are dropped; the reference is kept in the geofence).
+    pub fn adopt(&mut self, lease: &ControllerLease) {
+        let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
+        self.carrot = (lease.flags & LEASE_HAS_REFERENCE != 0 && finite(&lease.reference))
+            .then(|| self.fence(lease.reference));
+        self.anchor = ActionMode::from_u8(lease.anchor_mode)
+            .filter(|_| finite(&lease.anchor))
+            .map(|m| (m, lease.anchor));
+        self.hold = (lease.flags & LEASE_HAS_HOLD != 0
+            && finite(&lease.hold)
+            && lease.hold_yaw.is_finite())
+        .then_some((lease.hold, lease.hold_yaw));
     }
 
     /// `true` when the active setpoint wants the vehicle armed and in offboard: a fresh,
@@ -522,6 +701,54 @@ impl AutopilotState {
             .is_some_and(|t| now_ns.saturating_sub(t) <= LINK_TIMEOUT_NS)
     }
 
+    /// The state another controller reported in `t` (a standby's view of the vehicle).
+    fn from_telemetry(t: &VehicleTelemetry) -> Self {
+        Self {
+            last_heartbeat_ns: (t.link_up == 1).then_some(t.stamp_ns),
+            armed: t.armed == 1,
+            offboard: t.offboard == 1,
+            landed_state: Some(if t.landed == 1 {
+                MavLandedState::MAV_LANDED_STATE_ON_GROUND
+            } else {
+                MavLandedState::MAV_LANDED_STATE_IN_AIR
+            }),
+            position_ned: Some(neu_to_ned(t.position)),
+            velocity_ned: neu_to_ned(t.velocity),
+            attitude: Some(t.attitude),
+            time_boot_ms: t.autopilot_time_ms,
+            acks: 0,
+        }
+    }
+
+    /// This link's state, with what it has not received yet taken from `standby` (what
+    /// the previous holder reported, for the first ticks after a takeover).
+    fn or_else(self, standby: &AutopilotState) -> Self {
+        let heard = self.last_heartbeat_ns.is_some();
+        Self {
+            last_heartbeat_ns: self.last_heartbeat_ns.or(standby.last_heartbeat_ns),
+            armed: if heard { self.armed } else { standby.armed },
+            offboard: if heard {
+                self.offboard
+            } else {
+                standby.offboard
+            },
+            landed_state: self.landed_state.or(standby.landed_state),
+            velocity_ned: if self.position_ned.is_some() {
+                self.velocity_ned
+            } else {
+                standby.velocity_ned
+            },
+            position_ned: self.position_ned.or(standby.position_ned),
+            attitude: self.attitude.or(standby.attitude),
+            time_boot_ms: if self.position_ned.is_some() {
+                self.time_boot_ms
+            } else {
+                standby.time_boot_ms
+            },
+            acks: self.acks,
+        }
+    }
+
     /// What the tracker sees of the vehicle (`floor`: the ground, m up).
     fn vehicle_view(&self, floor: f32) -> VehicleView {
         VehicleView {
@@ -587,8 +814,27 @@ pub struct ControllerRole {
     rx: Option<JoinHandle<()>>,
     setpoints: TypedSubscriber<BoundSetpoint>,
     telemetry: TypedPublisher<VehicleTelemetry>,
+    /// The holder's telemetry, read while standing by.
+    telemetry_in: TypedSubscriber<VehicleTelemetry>,
+    lease_out: TypedPublisher<ControllerLease>,
+    lease_in: TypedSubscriber<ControllerLease>,
+    arbiter: LeaseArbiter,
+    /// The newest lease of the highest holder heard (its tracking state is adopted on a
+    /// takeover).
+    holder_lease: Option<ControllerLease>,
+    /// What the holder last reported (the standby's view of the vehicle).
+    standby_ap: AutopilotState,
     tracker: Tracker,
     period: Duration,
+    period_ns: u64,
+    next_tick_ns: u64,
+    /// Control ticks run and skipped in the current term of the lease.
+    ticks: u64,
+    missed_ticks: u64,
+    /// The tracker's hold ticks when this process last took the lease.
+    hold_ticks_base: u64,
+    /// Setpoints sent in the current term.
+    term_sent: u64,
     start_ns: u64,
     next_heartbeat_ns: u64,
     next_command_ns: u64,
@@ -633,6 +879,20 @@ impl ControllerRole {
     /// The tracker (setpoint gate and reference).
     pub fn tracker(&self) -> &Tracker {
         &self.tracker
+    }
+
+    /// The heartbeat counters (see the module documentation).
+    fn counters(&self) -> [u64; 8] {
+        [
+            self.ticks,
+            self.missed_ticks,
+            self.tracker.refused(),
+            self.tracker.hold_ticks() - self.hold_ticks_base,
+            self.sent,
+            u64::from(self.arbiter.is_active()),
+            self.arbiter.takeovers(),
+            self.arbiter.epoch(),
+        ]
     }
 
     fn send(&mut self, msg: &MavMessage) -> bool {
@@ -685,11 +945,21 @@ impl Role for ControllerRole {
                 .to_string(),
         };
         let realtime = param_bool(spec, "realtime", true)?;
+        let standby = param_bool(spec, "standby", false)?;
         let tracker = Tracker::new(TrackerConfig::from_spec(spec));
         let setpoints = ctx.bus.subscriber::<BoundSetpoint>(topics::HUB_SETPOINT)?;
         let telemetry = ctx
             .bus
             .publisher::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)?;
+        let telemetry_in = ctx
+            .bus
+            .subscriber::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)?;
+        let lease_out = ctx
+            .bus
+            .publisher::<ControllerLease>(topics::CONTROLLER_LEASE)?;
+        let lease_in = ctx
+            .bus
+            .subscriber::<ControllerLease>(topics::CONTROLLER_LEASE)?;
         let pending = prepare_link(&url, LINK_POLL)
             .map_err(|e| RoleError::Config(format!("autopilot link: {e}")))?;
         let link = Arc::new(OnceLock::new());
@@ -710,6 +980,8 @@ impl Role for ControllerRole {
             );
         }
         let now = monotonic_ns();
+        let period = Duration::from_secs_f64(1.0 / rate);
+        let period_ns = (period.as_nanos() as u64).max(1);
         Ok(Self {
             link,
             shared,
@@ -718,8 +990,28 @@ impl Role for ControllerRole {
             rx: Some(rx),
             setpoints,
             telemetry,
+            telemetry_in,
+            lease_out,
+            lease_in,
+            arbiter: LeaseArbiter::new(
+                std::process::id(),
+                !standby,
+                now,
+                period_ns,
+                // a standby listens twice as long, so that at a flight's start the primary
+                // claims first
+                period_ns.saturating_mul(LEASE_LISTEN_PERIODS * if standby { 2 } else { 1 }),
+            ),
+            holder_lease: None,
+            standby_ap: AutopilotState::default(),
             tracker,
-            period: Duration::from_secs_f64(1.0 / rate),
+            period,
+            period_ns,
+            next_tick_ns: now,
+            ticks: 0,
+            missed_ticks: 0,
+            hold_ticks_base: 0,
+            term_sent: 0,
             start_ns: now,
             next_heartbeat_ns: now,
             next_command_ns: now,
@@ -738,7 +1030,7 @@ impl Role for ControllerRole {
     }
 
     fn period(&self) -> Duration {
-        self.period
+        self.period / POLLS_PER_TICK
     }
 
     fn cycle(
@@ -746,8 +1038,69 @@ impl Role for ControllerRole {
         ctx: &mut RoleContext,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
-        // read
+        // lease: who may write to the autopilot
         let t0 = monotonic_ns();
+        let (arbiter, holder_lease) = (&mut self.arbiter, &mut self.holder_lease);
+        self.lease_in.drain(|l| {
+            arbiter.observe(l, t0);
+            if l.holder_pid != std::process::id()
+                && holder_lease.is_none_or(|h| (l.key(), l.stamp_ns) >= (h.key(), h.stamp_ns))
+            {
+                *holder_lease = Some(*l);
+            }
+        })?;
+        let standby_ap = &mut self.standby_ap;
+        let holding = self.arbiter.is_active();
+        self.telemetry_in.drain(|t| {
+            if !holding && t.validate().is_ok() {
+                *standby_ap = AutopilotState::from_telemetry(t);
+            }
+        })?;
+        let change = self.arbiter.decide(t0);
+        let active = self.arbiter.is_active();
+        if change == LeaseChange::TookOver {
+            // fly from this poll on (the holder's last tick was a period or more ago), from
+            // the reference the holder last published
+            self.next_tick_ns = t0;
+            if let Some(l) = &self.holder_lease {
+                self.tracker.adopt(l);
+            }
+            self.hold_ticks_base = self.tracker.hold_ticks();
+            self.term_sent = 0;
+            // a new term publishes like a new process: sequence and counters from zero
+            self.telemetry_seq = 0;
+            self.ticks = 0;
+            self.missed_ticks = 0;
+            eprintln!(
+                "aeris controller `{}`: took the autopilot lease (epoch {})",
+                ctx.spec.name,
+                self.arbiter.epoch()
+            );
+        } else if change == LeaseChange::SteppedDown {
+            eprintln!(
+                "aeris controller `{}`: another controller holds the autopilot lease, standing by",
+                ctx.spec.name
+            );
+        }
+        if active {
+            let mut lease = self.arbiter.lease(t0, self.term_sent);
+            self.tracker.write_handover(&mut lease);
+            self.lease_out.publish(&lease)?;
+        }
+        if t0 < self.next_tick_ns {
+            return Ok(CycleOutcome::Idle);
+        }
+        self.next_tick_ns += self.period_ns;
+        if t0 > self.next_tick_ns {
+            // a control tick was skipped: count it and re-anchor instead of bursting
+            let late = t0 - self.next_tick_ns;
+            if active {
+                self.missed_ticks += late / self.period_ns + 1;
+            }
+            self.next_tick_ns = t0 + self.period_ns - late % self.period_ns;
+        }
+
+        // read
         let tracker = &mut self.tracker;
         self.setpoints.drain(|sp| {
             let _ = tracker.offer(sp, t0);
@@ -757,19 +1110,28 @@ impl Role for ControllerRole {
         if let Ok(s) = self.shared.try_lock() {
             self.ap_cache = *s;
         }
-        let ap = self.ap_cache;
         let t1 = monotonic_ns();
+        if !active {
+            // a standby keeps the setpoints and the holder's view, and writes nothing; its
+            // tracker takes the holder's reference when it takes over
+            report.stage("read", t1 - t0);
+            report.counters = self.counters();
+            return Ok(CycleOutcome::Worked);
+        }
+        let ap = self.ap_cache.or_else(&self.standby_ap);
 
         // track
         let view = ap.vehicle_view(self.tracker.config().floor());
         let landed = view.landed;
         let cmd = self.tracker.tick(t1, &view);
         let t2 = monotonic_ns();
+        self.ticks += 1;
 
         // send
         let time_boot_ms = ((t2.saturating_sub(self.start_ns)) / 1_000_000) as u32;
         if self.send(&position_target_message(&cmd, time_boot_ms)) {
             self.sent += 1;
+            self.term_sent += 1;
             self.stream_since_ns.get_or_insert(t2);
         }
         if t2 >= self.next_heartbeat_ns {
@@ -812,6 +1174,7 @@ impl Role for ControllerRole {
         let Some(position_ned) = ap.position_ned else {
             report.stage("read", t1 - t0);
             report.stage("track", t2 - t1);
+            report.counters = self.counters();
             return Ok(CycleOutcome::Worked);
         };
         let attitude = ap.attitude.unwrap_or([0.0; 3]);
@@ -827,11 +1190,10 @@ impl Role for ControllerRole {
             position: ned_to_neu(position_ned),
             velocity: ned_to_neu(ap.velocity_ned),
             attitude,
-            // this tick included (RoleHost counts it when the cycle returns)
-            controller_ticks: ctx.cycles + 1,
-            controller_missed_ticks: ctx.missed_deadlines,
+            controller_ticks: self.ticks,
+            controller_missed_ticks: self.missed_ticks,
             setpoints_refused: self.tracker.refused(),
-            hold_ticks: self.tracker.hold_ticks(),
+            hold_ticks: self.tracker.hold_ticks() - self.hold_ticks_base,
         };
         self.telemetry.publish(&telemetry)?;
         let t3 = monotonic_ns();
@@ -839,16 +1201,7 @@ impl Role for ControllerRole {
         report.stage("read", t1 - t0);
         report.stage("track", t2 - t1);
         report.stage("send", t3 - t2);
-        report.counters = [
-            ctx.cycles,
-            ctx.missed_deadlines,
-            self.tracker.refused(),
-            self.tracker.hold_ticks(),
-            self.sent,
-            0,
-            0,
-            0,
-        ];
+        report.counters = self.counters();
         Ok(CycleOutcome::Worked)
     }
 
@@ -993,4 +1346,240 @@ fn fuzz_check_command(cfg: &TrackerConfig, cmd: &TrackCommand, view: &VehicleVie
         .read_message::<MavMessage>(mavlink::MavlinkVersion::V2)
         .expect("decodes");
     assert_eq!((h.system_id, decoded), (header.system_id, msg));
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MS: u64 = 1_000_000;
+    const PERIOD: u64 = 20 * MS;
+    const LISTEN: u64 = 200 * MS;
+
+    fn lease_of(a: &LeaseArbiter, now: u64) -> ControllerLease {
+        a.lease(now, 0)
+    }
+
+    #[test]
+    fn a_lone_controller_claims_the_lease_after_listening() {
+        let mut a = LeaseArbiter::new(10, true, 0, PERIOD, LISTEN);
+        assert_eq!(a.decide(LISTEN - 1), LeaseChange::Kept);
+        assert!(!a.is_active());
+        assert_eq!(a.decide(LISTEN), LeaseChange::TookOver);
+        assert!(a.is_active());
+        assert_eq!((a.epoch(), a.takeovers()), (1, 1));
+        // its own samples are no competition
+        let own = lease_of(&a, LISTEN);
+        a.observe(&own, LISTEN + PERIOD);
+        assert_eq!(a.decide(LISTEN + PERIOD), LeaseChange::Kept);
+        assert!(a.is_active());
+    }
+
+    #[test]
+    fn a_standby_waits_while_the_holder_is_heard_and_takes_over_after_one_period_of_silence() {
+        let mut holder = LeaseArbiter::new(10, true, 0, PERIOD, LISTEN);
+        assert_eq!(holder.decide(LISTEN), LeaseChange::TookOver);
+        // the standby starts later (a restarted controller) and hears the holder every poll
+        let start = LISTEN + 5 * PERIOD;
+        let mut standby = LeaseArbiter::new(11, false, start, PERIOD, LISTEN);
+        let mut t = start;
+        while t < start + 3 * LISTEN {
+            standby.observe(&lease_of(&holder, t), t);
+            assert_eq!(standby.decide(t), LeaseChange::Kept, "at {t}");
+            t += 5 * MS;
+        }
+        assert!(!standby.is_active());
+        // the holder goes silent after its sample at `last`
+        let last = t - 5 * MS;
+        assert_eq!(standby.decide(last + PERIOD), LeaseChange::Kept);
+        assert_eq!(standby.decide(last + PERIOD + 1), LeaseChange::TookOver);
+        assert_eq!(standby.epoch(), 2, "one more than the silent holder's");
+        // the old holder wakes up (SIGCONT), hears the new term and steps down
+        let now = last + PERIOD + 5 * MS;
+        holder.observe(&lease_of(&standby, now), now);
+        assert_eq!(holder.decide(now), LeaseChange::SteppedDown);
+        assert!(!holder.is_active());
+        assert_eq!(holder.epoch(), 0);
+        // and the new holder is not moved by the old term's late samples
+        standby.observe(
+            &ControllerLease {
+                epoch: 1,
+                rank: 1,
+                holder_pid: 10,
+                stamp_ns: now,
+                ..Default::default()
+            },
+            now,
+        );
+        assert_eq!(standby.decide(now), LeaseChange::Kept);
+        assert!(standby.is_active());
+    }
+
+    #[test]
+    fn at_the_start_the_primary_wins_a_tie_and_the_standby_steps_down() {
+        let mut primary = LeaseArbiter::new(20, true, 0, PERIOD, LISTEN);
+        let mut standby = LeaseArbiter::new(30, false, 0, PERIOD, LISTEN);
+        assert_eq!(primary.decide(LISTEN), LeaseChange::TookOver);
+        assert_eq!(standby.decide(LISTEN), LeaseChange::TookOver);
+        assert_eq!((primary.epoch(), standby.epoch()), (1, 1));
+        let t = LISTEN + 5 * MS;
+        let (p, s) = (lease_of(&primary, t), lease_of(&standby, t));
+        primary.observe(&s, t);
+        standby.observe(&p, t);
+        // the standby's higher pid does not beat the primary's rank
+        assert_eq!(primary.decide(t), LeaseChange::Kept);
+        assert_eq!(standby.decide(t), LeaseChange::SteppedDown);
+        assert!(primary.is_active() && !standby.is_active());
+    }
+
+    #[test]
+    fn a_higher_claim_heard_long_ago_does_not_unseat_the_holder() {
+        let mut a = LeaseArbiter::new(10, true, 0, PERIOD, LISTEN);
+        let ghost = ControllerLease {
+            epoch: 7,
+            stamp_ns: 5 * MS,
+            holder_pid: 99,
+            ..Default::default()
+        };
+        a.observe(&ghost, 5 * MS);
+        assert_eq!(a.decide(LISTEN), LeaseChange::TookOver);
+        assert_eq!(a.epoch(), 8, "above every epoch heard");
+        // a stamp from the future counts as now, not as forever
+        let future = ControllerLease {
+            epoch: 1,
+            stamp_ns: u64::MAX,
+            holder_pid: 98,
+            ..Default::default()
+        };
+        let mut b = LeaseArbiter::new(11, false, 0, PERIOD, LISTEN);
+        b.observe(&future, MS);
+        assert_eq!(b.decide(LISTEN), LeaseChange::TookOver);
+    }
+
+    fn tracker_config() -> TrackerConfig {
+        TrackerConfig {
+            limits: DecisionLimits {
+                v_max: 8.0,
+                h_min: 0.0,
+                h_max: 60.0,
+                r_max: 10.0,
+                geofence_min: [-20.0, -40.0, 0.0],
+                geofence_max: [160.0, 140.0, 60.0],
+                subgoals: 4,
+            },
+            start: [0.0; 3],
+            period_s: 0.02,
+            setpoint_timeout_ns: 500 * MS,
+            hold_speed: 5.0,
+            land_speed: 1.0,
+            brake_accel: 2.0,
+            leash_s: 1.0,
+            leash_min_m: 2.0,
+        }
+    }
+
+    #[test]
+    fn a_standby_that_adopts_the_holders_lease_commands_what_the_holder_would_have() {
+        let cfg = tracker_config();
+        let goto = BoundSetpoint {
+            seq: 1,
+            decision_seq: 1,
+            position: [62.0, 0.0, 12.0],
+            speed: 5.0,
+            acceptance_radius: 3.0,
+            active_step: 2,
+            mode: ActionMode::Goto as u8,
+            ..BoundSetpoint::default()
+        };
+        let mut holder = Tracker::new(cfg);
+        // the standby joined mid-flight: it never ticked, its reference would start at `start`
+        let mut standby = Tracker::new(cfg);
+        let mut view = VehicleView {
+            position: Some([20.0, 0.0, 12.0]),
+            yaw: Some(0.0),
+            landed: false,
+        };
+        let mut t = 1_000 * MS;
+        for _ in 0..40 {
+            let mut sp = goto;
+            sp.publish_ns = t;
+            holder.offer(&sp, t).unwrap();
+            standby.offer(&sp, t).unwrap();
+            holder.tick(t, &view);
+            view.position = view.position.map(|p| [p[0] + 0.1, p[1], p[2]]);
+            t += PERIOD;
+        }
+        let mut lease = LeaseArbiter::new(1, true, 0, PERIOD, LISTEN).lease(t, 0);
+        holder.write_handover(&mut lease);
+        assert_eq!(lease.flags & LEASE_HAS_REFERENCE, LEASE_HAS_REFERENCE);
+        standby.adopt(&lease);
+        for _ in 0..10 {
+            assert_eq!(standby.tick(t, &view), holder.tick(t, &view));
+            t += PERIOD;
+        }
+        // a hold latch goes over too
+        let (mut a, mut b) = (holder.clone(), standby.clone());
+        let late = t + 2_000 * MS;
+        a.tick(late, &view);
+        a.write_handover(&mut lease);
+        assert_eq!(lease.flags & LEASE_HAS_HOLD, LEASE_HAS_HOLD);
+        b.adopt(&lease);
+        let moved = VehicleView {
+            position: Some([30.0, 1.0, 11.0]),
+            ..view
+        };
+        assert_eq!(a.tick(late + PERIOD, &moved), b.tick(late + PERIOD, &moved));
+        // a lease with non-finite parts adopts none of them
+        lease.reference = [f32::NAN, 0.0, 0.0];
+        lease.hold_yaw = f32::INFINITY;
+        let mut c = Tracker::new(cfg);
+        c.adopt(&lease);
+        assert!(c.carrot.is_none() && c.hold.is_none());
+    }
+
+    #[test]
+    fn after_a_takeover_the_link_state_is_completed_from_the_holders_telemetry() {
+        let t = VehicleTelemetry {
+            stamp_ns: 7,
+            armed: 1,
+            offboard: 1,
+            link_up: 1,
+            landed: 0,
+            position: [10.0, 5.0, 12.0],
+            velocity: [1.0, 0.0, -0.5],
+            attitude: [0.0, 0.0, 0.3],
+            autopilot_time_ms: 1234,
+            ..Default::default()
+        };
+        let standby = AutopilotState::from_telemetry(&t);
+        let view = AutopilotState::default()
+            .or_else(&standby)
+            .vehicle_view(0.0);
+        assert_eq!(view.position, Some([10.0, 5.0, 12.0]));
+        assert_eq!(view.yaw, Some(0.3));
+        assert!(!view.landed);
+        let merged = AutopilotState::default().or_else(&standby);
+        assert!(merged.armed && merged.offboard && merged.link_up(7));
+        // what the link itself reports wins
+        let mut link = AutopilotState::default();
+        link.apply(
+            &MavMessage::LOCAL_POSITION_NED(mavlink::dialects::common::LOCAL_POSITION_NED_DATA {
+                time_boot_ms: 2000,
+                x: 11.0,
+                y: 5.0,
+                z: -12.0,
+                vx: 0.0,
+                vy: 0.0,
+                vz: 0.0,
+            }),
+            9,
+        );
+        let merged = link.or_else(&standby);
+        assert_eq!(merged.position_ned, Some([11.0, 5.0, -12.0]));
+        assert_eq!(merged.time_boot_ms, 2000);
+        assert!(
+            merged.armed,
+            "no heartbeat on the link yet: the holder's word"
+        );
+    }
 }

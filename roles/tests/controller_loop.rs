@@ -172,7 +172,11 @@ fn controller_flies_the_simulated_vehicle_holds_and_lands() {
         .unwrap();
     let vehicle = VehicleRole::new(&mut vctx).unwrap();
     let controller = ControllerRole::new(&mut cctx).unwrap();
-    assert_eq!(controller.period(), Duration::from_millis(20));
+    // the role polls the autopilot lease several times per 20 ms control period
+    assert_eq!(
+        controller.period() * aeris_roles::controller::POLLS_PER_TICK,
+        Duration::from_millis(20)
+    );
     let mut l = Loop {
         vehicle,
         vctx,

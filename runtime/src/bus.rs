@@ -135,6 +135,8 @@ pub fn qos(topic: &str) -> Qos {
         topics::HUB_SETPOINT => q(1, 8, 4, 8),
         topics::HUB_REPORT => q(1, 64, 4, 8),
         topics::VEHICLE_TELEMETRY => q(1, 64, 4, 12),
+        // no history: a lease is only evidence while it is fresh
+        topics::CONTROLLER_LEASE => q(0, 16, 4, 8),
         topics::HEARTBEAT => q(0, 1024, 32, 8),
         _ => q(1, 16, 4, 8),
     }

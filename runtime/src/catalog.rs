@@ -117,10 +117,16 @@ pub const ROLE_KINDS: &[RoleKind] = &[
     RoleKind {
         kind: "controller",
         variants: &["mavlink"],
-        subscribes: &[topics::HUB_SETPOINT],
-        publishes: &[topics::VEHICLE_TELEMETRY],
-        summary: "tracks setpoints at the control rate and talks MAVLink v2 to the autopilot",
-        swap_refusal: Some("two controllers would both drive the autopilot"),
+        subscribes: &[
+            topics::HUB_SETPOINT,
+            topics::VEHICLE_TELEMETRY,
+            topics::CONTROLLER_LEASE,
+        ],
+        publishes: &[topics::VEHICLE_TELEMETRY, topics::CONTROLLER_LEASE],
+        summary: "tracks setpoints at the control rate and talks MAVLink v2 to the autopilot; a hot standby takes the autopilot lease when the holder goes silent",
+        swap_refusal: Some(
+            "a controller is replaced by its hot standby (a second controller role), not swapped",
+        ),
     },
 ];
 

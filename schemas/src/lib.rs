@@ -19,6 +19,7 @@ pub mod decision;
 pub mod frame;
 pub mod heartbeat;
 pub mod hub_report;
+pub mod lease;
 pub mod setpoint;
 pub mod state;
 pub mod supervisor;
@@ -32,6 +33,7 @@ pub use decision::{ActionMode, Decision, DecisionError, DecisionLimits};
 pub use frame::{FrameError, FrameFormat, FrameHeader};
 pub use heartbeat::{HeartbeatError, MAX_STAGES, RoleHeartbeat, RoleStatus, StageTiming};
 pub use hub_report::{HubReport, HubReportError};
+pub use lease::{ControllerLease, LEASE_HAS_HOLD, LEASE_HAS_REFERENCE};
 pub use setpoint::{BoundSetpoint, SetpointError};
 pub use state::{
     Cue, Detection, MAX_CUES, MAX_DETECTIONS, OCCUPANCY_CELLS, OCCUPANCY_SIDE, OCCUPANCY_UNKNOWN,

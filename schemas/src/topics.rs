@@ -26,6 +26,8 @@ pub const HUB_SETPOINT: &str = "hub/setpoint";
 pub const HUB_REPORT: &str = "hub/report";
 /// Vehicle telemetry: [`crate::VehicleTelemetry`].
 pub const VEHICLE_TELEMETRY: &str = "vehicle/telemetry";
+/// The autopilot lease of the flight's controllers: [`crate::ControllerLease`].
+pub const CONTROLLER_LEASE: &str = "controller/lease";
 /// Role heartbeats: [`crate::RoleHeartbeat`].
 pub const HEARTBEAT: &str = "heartbeat";
 
@@ -34,7 +36,7 @@ pub const HEARTBEAT: &str = "heartbeat";
 pub const SUPERVISOR_CONTROL: &str = "supervisor/control";
 
 /// Every versioned topic, for listing and validation.
-pub const ALL: [&str; 12] = [
+pub const ALL: [&str; 13] = [
     CAMERA_RGB,
     CAMERA_DEPTH,
     PERCEPTION_STATE,
@@ -46,6 +48,7 @@ pub const ALL: [&str; 12] = [
     HUB_SETPOINT,
     HUB_REPORT,
     VEHICLE_TELEMETRY,
+    CONTROLLER_LEASE,
     HEARTBEAT,
 ];
 

@@ -56,6 +56,7 @@ fn default_mission_reaches_the_goal_with_every_role_in_its_own_process() {
     for r in [
         "vehicle",
         "controller",
+        "controller-standby",
         "camera",
         "perception",
         "hub",
