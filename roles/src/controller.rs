@@ -325,6 +325,12 @@ pub struct Tracker {
     hold_ticks: u64,
 }
 
+/// `v` raised to `lo`, then lowered to `hi`: `f32::clamp` without its panic when limits
+/// that were never validated (a hand-written role spec) have `lo > hi`; `hi` wins then.
+fn bound(v: f32, lo: f32, hi: f32) -> f32 {
+    v.max(lo).min(hi)
+}
+
 fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
@@ -465,16 +471,16 @@ impl Tracker {
     }
 
     fn clamp_alt(&self, u: f32) -> f32 {
-        u.clamp(self.cfg.limits.h_min, self.cfg.limits.h_max)
+        bound(u, self.cfg.limits.h_min, self.cfg.limits.h_max)
     }
 
     /// Keep `p` in the geofence and under h_max (the hard guarantee on every output).
     fn fence(&self, p: [f32; 3]) -> [f32; 3] {
         let l = &self.cfg.limits;
         [
-            p[0].clamp(l.geofence_min[0], l.geofence_max[0]),
-            p[1].clamp(l.geofence_min[1], l.geofence_max[1]),
-            p[2].clamp(l.geofence_min[2], l.geofence_max[2].min(l.h_max)),
+            bound(p[0], l.geofence_min[0], l.geofence_max[0]),
+            bound(p[1], l.geofence_min[1], l.geofence_max[1]),
+            bound(p[2], l.geofence_min[2], l.geofence_max[2].min(l.h_max)),
         ]
     }
 
@@ -686,7 +692,8 @@ impl AutopilotState {
                 self.time_boot_ms = p.time_boot_ms;
             }
             MavMessage::ATTITUDE(a) if [a.roll, a.pitch, a.yaw].iter().all(|v| v.is_finite()) => {
-                self.attitude = Some([a.roll, a.pitch, a.yaw]);
+                // the yaw goes back out as a hold's setpoint yaw: the same heading in [-pi, pi]
+                self.attitude = Some([a.roll, a.pitch, wrap_pi(a.yaw)]);
             }
             MavMessage::EXTENDED_SYS_STATE(e) => {
                 self.landed_state = Some(e.landed_state);
@@ -767,6 +774,13 @@ impl AutopilotState {
             Some(_) => false,
         }
     }
+}
+
+/// `a` (finite, rad) as the same angle in `[-pi, pi]`.
+fn wrap_pi(a: f32) -> f32 {
+    use core::f32::consts::{PI, TAU};
+    let w = (a + PI).rem_euclid(TAU) - PI;
+    w.clamp(-PI, PI)
 }
 
 /// Whether a message comes from the autopilot we command (the only one we believe).
@@ -1535,6 +1549,55 @@ mod tests {
         let mut c = Tracker::new(cfg);
         c.adopt(&lease);
         assert!(c.carrot.is_none() && c.hold.is_none());
+    }
+
+    #[test]
+    fn unvalidated_limits_with_no_altitude_band_do_not_panic_the_tracker() {
+        let mut cfg = tracker_config();
+        // h_max below the geofence floor: a hand-written spec the supervisor never checked
+        cfg.limits.h_max = 5.0;
+        cfg.limits.geofence_min[2] = 10.0;
+        let mut t = Tracker::new(cfg);
+        let cmd = t.tick(
+            MS,
+            &VehicleView {
+                position: Some([0.0, 0.0, 20.0]),
+                yaw: None,
+                landed: false,
+            },
+        );
+        assert!(cmd.position.iter().all(|v| v.is_finite()));
+        assert!(cmd.position[2] <= 5.0, "{cmd:?}");
+    }
+
+    #[test]
+    fn an_autopilot_yaw_out_of_range_is_wrapped_before_it_is_flown() {
+        let mut s = AutopilotState::default();
+        for (yaw, want) in [
+            (0.5f32, 0.5f32),
+            (7.0, 7.0 - core::f32::consts::TAU),
+            (-4.0, -4.0 + core::f32::consts::TAU),
+            (1e6, f32::NAN),
+        ] {
+            s.apply(
+                &MavMessage::ATTITUDE(mavlink::dialects::common::ATTITUDE_DATA {
+                    time_boot_ms: 1,
+                    roll: 0.0,
+                    pitch: 0.0,
+                    yaw,
+                    rollspeed: 0.0,
+                    pitchspeed: 0.0,
+                    yawspeed: 0.0,
+                }),
+                1,
+            );
+            let got = s.attitude.unwrap()[2];
+            let pi = core::f32::consts::PI;
+            assert!((-pi..=pi).contains(&got), "{yaw} -> {got}");
+            if !want.is_nan() {
+                assert!((got - want).abs() < 1e-4, "{yaw} -> {got}, want {want}");
+            }
+        }
     }
 
     #[test]

@@ -6,7 +6,7 @@
 //!   worlds ([`aeris_sim::world::palette`], times the renderer's face shades) through a
 //!   32768-entry lookup table; per class it accumulates pixel count, bounding box, mean
 //!   column and a range histogram. Each class seen on at least [`MIN_PIXELS`] pixels
-//!   becomes one [`Detection`] (label from [`LABELS`], score from its pixel share, range =
+//!   becomes one [`Detection`](aeris_schemas::Detection) (label from [`LABELS`], score from its pixel share, range =
 //!   median distance of its pixels);
 //! - **occupancy**: every depth return is back-projected with the frame's pose, field of
 //!   view and the shared camera model ([`aeris_sim::render::CameraModel`] with
