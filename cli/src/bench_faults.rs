@@ -59,7 +59,7 @@ pub struct FaultsArgs {
     /// Give up on a fault's recovery after this many seconds (the row shows no recovery).
     #[arg(long, default_value_t = 30)]
     pub recover_timeout_s: u64,
-    /// Where role specs and logs go (default: $TMPDIR/aeris/<flight>).
+    /// Where role specs and logs go (default: $TMPDIR/aeris/FLIGHT).
     #[arg(long, value_name = "DIR")]
     pub run_dir: Option<PathBuf>,
     /// Print one JSON object on the last line of stdout.

@@ -22,7 +22,7 @@ pub struct FlightBenchArgs {
     /// Run a role with another variant, e.g. --variant reasoning=gemma3 (repeatable).
     #[arg(long, value_name = "ROLE=VARIANT")]
     pub variant: Vec<String>,
-    /// Where role specs and logs go (default: $TMPDIR/aeris/<flight>).
+    /// Where role specs and logs go (default: $TMPDIR/aeris/FLIGHT).
     #[arg(long, value_name = "DIR")]
     pub run_dir: Option<PathBuf>,
     /// Print one JSON object on the last line of stdout.

@@ -22,10 +22,10 @@ pub struct RunArgs {
     /// Print the summary as one JSON object on the last line of stdout.
     #[arg(long)]
     pub json: bool,
-    /// Flight name: the namespace prefix of every service (default: flight-<pid>).
+    /// Flight name: the namespace prefix of every service (default: flight-PID).
     #[arg(long)]
     pub flight: Option<String>,
-    /// Where role specs and logs go (default: $TMPDIR/aeris/<flight>).
+    /// Where role specs and logs go (default: $TMPDIR/aeris/FLIGHT).
     #[arg(long, value_name = "DIR")]
     pub run_dir: Option<PathBuf>,
     /// Run a role with another variant of its kind (see `aeris roles`), e.g.

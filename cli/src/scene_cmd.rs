@@ -57,8 +57,8 @@ pub struct SceneArgs {
 /// What `aeris scene` does.
 #[derive(Debug, Subcommand)]
 pub enum SceneCommand {
-    /// List a scene's landmarks (built-in: village, open; generated: open-<seed>,
-    /// dense-<seed>).
+    /// List a scene's landmarks (built-in: village, open; generated: open-SEED,
+    /// dense-SEED).
     Show {
         /// Scene name.
         scene: String,
