@@ -55,7 +55,8 @@ pub struct EvalArgs {
     /// adaptive variant selection is not built, every evaluation runs one fixed variant.
     #[arg(long)]
     pub single_slm: bool,
-    /// Ablation: no dynamic re-binding. Not available: dynamic scheduling is not built.
+    /// Ablation: no dynamic scheduling (roles stay on their declared executors; the
+    /// supervisor neither checks the initial binding nor re-binds on latency).
     #[arg(long)]
     pub no_ds: bool,
     /// Output folder for episodes.jsonl and the flights' logs (default:
@@ -236,7 +237,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
             autopilot: None,
             stop: StopRule::Landed,
             progress: false,
-            dynamic: None,
+            dynamic: setup.no_ds.then_some(false),
         };
         eprintln!(
             "[{}/{total}] {} ({}): {}",
@@ -441,6 +442,8 @@ struct EvalSetup {
     reasoning: String,
     no_att: bool,
     zero_shot: bool,
+    /// Dynamic scheduling off in every flight.
+    no_ds: bool,
     /// Fly with the model perception roles (else the geometric one).
     models: bool,
     /// `aeris-planner`, `aeris-smollm2-zero-shot`, `oracle`, ...: the `agent` of
@@ -457,12 +460,6 @@ impl EvalSetup {
                  (choose it with --reasoning)"
             );
         }
-        if args.no_ds {
-            bail!(
-                "--no-ds is not available: dynamic re-binding is not built, so every \
-                 evaluation already runs without it"
-            );
-        }
         let agent = match &args.baseline {
             None => Agent::Aeris,
             Some(name) => match Agent::parse(name) {
@@ -474,10 +471,11 @@ impl EvalSetup {
             && (args.reasoning.is_some()
                 || args.no_att
                 || args.zero_shot
+                || args.no_ds
                 || args.perception.is_some())
         {
             bail!(
-                "--reasoning, --perception, --no-att and --zero-shot apply to the AERIS agent, \
+                "--reasoning, --perception, --no-att, --no-ds and --zero-shot apply to the AERIS agent, \
                  not to a --baseline"
             );
         }
@@ -513,6 +511,9 @@ impl EvalSetup {
                 if args.zero_shot {
                     l.push_str("-zero-shot");
                 }
+                if args.no_ds {
+                    l.push_str("-no-ds");
+                }
                 l
             }
             a => a.as_str().to_string(),
@@ -522,6 +523,7 @@ impl EvalSetup {
             reasoning,
             no_att: args.no_att,
             zero_shot: args.zero_shot,
+            no_ds: args.no_ds,
             models,
             label,
         })

@@ -211,7 +211,10 @@ fn bad_arguments_are_clear_errors() {
             "--episodes must be at least 1",
         ),
         (vec!["--single-slm"], "--single-slm is not available"),
-        (vec!["--no-ds"], "--no-ds is not available"),
+        (
+            vec!["--baseline", "random", "--no-ds"],
+            "apply to the AERIS agent, not to a --baseline",
+        ),
         (
             vec!["--zero-shot", "--reasoning", "planner"],
             "--zero-shot ablates the language model's plan",
