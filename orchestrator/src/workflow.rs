@@ -1164,6 +1164,21 @@ mod tests {
     }
 
     #[test]
+    fn an_altitude_band_that_misses_the_geofence_is_refused() {
+        let mut w = Workflow::builtin_default().unwrap();
+        // h_max below the fence's floor: no altitude is allowed by both (the controller's
+        // tracker once panicked on such limits)
+        w.mission.limits.h_max = 5.0;
+        w.mission.limits.geofence_min[2] = 10.0;
+        let err = w.validate().unwrap_err();
+        assert!(
+            matches!(err, WorkflowError::Mission(MissionError::BadLimits)),
+            "{err}"
+        );
+        assert!(err.to_string().contains("meets the geofence"), "{err}");
+    }
+
+    #[test]
     fn timing_limits_are_enforced() {
         let mut w = Workflow::builtin_default().unwrap();
         w.timing.decision_deadline_ms = w.timing.heartbeat_period_ms * 10 + 1;

@@ -190,7 +190,7 @@ pub enum MissionError {
     },
     /// The limits are incoherent (e.g. h_min > h_max, NaN).
     #[error(
-        "mission limits are incoherent (check v_max > 0, h_min <= h_max, geofence_min <= geofence_max, all finite)"
+        "mission limits are incoherent (check v_max > 0, h_min <= h_max, geofence_min <= geofence_max, the altitude band [h_min, h_max] meets the geofence's [min U, max U], all finite)"
     )]
     BadLimits,
     /// Cruise speed, acceptance radius or duration out of range.
@@ -228,7 +228,10 @@ impl MissionSpec {
             return Err(MissionError::SubgoalCount(self.subgoals.len()));
         }
         let limits = self.decision_limits();
-        if !limits.is_coherent() {
+        // the gate and the tracker fly only altitudes both the band and the fence allow
+        let band_meets_fence =
+            limits.h_min.max(limits.geofence_min[2]) <= limits.h_max.min(limits.geofence_max[2]);
+        if !limits.is_coherent() || !band_meets_fence {
             return Err(MissionError::BadLimits);
         }
         if !(self.cruise_speed > 0.0 && self.cruise_speed <= self.limits.v_max) {

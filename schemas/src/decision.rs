@@ -160,8 +160,6 @@ impl DecisionLimits {
             && self.h_min <= self.h_max
             && self.r_max >= 0.0
             && (0..3).all(|i| self.geofence_min[i] <= self.geofence_max[i])
-            // the altitude band meets the geofence: some altitude is allowed by both
-            && self.h_min.max(self.geofence_min[2]) <= self.h_max.min(self.geofence_max[2])
             && self.subgoals >= 1
             && self.subgoals as usize <= MAX_SUBGOALS
     }
@@ -288,22 +286,6 @@ mod tests {
             geofence_max: [100.0, 100.0, 60.0],
             subgoals: 4,
         }
-    }
-
-    #[test]
-    fn limits_whose_altitude_band_misses_the_geofence_are_incoherent() {
-        assert!(limits().is_coherent());
-        let mut l = limits();
-        l.h_max = 5.0;
-        l.geofence_min[2] = 10.0; // the band [0, 5] lies under the fence's floor
-        assert!(!l.is_coherent());
-        assert_eq!(good().validate(&l), Err(DecisionError::IncoherentLimits));
-        let mut l = limits();
-        l.h_min = 70.0;
-        l.h_max = 80.0; // above the fence's ceiling
-        assert!(!l.is_coherent());
-        l.geofence_max[2] = 70.0; // touching is enough
-        assert!(l.is_coherent());
     }
 
     fn good() -> Decision {
