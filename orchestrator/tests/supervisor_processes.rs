@@ -266,7 +266,7 @@ fn starts_every_role_bound_and_tracks_heartbeats_and_the_board() {
     let report = sup.shutdown(PATIENCE);
     let order: Vec<&str> = report.roles.iter().map(|e| e.name.as_str()).collect();
     assert_eq!(order.first(), Some(&"reasoning"));
-    assert_eq!(&order[4..], ["controller", "vehicle"]);
+    assert_eq!(&order[4..], ["controller", "controller-standby", "vehicle"]);
     for e in &report.roles {
         assert_eq!(
             e.outcome,
@@ -452,7 +452,7 @@ fn an_external_autopilot_replaces_the_vehicle_role() {
     opts.autopilot = Some("udpout:127.0.0.1:14540".into());
     let sup = Supervisor::start(opts).unwrap();
     assert!(sup.role("vehicle").is_none());
-    assert_eq!(sup.roles().len(), 5);
+    assert_eq!(sup.roles().len(), 6);
     let spec = RoleSpec::load(sup.role("controller").unwrap().spec_path()).unwrap();
     assert_eq!(spec.param_str("autopilot"), Some("udpout:127.0.0.1:14540"));
     drop(sup);
