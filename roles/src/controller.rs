@@ -132,7 +132,9 @@ pub struct LeaseArbiter {
     listen_until_ns: u64,
     epoch: u64,
     active: bool,
-    highest_seen: Option<(u64, u8, u32)>,
+    /// The newest sample of the highest claim heard from another controller (its tracking
+    /// state is what a takeover adopts).
+    highest_seen: Option<ControllerLease>,
     last_heard_ns: Option<u64>,
     takeovers: u64,
 }
@@ -161,9 +163,11 @@ impl LeaseArbiter {
         if lease.holder_pid == self.pid {
             return;
         }
-        let key = lease.key();
-        if self.highest_seen.is_none_or(|h| key > h) {
-            self.highest_seen = Some(key);
+        if self
+            .highest_seen
+            .is_none_or(|h| (lease.key(), lease.stamp_ns) >= (h.key(), h.stamp_ns))
+        {
+            self.highest_seen = Some(*lease);
         }
         let stamp = lease.stamp_ns.min(now_ns);
         if self.last_heard_ns.is_none_or(|t| stamp > t) {
@@ -177,7 +181,7 @@ impl LeaseArbiter {
             .last_heard_ns
             .is_some_and(|t| now_ns.saturating_sub(t) <= self.silence_ns);
         if self.active {
-            let outranked = self.highest_seen.is_some_and(|h| h > self.key());
+            let outranked = self.highest_seen.is_some_and(|h| h.key() > self.key());
             if outranked && heard_recently {
                 self.active = false;
                 self.epoch = 0;
@@ -188,7 +192,7 @@ impl LeaseArbiter {
         if heard_recently || now_ns < self.listen_until_ns {
             return LeaseChange::Kept;
         }
-        self.epoch = self.highest_seen.map_or(0, |h| h.0) + 1;
+        self.epoch = self.highest_seen.map_or(0, |h| h.epoch) + 1;
         self.active = true;
         self.takeovers += 1;
         LeaseChange::TookOver
@@ -202,6 +206,12 @@ impl LeaseArbiter {
     /// The epoch held (0 when standby).
     pub fn epoch(&self) -> u64 {
         self.epoch
+    }
+
+    /// The newest sample of the highest claim another controller made (what a takeover
+    /// goes on from).
+    pub fn highest_seen(&self) -> Option<&ControllerLease> {
+        self.highest_seen.as_ref()
     }
 
     /// Leases claimed so far.
@@ -833,9 +843,6 @@ pub struct ControllerRole {
     lease_out: TypedPublisher<ControllerLease>,
     lease_in: TypedSubscriber<ControllerLease>,
     arbiter: LeaseArbiter,
-    /// The newest lease of the highest holder heard (its tracking state is adopted on a
-    /// takeover).
-    holder_lease: Option<ControllerLease>,
     /// What the holder last reported (the standby's view of the vehicle).
     standby_ap: AutopilotState,
     tracker: Tracker,
@@ -1016,7 +1023,6 @@ impl Role for ControllerRole {
                 // claims first
                 period_ns.saturating_mul(LEASE_LISTEN_PERIODS * if standby { 2 } else { 1 }),
             ),
-            holder_lease: None,
             standby_ap: AutopilotState::default(),
             tracker,
             period,
@@ -1054,15 +1060,8 @@ impl Role for ControllerRole {
     ) -> Result<CycleOutcome, RoleError> {
         // lease: who may write to the autopilot
         let t0 = monotonic_ns();
-        let (arbiter, holder_lease) = (&mut self.arbiter, &mut self.holder_lease);
-        self.lease_in.drain(|l| {
-            arbiter.observe(l, t0);
-            if l.holder_pid != std::process::id()
-                && holder_lease.is_none_or(|h| (l.key(), l.stamp_ns) >= (h.key(), h.stamp_ns))
-            {
-                *holder_lease = Some(*l);
-            }
-        })?;
+        let arbiter = &mut self.arbiter;
+        self.lease_in.drain(|l| arbiter.observe(l, t0))?;
         let standby_ap = &mut self.standby_ap;
         let holding = self.arbiter.is_active();
         self.telemetry_in.drain(|t| {
@@ -1076,7 +1075,7 @@ impl Role for ControllerRole {
             // fly from this poll on (the holder's last tick was a period or more ago), from
             // the reference the holder last published
             self.next_tick_ns = t0;
-            if let Some(l) = &self.holder_lease {
+            if let Some(l) = self.arbiter.highest_seen() {
                 self.tracker.adopt(l);
             }
             self.hold_ticks_base = self.tracker.hold_ticks();
