@@ -44,8 +44,12 @@ fn the_standby_takes_the_lease_when_the_holder_is_killed_or_stopped() {
         out
     };
 
-    let holder = poll_until(Duration::from_secs(120), || newest(0))
-        .unwrap_or_else(|| panic!("no controller took the lease: {:?}", run_output(&dir.0)));
+    // wait for a holder that tracks the hub's setpoints: a lease taken over before the first
+    // setpoint has no reference to hand on (CI once killed the holder 0.6 s into the flight)
+    let holder = poll_until(Duration::from_secs(120), || {
+        newest(0).filter(|l| l.flags & aeris_schemas::LEASE_HAS_REFERENCE != 0)
+    })
+    .unwrap_or_else(|| panic!("no controller took the lease: {:?}", run_output(&dir.0)));
     let board = observer.read_status_board().unwrap();
     let controllers = ["controller", "controller-standby"];
     let pids: Vec<u32> = controllers
