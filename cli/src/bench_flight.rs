@@ -65,6 +65,8 @@ fn workflow(a: &FlightBenchArgs) -> Result<Workflow> {
         None => Workflow::builtin_models().context("built-in model workflow")?,
     };
     apply_overrides(&mut w, &a.variant, None)?;
+    // the benchmark makes its own swaps: the variant ladder must not start others
+    w.scheduling.adapt_variants = false;
     Ok(w)
 }
 

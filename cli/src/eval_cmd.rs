@@ -51,8 +51,10 @@ pub struct EvalArgs {
     /// model on its own). Needs a language-model variant (default smollm2).
     #[arg(long)]
     pub zero_shot: bool,
-    /// Ablation: one fixed model instead of the role-adaptive stack. Not available: the
-    /// adaptive variant selection is not built, every evaluation runs one fixed variant.
+    /// Ablation: one fixed model instead of the role-adaptive stack: the reasoner (and every
+    /// role with a variant ladder) stays on its starting variant whatever its latency.
+    /// Without it, a language-model reasoner steps down its ladder (gemma3, smollm2,
+    /// planner) when it keeps missing its budget, and back up when the heavier one fits.
     #[arg(long)]
     pub single_slm: bool,
     /// Ablation: no dynamic scheduling (roles stay on their declared executors; the
@@ -96,6 +98,8 @@ struct EpisodeLine<'a> {
     ct_p95_s: f64,
     eer: f64,
     failure: Option<&'a str>,
+    /// Automatic variant swaps (the role-adaptive stack's steps) during the flight.
+    variant_steps: u64,
     /// The flight's run folder: cycles.jsonl, role specs and logs (`aeris plot`).
     run_dir: &'a std::path::Path,
 }
@@ -213,10 +217,18 @@ pub fn run(args: EvalArgs) -> Result<()> {
         reasoning
             .params
             .insert("seed".into(), serde_json::Value::from(k as u64 + 1));
+        // the ladder starts on the chosen variant; a zero-shot model stays generic (the
+        // planner below it on the ladder would bring the plan back)
+        if setup.zero_shot || !reasoning.ladder.contains(&reasoning.variant) {
+            reasoning.ladder.clear();
+        }
         if setup.zero_shot {
             reasoning
                 .params
                 .insert("plan".into(), serde_json::Value::from(false));
+        }
+        if setup.single_slm {
+            workflow.scheduling.adapt_variants = false;
         }
         if setup.no_att {
             workflow
@@ -344,6 +356,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
             ct_p95_s: summary.ct_p95_s,
             eer: summary.eer,
             failure: failure.as_deref(),
+            variant_steps: summary.variant_steps,
             run_dir: &plan.run_dir,
         };
         writeln!(jsonl, "{}", serde_json::to_string(&line)?)
@@ -444,6 +457,8 @@ struct EvalSetup {
     zero_shot: bool,
     /// Dynamic scheduling off in every flight.
     no_ds: bool,
+    /// The variant ladder off in every flight (Single-SLM).
+    single_slm: bool,
     /// Fly with the model perception roles (else the geometric one).
     models: bool,
     /// `aeris-planner`, `aeris-smollm2-zero-shot`, `oracle`, ...: the `agent` of
@@ -453,13 +468,6 @@ struct EvalSetup {
 
 impl EvalSetup {
     fn from_args(args: &EvalArgs) -> Result<Self> {
-        if args.single_slm {
-            bail!(
-                "--single-slm is not available: the role-adaptive variant selection it ablates \
-                 is not built, so every evaluation already runs one fixed variant \
-                 (choose it with --reasoning)"
-            );
-        }
         let agent = match &args.baseline {
             None => Agent::Aeris,
             Some(name) => match Agent::parse(name) {
@@ -472,11 +480,12 @@ impl EvalSetup {
                 || args.no_att
                 || args.zero_shot
                 || args.no_ds
+                || args.single_slm
                 || args.perception.is_some())
         {
             bail!(
-                "--reasoning, --perception, --no-att, --no-ds and --zero-shot apply to the AERIS agent, \
-                 not to a --baseline"
+                "--reasoning, --perception, --no-att, --no-ds, --single-slm and --zero-shot apply \
+                 to the AERIS agent, not to a --baseline"
             );
         }
         let models = match args.perception.as_deref() {
@@ -514,6 +523,9 @@ impl EvalSetup {
                 if args.no_ds {
                     l.push_str("-no-ds");
                 }
+                if args.single_slm {
+                    l.push_str("-single-slm");
+                }
                 l
             }
             a => a.as_str().to_string(),
@@ -524,6 +536,7 @@ impl EvalSetup {
             no_att: args.no_att,
             zero_shot: args.zero_shot,
             no_ds: args.no_ds,
+            single_slm: args.single_slm,
             models,
             label,
         })

@@ -72,6 +72,8 @@ pub struct RunSummary {
     pub role_restarts: u64,
     /// Live moves of roles between executors (dynamic scheduling and `aeris migrate`).
     pub migrations: u64,
+    /// Steps of the variant ladder (automatic swaps to a lighter or heavier variant).
+    pub variant_steps: u64,
     /// Roles found alive but silent and replaced.
     pub stalls: u64,
     /// Subgoals in the mission.
@@ -457,6 +459,7 @@ impl FlightMonitor {
             swaps_failed: 0,
             role_restarts,
             migrations: 0,
+            variant_steps: 0,
             stalls: 0,
             subgoals_total: self.subgoals as u64,
             max_active_step: self.attention_steps.iter().copied().max().unwrap_or(0) as u64,

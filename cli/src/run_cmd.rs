@@ -40,6 +40,10 @@ pub struct RunArgs {
     /// latency (stall detection and restarts stay on).
     #[arg(long)]
     pub no_ds: bool,
+    /// Variant ladder off: every role keeps its declared variant whatever its latency
+    /// (the workflow's `[scheduling] adapt_variants = false`).
+    #[arg(long)]
+    pub fixed_variants: bool,
 }
 
 fn load(path: Option<&Path>) -> Result<Workflow> {
@@ -88,6 +92,10 @@ pub fn apply_overrides(
         decl.variant = variant.to_string();
         if !decl.variants.iter().any(|x| x == variant) {
             decl.variants.push(variant.to_string());
+        }
+        // a variant chosen by hand off the role's ladder: the role keeps it
+        if !decl.ladder.iter().any(|x| x == variant) {
+            decl.ladder.clear();
         }
     }
     if let Some(s) = max_duration {
@@ -216,6 +224,7 @@ pub fn fly(
                 | SupervisorEvent::MigrationFailed { .. }
                 | SupervisorEvent::RoleStalled { .. }
                 | SupervisorEvent::ServiceLost { .. }
+                | SupervisorEvent::VariantStepped { .. }
                 | SupervisorEvent::InitialBinding { .. } => eprintln!("aeris: {event}"),
                 _ => {}
             }
@@ -298,6 +307,7 @@ pub fn fly(
     let restarts = sup.total_restarts();
     let mut summary = monitor.summary(&flight, duration, restarts as u64);
     summary.migrations = u64::from(sup.total_migrations());
+    summary.variant_steps = u64::from(sup.total_variant_steps());
     summary.stalls = sup.roles().iter().map(|r| u64::from(r.stalls())).sum();
     summary.swaps_done = swaps_done;
     summary.swaps_failed = swaps_failed;
@@ -331,6 +341,9 @@ fn write_trace(path: &std::path::Path, trace: &[crate::flight::CycleTrace]) -> R
 pub fn run(args: RunArgs) -> Result<ExitCode> {
     let mut workflow = load(args.workflow.as_deref())?;
     apply_overrides(&mut workflow, &args.variant, args.max_duration)?;
+    if args.fixed_variants {
+        workflow.scheduling.adapt_variants = false;
+    }
     let flight = args
         .flight
         .clone()

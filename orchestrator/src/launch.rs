@@ -29,6 +29,8 @@ pub struct PlannedRole {
     pub backoff_ms: u64,
     /// Variants the role may be hot-swapped to (its workflow `variants`).
     pub pool: Vec<String>,
+    /// Its variant ladder, most capable first (its workflow `ladder`; empty: none).
+    pub ladder: Vec<String>,
 }
 
 /// Every role of a flight, in start order (publishers before subscribers).
@@ -168,6 +170,7 @@ pub fn plan_launch(
                 max_restarts: r.max_restarts,
                 backoff_ms: r.backoff_ms,
                 pool: r.variants.clone(),
+                ladder: r.ladder.clone(),
             }
         })
         .collect();

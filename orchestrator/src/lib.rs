@@ -13,6 +13,8 @@
 //!   /proc) and per-process scheduler figures;
 //! - [`rebind`]: the latency-driven re-binding policy (fewest moves, hysteresis) as pure
 //!   functions;
+//! - [`ladder`]: the role-adaptive variant policy (step a role down its ladder of model
+//!   variants when it keeps missing its budget, back up when the heavier one fits again);
 //! - [`control`]: asking a running flight's supervisor for a hot swap (`aeris swap`) or a
 //!   live move (`aeris migrate`).
 
@@ -20,6 +22,7 @@
 
 pub mod control;
 pub mod executors;
+pub mod ladder;
 pub mod launch;
 pub mod rebind;
 pub mod restart;

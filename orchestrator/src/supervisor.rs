@@ -20,6 +20,7 @@
 use crate::executors::{
     ExecutorRegistry, SchedTime, process_sched_time, process_state, process_threads,
 };
+use crate::ladder::{StepDirection, VariantLadder};
 use crate::launch::{PlanError, PlannedRole, plan_launch};
 use crate::rebind::{
     ExecutorLoad, RebindConfig, RebindPlan, RebindPolicy, RoleLoad, plan_fewest_moves,
@@ -39,7 +40,7 @@ use aeris_schemas::{
     CommandKind, FixedText, MAX_ROLES, ReplyStage, RoleHeartbeat, RoleStatus, RoleStatusEntry,
     SupervisorReply, SupervisorStatus, topics,
 };
-use dynamic::rebind_config;
+use dynamic::{ladder_config, rebind_config};
 use std::fs::OpenOptions;
 use std::io::{Read, Seek, SeekFrom, Write};
 use std::os::unix::process::CommandExt;
@@ -396,6 +397,24 @@ pub enum SupervisorEvent {
     },
     /// A role's process was moved, live, to another executor: every thread, same pid.
     RoleMigrated(Migration),
+    /// The variant ladder stepped a role to another variant: a hot swap to it started
+    /// (its `SwapStarted` .. `SwapDone`/`SwapFailed` follow).
+    VariantStepped {
+        /// Role name.
+        name: String,
+        /// The variant it ran.
+        from: String,
+        /// The variant it is swapped to.
+        to: String,
+        /// Down (lighter, the current one misses its budget) or up (heavier, fits again).
+        direction: StepDirection,
+        /// The last cycle's latency (ms) when the ladder stepped.
+        latency_ms: f64,
+        /// The role's budget (ms).
+        budget_ms: f64,
+        /// The latency (ms) predicted for `to` from its earlier cycles, if it ran before.
+        predicted_ms: Option<f64>,
+    },
     /// A running role was alive but silent: it was killed, and its restart policy applies.
     RoleStalled {
         /// Role name.
@@ -610,6 +629,28 @@ impl core::fmt::Display for SupervisorEvent {
             SupervisorEvent::MigrationFailed { name, reason } => {
                 write!(f, "role `{name}` could not be moved: {reason}")
             }
+            SupervisorEvent::VariantStepped {
+                name,
+                from,
+                to,
+                direction,
+                latency_ms,
+                budget_ms,
+                predicted_ms,
+            } => {
+                let way = match direction {
+                    StepDirection::Down => "down",
+                    StepDirection::Up => "up",
+                };
+                write!(
+                    f,
+                    "role `{name}`: variant ladder steps {way} from `{from}` to `{to}`: last cycle {latency_ms:.1} ms, budget {budget_ms:.1} ms"
+                )?;
+                match predicted_ms {
+                    Some(p) => write!(f, ", `{to}` predicted at {p:.1} ms"),
+                    None => write!(f, ", `{to}` not measured yet"),
+                }
+            }
             SupervisorEvent::ServiceLost { service, roles } => {
                 write!(f, "service `{service}` was removed under ")?;
                 for (i, (name, pid)) in roles.iter().enumerate() {
@@ -687,6 +728,12 @@ pub struct RoleRuntime {
     sched: VecDeque<(Instant, SchedTime)>,
     /// Latencies of the last few worked cycles (the DS signal).
     recent: LatencyWindow,
+    /// Its variant ladder, most capable first (empty: none).
+    ladder: Vec<String>,
+    /// Worked cycles reported by any of its processes (the ladder's cycle count).
+    worked_cycles: u64,
+    /// Latency (ms) of the newest worked cycle.
+    last_cycle_ms: Option<f64>,
 }
 
 /// Worked cycles in a role's recent-latency window (the DS signal).
@@ -860,6 +907,8 @@ impl RoleRuntime {
         if working && hb.worked == 1 {
             self.window.push(hb.cycle_latency_ns as f64 / 1e6);
             self.recent.push(hb.cycle_latency_ns as f64 / 1e6);
+            self.worked_cycles += 1;
+            self.last_cycle_ms = Some(hb.cycle_latency_ns as f64 / 1e6);
             self.latency_ms = self.window.percentiles([50.0, 95.0, 99.0]);
         }
         self.running |= working;
@@ -982,6 +1031,8 @@ pub struct Supervisor {
     scheduling: SchedulingSpec,
     idle_heartbeat_ms: u64,
     policy: RebindPolicy,
+    ladder: VariantLadder,
+    variant_steps: u32,
     next_tick: Instant,
     initial_checked: bool,
     migrations: u32,
@@ -1242,6 +1293,8 @@ impl Supervisor {
             bus,
             registry: ExecutorRegistry::discover(&plan.executors, &online),
             policy: RebindPolicy::new(rebind_config(&scheduling), plan.roles.len()),
+            ladder: VariantLadder::new(ladder_config(&scheduling), &[]),
+            variant_steps: 0,
             scheduling,
             idle_heartbeat_ms,
             next_tick: Instant::now(),
@@ -1253,6 +1306,15 @@ impl Supervisor {
         for planned in plan.roles {
             sup.add_role(planned, &roles_dir, &logs_dir)?;
         }
+        let ladders: Vec<(usize, usize)> = sup
+            .roles
+            .iter()
+            .map(|r| {
+                let start = r.ladder.iter().position(|v| *v == r.variant);
+                (r.ladder.len(), start.unwrap_or(usize::MAX))
+            })
+            .collect();
+        sup.ladder = VariantLadder::new(ladder_config(&sup.scheduling), &ladders);
         for i in 0..sup.roles.len() {
             let pid = sup.spawn(i, "start")?;
             sup.pending.push(SupervisorEvent::RoleStarted {
@@ -1279,6 +1341,7 @@ impl Supervisor {
             max_restarts,
             backoff_ms,
             pool,
+            ladder,
         } = planned;
         let spec_path = roles_dir.join(format!("{}.json", spec.name));
         let log_path = logs_dir.join(format!("{}.log", spec.name));
@@ -1331,6 +1394,9 @@ impl Supervisor {
             silence_probe: None,
             sched: VecDeque::with_capacity(SCHED_SAMPLES),
             recent: LatencyWindow::new(RECENT_CYCLES),
+            ladder,
+            worked_cycles: 0,
+            last_cycle_ms: None,
         });
         Ok(())
     }
@@ -1378,6 +1444,8 @@ impl Supervisor {
                 role.state = RoleState::Running;
                 role.incarnation_heartbeats = 0;
                 role.new_incarnation();
+                // a new process: its first cycles load and warm up
+                self.ladder.settle(i);
                 Ok(pid)
             }
             Err(source) => Err(SupervisorError::Spawn {
@@ -1402,7 +1470,9 @@ impl Supervisor {
         self.drain_heartbeats(&mut events)?;
         self.reap(&mut events)?;
         self.detect_stalls(&mut events);
+        let before = events.len();
         self.advance_swaps(&mut events);
+        self.ladder_follow_swaps(&events[before..]);
         self.reap_retiring(&mut events);
         self.restart_due(&mut events);
         self.schedule(&mut events);
@@ -2281,6 +2351,9 @@ mod tests {
             silence_probe: None,
             sched: VecDeque::new(),
             recent: LatencyWindow::new(RECENT_CYCLES),
+            ladder: Vec::new(),
+            worked_cycles: 0,
+            last_cycle_ms: None,
         }
     }
 
@@ -2292,6 +2365,8 @@ mod tests {
         // a liveness repeat of the same figures is not a new cycle
         assert!(!r.record(&liveness(10, 3, 2_000_000), RoleStatus::Running));
         assert_eq!(r.latency_samples(), 2);
+        // the ladder's cycle count and newest latency: worked cycles only
+        assert_eq!((r.worked_cycles, r.last_cycle_ms), (2, Some(2.0)));
         // seq 4 and 5 lost
         r.record(&hb(10, 6, 3_000_000), RoleStatus::Running);
         assert_eq!(r.heartbeat_gaps(), 1);

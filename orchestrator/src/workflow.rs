@@ -74,6 +74,10 @@ pub struct RoleDecl {
     pub variant: String,
     /// Variants this role may be switched to (contains `variant`).
     pub variants: Vec<String>,
+    /// Its variant ladder, most capable first, lightest last (empty: none): the supervisor
+    /// steps it along the ladder when a variant keeps missing its budget
+    /// ([`crate::ladder`]). Every entry is in `variants`, and `variant` is on it.
+    pub ladder: Vec<String>,
     /// Executor name, if bound.
     pub executor: Option<String>,
     /// Restart policy.
@@ -146,6 +150,9 @@ pub struct SchedulingSpec {
     pub stall_timeout_ms: u64,
     /// A running role silent this long is stalled whatever its state (ms).
     pub stall_hard_timeout_ms: u64,
+    /// Step roles with a `ladder` between their variants on measured latency (the
+    /// role-adaptive model stack); `false` keeps every role on its declared variant.
+    pub adapt_variants: bool,
 }
 
 impl SchedulingSpec {
@@ -161,6 +168,7 @@ impl SchedulingSpec {
             // a role busy in one long cycle (a language model's first prefill on a crowded
             // CPU takes over 10 s) is working, not stalled: only a very long silence counts
             stall_hard_timeout_ms: timing.heartbeat_period_ms.saturating_mul(30).max(60_000),
+            adapt_variants: true,
         }
     }
 }
@@ -278,6 +286,16 @@ pub enum WorkflowError {
         variant: String,
         /// The pool, comma-separated.
         pool: String,
+    },
+    /// A role's `ladder` is unusable.
+    #[error("role `{role}`: ladder [{ladder}]: {reason}")]
+    BadLadder {
+        /// Role name.
+        role: String,
+        /// The ladder, comma-separated.
+        ladder: String,
+        /// What is wrong with it.
+        reason: String,
     },
     /// The restart policy is not `never`, `on-failure` or `always`.
     #[error("role `{role}`: restart = \"{value}\" is unknown (use never, on-failure or always)")]
@@ -446,6 +464,7 @@ struct RawScheduling {
     margin: Option<f64>,
     stall_timeout_ms: Option<u64>,
     stall_hard_timeout_ms: Option<u64>,
+    adapt_variants: Option<bool>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -477,6 +496,7 @@ struct RawRole {
     kind: String,
     variant: String,
     variants: Option<Vec<String>>,
+    ladder: Option<Vec<String>>,
     executor: Option<String>,
     restart: Option<String>,
     max_restarts: Option<u32>,
@@ -640,6 +660,7 @@ impl Workflow {
             let publishes = r.publishes.unwrap_or_else(|| catalog(|k| k.publishes));
             roles.push(RoleDecl {
                 variants: r.variants.unwrap_or_else(|| vec![r.variant.clone()]),
+                ladder: r.ladder.unwrap_or_default(),
                 name: r.name,
                 kind: r.kind,
                 variant: r.variant,
@@ -663,6 +684,7 @@ impl Workflow {
             margin: rs.margin.unwrap_or(d.margin),
             stall_timeout_ms: rs.stall_timeout_ms.unwrap_or(d.stall_timeout_ms),
             stall_hard_timeout_ms: rs.stall_hard_timeout_ms.unwrap_or(d.stall_hard_timeout_ms),
+            adapt_variants: rs.adapt_variants.unwrap_or(d.adapt_variants),
         };
         Ok(Workflow {
             timing,
@@ -874,6 +896,36 @@ impl Workflow {
                     variant: r.variant.clone(),
                     pool: r.variants.join(", "),
                 });
+            }
+            if !r.ladder.is_empty() {
+                let bad = |reason: String| WorkflowError::BadLadder {
+                    role: r.name.clone(),
+                    ladder: r.ladder.join(", "),
+                    reason,
+                };
+                if r.ladder.len() < 2 {
+                    return Err(bad("a ladder needs at least two variants".into()));
+                }
+                if let Some(v) = r.ladder.iter().find(|v| !r.variants.contains(v)) {
+                    return Err(bad(format!(
+                        "`{v}` is not in the variants pool [{}]",
+                        r.variants.join(", ")
+                    )));
+                }
+                if let Some((i, v)) = r
+                    .ladder
+                    .iter()
+                    .enumerate()
+                    .find(|(i, v)| r.ladder[..*i].contains(v))
+                {
+                    return Err(bad(format!("`{v}` is on it twice (again at rung {i})")));
+                }
+                if !r.ladder.contains(&r.variant) {
+                    return Err(bad(format!(
+                        "the declared variant `{}` is not on it (the role starts there)",
+                        r.variant
+                    )));
+                }
             }
             if let Some(ex) = &r.executor
                 && !self.executors.iter().any(|e| &e.name == ex)
@@ -1176,6 +1228,36 @@ mod tests {
             "{err}"
         );
         assert!(err.to_string().contains("meets the geofence"), "{err}");
+    }
+
+    #[test]
+    fn the_model_flight_declares_its_reasoner_ladder_and_bad_ladders_are_refused() {
+        let w = Workflow::builtin_models().unwrap();
+        let r = w.role("reasoning").unwrap();
+        assert_eq!(r.ladder, ["gemma3", "smollm2", "planner"]);
+        assert!(w.scheduling.adapt_variants);
+        let ladder_error = |ladder: &[&str], variant: &str| {
+            let mut w = Workflow::builtin_models().unwrap();
+            let r = w.roles.iter_mut().find(|r| r.kind == "reasoning").unwrap();
+            r.ladder = ladder.iter().map(|v| v.to_string()).collect();
+            r.variant = variant.into();
+            match w.validate() {
+                Err(e @ WorkflowError::BadLadder { .. }) => e.to_string(),
+                other => panic!("{ladder:?} from {variant}: expected BadLadder, got {other:?}"),
+            }
+        };
+        assert!(ladder_error(&["smollm2"], "smollm2").contains("at least two"));
+        assert!(ladder_error(&["smollm2", "random"], "smollm2").contains("`random` is not in"));
+        assert!(ladder_error(&["smollm2", "planner", "smollm2"], "smollm2").contains("twice"));
+        assert!(ladder_error(&["gemma3", "planner"], "smollm2").contains("declared variant"));
+        // `adapt_variants` parses, and an empty ladder is none
+        let text = MODELS_WORKFLOW_TOML.replace(
+            "ladder = [\"gemma3\", \"smollm2\", \"planner\"]",
+            "ladder = []",
+        ) + "\n[scheduling]\nadapt_variants = false\n";
+        let w = Workflow::from_toml_str(&text).unwrap();
+        assert!(!w.scheduling.adapt_variants);
+        assert!(w.role("reasoning").unwrap().ladder.is_empty());
     }
 
     #[test]

@@ -100,6 +100,12 @@ fn roles_are_hot_swapped_during_a_flight_and_broken_variants_roll_back() {
         .as_table_mut()
         .unwrap()
         .insert("decision_deadline_ms".into(), toml::Value::Integer(8000));
+    // the swaps under test are made by hand: no variant ladder steps beside them
+    w.entry("scheduling")
+        .or_insert_with(|| toml::Value::Table(Default::default()))
+        .as_table_mut()
+        .unwrap()
+        .insert("adapt_variants".into(), toml::Value::Boolean(false));
     let roles = w["roles"].as_array_mut().unwrap();
     for r in roles.iter_mut() {
         if matches!(

@@ -2,6 +2,7 @@
 //! (the initial check and every tick after), and stall detection.
 
 use super::*;
+use crate::ladder::{LadderConfig, LadderSample, VariantStep};
 use std::io::Write as _;
 
 /// Consecutive ticks of figures a role needs before the initial binding is checked.
@@ -23,6 +24,14 @@ pub(super) fn rebind_config(s: &SchedulingSpec) -> RebindConfig {
         margin: s.margin,
         cooldown_ticks: ticks(s.cooldown_ms),
         max_moves: 3,
+    }
+}
+
+/// The variant ladder's settings of a flight's `[scheduling]` table.
+pub(super) fn ladder_config(s: &SchedulingSpec) -> LadderConfig {
+    LadderConfig {
+        margin: s.margin,
+        ..LadderConfig::default()
     }
 }
 
@@ -62,6 +71,23 @@ impl Supervisor {
     /// Live moves of all roles so far.
     pub fn total_migrations(&self) -> u32 {
         self.migrations
+    }
+
+    /// Turn the variant ladder on or off (off: every role keeps its declared variant, the
+    /// Single-SLM ablation).
+    pub fn set_adapt_variants(&mut self, on: bool) {
+        self.scheduling.adapt_variants = on;
+    }
+
+    /// Steps the variant ladder started so far.
+    pub fn total_variant_steps(&self) -> u32 {
+        self.variant_steps
+    }
+
+    /// The rung of its ladder role `role` runs (0: the most capable), `None` without one.
+    pub fn ladder_rung(&self, role: &str) -> Option<usize> {
+        let i = self.roles.iter().position(|r| r.name == role)?;
+        self.ladder.rung(i)
     }
 
     /// Move role `role`'s running process, live, to `target`: an executor name or a CPU
@@ -186,6 +212,7 @@ impl Supervisor {
         r.sched.clear();
         r.recent = LatencyWindow::new(RECENT_CYCLES);
         self.policy.settle(i);
+        self.ladder.settle(i);
         self.migrations += 1;
         let m = Migration {
             role: role.to_string(),
@@ -366,10 +393,14 @@ impl Supervisor {
             }
             role.sched.push_back((now, t));
         }
-        if !self.scheduling.dynamic {
+        if !self.scheduling.dynamic && !self.scheduling.adapt_variants {
             return;
         }
         let (roles, executors) = self.observe();
+        if !self.scheduling.dynamic {
+            self.step_variants(&roles, events);
+            return;
+        }
         if !self.initial_checked {
             let ready = self.roles.iter().all(|r| {
                 r.budget_ms.is_none() || !r.running || r.sched.len() >= INITIAL_PROBE_TICKS
@@ -386,6 +417,101 @@ impl Supervisor {
         if let Some(plan) = self.policy.tick(&roles, &executors) {
             self.apply_plan(&plan, &roles, &executors, false, events);
             events.append(&mut self.pending);
+        }
+        // after re-binding: a role just moved is settled and judged on its new executor
+        self.step_variants(&roles, events);
+    }
+
+    /// One tick of the variant ladder; its steps start hot swaps.
+    fn step_variants(&mut self, roles: &[RoleLoad], events: &mut Vec<SupervisorEvent>) {
+        if !self.scheduling.adapt_variants {
+            return;
+        }
+        let samples: Vec<LadderSample> = self
+            .roles
+            .iter()
+            .zip(roles)
+            .map(|(r, load)| LadderSample {
+                cycle_ms: r.last_cycle_ms,
+                cycles: r.worked_cycles,
+                budget_ms: r.budget_ms,
+                slowdown: load.slowdown,
+                ready: r.state == RoleState::Running && r.running && r.swap.is_none(),
+            })
+            .collect();
+        let mut steps: Vec<VariantStep> = Vec::new();
+        self.ladder.tick(&samples, &mut steps);
+        for step in steps {
+            let role = &self.roles[step.role];
+            let (Some(from), Some(to)) = (role.ladder.get(step.from), role.ladder.get(step.to))
+            else {
+                self.ladder.failed(step.role);
+                continue;
+            };
+            let (name, from, to) = (role.name.clone(), from.clone(), to.clone());
+            match self.begin_swap(&name, &to, DEFAULT_SWAP_READY_TIMEOUT) {
+                Ok(_) => {
+                    self.variant_steps += 1;
+                    self.log_variant_step(&name, &from, &to, &step);
+                    events.push(SupervisorEvent::VariantStepped {
+                        name,
+                        from,
+                        to,
+                        direction: step.direction,
+                        latency_ms: step.latency_ms,
+                        budget_ms: step.budget_ms,
+                        predicted_ms: step.predicted_ms,
+                    });
+                    events.append(&mut self.pending);
+                }
+                Err(e) => {
+                    self.ladder.failed(step.role);
+                    events.push(SupervisorEvent::SwapFailed {
+                        name,
+                        variant: to,
+                        reason: format!("variant ladder: {e}"),
+                    });
+                }
+            }
+        }
+    }
+
+    /// The ladder learns where swaps landed: a committed swap (by the ladder or by hand)
+    /// sets the role's rung, a rolled-back one marks the ladder's target unusable.
+    pub(super) fn ladder_follow_swaps(&mut self, events: &[SupervisorEvent]) {
+        for e in events {
+            match e {
+                SupervisorEvent::SwapReady { name, variant, .. } => {
+                    if let Some(i) = self.roles.iter().position(|r| &r.name == name) {
+                        let rung = self.roles[i].ladder.iter().position(|v| v == variant);
+                        self.ladder.landed(i, rung);
+                    }
+                }
+                SupervisorEvent::SwapFailed { name, .. } => {
+                    if let Some(i) = self.roles.iter().position(|r| &r.name == name) {
+                        self.ladder.failed(i);
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+
+    /// A ladder step goes into the role's log beside the swap's own lines.
+    fn log_variant_step(&self, name: &str, from: &str, to: &str, step: &VariantStep) {
+        let Some(role) = self.roles.iter().find(|r| r.name == name) else {
+            return;
+        };
+        if let Ok(mut f) = OpenOptions::new().append(true).open(&role.log_path) {
+            let _ = writeln!(
+                f,
+                "=== aeris supervisor: variant ladder {:?} `{from}` -> `{to}`: last cycle {:.1} ms, budget {:.1} ms, predicted {} ===",
+                step.direction,
+                step.latency_ms,
+                step.budget_ms,
+                step.predicted_ms
+                    .map_or("unmeasured".to_string(), |p| format!("{p:.1} ms"))
+            );
         }
     }
 
@@ -465,7 +591,9 @@ impl Supervisor {
                     slowdown: fast_s,
                     demand,
                     waiting,
-                    movable: executor != usize::MAX && r.state == RoleState::Running,
+                    movable: executor != usize::MAX
+                        && r.state == RoleState::Running
+                        && r.swap.is_none(),
                 }
             })
             .collect();
