@@ -41,8 +41,11 @@
 //! lease writes to the autopilot; it publishes a [`ControllerLease`] on `controller/lease`
 //! at every poll (the role polls [`POLLS_PER_TICK`] times per control period), carrying its
 //! tracker's reference, anchor and hold latch. The other one is a standby: it keeps the
-//! hub's newest setpoints and the holder's `vehicle/telemetry`, and claims the lease
-//! (epoch + 1) when no lease has been heard for one control period; its tracker then adopts
+//! hub's newest setpoints and the holder's `vehicle/telemetry`, and claims the lease when no
+//! lease has been heard for one control period, with an epoch above every epoch it heard and
+//! at least the system's monotonic clock in milliseconds (so a controller that never heard
+//! the holder, which was stopped before it came up, still outranks every earlier claim when
+//! that holder resumes); its tracker then adopts
 //! the holder's last published state ([`Tracker::adopt`]) and it sends in the same poll: the
 //! autopilot sees at most a period and a poll without a setpoint, and the reference goes on
 //! from where it was, when the holder is killed or stopped. A holder that
@@ -192,7 +195,10 @@ impl LeaseArbiter {
         if heard_recently || now_ns < self.listen_until_ns {
             return LeaseChange::Kept;
         }
-        self.epoch = self.highest_seen.map_or(0, |h| h.epoch) + 1;
+        // above every claim heard, and above every claim made before now by anyone (the
+        // clock is CLOCK_MONOTONIC, one for every process of the host; a term lasts longer
+        // than a millisecond)
+        self.epoch = (self.highest_seen.map_or(0, |h| h.epoch) + 1).max(now_ns / 1_000_000);
         self.active = true;
         self.takeovers += 1;
         LeaseChange::TookOver
@@ -1380,7 +1386,11 @@ mod tests {
         assert!(!a.is_active());
         assert_eq!(a.decide(LISTEN), LeaseChange::TookOver);
         assert!(a.is_active());
-        assert_eq!((a.epoch(), a.takeovers()), (1, 1));
+        assert_eq!(
+            (a.epoch(), a.takeovers()),
+            (200, 1),
+            "the claim's time in ms"
+        );
         // its own samples are no competition
         let own = lease_of(&a, LISTEN);
         a.observe(&own, LISTEN + PERIOD);
@@ -1406,7 +1416,10 @@ mod tests {
         let last = t - 5 * MS;
         assert_eq!(standby.decide(last + PERIOD), LeaseChange::Kept);
         assert_eq!(standby.decide(last + PERIOD + 1), LeaseChange::TookOver);
-        assert_eq!(standby.epoch(), 2, "one more than the silent holder's");
+        assert!(
+            standby.epoch() > holder.epoch(),
+            "above the silent holder's"
+        );
         // the old holder wakes up (SIGCONT), hears the new term and steps down
         let now = last + PERIOD + 5 * MS;
         holder.observe(&lease_of(&standby, now), now);
@@ -1416,7 +1429,7 @@ mod tests {
         // and the new holder is not moved by the old term's late samples
         standby.observe(
             &ControllerLease {
-                epoch: 1,
+                epoch: 200,
                 rank: 1,
                 holder_pid: 10,
                 stamp_ns: now,
@@ -1429,12 +1442,30 @@ mod tests {
     }
 
     #[test]
+    fn a_claimant_that_never_heard_the_stopped_holder_still_outranks_it_when_it_resumes() {
+        // the holder claims, then is stopped before the restarted standby comes up: the
+        // standby hears nothing at all and claims on its own
+        let mut holder = LeaseArbiter::new(10, true, 0, PERIOD, LISTEN);
+        assert_eq!(holder.decide(LISTEN), LeaseChange::TookOver);
+        let start = LISTEN + 3 * PERIOD;
+        let mut standby = LeaseArbiter::new(11, false, start, PERIOD, 2 * LISTEN);
+        assert_eq!(standby.decide(start + 2 * LISTEN), LeaseChange::TookOver);
+        assert!(standby.epoch() > holder.epoch());
+        // SIGCONT: each hears the other; the stale holder steps down, the new one stays
+        let now = start + 2 * LISTEN + 5 * MS;
+        holder.observe(&lease_of(&standby, now), now);
+        standby.observe(&lease_of(&holder, now - MS), now);
+        assert_eq!(holder.decide(now), LeaseChange::SteppedDown);
+        assert_eq!(standby.decide(now), LeaseChange::Kept);
+    }
+
+    #[test]
     fn at_the_start_the_primary_wins_a_tie_and_the_standby_steps_down() {
         let mut primary = LeaseArbiter::new(20, true, 0, PERIOD, LISTEN);
         let mut standby = LeaseArbiter::new(30, false, 0, PERIOD, LISTEN);
         assert_eq!(primary.decide(LISTEN), LeaseChange::TookOver);
         assert_eq!(standby.decide(LISTEN), LeaseChange::TookOver);
-        assert_eq!((primary.epoch(), standby.epoch()), (1, 1));
+        assert_eq!((primary.epoch(), standby.epoch()), (200, 200));
         let t = LISTEN + 5 * MS;
         let (p, s) = (lease_of(&primary, t), lease_of(&standby, t));
         primary.observe(&s, t);
@@ -1449,14 +1480,14 @@ mod tests {
     fn a_higher_claim_heard_long_ago_does_not_unseat_the_holder() {
         let mut a = LeaseArbiter::new(10, true, 0, PERIOD, LISTEN);
         let ghost = ControllerLease {
-            epoch: 7,
+            epoch: 7000,
             stamp_ns: 5 * MS,
             holder_pid: 99,
             ..Default::default()
         };
         a.observe(&ghost, 5 * MS);
         assert_eq!(a.decide(LISTEN), LeaseChange::TookOver);
-        assert_eq!(a.epoch(), 8, "above every epoch heard");
+        assert_eq!(a.epoch(), 7001, "above every epoch heard");
         // a stamp from the future counts as now, not as forever
         let future = ControllerLease {
             epoch: 1,

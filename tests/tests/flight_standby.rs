@@ -44,13 +44,20 @@ fn the_standby_takes_the_lease_when_the_holder_is_killed_or_stopped() {
         out
     };
 
-    // wait for a holder that tracks the hub's setpoints: a lease taken over before the first
-    // setpoint has no reference to hand on (CI once killed the holder 0.6 s into the flight)
-    let holder = poll_until(Duration::from_secs(120), || {
+    // faults in flight, not during start-up: every role up and a decision committed (CI once
+    // killed the holder 0.6 s after the start, before the hub's first setpoint, and once
+    // stopped the other controller before its first heartbeat)
+    let board = poll_until(Duration::from_secs(120), || {
+        observer.read_status_board().ok().filter(|b| {
+            b.active_step >= 1 && b.roles().iter().all(|r| r.pid != 0 && r.heartbeats > 0)
+        })
+    })
+    .unwrap_or_else(|| panic!("the flight never came up: {:?}", run_output(&dir.0)));
+    // a holder that tracks the hub's setpoints: its reference is what a takeover adopts
+    let holder = poll_until(Duration::from_secs(60), || {
         newest(0).filter(|l| l.flags & aeris_schemas::LEASE_HAS_REFERENCE != 0)
     })
     .unwrap_or_else(|| panic!("no controller took the lease: {:?}", run_output(&dir.0)));
-    let board = observer.read_status_board().unwrap();
     let controllers = ["controller", "controller-standby"];
     let pids: Vec<u32> = controllers
         .iter()
@@ -65,16 +72,27 @@ fn the_standby_takes_the_lease_when_the_holder_is_killed_or_stopped() {
         unsafe { libc::kill(holder.holder_pid as i32, libc::SIGKILL) },
         0
     );
-    let second = poll_until(Duration::from_secs(60), || newest(holder.epoch))
-        .expect("no new lease after the holder was killed");
+    let second =
+        poll_until(Duration::from_secs(60), || newest(holder.epoch)).unwrap_or_else(|| {
+            panic!(
+                "no new lease after the holder was killed:\n{}\n{}",
+                run_output(&dir.0).1,
+                run_logs_tail(&dir.0, 30)
+            )
+        });
     assert_eq!(second.holder_pid, other, "{second:?}");
     assert!(second.flags & aeris_schemas::LEASE_HAS_REFERENCE != 0);
 
     // SIGSTOP the new holder: the restarted first controller takes over from it
     // SAFETY: as above.
     assert_eq!(unsafe { libc::kill(other as i32, libc::SIGSTOP) }, 0);
-    let third = poll_until(Duration::from_secs(60), || newest(second.epoch))
-        .expect("no new lease after the holder was stopped");
+    let third = poll_until(Duration::from_secs(60), || newest(second.epoch)).unwrap_or_else(|| {
+        panic!(
+            "no new lease after the holder was stopped:\n{}\n{}",
+            run_output(&dir.0).1,
+            run_logs_tail(&dir.0, 30)
+        )
+    });
     assert_ne!(third.holder_pid, other);
     assert_ne!(
         third.holder_pid, holder.holder_pid,
