@@ -1,8 +1,13 @@
 //! `aeris run` (the main job) and `aeris validate`.
 
 use crate::flight::{FlightMonitor, RunSummary};
+use aeris_orchestrator::executors::{
+    AcceleratorInfo, ExecutorOrigin, ExecutorRegistry, accelerators_from,
+};
+use aeris_orchestrator::plan_launch;
 use aeris_orchestrator::supervisor::{Supervisor, SupervisorEvent, SupervisorOptions};
 use aeris_orchestrator::workflow::Workflow;
+use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::signals;
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -64,14 +69,74 @@ pub fn validate(path: &Path) -> Result<ExitCode> {
     );
     for r in &w.roles {
         println!(
-            "  {:<11} {:<10} {:<15} executor {}",
+            "  {:<18} {:<10} {:<15} executor {}",
             r.name,
             r.kind,
             r.variant,
             r.executor.as_deref().unwrap_or("-")
         );
     }
+    // the executor registry a flight of it would start with
+    let online = CpuSet::of_task(0).unwrap_or_else(|_| CpuSet::available());
+    let plan =
+        plan_launch(&w, "validate", None, &online, || Ok(0)).context("resolving the executors")?;
+    let mut registry = ExecutorRegistry::discover(&plan.executors, &online);
+    if let Some((providers, accelerators)) = onnx_accelerators() {
+        registry.set_accelerators(providers, accelerators);
+    }
+    println!("executors:");
+    for e in registry.executors() {
+        let origin = match e.origin {
+            ExecutorOrigin::Declared => "declared",
+            ExecutorOrigin::Discovered => "discovered",
+        };
+        println!("  {:<18} CPUs {:<8} {origin}", e.name, e.cpus.to_string());
+    }
+    println!("{}", accelerator_line(&registry));
     Ok(ExitCode::SUCCESS)
+}
+
+/// What the provisioned ONNX Runtime reports: its execution providers and the accelerator
+/// devices they found; `None` when no runtime is provisioned (the flight needs none unless
+/// it runs model roles).
+pub fn onnx_accelerators() -> Option<(Vec<String>, Vec<AcceleratorInfo>)> {
+    let store = aeris_models::ModelStore::open(None).ok()?;
+    let report = aeris_models::execution_providers(&store).ok()?;
+    let devices: Vec<(String, String, String, u32)> = report
+        .devices
+        .iter()
+        .map(|d| {
+            (
+                d.provider.clone(),
+                d.kind.as_str().to_string(),
+                d.vendor.clone(),
+                d.device_id,
+            )
+        })
+        .collect();
+    Some((report.providers, accelerators_from(&devices)))
+}
+
+/// One line on the registry's accelerators, for logs.
+pub fn accelerator_line(registry: &ExecutorRegistry) -> String {
+    let Some(providers) = registry.providers() else {
+        return "accelerators: unknown (no provisioned ONNX Runtime to ask)".into();
+    };
+    let providers = providers
+        .iter()
+        .map(|p| p.strip_suffix("ExecutionProvider").unwrap_or(p))
+        .collect::<Vec<_>>()
+        .join(", ");
+    if registry.accelerators().is_empty() {
+        return format!("accelerators: none (ONNX Runtime providers: {providers})");
+    }
+    let list = registry
+        .accelerators()
+        .iter()
+        .map(|a| format!("{} ({} {} via {})", a.name, a.vendor, a.kind, a.provider))
+        .collect::<Vec<_>>()
+        .join(", ");
+    format!("accelerators: {list} (ONNX Runtime providers: {providers})")
 }
 
 /// Apply `--variant ROLE=VARIANT` overrides and `--max-duration` to a workflow.
@@ -183,6 +248,10 @@ pub fn fly(
     if let Some(on) = plan.dynamic {
         sup.set_dynamic(on);
     }
+    if let Some((providers, accelerators)) = onnx_accelerators() {
+        sup.set_accelerators(providers, accelerators);
+    }
+    eprintln!("aeris: {}", accelerator_line(sup.registry()));
     sup.wait_ready(Duration::from_secs(60))
         .context("waiting for every role's first heartbeat")?;
 

@@ -26,5 +26,5 @@ pub use detect::{DetectedBox, Detector, DetectorLayout};
 pub use embed::{EMBEDDING_DIM, TextEmbedder, cosine};
 pub use error::ModelError;
 pub use ocr::{OcrReader, TextRegion};
-pub use onnx::OnnxModel;
+pub use onnx::{DeviceKind, OnnxModel, ProviderDevice, ProviderReport, execution_providers};
 pub use store::ModelStore;

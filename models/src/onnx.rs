@@ -37,6 +37,107 @@ pub fn environment(store: &ModelStore) -> Result<&'static Environment, ModelErro
     })
 }
 
+/// What kind of hardware an execution provider device is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DeviceKind {
+    /// A CPU.
+    Cpu,
+    /// A GPU.
+    Gpu,
+    /// A neural processing unit.
+    Npu,
+    /// An FPGA.
+    Fpga,
+}
+
+impl DeviceKind {
+    /// Lower-case name (`cpu`, `gpu`, `npu`, `fpga`).
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            DeviceKind::Cpu => "cpu",
+            DeviceKind::Gpu => "gpu",
+            DeviceKind::Npu => "npu",
+            DeviceKind::Fpga => "fpga",
+        }
+    }
+}
+
+/// One device an execution provider of the loaded runtime offers.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ProviderDevice {
+    /// The execution provider (`CPUExecutionProvider`, `CUDAExecutionProvider`, ...).
+    pub provider: String,
+    /// The hardware.
+    pub kind: DeviceKind,
+    /// Its vendor as ONNX Runtime reports it.
+    pub vendor: String,
+    /// Its device id.
+    pub device_id: u32,
+}
+
+/// What the loaded ONNX Runtime can run models on.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct ProviderReport {
+    /// Execution providers compiled into the library, in ONNX Runtime's priority order
+    /// (`GetAvailableProviders`: compiled in, not necessarily usable on this machine).
+    pub providers: Vec<String>,
+    /// Devices the providers found on this machine (`GetEpDevices`).
+    pub devices: Vec<ProviderDevice>,
+}
+
+/// Ask the ONNX Runtime in `store` which execution providers it has and which devices they
+/// found. Loads the runtime (once per process) if no model did yet.
+pub fn execution_providers(store: &ModelStore) -> Result<ProviderReport, ModelError> {
+    let env = environment(store)?;
+    let runtime = |reason: String| ModelError::Runtime {
+        path: store.root().join(RUNTIME_LIBRARY),
+        reason,
+    };
+    let api = ort::api();
+    let mut names: *mut *mut core::ffi::c_char = std::ptr::null_mut();
+    let mut count: core::ffi::c_int = 0;
+    // SAFETY: the runtime is loaded (`environment` succeeded); both out-pointers are valid
+    // for writes. On success the runtime owns the array until ReleaseAvailableProviders.
+    let status = unsafe { (api.GetAvailableProviders)(&mut names, &mut count) };
+    if !status.0.is_null() {
+        // SAFETY: a non-null status from the call above, released once.
+        unsafe { (api.ReleaseStatus)(status.0) };
+        return Err(runtime("GetAvailableProviders failed".into()));
+    }
+    let mut providers = Vec::new();
+    if !names.is_null() {
+        for i in 0..usize::try_from(count).unwrap_or(0) {
+            // SAFETY: `names` holds `count` NUL-terminated strings owned by the runtime.
+            let name = unsafe { std::ffi::CStr::from_ptr(*names.add(i)) };
+            providers.push(name.to_string_lossy().into_owned());
+        }
+        // SAFETY: the array and count the runtime gave above, released once.
+        let status = unsafe { (api.ReleaseAvailableProviders)(names, count) };
+        if !status.0.is_null() {
+            // SAFETY: as above.
+            unsafe { (api.ReleaseStatus)(status.0) };
+        }
+    }
+    let devices = env
+        .devices()
+        .filter_map(|d| {
+            let hw = d.hardware_device();
+            Some(ProviderDevice {
+                provider: d.ep().ok()?.to_string(),
+                kind: match hw.ty() {
+                    ort::memory::DeviceType::CPU => DeviceKind::Cpu,
+                    ort::memory::DeviceType::GPU => DeviceKind::Gpu,
+                    ort::memory::DeviceType::NPU => DeviceKind::Npu,
+                    ort::memory::DeviceType::FPGA => DeviceKind::Fpga,
+                },
+                vendor: hw.vendor().unwrap_or("unknown").to_string(),
+                device_id: hw.id(),
+            })
+        })
+        .collect();
+    Ok(ProviderReport { providers, devices })
+}
+
 /// One ONNX model session and the name it is reported under.
 pub struct OnnxModel {
     session: Session,

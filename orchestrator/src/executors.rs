@@ -41,6 +41,51 @@ impl ExecutorInfo {
     }
 }
 
+/// An accelerator an ONNX Runtime execution provider offers on this machine (a GPU or NPU
+/// device). Model roles reach it through that provider, so moving a role onto it means a
+/// restart with the provider registered, not a live CPU move.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct AcceleratorInfo {
+    /// Name: the provider's short name and the device id (`cuda0`, `tensorrt0`, `qnn1`).
+    pub name: String,
+    /// The execution provider (`CUDAExecutionProvider`).
+    pub provider: String,
+    /// `gpu`, `npu` or `fpga`.
+    pub kind: String,
+    /// The vendor ONNX Runtime reports.
+    pub vendor: String,
+    /// The device id.
+    pub device_id: u32,
+}
+
+/// The accelerators among execution-provider devices `(provider, kind, vendor, device id)`
+/// as ONNX Runtime reports them: every device that is not a CPU (CPUs are the CPU-set
+/// executors already), in the order given, without duplicates.
+pub fn accelerators_from(devices: &[(String, String, String, u32)]) -> Vec<AcceleratorInfo> {
+    let mut out: Vec<AcceleratorInfo> = Vec::new();
+    for (provider, kind, vendor, id) in devices {
+        if kind.eq_ignore_ascii_case("cpu") {
+            continue;
+        }
+        let short = provider
+            .strip_suffix("ExecutionProvider")
+            .unwrap_or(provider)
+            .to_ascii_lowercase();
+        let name = format!("{short}{id}");
+        if out.iter().any(|a| a.name == name) {
+            continue;
+        }
+        out.push(AcceleratorInfo {
+            name,
+            provider: provider.clone(),
+            kind: kind.to_ascii_lowercase(),
+            vendor: vendor.clone(),
+            device_id: *id,
+        });
+    }
+    out
+}
+
 /// Busy and total jiffies of one CPU, from `/proc/stat`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct CpuTicks {
@@ -166,6 +211,8 @@ pub fn process_threads(pid: u32) -> std::io::Result<Vec<i32>> {
 #[derive(Debug, Clone)]
 pub struct ExecutorRegistry {
     executors: Vec<ExecutorInfo>,
+    accelerators: Vec<AcceleratorInfo>,
+    providers: Option<Vec<String>>,
     last: BTreeMap<usize, CpuTicks>,
     pressure: Option<f64>,
 }
@@ -199,6 +246,8 @@ impl ExecutorRegistry {
         }
         Self {
             executors,
+            accelerators: Vec::new(),
+            providers: None,
             last: read_proc_stat(),
             pressure: cpu_pressure(),
         }
@@ -207,6 +256,24 @@ impl ExecutorRegistry {
     /// Every executor.
     pub fn executors(&self) -> &[ExecutorInfo] {
         &self.executors
+    }
+
+    /// Record what ONNX Runtime reported: its execution providers and the accelerators they
+    /// found ([`accelerators_from`]).
+    pub fn set_accelerators(&mut self, providers: Vec<String>, accelerators: Vec<AcceleratorInfo>) {
+        self.providers = Some(providers);
+        self.accelerators = accelerators;
+    }
+
+    /// The accelerators ONNX Runtime reported (empty when none, or not asked).
+    pub fn accelerators(&self) -> &[AcceleratorInfo] {
+        &self.accelerators
+    }
+
+    /// The execution providers ONNX Runtime reported; `None` when it was not asked (no
+    /// provisioned runtime).
+    pub fn providers(&self) -> Option<&[String]> {
+        self.providers.as_deref()
     }
 
     /// The executor named `name`.
@@ -253,6 +320,33 @@ impl ExecutorRegistry {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn accelerators_are_the_non_cpu_devices_named_by_provider_and_id() {
+        let d =
+            |p: &str, k: &str, v: &str, id: u32| (p.to_string(), k.to_string(), v.to_string(), id);
+        let devices = [
+            d("CPUExecutionProvider", "cpu", "AMD", 0),
+            d("CUDAExecutionProvider", "gpu", "NVIDIA", 0),
+            d("CUDAExecutionProvider", "gpu", "NVIDIA", 1),
+            d("CUDAExecutionProvider", "gpu", "NVIDIA", 1),
+            d("QNNExecutionProvider", "NPU", "Qualcomm", 0),
+        ];
+        let a = accelerators_from(&devices);
+        let names: Vec<&str> = a.iter().map(|a| a.name.as_str()).collect();
+        assert_eq!(names, ["cuda0", "cuda1", "qnn0"]);
+        assert_eq!(a[2].kind, "npu");
+        assert_eq!(a[0].provider, "CUDAExecutionProvider");
+        assert!(
+            accelerators_from(&devices[..1]).is_empty(),
+            "a CPU is no accelerator"
+        );
+        let mut r = ExecutorRegistry::discover(&[], &CpuSet::parse("0").unwrap());
+        assert_eq!(r.providers(), None);
+        r.set_accelerators(vec!["CPUExecutionProvider".into()], a.clone());
+        assert_eq!(r.accelerators(), &a[..]);
+        assert_eq!(r.providers().unwrap(), ["CPUExecutionProvider"]);
+    }
 
     const STAT: &str = "cpu  10 0 10 80 0 0 0 0 0 0\n\
                         cpu0 5 0 5 40 0 0 0 0 0 0\n\

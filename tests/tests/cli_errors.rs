@@ -76,3 +76,36 @@ fn inspecting_a_flight_that_does_not_exist_is_a_clear_error() {
     assert_eq!(code, Some(1), "{stderr}");
     assert!(stderr.contains("unknown topic"), "{stderr}");
 }
+
+#[test]
+fn validate_lists_the_executor_registry_with_what_onnx_runtime_offers() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../workflows/models.toml");
+    let out = Command::new(aeris_bin())
+        .args(["validate", path.to_str().unwrap()])
+        .output()
+        .expect("run aeris");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}");
+    // the declared CPU-set executors, resolved
+    let executors = stdout
+        .split("executors:")
+        .nth(1)
+        .expect("an executors section");
+    for name in ["control", "perception", "reasoning"] {
+        assert!(
+            executors
+                .lines()
+                .any(|l| l.trim_start().starts_with(name) && l.contains("declared")),
+            "{name}: {stdout}"
+        );
+    }
+    // the provisioned runtime was asked: its CPU provider is always compiled in
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("accelerators:"))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    assert!(
+        line.contains("ONNX Runtime providers:") && line.contains("CPU"),
+        "{line}"
+    );
+}

@@ -58,6 +58,16 @@ impl Supervisor {
         &self.registry
     }
 
+    /// Record the accelerators ONNX Runtime reported in the executor registry (see
+    /// [`crate::executors::accelerators_from`]).
+    pub fn set_accelerators(
+        &mut self,
+        providers: Vec<String>,
+        accelerators: Vec<crate::executors::AcceleratorInfo>,
+    ) {
+        self.registry.set_accelerators(providers, accelerators);
+    }
+
     /// The flight's scheduling settings.
     pub fn scheduling(&self) -> &SchedulingSpec {
         &self.scheduling
