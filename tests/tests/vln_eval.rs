@@ -210,7 +210,10 @@ fn bad_arguments_are_clear_errors() {
             vec!["--baseline", "oracle", "--episodes", "0"],
             "--episodes must be at least 1",
         ),
-        (vec!["--single-slm"], "--single-slm is not available"),
+        (
+            vec!["--baseline", "random", "--single-slm"],
+            "apply to the AERIS agent, not to a --baseline",
+        ),
         (
             vec!["--baseline", "random", "--no-ds"],
             "apply to the AERIS agent, not to a --baseline",
