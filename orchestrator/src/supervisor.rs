@@ -1709,6 +1709,21 @@ impl Supervisor {
         variant: &str,
         ready_timeout: Duration,
     ) -> Result<u32, SwapError> {
+        self.start_swap(role, variant, ready_timeout, true)
+    }
+
+    /// [`Supervisor::begin_swap`], with the new process loading idle (`load_idle`) or at
+    /// the normal policy. The variant ladder loads a lighter variant at the normal policy:
+    /// the role it replaces already misses its budget, so the CPUs are saturated, and an
+    /// idle load gets no CPU at all (measured: SmolLM2 stepping in for Gemma-3 on 2 busy
+    /// CPUs was not ready within 90 s and the step was rolled back).
+    pub(crate) fn start_swap(
+        &mut self,
+        role: &str,
+        variant: &str,
+        ready_timeout: Duration,
+        load_idle: bool,
+    ) -> Result<u32, SwapError> {
         let Some(i) = self.roles.iter().position(|r| r.name == role) else {
             return Err(SwapError::UnknownRole {
                 role: role.to_string(),
@@ -1774,7 +1789,7 @@ impl Supervisor {
         };
         let log = open_log(&log_path, &header)
             .map_err(|e| cleanup(format!("{}: {e}", log_path.display())))?;
-        let policy = if may_leave_idle() {
+        let policy = if load_idle && may_leave_idle() {
             LoadPolicy::IdleUntilReady
         } else {
             LoadPolicy::Normal

@@ -222,7 +222,16 @@ impl Supervisor {
         r.sched.clear();
         r.recent = LatencyWindow::new(RECENT_CYCLES);
         self.policy.settle(i);
-        self.ladder.settle(i);
+        // a move predicted to cure the role gets its chance before the ladder judges it
+        // again; a relief move (still predicted over budget) does not: the dense VLN episode
+        // moved a 5 s Gemma-3 reasoner 15 times and every move reset the ladder's streak,
+        // so it never stepped down and 80 % of the deadlines were missed
+        if trigger
+            .as_ref()
+            .is_none_or(|t| t.predicted_ms <= t.budget_ms)
+        {
+            self.ladder.settle(i);
+        }
         self.migrations += 1;
         let m = Migration {
             role: role.to_string(),
@@ -459,7 +468,10 @@ impl Supervisor {
                 continue;
             };
             let (name, from, to) = (role.name.clone(), from.clone(), to.clone());
-            match self.begin_swap(&name, &to, DEFAULT_SWAP_READY_TIMEOUT) {
+            // down: the running variant already misses its budget on saturated CPUs, where
+            // an idle load would never finish; up: the role fits, load on idle time only
+            let load_idle = step.direction == StepDirection::Up;
+            match self.start_swap(&name, &to, DEFAULT_SWAP_READY_TIMEOUT, load_idle) {
                 Ok(_) => {
                     self.variant_steps += 1;
                     self.log_variant_step(&name, &from, &to, &step);
