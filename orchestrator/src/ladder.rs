@@ -175,11 +175,6 @@ impl VariantLadder {
         Self { config, roles }
     }
 
-    /// The settings.
-    pub fn config(&self) -> &LadderConfig {
-        &self.config
-    }
-
     /// The rung role `r` runs (`None`: no ladder, or a variant outside it).
     pub fn rung(&self, r: usize) -> Option<usize> {
         self.roles.get(r)?.as_ref()?.at

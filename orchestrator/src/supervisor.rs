@@ -905,10 +905,11 @@ impl RoleRuntime {
         // heartbeat repeats the last ones and must not be counted twice.
         let working = matches!(status, RoleStatus::Running | RoleStatus::Degraded);
         if working && hb.worked == 1 {
-            self.window.push(hb.cycle_latency_ns as f64 / 1e6);
-            self.recent.push(hb.cycle_latency_ns as f64 / 1e6);
+            let ms = hb.cycle_latency_ns as f64 / 1e6;
+            self.window.push(ms);
+            self.recent.push(ms);
             self.worked_cycles += 1;
-            self.last_cycle_ms = Some(hb.cycle_latency_ns as f64 / 1e6);
+            self.last_cycle_ms = Some(ms);
             self.latency_ms = self.window.percentiles([50.0, 95.0, 99.0]);
         }
         self.running |= working;
@@ -1248,6 +1249,15 @@ impl Supervisor {
                     .insert("state_file".into(), path.display().to_string().into());
             }
         }
+        // each role's ladder length and starting rung (its declared variant)
+        let ladders: Vec<(usize, usize)> = plan
+            .roles
+            .iter()
+            .map(|r| {
+                let start = r.ladder.iter().position(|v| *v == r.spec.variant);
+                (r.ladder.len(), start.unwrap_or(usize::MAX))
+            })
+            .collect();
         let bus_err = |source| SupervisorError::Bus {
             flight: flight.clone(),
             source,
@@ -1293,7 +1303,7 @@ impl Supervisor {
             bus,
             registry: ExecutorRegistry::discover(&plan.executors, &online),
             policy: RebindPolicy::new(rebind_config(&scheduling), plan.roles.len()),
-            ladder: VariantLadder::new(ladder_config(&scheduling), &[]),
+            ladder: VariantLadder::new(ladder_config(&scheduling), &ladders),
             variant_steps: 0,
             scheduling,
             idle_heartbeat_ms,
@@ -1306,15 +1316,6 @@ impl Supervisor {
         for planned in plan.roles {
             sup.add_role(planned, &roles_dir, &logs_dir)?;
         }
-        let ladders: Vec<(usize, usize)> = sup
-            .roles
-            .iter()
-            .map(|r| {
-                let start = r.ladder.iter().position(|v| *v == r.variant);
-                (r.ladder.len(), start.unwrap_or(usize::MAX))
-            })
-            .collect();
-        sup.ladder = VariantLadder::new(ladder_config(&sup.scheduling), &ladders);
         for i in 0..sup.roles.len() {
             let pid = sup.spawn(i, "start")?;
             sup.pending.push(SupervisorEvent::RoleStarted {

@@ -83,21 +83,9 @@ impl Supervisor {
         self.migrations
     }
 
-    /// Turn the variant ladder on or off (off: every role keeps its declared variant, the
-    /// Single-SLM ablation).
-    pub fn set_adapt_variants(&mut self, on: bool) {
-        self.scheduling.adapt_variants = on;
-    }
-
     /// Steps the variant ladder started so far.
     pub fn total_variant_steps(&self) -> u32 {
         self.variant_steps
-    }
-
-    /// The rung of its ladder role `role` runs (0: the most capable), `None` without one.
-    pub fn ladder_rung(&self, role: &str) -> Option<usize> {
-        let i = self.roles.iter().position(|r| r.name == role)?;
-        self.ladder.rung(i)
     }
 
     /// Move role `role`'s running process, live, to `target`: an executor name or a CPU
