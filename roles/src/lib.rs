@@ -19,6 +19,7 @@ pub mod cues;
 pub mod detector;
 pub mod grounding;
 pub mod heartbeat_clock;
+pub mod height_map;
 pub mod language;
 pub mod occupancy;
 pub mod perception;

@@ -19,6 +19,7 @@ use crate::grounding::{
     LandmarkPhrase, Relation, SignReading, height_of, sight, sign_reading, turn_of,
 };
 use crate::heartbeat_clock::{Basis, HeartbeatClock};
+use crate::height_map::HeightMap;
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::spec::CameraSpec;
 use aeris_runtime::{
@@ -56,13 +57,16 @@ const READ_RANGE_M: f32 = 30.0;
 const SAME_PLACE_M: f32 = 15.0;
 /// Length (m) of a leg toward a landmark seen beyond the depth sensor's range.
 const APPROACH_LEG_M: f32 = 30.0;
-/// "land next to X" looks for clear ground from this far (m) short of X's seen surface,
-/// backing off toward the vehicle: the nearest clear ground on the approach side.
-pub const NEXT_TO_M: f32 = 4.0;
 /// Heartbeats a landing waits over the stand-off point for clear ground to show.
 const TOUCHDOWN_WAIT: u32 = 3;
 /// Half-side (m) of the square around a touchdown point that must hold no obstacle.
 const TOUCHDOWN_CLEAR_M: f32 = 4.0;
+/// A touchdown chosen before is kept unless a point this much (m) nearer to where the
+/// step began shows up (and always once the vehicle is over it).
+const TOUCHDOWN_KEEP_M: f32 = 4.0;
+/// With no touchdown beside the landmark, a landing takes the nearest clear ground within
+/// this (m) of its stand-off point rather than come down on whatever is under it.
+const FALLBACK_CLEAR_M: f32 = 30.0;
 /// Below the transit height by more than this (m), a grounded step climbs in place first.
 const CLIMB_FIRST_M: f32 = 3.0;
 /// Height (m) kept above the obstacle tops seen on the way.
@@ -121,9 +125,12 @@ struct Search {
     strike: Option<([f32; 2], u8)>,
     /// The quoted text was read close to the landmark found.
     confirmed: bool,
-    /// Where a "land next to" step touches down: short of the landmark, on ground the
-    /// occupancy grid shows clear.
+    /// Where a "land next to" step touches down: beside the landmark's footprint, on
+    /// ground the flight has seen clear ([`HeightMap::next_to`]).
     touchdown: Option<[f32; 2]>,
+    /// Where the vehicle was when the step began: "land next to X" comes down on the side
+    /// of X facing it, as the instruction's author would picture it.
+    origin: Option<[f32; 2]>,
     /// Heartbeats waited over the stand-off point for a clear touchdown.
     waited: u32,
     /// An occupancy grid came with S_t during this step (else there is no clear ground
@@ -161,6 +168,9 @@ pub struct Planner {
     rejections: u64,
     /// The latest rejected sign: its ground point and what it read.
     last_rejection: Option<([f32; 2], FixedText<CUE_MAX>)>,
+    /// Every occupancy grid of the flight, in the world frame: where a landing may come
+    /// down (the ego grid does not see under the vehicle).
+    map: HeightMap,
 }
 
 impl Planner {
@@ -213,6 +223,10 @@ impl Planner {
             visited: [None; MAX_SUBGOALS],
             rejections: 0,
             last_rejection: None,
+            map: HeightMap::covering(
+                [l.geofence_min[0], l.geofence_min[1]],
+                [l.geofence_max[0], l.geofence_max[1]],
+            ),
         })
     }
 
@@ -261,8 +275,13 @@ impl Planner {
                     return false;
                 };
                 let d = ground_distance([position[0], position[1]], p);
+                let at_touchdown = self.search.touchdown.is_some_and(|t| {
+                    ground_distance([position[0], position[1]], t) <= GROUNDED_REACH_M
+                });
                 return match (step.action, phrase.relation) {
-                    (ActionMode::Land, _) => landed && d <= STANDOFF_M + GROUNDED_REACH_M,
+                    (ActionMode::Land, _) => {
+                        landed && (at_touchdown || d <= STANDOFF_M + GROUNDED_REACH_M)
+                    }
                     (_, Relation::Over) => d <= GROUNDED_REACH_M,
                     _ => d <= STANDOFF_M + GROUNDED_REACH_M,
                 };
@@ -292,6 +311,9 @@ impl Planner {
         landed: bool,
         state: Option<&PerceptionState>,
     ) -> Decision {
+        if let Some(s) = state {
+            self.map.absorb(&s.occupancy);
+        }
         while let Some(step) = self.steps[self.current] {
             if let StepTarget::Find(phrase) = step.target {
                 self.observe(&phrase, position, state);
@@ -370,6 +392,7 @@ impl Planner {
         position: [f32; 3],
         state: Option<&PerceptionState>,
     ) {
+        self.search.origin.get_or_insert([position[0], position[1]]);
         let Some(s) = state else {
             return;
         };
@@ -450,12 +473,19 @@ impl Planner {
         }
         self.search.grid_seen |= s.occupancy.is_present();
         if let (Some(p), Relation::NextTo) = (self.search.found, phrase.relation) {
-            let standoff = short_of([position[0], position[1]], p, NEXT_TO_M);
-            // kept from the last frame that showed clear ground there: the grid does not
-            // see under the vehicle, so from above a roof would read unknown
-            if let Some(t) = clear_touchdown(&s.occupancy, standoff, [position[0], position[1]]) {
-                self.search.touchdown = Some(t);
-            }
+            let here = [position[0], position[1]];
+            let from = self.search.origin.unwrap_or(here);
+            // a better point replaces the one chosen, except once the vehicle is over it
+            let previous = self.search.touchdown;
+            let over = previous.is_some_and(|t| ground_distance(here, t) <= GROUNDED_REACH_M);
+            let keep_m = if over {
+                f32::INFINITY
+            } else {
+                TOUCHDOWN_KEEP_M
+            };
+            self.search.touchdown = self
+                .map
+                .next_to(p, from, TOUCHDOWN_CLEAR_M, previous, keep_m);
         }
         let goal = self
             .search
@@ -492,10 +522,12 @@ impl Planner {
             }
             let goal = match phrase.relation {
                 Relation::Over => p,
-                Relation::NextTo => self
-                    .search
-                    .touchdown
-                    .unwrap_or_else(|| short_of(here, p, STANDOFF_M)),
+                Relation::NextTo => self.search.touchdown.unwrap_or_else(|| {
+                    let standoff = short_of(here, p, STANDOFF_M);
+                    self.map
+                        .nearest_clear(standoff, FALLBACK_CLEAR_M, TOUCHDOWN_CLEAR_M)
+                        .unwrap_or(standoff)
+                }),
                 Relation::To => short_of(here, p, STANDOFF_M),
             };
             // no clear ground seen next to it yet: wait over the stand-off point (the grid
@@ -598,54 +630,6 @@ fn short_of(here: [f32; 2], p: [f32; 2], standoff: f32) -> [f32; 2] {
         return here;
     }
     [p[0] + dn / d * standoff, p[1] + de / d * standoff]
-}
-
-/// A touchdown point near `standoff` on ground the grid shows clear: the first point, from
-/// `standoff` backing off toward `from` in 2 m steps (up to 30 m), whose cells within
-/// [`TOUCHDOWN_CLEAR_M`] are all observed free ground; `None` when there is none (or no
-/// grid).
-fn clear_touchdown(
-    grid: &aeris_schemas::OccupancyGrid,
-    standoff: [f32; 2],
-    from: [f32; 2],
-) -> Option<[f32; 2]> {
-    if !grid.is_present() {
-        return None;
-    }
-    let clear = |p: [f32; 2]| {
-        let r = TOUCHDOWN_CLEAR_M;
-        let mut dn = -r;
-        while dn <= r {
-            let mut de = -r;
-            while de <= r {
-                if grid
-                    .height_at([p[0] + dn, p[1] + de])
-                    .is_none_or(|h| h > 0.5)
-                {
-                    return false;
-                }
-                de += 1.0;
-            }
-            dn += 1.0;
-        }
-        true
-    };
-    let (dn, de) = (from[0] - standoff[0], from[1] - standoff[1]);
-    let d = dn.hypot(de);
-    let (un, ue) = if d > 1e-3 {
-        (dn / d, de / d)
-    } else {
-        (0.0, 0.0)
-    };
-    let mut back = 0.0;
-    while back <= 30.0 {
-        let p = [standoff[0] + un * back, standoff[1] + ue * back];
-        if clear(p) {
-            return Some(p);
-        }
-        back += 2.0;
-    }
-    None
 }
 
 /// The height to fly toward `goal` at: `previous`, raised to clear by
@@ -1450,33 +1434,89 @@ mod tests {
     }
 
     #[test]
-    fn a_touchdown_on_a_roof_backs_off_to_clear_ground() {
-        let mut g = aeris_schemas::OccupancyGrid {
-            resolution_m: 2.0,
-            cells: [0; aeris_schemas::OCCUPANCY_CELLS],
-            ..Default::default()
+    fn a_landing_next_to_a_building_comes_down_beside_it_never_on_its_roof() {
+        let m = vln_mission();
+        let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
+        p.current = 2;
+        p.steps[2] = Some(Step {
+            action: ActionMode::Land,
+            target: StepTarget::Find(
+                LandmarkPhrase::parse("land next to the blue-roofed building").unwrap(),
+            ),
+            turn: 0.0,
+        });
+        // a 40 m building of 25 m at N, E in [100, 140] (cells of 2 m, as perception's)
+        let grid = |origin: [f32; 2], under_unknown: bool| {
+            let mut g = aeris_schemas::OccupancyGrid {
+                origin,
+                resolution_m: 2.0,
+                ..Default::default()
+            };
+            for (i, cell) in g.cells.iter_mut().enumerate() {
+                let half = (aeris_schemas::OCCUPANCY_SIDE / 2) as f32;
+                let n = origin[0] + ((i / aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
+                let e = origin[1] + ((i % aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
+                let roof = (100.0..140.0).contains(&n) && (100.0..140.0).contains(&e);
+                let under = (n - origin[0]).hypot(e - origin[1]) < 30.0;
+                *cell = if under && under_unknown {
+                    aeris_schemas::OCCUPANCY_UNKNOWN
+                } else if roof {
+                    25
+                } else {
+                    0
+                };
+            }
+            g
         };
-        // a 12 m building covering N 10..20
-        for n in (10..20).step_by(2) {
-            for e in (-10..10).step_by(2) {
-                let c = g.cell_of([n as f32 + 0.5, e as f32 + 0.5]).unwrap();
-                g.cells[c] = 12;
+        // seen from afar, high, looking south-east: the range reads the roof's far side
+        let at = [70.0, 70.0, 50.0];
+        let se = core::f32::consts::FRAC_PI_4;
+        let mut s = seen("blue roof", [0.45, 0.45, 0.1, 0.1], 90.0, at, se);
+        s.occupancy = grid([70.0, 70.0], true);
+        let d = p.decide(at, se, false, Some(&s));
+        let on_roof =
+            |t: [f32; 3]| (100.0..140.0).contains(&t[0]) && (100.0..140.0).contains(&t[1]);
+        let found = p.search.found.unwrap();
+        assert!(found[0] > 120.0 && found[1] > 120.0, "{found:?}");
+        assert!(!on_roof(d.target), "{:?}", d.target);
+        let toward = |t: [f32; 3], c: [f32; 2]| (t[0] - c[0]).hypot(t[1] - c[1]);
+        assert!(
+            toward(d.target, [70.0, 70.0]) < toward([120.0, 120.0, 0.0], [70.0, 70.0]) - 10.0,
+            "the approach side: {:?}",
+            d.target
+        );
+        assert_eq!(ActionMode::from_u8(d.action), Some(ActionMode::Land));
+        // over the roof's edge now, the camera sees only the roof ahead and nothing below:
+        // the touchdown stays where the flight saw clear ground
+        let over = [104.0, 104.0, 40.0];
+        let mut s2 = seen("blue roof", [0.45, 0.6, 0.1, 0.1], 30.0, over, se);
+        s2.occupancy = grid([104.0, 104.0], true);
+        let d2 = p.decide(over, se, false, Some(&s2));
+        assert!(!on_roof(d2.target), "{:?}", d2.target);
+        assert_eq!((d2.target[0], d2.target[1]), (d.target[0], d.target[1]));
+        // a planner that never saw clear ground beside it (only 16 m off, farther than
+        // "next to" reaches) lands there rather than on the roof under it
+        let mut q = Planner::new(&m, &CameraSpec::default()).unwrap();
+        q.current = 2;
+        q.steps[2] = p.steps[2];
+        let mut roof_only = grid([120.0, 120.0], false);
+        for (i, cell) in roof_only.cells.iter_mut().enumerate() {
+            let half = (aeris_schemas::OCCUPANCY_SIDE / 2) as f32;
+            let n = 120.0 + ((i / aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
+            if *cell == 0 && n > 88.0 {
+                *cell = aeris_schemas::OCCUPANCY_UNKNOWN;
             }
         }
-        let p = clear_touchdown(&g, [15.0, 0.0], [40.0, 0.0]).unwrap();
-        assert!(p[0] >= 24.0 && p[1] == 0.0, "{p:?}");
-        assert_eq!(
-            clear_touchdown(&g, [40.0, 0.0], [50.0, 0.0]),
-            Some([40.0, 0.0])
-        );
-        // unobserved ground is not clear ground
-        let c = g.cell_of([41.0, 1.0]).unwrap();
-        g.cells[c] = aeris_schemas::OCCUPANCY_UNKNOWN;
-        assert_ne!(
-            clear_touchdown(&g, [40.0, 0.0], [50.0, 0.0]),
-            Some([40.0, 0.0])
-        );
-        let none = aeris_schemas::OccupancyGrid::default();
-        assert_eq!(clear_touchdown(&none, [15.0, 0.0], [40.0, 0.0]), None);
+        let mut s3 = seen("blue roof", [0.45, 0.45, 0.1, 0.1], 20.0, over, se);
+        s3.occupancy = roof_only;
+        for _ in 0..(TOUCHDOWN_WAIT + 2) {
+            let d3 = q.decide(over, se, false, Some(&s3));
+            assert!(
+                !on_roof(d3.target) && d3.target[0] <= 88.0,
+                "{:?}",
+                d3.target
+            );
+        }
+        assert_eq!(q.search.touchdown, None);
     }
 }
