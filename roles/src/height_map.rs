@@ -288,6 +288,54 @@ impl HeightMap {
         }
     }
 
+    /// The highest top the map knows within `around` (m) of `from` and along the way to
+    /// `to` (up to `ahead` m of it, `half_width` m to either side), and whether it knows
+    /// every cell there (`false` also when one lies outside the map or an input is not
+    /// finite).
+    pub fn top_along(
+        &self,
+        from: [f32; 2],
+        to: [f32; 2],
+        half_width: f32,
+        around: f32,
+        ahead: f32,
+    ) -> (f32, bool) {
+        let (mut top, mut complete) = (0.0f32, true);
+        let mut look = |q: [f32; 2]| match self.height_at(q) {
+            Some(h) => top = top.max(h),
+            None => complete = false,
+        };
+        let steps = (around / CELL_M).ceil() as i32;
+        for i in -steps..=steps {
+            for j in -steps..=steps {
+                let (dn, de) = (i as f32 * CELL_M, j as f32 * CELL_M);
+                if dn.hypot(de) <= around {
+                    look([from[0] + dn, from[1] + de]);
+                }
+            }
+        }
+        let (dn, de) = (to[0] - from[0], to[1] - from[1]);
+        let dist = dn.hypot(de);
+        if !(dist.is_finite() && ahead.is_finite()) {
+            return (top, false);
+        }
+        if dist >= 1e-3 {
+            let (un, ue) = (dn / dist, de / dist);
+            // to the end of the way, and a corridor's width past it
+            let len = (dist + half_width).min(ahead);
+            let sides = (half_width / CELL_M).ceil() as i32;
+            let mut t = 0.0;
+            while t <= len {
+                for k in -sides..=sides {
+                    let side = k as f32 * CELL_M;
+                    look([from[0] + un * t - ue * side, from[1] + ue * t + un * side]);
+                }
+                t += CELL_M;
+            }
+        }
+        (top, complete)
+    }
+
     /// The centre of the cell nearest to `p`, within `within` (m), whose surroundings
     /// within `clear_m` are observed free ground.
     pub fn nearest_clear(&self, p: [f32; 2], within: f32, clear_m: f32) -> Option<[f32; 2]> {
@@ -433,6 +481,32 @@ mod tests {
             (92.0..=98.0).contains(&q[0]) && (q[1] - 110.0).abs() <= 2.0,
             "{q:?}"
         );
+    }
+
+    #[test]
+    fn the_top_along_a_way_needs_every_cell_observed() {
+        let m = map_with_building();
+        // from the north-west toward the building: its roof is on the way
+        assert_eq!(
+            m.top_along([60.0, 120.0], [130.0, 120.0], 4.0, 8.0, 80.0),
+            (25.0, true)
+        );
+        // only 30 m of the way: free ground
+        assert_eq!(
+            m.top_along([50.0, 120.0], [130.0, 120.0], 4.0, 8.0, 30.0),
+            (0.0, true)
+        );
+        // a way that ends at the wall still sees it
+        assert_eq!(
+            m.top_along([60.0, 120.0], [99.0, 120.0], 4.0, 0.0, 80.0).0,
+            25.0
+        );
+        // around the vehicle the map saw nothing (it was under it)
+        assert_eq!(
+            m.top_along([80.0, 80.0], [80.0, 0.0], 4.0, 8.0, 30.0),
+            (0.0, false)
+        );
+        assert!(!m.top_along([80.0, 80.0], [f32::NAN, 0.0], 4.0, 0.0, 30.0).1);
     }
 
     #[test]

@@ -73,6 +73,11 @@ const CLIMB_FIRST_M: f32 = 3.0;
 const OBSTACLE_MARGIN_M: f32 = 6.0;
 /// How far ahead (m) the transit height looks at the occupancy grid.
 const LOOKAHEAD_M: f32 = 40.0;
+/// Half-width (m) of the corridor the transit height clears: the vehicle's clearance.
+const CORRIDOR_M: f32 = 4.0;
+/// The transit height comes down only when the height map knows every cell this close (m)
+/// to the vehicle (what it flies over next, out of the camera's view).
+const DESCENT_AROUND_M: f32 = 12.0;
 
 /// Bearing from `from` to `to` (rad, 0 = north, clockwise), or `fallback` when they coincide.
 fn heading(from: [f32; 3], to: [f32; 3], fallback: f32) -> f32 {
@@ -159,7 +164,8 @@ pub struct Planner {
     fence: ([f32; 3], [f32; 3]),
     camera: CameraModel,
     cruise_height: f32,
-    /// Height of grounded legs (m): the cruise height, raised over obstacles seen ahead.
+    /// Height of grounded legs (m): the cruise height, raised over obstacles seen ahead,
+    /// lowered again when the height map shows the way and the ground around clear of them.
     transit: f32,
     search: Search,
     /// Where each completed grounded step found its landmark.
@@ -361,7 +367,11 @@ impl Planner {
                     None,
                 ),
             },
-            StepTarget::Find(phrase) => self.grounded(&step, &phrase, position, yaw),
+            StepTarget::Find(phrase) => {
+                let (action, target, altitude, facing) =
+                    self.grounded(&step, &phrase, position, yaw);
+                self.over_known_tops(position, action, target, altitude, facing)
+            }
         };
         let target = self.inside_fence(target);
         let dn = target[0] - position[0];
@@ -466,7 +476,12 @@ impl Planner {
                     self.search.toward = None;
                 }
                 None if self.search.found.is_none() => {
-                    self.search.toward = Some(ahead(s.position, seen.bearing, APPROACH_LEG_M));
+                    // toward it, unless the fence is in the way
+                    let t =
+                        self.ground_inside_fence(ahead(s.position, seen.bearing, APPROACH_LEG_M));
+                    if ground_distance(t, [position[0], position[1]]) > GROUNDED_REACH_M {
+                        self.search.toward = Some(t);
+                    }
                 }
                 None => {}
             }
@@ -493,6 +508,22 @@ impl Planner {
             .or(self.search.toward)
             .unwrap_or([position[0], position[1]]);
         self.transit = transit_altitude(s, position, goal, self.transit).min(self.h_max - 1.0);
+        // back down once the height map knows everything around the vehicle and on the way
+        // clears a lower height: over open ground after a tall landmark, a sign can be read
+        // only from close to it (PP-OCR reads the billboards from about 30 m)
+        let here = [position[0], position[1]];
+        let (top, known) =
+            self.map
+                .top_along(here, goal, CORRIDOR_M, DESCENT_AROUND_M, LOOKAHEAD_M);
+        if known {
+            let seen_ahead = transit_altitude(s, position, goal, 0.0);
+            let needed = (top + OBSTACLE_MARGIN_M)
+                .max(seen_ahead)
+                .max(self.cruise_height);
+            if needed < self.transit {
+                self.transit = needed;
+            }
+        }
     }
 
     /// The decision of a grounded step: `(action, target, altitude, facing)`.
@@ -586,6 +617,9 @@ impl Planner {
             self.search.legs += 1;
             self.search.scan = 0;
             let t = ahead(position, search_heading, SEARCH_LEG_M);
+            // a leg the fence cuts short ends there (else the vehicle would hover at
+            // the fence for ever, short of a point it may not reach)
+            let t = self.ground_inside_fence(t);
             self.search.toward = Some(t);
             return (ActionMode::Goto, [t[0], t[1], altitude], altitude, None);
         }
@@ -596,6 +630,55 @@ impl Planner {
             position[2].max(self.h_min),
             None,
         )
+    }
+
+    /// A grounded decision checked against the height map: a leg (or a landing's approach)
+    /// whose way passes a top the map knows (seen in an earlier frame, perhaps behind the
+    /// camera now: a scan looks around before a search leg) flies above it by
+    /// [`OBSTACLE_MARGIN_M`], climbing in place first when it is far below.
+    fn over_known_tops(
+        &mut self,
+        position: [f32; 3],
+        action: ActionMode,
+        target: [f32; 3],
+        altitude: f32,
+        facing: Option<f32>,
+    ) -> (ActionMode, [f32; 3], f32, Option<f32>) {
+        let here = [position[0], position[1]];
+        let to = [target[0], target[1]];
+        if !matches!(action, ActionMode::Goto | ActionMode::Land)
+            || ground_distance(here, to) <= 1.0
+        {
+            return (action, target, altitude, facing);
+        }
+        let (top, _) = self.map.top_along(here, to, CORRIDOR_M, 0.0, LOOKAHEAD_M);
+        let needed = (top + OBSTACLE_MARGIN_M).min(self.h_max - 1.0);
+        if needed <= altitude {
+            return (action, target, altitude, facing);
+        }
+        self.transit = self.transit.max(needed);
+        let toward = (to[1] - here[1]).atan2(to[0] - here[0]);
+        if position[2] < needed - CLIMB_FIRST_M {
+            return (
+                ActionMode::Goto,
+                [position[0], position[1], needed],
+                needed,
+                Some(facing.unwrap_or(toward)),
+            );
+        }
+        let u = if action == ActionMode::Land {
+            target[2]
+        } else {
+            needed
+        };
+        (action, [target[0], target[1], u], needed, facing)
+    }
+
+    /// Ground point `p` moved inside the geofence, as [`Planner::inside_fence`] moves a
+    /// decision's target.
+    fn ground_inside_fence(&self, p: [f32; 2]) -> [f32; 2] {
+        let q = self.inside_fence([p[0], p[1], 0.0]);
+        [q[0], q[1]]
     }
 
     /// `p` moved inside the geofence (by a metre's margin).
@@ -634,9 +717,10 @@ fn short_of(here: [f32; 2], p: [f32; 2], standoff: f32) -> [f32; 2] {
 
 /// The height to fly toward `goal` at: `previous`, raised to clear by
 /// [`OBSTACLE_MARGIN_M`] every obstacle top the occupancy grid of `s` shows within
-/// [`LOOKAHEAD_M`] on the way. It never comes down before the landing: the grid is rebuilt
-/// from every frame and does not see under the vehicle, so a roof just flown over would
-/// read as unknown, not as an obstacle.
+/// [`LOOKAHEAD_M`] on the way. It never comes down here: the grid is rebuilt from every
+/// frame and does not see under the vehicle, so a roof just flown over would read as
+/// unknown, not as an obstacle. The planner lowers it only on the height map, which
+/// remembers what the vehicle is over.
 fn transit_altitude(s: &PerceptionState, position: [f32; 3], goal: [f32; 2], previous: f32) -> f32 {
     let grid = &s.occupancy;
     if !grid.is_present() {
