@@ -23,6 +23,12 @@
 //! then stay put for [`RebindConfig::cooldown_ticks`]; when no plan exists, the planner
 //! waits as long before it tries again. Together with the margin this keeps noise around a
 //! budget from moving roles back and forth.
+//!
+//! Relief is rate-limited per role: a role that a relief plan moved stays put twice as long
+//! after each further relief move (up to [`MAX_RELIEF_BACKOFF`] times the cooldown), until
+//! it has stayed within its budget for a whole cooldown. A role that fits nowhere (a language
+//! model on a saturated 2-core machine) would otherwise be moved every cooldown for the
+//! whole flight, each move a cost of its own (a cold cache, a migration).
 
 /// What the policy knows about one role at a tick.
 #[derive(Debug, Clone, PartialEq)]
@@ -307,6 +313,9 @@ impl Default for RebindConfig {
     }
 }
 
+/// Most times the cooldown a role's relief moves can grow to (doubling per relief move).
+pub const MAX_RELIEF_BACKOFF: u32 = 16;
+
 /// The re-binding policy with its memory (streaks, cooldowns): feed it one tick at a time.
 #[derive(Debug, Clone)]
 pub struct RebindPolicy {
@@ -314,6 +323,10 @@ pub struct RebindPolicy {
     streak: Vec<u32>,
     cooldown: Vec<u32>,
     hold_off: u32,
+    /// Relief moves of each role since it last stayed within budget for a cooldown.
+    reliefs: Vec<u32>,
+    /// Consecutive ticks each role has been within its budget.
+    calm: Vec<u32>,
 }
 
 impl RebindPolicy {
@@ -324,7 +337,20 @@ impl RebindPolicy {
             streak: vec![0; roles],
             cooldown: vec![0; roles],
             hold_off: 0,
+            reliefs: vec![0; roles],
+            calm: vec![0; roles],
         }
+    }
+
+    /// Relief moves of role `r` since it last stayed within budget for a cooldown: its
+    /// next relief move waits `2^n` cooldowns (at most [`MAX_RELIEF_BACKOFF`]).
+    pub fn reliefs(&self, r: usize) -> u32 {
+        self.reliefs.get(r).copied().unwrap_or(0)
+    }
+
+    /// Ticks role `r` stays put from now.
+    pub fn cooldown(&self, r: usize) -> u32 {
+        self.cooldown.get(r).copied().unwrap_or(0)
     }
 
     /// The settings.
@@ -338,13 +364,14 @@ impl RebindPolicy {
     }
 
     /// Forget the streak of role `r` and keep it where it is for a cooldown (after a move
-    /// made by hand, or a restart that reset its figures).
+    /// made by hand, or a restart that reset its figures); a longer relief back-off in
+    /// progress stays.
     pub fn settle(&mut self, r: usize) {
         if let Some(s) = self.streak.get_mut(r) {
             *s = 0;
         }
         if let Some(c) = self.cooldown.get_mut(r) {
-            *c = self.config.cooldown_ticks;
+            *c = (*c).max(self.config.cooldown_ticks);
         }
     }
 
@@ -353,13 +380,24 @@ impl RebindPolicy {
         if self.streak.len() != roles.len() {
             self.streak = vec![0; roles.len()];
             self.cooldown = vec![0; roles.len()];
+            self.reliefs = vec![0; roles.len()];
+            self.calm = vec![0; roles.len()];
         }
         for (r, role) in roles.iter().enumerate() {
-            self.streak[r] = if role.over_budget() {
+            let over = role.over_budget();
+            self.streak[r] = if over {
                 self.streak[r].saturating_add(1)
             } else {
                 0
             };
+            self.calm[r] = if over {
+                0
+            } else {
+                self.calm[r].saturating_add(1)
+            };
+            if self.calm[r] >= self.config.cooldown_ticks {
+                self.reliefs[r] = 0;
+            }
             self.cooldown[r] = self.cooldown[r].saturating_sub(1);
         }
         if self.hold_off > 0 {
@@ -380,6 +418,14 @@ impl RebindPolicy {
             Some(plan) => {
                 for m in &plan.moves {
                     self.settle(m.role);
+                    if !plan.restores {
+                        let backoff = 1u32
+                            .checked_shl(self.reliefs[m.role])
+                            .unwrap_or(u32::MAX)
+                            .min(MAX_RELIEF_BACKOFF);
+                        self.cooldown[m.role] = self.config.cooldown_ticks.saturating_mul(backoff);
+                        self.reliefs[m.role] = self.reliefs[m.role].saturating_add(1);
+                    }
                 }
                 for s in &mut self.streak {
                     *s = 0;
@@ -624,6 +670,77 @@ mod tests {
                 .unwrap()
                 .restores
         );
+    }
+
+    /// The relief case of [`relief_when_no_executor_restores_the_budget`]: the reasoner
+    /// over budget wherever it runs.
+    fn relief_case() -> (Vec<RoleLoad>, Vec<ExecutorLoad>) {
+        let mut reasoning = role("reasoning", 1, 1000.0, 6000.0, 0.2);
+        reasoning.slowdown = 5.0;
+        reasoning.waiting = 0.8;
+        let roles = vec![
+            role("hub", 0, 20.0, 0.5, 0.05),
+            role("text", 0, 500.0, 200.0, 0.5),
+            role("camera", 1, 100.0, 40.0, 0.05),
+            reasoning,
+        ];
+        (roles, vec![ex("control", 0.55), ex("perception", 1.0)])
+    }
+
+    #[test]
+    fn relief_moves_of_a_role_back_off_until_it_stays_within_budget() {
+        let (roles, executors) = relief_case();
+        let config = RebindConfig::default();
+        let c = config.cooldown_ticks as usize;
+        let mut policy = RebindPolicy::new(config, roles.len());
+        // every relief finds the reasoner over budget again where it went (the load
+        // follows it): without a limit it would move every cooldown, 25 times here
+        let moves_in = |policy: &mut RebindPolicy, ticks: usize, roles: &[RoleLoad]| {
+            let mut at = Vec::new();
+            for t in 0..ticks {
+                if let Some(plan) = policy.tick(roles, &executors) {
+                    assert!(!plan.restores);
+                    assert_eq!(plan.moves.len(), 1);
+                    at.push(t);
+                }
+            }
+            at
+        };
+        let at = moves_in(&mut policy, 40 * c, &roles);
+        let gaps: Vec<usize> = at.windows(2).map(|w| w[1] - w[0]).collect();
+        assert_eq!(at.len(), 6, "{at:?}");
+        for (k, g) in gaps.iter().enumerate() {
+            let wait = c << k.min(4);
+            assert!(
+                *g >= wait && *g <= wait + c + 2,
+                "gap {k}: {g} ticks, {at:?}"
+            );
+        }
+        assert_eq!(policy.reliefs(3), 6);
+        // the supervisor settles a role it has just moved: that keeps the back-off
+        let left = policy.cooldown(3);
+        assert!(left > c as u32, "{left}");
+        policy.settle(3);
+        assert_eq!(policy.cooldown(3), left);
+        // within budget for a whole cooldown: the back-off is forgotten
+        let mut calm = roles.clone();
+        calm[3].latency_ms = Some(500.0);
+        calm[3].slowdown = 1.0;
+        assert!(moves_in(&mut policy, 16 * c + c, &calm).is_empty());
+        assert_eq!(policy.reliefs(3), 0);
+        let at = moves_in(&mut policy, 2 * c + 4, &roles);
+        assert_eq!(at.len(), 2, "back to one cooldown between moves: {at:?}");
+        // a move that cures is never held back
+        let (roles, executors) = hog_case();
+        let mut policy = RebindPolicy::new(config, roles.len());
+        let cured = (0..5)
+            .find_map(|_| policy.tick(&roles, &executors))
+            .unwrap();
+        assert!(cured.restores);
+        for m in &cured.moves {
+            assert_eq!(policy.cooldown(m.role), c as u32);
+            assert_eq!(policy.reliefs(m.role), 0);
+        }
     }
 
     #[test]
