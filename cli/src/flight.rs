@@ -157,7 +157,7 @@ pub const MAX_TRACE_CYCLES: usize = 43_200;
 
 /// One semantic cycle as the hub reported it, with the vehicle's pose at that moment:
 /// the rows of `cycles.jsonl`, what `aeris plot timing` and `aeris plot fpv` draw.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CycleTrace {
     /// Semantic cycle number.
     pub cycle: u64,
@@ -177,6 +177,12 @@ pub struct CycleTrace {
     pub position: Option<[f32; 3]>,
     /// Vehicle yaw (rad), when telemetry had arrived.
     pub yaw: Option<f32>,
+    /// The latest setpoint the hub had bound by then: its position `[N, E, U]`...
+    #[serde(default)]
+    pub setpoint: Option<[f32; 3]>,
+    /// ... and its mode (`goto`, `hover`, `land`, ...): what the committed decisions asked.
+    #[serde(default)]
+    pub setpoint_mode: Option<String>,
 }
 
 /// Subscribes to a flight's hub reports and telemetry and keeps the tallies.
@@ -185,6 +191,7 @@ pub struct FlightMonitor {
     telemetry: TypedSubscriber<VehicleTelemetry>,
     setpoints: TypedSubscriber<BoundSetpoint>,
     last_setpoint: Option<(u64, u64)>,
+    last_bound: Option<([f32; 3], u8)>,
     setpoint_gaps_ms: Vec<f64>,
     setpoint_gap_ends_ns: Vec<u64>,
     /// `None` when the mission does not say where its goal is (the VLN setting).
@@ -218,6 +225,7 @@ impl FlightMonitor {
             telemetry: bus.subscriber(topics::VEHICLE_TELEMETRY)?,
             setpoints: bus.subscriber(topics::HUB_SETPOINT)?,
             last_setpoint: None,
+            last_bound: None,
             setpoint_gaps_ms: Vec::new(),
             setpoint_gap_ends_ns: Vec::new(),
             goal: mission.goal(),
@@ -280,6 +288,11 @@ impl FlightMonitor {
                     active_step: r.active_step,
                     position: t.map(|t| t.position),
                     yaw: t.map(|t| t.attitude[2]),
+                    setpoint: self.last_bound.map(|(p, _)| p),
+                    setpoint_mode: self.last_bound.map(|(_, m)| {
+                        aeris_schemas::ActionMode::from_u8(m)
+                            .map_or_else(|| format!("mode {m}"), |a| a.name().to_string())
+                    }),
                 });
             }
             self.last_report = Some(r);
@@ -299,12 +312,14 @@ impl FlightMonitor {
             self.airborne |= t.position[2] > 1.0 && t.landed == 0;
             self.last_telemetry = Some(t);
         }
-        let (last, gaps, ends) = (
+        let (last, gaps, ends, bound) = (
             &mut self.last_setpoint,
             &mut self.setpoint_gaps_ms,
             &mut self.setpoint_gap_ends_ns,
+            &mut self.last_bound,
         );
         self.setpoints.drain(|sp| {
+            *bound = Some((sp.position, sp.mode));
             // only consecutive numbers of one hub process measure its period; a skipped
             // number is a sample this monitor missed, not a late hub
             if let Some((seq, ns)) = *last

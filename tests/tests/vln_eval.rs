@@ -158,6 +158,16 @@ fn the_aeris_agent_flies_from_the_instruction_alone_and_its_flight_can_be_plotte
     let trace = std::fs::read_to_string(run.join("cycles.jsonl")).expect("cycles.jsonl");
     let cycles = trace.lines().count();
     assert!(cycles > 5, "{trace}");
+    // each row says what the hub had bound: this flight flew legs
+    let rows: Vec<serde_json::Value> = trace
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("a JSON row"))
+        .collect();
+    assert!(
+        rows.iter().any(|r| r["setpoint_mode"] == "goto"
+            && r["setpoint"].as_array().is_some_and(|p| p.len() == 3)),
+        "{trace}"
+    );
     let timing = dir.0.join("timing.png");
     let out = plot(&[
         "timing",
