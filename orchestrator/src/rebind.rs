@@ -636,16 +636,7 @@ mod tests {
     fn relief_when_no_executor_restores_the_budget() {
         // the reasoner is 6x over on the hogged CPU; on the control CPU it would still be
         // 1.2x over its budget, but far closer to it: the only move that helps
-        let mut reasoning = role("reasoning", 1, 1000.0, 6000.0, 0.2);
-        reasoning.slowdown = 5.0;
-        reasoning.waiting = 0.8;
-        let roles = vec![
-            role("hub", 0, 20.0, 0.5, 0.05),
-            role("text", 0, 500.0, 200.0, 0.5),
-            role("camera", 1, 100.0, 40.0, 0.05),
-            reasoning,
-        ];
-        let executors = vec![ex("control", 0.55), ex("perception", 1.0)];
+        let (roles, executors) = relief_case();
         let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]).expect("relief");
         assert!(!plan.restores);
         assert_eq!(
@@ -672,8 +663,7 @@ mod tests {
         );
     }
 
-    /// The relief case of [`relief_when_no_executor_restores_the_budget`]: the reasoner
-    /// over budget wherever it runs.
+    /// The reasoner over budget wherever it runs: relief, never a cure.
     fn relief_case() -> (Vec<RoleLoad>, Vec<ExecutorLoad>) {
         let mut reasoning = role("reasoning", 1, 1000.0, 6000.0, 0.2);
         reasoning.slowdown = 5.0;
