@@ -18,7 +18,7 @@
 use aeris_schemas::{OCCUPANCY_SIDE, OCCUPANCY_UNKNOWN, OccupancyGrid};
 
 /// Metres per cell: the occupancy grid's resolution.
-pub const CELL_M: f32 = 2.0;
+pub const CELL_M: f32 = crate::perception::OCCUPANCY_RESOLUTION_M;
 /// Most cells per side (a 1 km square at 2 m); a larger geofence is covered around its
 /// centre only.
 pub const MAX_SIDE: usize = 500;
@@ -87,11 +87,6 @@ impl HeightMap {
             mark: 0,
             stack: Vec::with_capacity(FILL_SIDE * FILL_SIDE),
         }
-    }
-
-    /// Forget every observation.
-    pub fn clear(&mut self) {
-        self.cells.fill(OCCUPANCY_UNKNOWN);
     }
 
     /// `(row, col)` of the cell holding `p`, if inside the map.

@@ -507,7 +507,9 @@ impl Planner {
             .found
             .or(self.search.toward)
             .unwrap_or([position[0], position[1]]);
-        self.transit = transit_altitude(s, position, goal, self.transit).min(self.h_max - 1.0);
+        // what this frame's grid shows on the way (0 without a grid)
+        let seen_ahead = transit_altitude(s, position, goal, 0.0);
+        self.transit = self.transit.max(seen_ahead).min(self.h_max - 1.0);
         // back down once the height map knows everything around the vehicle and on the way
         // clears a lower height: over open ground after a tall landmark, a sign can be read
         // only from close to it (PP-OCR reads the billboards from about 30 m)
@@ -516,7 +518,6 @@ impl Planner {
             self.map
                 .top_along(here, goal, CORRIDOR_M, DESCENT_AROUND_M, LOOKAHEAD_M);
         if known {
-            let seen_ahead = transit_altitude(s, position, goal, 0.0);
             let needed = (top + OBSTACLE_MARGIN_M)
                 .max(seen_ahead)
                 .max(self.cruise_height);
