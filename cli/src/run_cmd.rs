@@ -294,6 +294,7 @@ pub fn fly(
                 | SupervisorEvent::RoleStalled { .. }
                 | SupervisorEvent::ServiceLost { .. }
                 | SupervisorEvent::VariantStepped { .. }
+                | SupervisorEvent::BindingProbed { .. }
                 | SupervisorEvent::InitialBinding { .. } => eprintln!("aeris: {event}"),
                 _ => {}
             }

@@ -24,6 +24,7 @@ pub mod control;
 pub mod executors;
 pub mod ladder;
 pub mod launch;
+pub mod probe;
 pub mod rebind;
 pub mod restart;
 pub mod supervisor;

@@ -40,7 +40,7 @@ use aeris_schemas::{
     CommandKind, FixedText, MAX_ROLES, ReplyStage, RoleHeartbeat, RoleStatus, RoleStatusEntry,
     SupervisorReply, SupervisorStatus, topics,
 };
-use dynamic::{ladder_config, rebind_config};
+use dynamic::{InitialProbes, ladder_config, rebind_config};
 use std::fs::OpenOptions;
 use std::io::{Read, Seek, SeekFrom, Write};
 use std::os::unix::process::CommandExt;
@@ -442,6 +442,19 @@ pub enum SupervisorEvent {
         /// Why.
         reason: String,
     },
+    /// The initial binding measured a role, moved live, on another executor (a probe).
+    BindingProbed {
+        /// Role name.
+        name: String,
+        /// Executor probed.
+        executor: String,
+        /// Slowdown `(run + wait) / run` measured there.
+        slowdown: f64,
+        /// Latency the probe predicts there (ms).
+        predicted_ms: f64,
+        /// `true` when a whole cycle finished there (the prediction is that cycle).
+        measured_cycle: bool,
+    },
     /// The initial binding was checked against the budgets (kept, or re-bound).
     InitialBinding {
         /// `true` when roles were moved.
@@ -659,6 +672,21 @@ impl core::fmt::Display for SupervisorEvent {
                 }
                 write!(f, "; killed them to rebuild it")
             }
+            SupervisorEvent::BindingProbed {
+                name,
+                executor,
+                slowdown,
+                predicted_ms,
+                measured_cycle,
+            } => write!(
+                f,
+                "initial binding probe: `{name}` on {executor}: slowdown {slowdown:.2}, {predicted_ms:.0} ms {}",
+                if *measured_cycle {
+                    "(a cycle measured there)"
+                } else {
+                    "predicted"
+                }
+            ),
             SupervisorEvent::InitialBinding { rebound, reasons } => write!(
                 f,
                 "initial binding {}: {}",
@@ -1036,6 +1064,8 @@ pub struct Supervisor {
     variant_steps: u32,
     next_tick: Instant,
     initial_checked: bool,
+    /// The initial binding's probes, while they run.
+    probes: Option<InitialProbes>,
     migrations: u32,
     next_audit: Instant,
     known_services: Vec<(String, Vec<(String, u32)>)>,
@@ -1309,6 +1339,7 @@ impl Supervisor {
             idle_heartbeat_ms,
             next_tick: Instant::now(),
             initial_checked: false,
+            probes: None,
             migrations: 0,
             next_audit: Instant::now(),
             known_services: Vec::new(),

@@ -153,6 +153,10 @@ pub struct SchedulingSpec {
     /// Step roles with a `ladder` between their variants on measured latency (the
     /// role-adaptive model stack); `false` keeps every role on its declared variant.
     pub adapt_variants: bool,
+    /// Scheduling ticks the initial binding spends on each other executor, measuring a role
+    /// that does not fit its budget where the workflow put it; 0 judges every executor
+    /// from its load instead of probing.
+    pub probe_ticks: u32,
 }
 
 impl SchedulingSpec {
@@ -169,6 +173,7 @@ impl SchedulingSpec {
             // CPU takes over 10 s) is working, not stalled: only a very long silence counts
             stall_hard_timeout_ms: timing.heartbeat_period_ms.saturating_mul(30).max(60_000),
             adapt_variants: true,
+            probe_ticks: 4,
         }
     }
 }
@@ -465,6 +470,7 @@ struct RawScheduling {
     stall_timeout_ms: Option<u64>,
     stall_hard_timeout_ms: Option<u64>,
     adapt_variants: Option<bool>,
+    probe_ticks: Option<u32>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -685,6 +691,7 @@ impl Workflow {
             stall_timeout_ms: rs.stall_timeout_ms.unwrap_or(d.stall_timeout_ms),
             stall_hard_timeout_ms: rs.stall_hard_timeout_ms.unwrap_or(d.stall_hard_timeout_ms),
             adapt_variants: rs.adapt_variants.unwrap_or(d.adapt_variants),
+            probe_ticks: rs.probe_ticks.unwrap_or(d.probe_ticks),
         };
         Ok(Workflow {
             timing,
@@ -757,6 +764,13 @@ impl Workflow {
         }
         if s.trigger_samples == 0 {
             return Err(bad("trigger_samples", "0".into(), "must be at least 1"));
+        }
+        if s.probe_ticks == 1 || s.probe_ticks > 40 {
+            return Err(bad(
+                "probe_ticks",
+                s.probe_ticks.to_string(),
+                "must be 0 (no probes) or 2..=40 (a slowdown needs two samples on the executor)",
+            ));
         }
         if !(s.margin.is_finite() && (0.0..=0.9).contains(&s.margin)) {
             return Err(bad("margin", s.margin.to_string(), "must be in 0..=0.9"));
@@ -1258,6 +1272,19 @@ mod tests {
         let w = Workflow::from_toml_str(&text).unwrap();
         assert!(!w.scheduling.adapt_variants);
         assert!(w.role("reasoning").unwrap().ladder.is_empty());
+    }
+
+    #[test]
+    fn probe_ticks_parse_and_one_tick_is_refused() {
+        let w = Workflow::builtin_default().unwrap();
+        assert_eq!(w.scheduling.probe_ticks, 4);
+        let text = |n: u32| format!("{DEFAULT_WORKFLOW_TOML}\n[scheduling]\nprobe_ticks = {n}\n");
+        let w = Workflow::from_toml_str(&text(0)).unwrap();
+        assert_eq!(w.scheduling.probe_ticks, 0);
+        for n in [1, 41] {
+            let err = Workflow::from_toml_str(&text(n)).unwrap_err().to_string();
+            assert!(err.contains("probe_ticks"), "{n}: {err}");
+        }
     }
 
     #[test]

@@ -29,6 +29,7 @@ echo "fake role $name starting"
 case "$name" in
   crasher) echo "crasher: boom" >&2; exit 1 ;;
   stubborn) trap '' TERM; echo "stubborn ready"; exec sleep 600 ;;
+  burner|hog) exec sh -c 'while :; do :; done' ;;
   *) exec sleep 600 ;;
 esac
 "#;
@@ -279,6 +280,129 @@ fn starts_every_role_bound_and_tracks_heartbeats_and_the_board() {
     for (name, pid) in &pids {
         assert!(!process_exists(*pid), "{name} ({pid}) was reaped");
     }
+}
+
+/// pi_0 probes a role that does not fit its budget where the workflow put it: the running
+/// process is moved, live, to every other executor for a few ticks and bound where its
+/// probes measured it fastest (home unless a probe beat home by the margin). Which one that
+/// is depends on this machine's load, so the test checks the decision against the figures
+/// the supervisor reported, not a fixed answer.
+#[test]
+fn the_initial_binding_probes_a_role_over_budget_on_every_other_executor() {
+    let run = RunDir::new("probe");
+    let mut w = renamed("reasoning", "burner", 0);
+    // a CPU hog beside it on its declared executor (a busy loop as well, never heartbeating)
+    w.roles
+        .iter_mut()
+        .find(|r| r.name == "camera")
+        .unwrap()
+        .name = "hog".into();
+    w.scheduling.interval_ms = 50;
+    let home = w
+        .roles
+        .iter()
+        .find(|r| r.name == "burner")
+        .unwrap()
+        .executor
+        .clone()
+        .unwrap();
+    let margin = w.scheduling.margin;
+    let mut sup = Supervisor::start(options(w, "probe", &run)).unwrap();
+    let executors: Vec<String> = sup
+        .registry()
+        .executors()
+        .iter()
+        .map(|e| e.name.clone())
+        .collect();
+    let burner_pid = sup.role("burner").unwrap().pid().unwrap();
+    let budget = sup.role("burner").unwrap().budget_ms().unwrap();
+    // eight worked cycles at 5x its budget, then silence (a long cycle, not a stall: the
+    // process keeps using CPU)
+    let bus = FlightBus::builder(sup.flight())
+        .node_name("fake-roles")
+        .create()
+        .unwrap();
+    let hbs: TypedPublisher<RoleHeartbeat> = bus.publisher(topics::HEARTBEAT).unwrap();
+    let latency_ms = 5.0 * budget;
+    for seq in 1..=8 {
+        hbs.publish(&heartbeat(
+            "burner",
+            burner_pid,
+            seq,
+            RoleStatus::Running,
+            (latency_ms * 1e6) as u64,
+        ))
+        .unwrap();
+    }
+    let events = step_until(&mut sup, "the initial binding", |_, all| {
+        all.iter()
+            .any(|e| matches!(e, SupervisorEvent::InitialBinding { .. }))
+    });
+    let probes: Vec<(String, f64, f64)> = events
+        .iter()
+        .filter_map(|e| match e {
+            SupervisorEvent::BindingProbed {
+                name,
+                executor,
+                slowdown,
+                predicted_ms,
+                ..
+            } if name == "burner" => Some((executor.clone(), *slowdown, *predicted_ms)),
+            _ => None,
+        })
+        .collect();
+    // one probe on each executor but its home
+    let mut probed: Vec<&str> = probes.iter().map(|p| p.0.as_str()).collect();
+    probed.sort();
+    let mut others: Vec<&str> = executors
+        .iter()
+        .map(String::as_str)
+        .filter(|e| *e != home)
+        .collect();
+    others.sort();
+    assert_eq!(probed, others, "{events:?}");
+    for (e, slowdown, predicted) in &probes {
+        assert!(
+            *slowdown >= 1.0 && predicted.is_finite(),
+            "{e}: {slowdown} {predicted}"
+        );
+    }
+    // the same process throughout, bound where the figures say
+    let burner = sup.role("burner").unwrap();
+    assert_eq!(burner.pid(), Some(burner_pid), "probes restart nothing");
+    let best = probes
+        .iter()
+        .min_by(|a, b| a.2.total_cmp(&b.2))
+        .filter(|p| p.2 < latency_ms * (1.0 - margin));
+    let (want, moves) = match best {
+        Some(p) => (p.0.as_str(), 1),
+        None => (home.as_str(), 0),
+    };
+    assert_eq!(burner.executor(), want, "{events:?}");
+    assert_eq!(burner.migrations(), moves, "probe moves are not migrations");
+    assert_eq!(
+        CpuSet::parse(&cpus_allowed(burner_pid)).unwrap(),
+        CpuSet::parse(burner.cpus()).unwrap(),
+        "the process runs where the supervisor says"
+    );
+    assert!(
+        burner.binding().starts_with("initial binding: probed"),
+        "{}",
+        burner.binding()
+    );
+    let report = events
+        .iter()
+        .find_map(|e| match e {
+            SupervisorEvent::InitialBinding { reasons, .. } => Some(reasons.join("; ")),
+            _ => None,
+        })
+        .unwrap();
+    eprintln!("{report}");
+    assert!(
+        report.contains("burner on") && report.contains("probed"),
+        "{report}"
+    );
+    let _ = sup.shutdown(PATIENCE);
 }
 
 #[test]

@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::ladder::{LadderConfig, LadderSample, VariantStep};
+use crate::probe::{ProbeFigure, ProbedRole, bind_from_probes};
 use std::io::Write as _;
 
 /// Consecutive ticks of figures a role needs before the initial binding is checked.
@@ -12,6 +13,65 @@ const MIN_RUN_FOR_SLOWDOWN_NS: u64 = 2_000_000;
 /// Affinity passes over a process's threads before a move gives up on threads that keep
 /// appearing.
 const MOVE_PASSES: usize = 4;
+
+/// A role that uses less CPU than this (cores) is not probed: its slowdown cannot be
+/// measured in a few ticks, and a move would not shorten cycles spent waiting on input.
+const MIN_PROBE_DEMAND: f64 = 0.05;
+
+/// The initial binding's probes while they run: each role that does not fit where the
+/// workflow put it visits every other executor for `probe_ticks` scheduling ticks.
+#[derive(Debug)]
+pub(crate) struct InitialProbes {
+    roles: Vec<ProbedRole>,
+    /// The pid each probed role had when its probes began (a restart ends them).
+    pids: Vec<u32>,
+    /// Probes still to make, in order: (index into `roles`, executor index).
+    queue: VecDeque<(usize, usize)>,
+    /// The probe under way: (index into `roles`, executor, worked cycles on arrival).
+    current: Option<(usize, usize, u64)>,
+    /// Every role's figures at home when the probes began (for the report).
+    at_home: Vec<String>,
+}
+
+impl InitialProbes {
+    /// Stop probing `roles[k]` (moved by hand, restarted, being swapped).
+    fn forget(&mut self, k: usize) {
+        self.queue.retain(|&(q, _)| q != k);
+        if self.current.is_some_and(|(c, _, _)| c == k) {
+            self.current = None;
+        }
+        self.roles[k].figures.clear();
+    }
+}
+
+/// Bind every thread of `pid` to `set`; passes repeat until every thread, new ones
+/// included, reports it. Returns the threads bound.
+fn bind_all_threads(pid: u32, set: &CpuSet) -> Result<usize, String> {
+    for _ in 0..MOVE_PASSES {
+        set.bind_process(pid as i32).map_err(|e| e.to_string())?;
+        // a thread started during the pass inherits the old mask from its creator only
+        // if the creator had not moved yet: check every thread
+        let tids = process_threads(pid).map_err(|e| e.to_string())?;
+        if tids
+            .iter()
+            .all(|&t| CpuSet::of_task(t).map_or(true, |s| &s == set))
+        {
+            return Ok(tids.len());
+        }
+    }
+    Err(format!(
+        "threads kept appearing with the old affinity after {MOVE_PASSES} passes"
+    ))
+}
+
+/// A role's latency against its budget, as the initial binding reports it.
+fn fits_line(r: &RoleLoad) -> String {
+    match (r.latency_ms, r.budget_ms) {
+        (Some(l), Some(b)) => format!("{l:.1} of {b:.0} ms"),
+        (None, Some(b)) => format!("no cycle yet, budget {b:.0} ms"),
+        (_, None) => "no budget".into(),
+    }
+}
 
 /// How often the flight's services are listed to find one removed from outside.
 const SERVICE_AUDIT_PERIOD: Duration = Duration::from_millis(500);
@@ -153,29 +213,15 @@ impl Supervisor {
             cpus: set.to_string(),
             reason,
         };
-        let mut threads = 0;
-        let mut settled = false;
-        for _ in 0..MOVE_PASSES {
-            threads = set
-                .bind_process(pid as i32)
-                .map_err(|e| affinity(e.to_string()))?;
-            // a thread started during the pass inherits the old mask from its creator only
-            // if the creator had not moved yet: check every thread
-            let tids = process_threads(pid).map_err(|e| affinity(e.to_string()))?;
-            if tids
-                .iter()
-                .all(|&t| CpuSet::of_task(t).map_or(true, |s| s == set))
-            {
-                settled = true;
-                threads = tids.len();
-                break;
-            }
+        let threads = bind_all_threads(pid, &set).map_err(affinity)?;
+        // a move by hand ends the role's probes: it stays where it was sent
+        if trigger.is_none()
+            && let Some(p) = self.probes.as_mut()
+            && let Some(k) = p.roles.iter().position(|x| x.role == i)
+        {
+            p.forget(k);
         }
-        if !settled {
-            return Err(affinity(format!(
-                "threads kept appearing with the old affinity after {MOVE_PASSES} passes"
-            )));
-        }
+        let r = &mut self.roles[i];
         let from = if r.executor.is_empty() {
             format!("cpus {}", r.cpus)
         } else {
@@ -409,13 +455,17 @@ impl Supervisor {
             return;
         }
         if !self.initial_checked {
+            if self.probes.is_some() {
+                self.step_probes(&executors, events);
+                return;
+            }
             let ready = self.roles.iter().all(|r| {
                 r.budget_ms.is_none() || !r.running || r.sched.len() >= INITIAL_PROBE_TICKS
             }) && self
                 .roles
                 .iter()
                 .any(|r| r.sched.len() >= INITIAL_PROBE_TICKS);
-            if ready {
+            if ready && !self.start_probes(&roles, &executors, events) {
                 self.initial_checked = true;
                 self.initial_binding(&roles, &executors, events);
             }
@@ -634,11 +684,7 @@ impl Supervisor {
             .is_some_and(|p| self.apply_plan(p, roles, executors, true, events));
         for (i, r) in roles.iter().enumerate() {
             let runtime = &mut self.roles[i];
-            let fits = match (r.latency_ms, r.budget_ms) {
-                (Some(l), Some(b)) => format!("{l:.1} of {b:.0} ms"),
-                (None, Some(b)) => format!("no cycle yet, budget {b:.0} ms"),
-                (_, None) => "no budget".into(),
-            };
+            let fits = fits_line(r);
             if runtime.migrations == 0 {
                 runtime.binding = format!(
                     "{}; initial check: {fits}",
@@ -654,6 +700,265 @@ impl Supervisor {
                     &runtime.executor
                 }
             ));
+        }
+        events.append(&mut self.pending);
+        events.push(SupervisorEvent::InitialBinding { rebound, reasons });
+    }
+
+    /// pi_0's probes: when a role with a budget does not fit it (less the margin) where
+    /// the workflow put it, and uses enough CPU for a slowdown to be measured, start moving
+    /// it, live, to each other executor in turn. `false` when there is nothing to probe
+    /// (probes off, one executor, every role fits): the binding is then judged from load.
+    fn start_probes(
+        &mut self,
+        roles: &[RoleLoad],
+        executors: &[ExecutorLoad],
+        events: &mut Vec<SupervisorEvent>,
+    ) -> bool {
+        if self.scheduling.probe_ticks == 0 || executors.len() < 2 {
+            return false;
+        }
+        let margin = self.scheduling.margin;
+        let mut probed = Vec::new();
+        let mut pids = Vec::new();
+        for (i, r) in roles.iter().enumerate() {
+            let (Some(latency_ms), Some(budget_ms), Some(pid)) =
+                (r.latency_ms, r.budget_ms, self.roles[i].pid)
+            else {
+                continue;
+            };
+            if !r.movable || r.demand < MIN_PROBE_DEMAND || latency_ms <= budget_ms * (1.0 - margin)
+            {
+                continue;
+            }
+            // the slowdown over the whole window at home, as a probe measures it elsewhere
+            let sched = &self.roles[i].sched;
+            let slowdown = (sched.len() >= 2)
+                .then(|| shares(&sched[0], &sched[sched.len() - 1]))
+                .flatten()
+                .map_or(r.slowdown, |s| s.0);
+            probed.push(ProbedRole {
+                role: i,
+                home: r.executor,
+                latency_ms,
+                slowdown,
+                demand: r.demand,
+                budget_ms,
+                figures: Vec::new(),
+            });
+            pids.push(pid);
+        }
+        if probed.is_empty() {
+            return false;
+        }
+        let queue = probed
+            .iter()
+            .enumerate()
+            .flat_map(|(k, p)| {
+                (0..executors.len())
+                    .filter(move |&e| e != p.home)
+                    .map(move |e| (k, e))
+            })
+            .collect();
+        self.probes = Some(InitialProbes {
+            roles: probed,
+            pids,
+            queue,
+            current: None,
+            at_home: roles.iter().map(fits_line).collect(),
+        });
+        self.step_probes(executors, events);
+        true
+    }
+
+    /// One scheduling tick of the probes: finish the one under way once it has its
+    /// samples, start the next, or, when none is left, bind from what they measured.
+    fn step_probes(&mut self, executors: &[ExecutorLoad], events: &mut Vec<SupervisorEvent>) {
+        let Some(mut p) = self.probes.take() else {
+            return;
+        };
+        let ticks = self.scheduling.probe_ticks as usize;
+        if let Some((k, e, cycles_then)) = p.current {
+            let i = p.roles[k].role;
+            let r = &self.roles[i];
+            if r.pid != Some(p.pids[k]) || r.state != RoleState::Running || r.swap.is_some() {
+                // restarted (on its home CPUs, from its spec), or being swapped: no probes
+                self.restore_home(i, p.roles[k].home);
+                p.forget(k);
+            } else if r.sched.len() < ticks {
+                self.probes = Some(p);
+                return;
+            } else {
+                let n = r.sched.len();
+                let slowdown = shares(&r.sched[0], &r.sched[n - 1]).map_or(1.0, |s| s.0);
+                // a cycle that both began and ended here: the second one to finish
+                let cycle_ms = (r.worked_cycles >= cycles_then + 2)
+                    .then_some(r.last_cycle_ms)
+                    .flatten();
+                let figure = ProbeFigure {
+                    executor: e,
+                    slowdown,
+                    cycle_ms,
+                };
+                events.push(SupervisorEvent::BindingProbed {
+                    name: r.name.clone(),
+                    executor: executors.get(e).map_or(String::new(), |x| x.name.clone()),
+                    slowdown,
+                    predicted_ms: p.roles[k].predicted_ms(&figure),
+                    measured_cycle: cycle_ms.is_some(),
+                });
+                p.roles[k].figures.push(figure);
+                p.current = None;
+                // its last probe: back home before the next role is measured
+                if !p.queue.iter().any(|&(q, _)| q == k) {
+                    let home = p.roles[k].home;
+                    if let Err(reason) = self.probe_move(i, home) {
+                        events.push(SupervisorEvent::MigrationFailed {
+                            name: self.roles[i].name.clone(),
+                            reason: format!("back from the initial binding's probes: {reason}"),
+                        });
+                        p.forget(k);
+                    }
+                }
+            }
+        }
+        while let Some((k, e)) = p.queue.pop_front() {
+            let i = p.roles[k].role;
+            match self.probe_move(i, e) {
+                Ok(()) => {
+                    p.current = Some((k, e, self.roles[i].worked_cycles));
+                    self.probes = Some(p);
+                    return;
+                }
+                Err(reason) => {
+                    events.push(SupervisorEvent::MigrationFailed {
+                        name: self.roles[i].name.clone(),
+                        reason: format!("initial binding probe: {reason}"),
+                    });
+                    // the next candidate, or home when there is none
+                    if !p.queue.iter().any(|&(q, _)| q == k) {
+                        let _ = self.probe_move(i, p.roles[k].home);
+                    }
+                }
+            }
+        }
+        self.finish_probes(p, executors, events);
+    }
+
+    /// A probe's move: the role's threads to executor `e`, nothing counted as a migration
+    /// (the role's spec, which a restart reads, keeps its home).
+    fn probe_move(&mut self, i: usize, e: usize) -> Result<(), String> {
+        let Some(x) = self.registry.executors().get(e) else {
+            return Err(format!("no executor #{e}"));
+        };
+        let (name, set) = (x.name.clone(), x.cpus.clone());
+        let r = &mut self.roles[i];
+        let pid = r
+            .pid
+            .ok_or_else(|| format!("`{}` is not running", r.name))?;
+        bind_all_threads(pid, &set)?;
+        r.cpus = set.to_string();
+        r.cpu_set = Some(set);
+        r.executor = name;
+        r.binding = format!("initial binding: probing on {}", r.executor);
+        // its scheduler figures from here on are the probe's
+        r.sched.clear();
+        Ok(())
+    }
+
+    /// Record role `i` on its home executor again (its process was restarted there).
+    fn restore_home(&mut self, i: usize, home: usize) {
+        if let Some(x) = self.registry.executors().get(home) {
+            let (name, set) = (x.name.clone(), x.cpus.clone());
+            let r = &mut self.roles[i];
+            r.cpus = set.to_string();
+            r.cpu_set = Some(set);
+            r.executor = name;
+            r.sched.clear();
+        }
+    }
+
+    /// Bind each probed role where its probes say (a live move counted as a migration
+    /// when that is not its home) and report the initial binding with the figures.
+    fn finish_probes(
+        &mut self,
+        p: InitialProbes,
+        executors: &[ExecutorLoad],
+        events: &mut Vec<SupervisorEvent>,
+    ) {
+        self.initial_checked = true;
+        let name_of = |e: usize| executors.get(e).map_or("?", |x| x.name.as_str());
+        let choices = bind_from_probes(&p.roles, executors, self.scheduling.margin);
+        let mut rebound = false;
+        let mut probed_lines = Vec::new();
+        for c in &choices {
+            let Some(r) = p.roles.iter().find(|r| r.role == c.role) else {
+                continue;
+            };
+            let mut figures = vec![format!(
+                "{:.0} ms on {} (declared)",
+                r.latency_ms,
+                name_of(r.home)
+            )];
+            figures.extend(
+                r.figures
+                    .iter()
+                    .map(|f| format!("{:.0} ms on {}", r.predicted_ms(f), name_of(f.executor))),
+            );
+            let name = self.roles[c.role].name.clone();
+            let verdict = if c.to == c.from {
+                format!("kept on {}", name_of(c.from))
+            } else {
+                let trigger = MigrationTrigger {
+                    latency_ms: r.latency_ms,
+                    budget_ms: r.budget_ms,
+                    predicted_ms: c.predicted_ms,
+                    initial: true,
+                };
+                match self.migrate_with(&name, name_of(c.to), Some(trigger)) {
+                    Ok(_) => {
+                        rebound = true;
+                        format!("bound to {}", name_of(c.to))
+                    }
+                    Err(e) => {
+                        events.push(SupervisorEvent::MigrationFailed {
+                            name: name.clone(),
+                            reason: format!("initial binding to {}: {e}", name_of(c.to)),
+                        });
+                        format!("kept on {} (the move failed)", name_of(c.from))
+                    }
+                }
+            };
+            let line = format!(
+                "probed {}; {verdict}, {:.0} ms predicted of {:.0} ms budget",
+                figures.join(", "),
+                c.predicted_ms,
+                r.budget_ms
+            );
+            self.roles[c.role].binding = format!("initial binding: {line}");
+            probed_lines.push((c.role, line));
+        }
+        let mut reasons = Vec::new();
+        for (i, r) in self.roles.iter_mut().enumerate() {
+            let line = match probed_lines.iter().find(|(role, _)| *role == i) {
+                Some((_, line)) => line.clone(),
+                None => {
+                    let fits = p.at_home.get(i).cloned().unwrap_or_default();
+                    if r.migrations == 0 {
+                        r.binding = format!(
+                            "{}; initial check: {fits}",
+                            r.binding.split(';').next().unwrap_or("")
+                        );
+                    }
+                    fits
+                }
+            };
+            let on = if r.executor.is_empty() {
+                "unbound"
+            } else {
+                &r.executor
+            };
+            reasons.push(format!("{} on {on} ({line})", r.name));
         }
         events.append(&mut self.pending);
         events.push(SupervisorEvent::InitialBinding { rebound, reasons });
