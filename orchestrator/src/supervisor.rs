@@ -1064,6 +1064,8 @@ pub struct Supervisor {
     variant_steps: u32,
     next_tick: Instant,
     initial_checked: bool,
+    /// Scheduling ticks the initial check has waited for roles' first cycles.
+    initial_wait_ticks: u32,
     /// The initial binding's probes, while they run.
     probes: Option<InitialProbes>,
     migrations: u32,
@@ -1339,6 +1341,7 @@ impl Supervisor {
             idle_heartbeat_ms,
             next_tick: Instant::now(),
             initial_checked: false,
+            initial_wait_ticks: 0,
             probes: None,
             migrations: 0,
             next_audit: Instant::now(),

@@ -8,6 +8,9 @@ use std::io::Write as _;
 
 /// Consecutive ticks of figures a role needs before the initial binding is checked.
 const INITIAL_PROBE_TICKS: usize = 8;
+/// Ticks the initial binding waits, once every role has its samples, for the roles that
+/// have not finished a cycle yet (40 ticks: 10 s at the default 250 ms).
+const INITIAL_CYCLE_WAIT_TICKS: u32 = 40;
 /// Below this much CPU time in a window, a role's slowdown is not measured (ms of run time).
 const MIN_RUN_FOR_SLOWDOWN_NS: u64 = 2_000_000;
 /// Affinity passes over a process's threads before a move gives up on threads that keep
@@ -459,12 +462,22 @@ impl Supervisor {
                 self.step_probes(&executors, events);
                 return;
             }
-            let ready = self.roles.iter().all(|r| {
+            let sampled = self.roles.iter().all(|r| {
                 r.budget_ms.is_none() || !r.running || r.sched.len() >= INITIAL_PROBE_TICKS
             }) && self
                 .roles
                 .iter()
                 .any(|r| r.sched.len() >= INITIAL_PROBE_TICKS);
+            // a role without a finished cycle cannot be judged: wait for one (a language
+            // model's first decision takes seconds), but not for ever
+            let cycled = self
+                .roles
+                .iter()
+                .all(|r| r.budget_ms.is_none() || !r.running || r.worked_cycles > 0);
+            if sampled {
+                self.initial_wait_ticks += 1;
+            }
+            let ready = sampled && (cycled || self.initial_wait_ticks > INITIAL_CYCLE_WAIT_TICKS);
             if ready && !self.start_probes(&roles, &executors, events) {
                 self.initial_checked = true;
                 self.initial_binding(&roles, &executors, events);
