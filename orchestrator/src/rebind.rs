@@ -21,7 +21,9 @@
 //! pushing a role that fits over its budget: relief, not a cure, but a reasoner at 1.4x its
 //! budget meets a heartbeat deadline a reasoner at 5x misses. Moved roles
 //! then stay put for [`RebindConfig::cooldown_ticks`]; when no plan exists, the planner
-//! waits as long before it tries again. Together with the margin this keeps noise around a
+//! waits as long before it tries again, unless a new slip comes first (another role over
+//! its budget, or the worst latency/budget ratio up by the margin): a reasoner a little over
+//! budget where no move helps must not delay the answer to a hog landing later. Together with the margin this keeps noise around a
 //! budget from moving roles back and forth.
 //!
 //! Relief is rate-limited per role: a role that a relief plan moved stays put twice as long
@@ -323,6 +325,10 @@ pub struct RebindPolicy {
     streak: Vec<u32>,
     cooldown: Vec<u32>,
     hold_off: u32,
+    /// When the last search found no plan: the roles over budget then, and the worst
+    /// latency/budget ratio. A new slip (another role over, or the worst ratio up by the
+    /// margin) ends the hold-off at once: the wait is for the same situation, not a new one.
+    held: Option<(Vec<bool>, f64)>,
     /// Relief moves of each role since it last stayed within budget for a cooldown.
     reliefs: Vec<u32>,
     /// Consecutive ticks each role has been within its budget.
@@ -337,6 +343,7 @@ impl RebindPolicy {
             streak: vec![0; roles],
             cooldown: vec![0; roles],
             hold_off: 0,
+            held: None,
             reliefs: vec![0; roles],
             calm: vec![0; roles],
         }
@@ -400,9 +407,25 @@ impl RebindPolicy {
             }
             self.cooldown[r] = self.cooldown[r].saturating_sub(1);
         }
+        let worst = roles.iter().map(RoleLoad::ratio).fold(0.0, f64::max);
         if self.hold_off > 0 {
-            self.hold_off -= 1;
-            return None;
+            let new_slip = self.held.as_ref().is_some_and(|(over, then)| {
+                worst > then * (1.0 + self.config.margin)
+                    || roles
+                        .iter()
+                        .zip(&self.streak)
+                        .enumerate()
+                        .any(|(r, (role, &streak))| {
+                            streak >= self.config.trigger_ticks
+                                && role.over_budget()
+                                && !over.get(r).copied().unwrap_or(false)
+                        })
+            });
+            if !new_slip {
+                self.hold_off -= 1;
+                return None;
+            }
+            self.hold_off = 0;
         }
         if !self.streak.iter().any(|&s| s >= self.config.trigger_ticks) {
             return None;
@@ -434,6 +457,7 @@ impl RebindPolicy {
             }
             None => {
                 self.hold_off = self.config.cooldown_ticks;
+                self.held = Some((roles.iter().map(RoleLoad::over_budget).collect(), worst));
                 None
             }
         }
@@ -731,6 +755,54 @@ mod tests {
             assert_eq!(policy.cooldown(m.role), c as u32);
             assert_eq!(policy.reliefs(m.role), 0);
         }
+    }
+
+    #[test]
+    fn a_new_slip_ends_the_wait_after_a_failed_search() {
+        // the reasoner a little over budget where no move helps (both CPUs busy): the
+        // search fails and the policy waits a cooldown before it tries again
+        let cfg = RebindConfig {
+            cooldown_ticks: 40,
+            ..RebindConfig::default()
+        };
+        let executors = vec![ex("control", 0.9), ex("perception", 0.9)];
+        let mut reasoning = role("reasoning", 1, 1000.0, 1100.0, 0.5);
+        reasoning.slowdown = 1.1;
+        let text = role("text", 1, 500.0, 300.0, 0.3);
+        let mut p = RebindPolicy::new(cfg, 2);
+        for _ in 0..cfg.trigger_ticks {
+            assert_eq!(p.tick(&[reasoning.clone(), text.clone()], &executors), None);
+        }
+        // the same situation: still waiting
+        assert_eq!(p.tick(&[reasoning.clone(), text.clone()], &executors), None);
+        // a hog lands on perception: the text reader slips too, and control is free now
+        let hogged = vec![ex("control", 0.2), ex("perception", 1.0)];
+        let mut slow_text = role("text", 1, 500.0, 900.0, 0.3);
+        slow_text.slowdown = 3.0;
+        slow_text.waiting = 0.6;
+        assert!(
+            plan_fewest_moves(
+                &[reasoning.clone(), slow_text.clone()],
+                &hogged,
+                0.2,
+                3,
+                &[]
+            )
+            .is_some(),
+            "the case has a plan"
+        );
+        let mut plan = None;
+        for _ in 0..cfg.trigger_ticks {
+            plan = plan.or(p.tick(&[reasoning.clone(), slow_text.clone()], &hogged));
+        }
+        let plan = plan.expect("a new slip is searched at once, not after the cooldown");
+        assert!(!plan.moves.is_empty());
+        // the first situation alone again: the wait is over, it is judged afresh (no plan)
+        let mut q = RebindPolicy::new(cfg, 2);
+        for _ in 0..cfg.trigger_ticks + 1 {
+            assert_eq!(q.tick(&[reasoning.clone(), text.clone()], &executors), None);
+        }
+        assert!(q.hold_off > 0);
     }
 
     #[test]
