@@ -750,6 +750,8 @@ pub struct RoleRuntime {
     running: bool,
     /// When the last heartbeat of the current process arrived.
     heard_at: Option<Instant>,
+    /// When the current process was started (or took over).
+    started_at: Option<Instant>,
     /// Run + run-queue wait time of the process when its silence was first noticed.
     silence_probe: Option<u64>,
     /// Scheduler time samples, one per scheduling tick (newest last).
@@ -914,6 +916,7 @@ impl RoleRuntime {
     fn new_incarnation(&mut self) {
         self.running = false;
         self.heard_at = None;
+        self.started_at = Some(Instant::now());
         self.silence_probe = None;
         self.sched.clear();
         self.recent = LatencyWindow::new(RECENT_CYCLES);
@@ -1426,6 +1429,7 @@ impl Supervisor {
             stalls: 0,
             running: false,
             heard_at: None,
+            started_at: None,
             silence_probe: None,
             sched: VecDeque::with_capacity(SCHED_SAMPLES),
             recent: LatencyWindow::new(RECENT_CYCLES),
@@ -2398,6 +2402,7 @@ mod tests {
             binding: String::new(),
             running: false,
             heard_at: None,
+            started_at: None,
             silence_probe: None,
             sched: VecDeque::new(),
             recent: LatencyWindow::new(RECENT_CYCLES),

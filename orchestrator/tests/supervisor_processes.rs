@@ -405,6 +405,47 @@ fn the_initial_binding_probes_a_role_over_budget_on_every_other_executor() {
     let _ = sup.shutdown(PATIENCE);
 }
 
+/// A role stopped (SIGSTOP) before its first heartbeat is stalled as surely as one stopped
+/// later: killed and restarted, instead of waiting for the hard timeout (60 s).
+#[test]
+fn a_role_stopped_before_its_first_heartbeat_is_replaced() {
+    let run = RunDir::new("early-stop");
+    let mut w = Workflow::builtin_default().unwrap();
+    w.roles
+        .iter_mut()
+        .find(|r| r.name == "hub")
+        .unwrap()
+        .backoff_ms = 1;
+    let mut sup = Supervisor::start(options(w, "early-stop", &run)).unwrap();
+    let pid = sup.role("hub").unwrap().pid().unwrap();
+    // SAFETY: kill(2) on a child the supervisor started and still owns.
+    assert_eq!(unsafe { libc::kill(pid as i32, libc::SIGSTOP) }, 0);
+    let events = step_until(&mut sup, "the stopped hub replaced", |s, _| {
+        let hub = s.role("hub").unwrap();
+        hub.stalls() == 1 && hub.pid().is_some_and(|p| p != pid)
+    });
+    let why = events
+        .iter()
+        .find_map(|e| match e {
+            SupervisorEvent::RoleStalled {
+                name, pid: p, why, ..
+            } if name == "hub" => {
+                assert_eq!(*p, pid);
+                Some(why.clone())
+            }
+            _ => None,
+        })
+        .expect("a stall event");
+    assert!(why.contains("before its first heartbeat"), "{why}");
+    // no other role was taken for stalled: they are silent (no heartbeats here) but running
+    for r in sup.roles() {
+        if r.name() != "hub" {
+            assert_eq!(r.stalls(), 0, "{}", r.name());
+        }
+    }
+    let _ = sup.shutdown(PATIENCE);
+}
+
 #[test]
 fn a_crashing_role_is_restarted_with_backoff_until_the_budget_is_spent() {
     let run = RunDir::new("crash");

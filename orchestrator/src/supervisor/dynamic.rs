@@ -312,7 +312,7 @@ impl Supervisor {
     }
 
     /// Kill running roles that are alive but silent: stopped (SIGSTOP, state `T`) after
-    /// three idle-heartbeat periods of silence; silent for `stall_timeout_ms` neither running
+    /// three idle-heartbeat periods of silence (or of life, before a first heartbeat); silent for `stall_timeout_ms` neither running
     /// nor waiting for a CPU (blocked, deadlocked: a role starved by a loaded machine waits in
     /// a run queue and is not stalled); or silent for `stall_hard_timeout_ms` whatever it does.
     /// The exit is reaped by the next step and the restart policy applies.
@@ -322,12 +322,32 @@ impl Supervisor {
         let timeout = Duration::from_millis(self.scheduling.stall_timeout_ms);
         let hard = Duration::from_millis(self.scheduling.stall_hard_timeout_ms);
         for role in &mut self.roles {
-            let (Some(pid), Some(heard), true, true) = (
-                role.pid,
-                role.heard_at,
-                role.running,
-                role.state == RoleState::Running,
-            ) else {
+            let (Some(pid), true) = (role.pid, role.state == RoleState::Running) else {
+                continue;
+            };
+            if !role.running {
+                // before its first heartbeat only a stopped process is certainly stalled (a
+                // model loading from disk can be silent, and blocked, for many seconds)
+                let up = role
+                    .started_at
+                    .map_or(Duration::ZERO, |t| now.saturating_duration_since(t));
+                if up >= quick
+                    && let Some(state @ ('T' | 't')) = process_state(pid)
+                {
+                    if let Some(child) = role.child.as_mut() {
+                        let _ = child.kill();
+                    }
+                    role.stalls += 1;
+                    events.push(SupervisorEvent::RoleStalled {
+                        name: role.name.clone(),
+                        pid,
+                        silent_ms: up.as_millis() as u64,
+                        why: format!("stopped (state {state}) before its first heartbeat"),
+                    });
+                }
+                continue;
+            }
+            let Some(heard) = role.heard_at else {
                 continue;
             };
             let silent = now.saturating_duration_since(heard);
