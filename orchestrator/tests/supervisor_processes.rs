@@ -405,6 +405,66 @@ fn the_initial_binding_probes_a_role_over_budget_on_every_other_executor() {
     let _ = sup.shutdown(PATIENCE);
 }
 
+/// A move by hand while a role is being probed ends its probes: it stays where it was sent.
+#[test]
+fn a_move_by_hand_ends_a_roles_probes() {
+    let run = RunDir::new("probe-hand");
+    let mut w = renamed("reasoning", "burner", 0);
+    w.scheduling.interval_ms = 50;
+    // long probes, so the move by hand lands during one
+    w.scheduling.probe_ticks = 40;
+    let home = w
+        .roles
+        .iter()
+        .find(|r| r.name == "burner")
+        .unwrap()
+        .executor
+        .clone()
+        .unwrap();
+    let mut sup = Supervisor::start(options(w, "probe-hand", &run)).unwrap();
+    let pid = sup.role("burner").unwrap().pid().unwrap();
+    let budget = sup.role("burner").unwrap().budget_ms().unwrap();
+    let bus = FlightBus::builder(sup.flight())
+        .node_name("fake-roles")
+        .create()
+        .unwrap();
+    let hbs: TypedPublisher<RoleHeartbeat> = bus.publisher(topics::HEARTBEAT).unwrap();
+    for seq in 1..=8 {
+        hbs.publish(&heartbeat(
+            "burner",
+            pid,
+            seq,
+            RoleStatus::Running,
+            (5.0 * budget * 1e6) as u64,
+        ))
+        .unwrap();
+    }
+    step_until(&mut sup, "a probe under way", |s, _| {
+        s.role("burner")
+            .unwrap()
+            .binding()
+            .starts_with("initial binding: probing on")
+    });
+    let m = sup.migrate("burner", &home).unwrap();
+    assert_eq!(m.pid, pid);
+    let events = step_until(&mut sup, "the initial binding", |_, all| {
+        all.iter()
+            .any(|e| matches!(e, SupervisorEvent::InitialBinding { .. }))
+    });
+    let burner = sup.role("burner").unwrap();
+    assert_eq!(burner.executor(), home, "{events:?}");
+    assert_eq!(burner.migrations(), 1, "only the move by hand");
+    let report = events
+        .iter()
+        .find_map(|e| match e {
+            SupervisorEvent::InitialBinding { reasons, .. } => Some(reasons.join("; ")),
+            _ => None,
+        })
+        .unwrap();
+    assert!(report.contains("probes ended early"), "{report}");
+    let _ = sup.shutdown(PATIENCE);
+}
+
 /// A role stopped (SIGSTOP) before its first heartbeat is stalled as surely as one stopped
 /// later: killed and restarted, instead of waiting for the hard timeout (60 s).
 #[test]

@@ -34,6 +34,9 @@ pub(crate) struct InitialProbes {
     current: Option<(usize, usize, u64)>,
     /// Every role's figures at home when the probes began (for the report).
     at_home: Vec<String>,
+    /// Probes of `roles[k]` ended early: it is bound where a move by hand sent it, or
+    /// where its restart started it, not by its probes.
+    ended: Vec<bool>,
 }
 
 impl InitialProbes {
@@ -44,6 +47,9 @@ impl InitialProbes {
             self.current = None;
         }
         self.roles[k].figures.clear();
+        if let Some(e) = self.ended.get_mut(k) {
+            *e = true;
+        }
     }
 }
 
@@ -784,6 +790,7 @@ impl Supervisor {
         if probed.is_empty() {
             return false;
         }
+        let n = probed.len();
         let queue = probed
             .iter()
             .enumerate()
@@ -799,6 +806,7 @@ impl Supervisor {
             queue,
             current: None,
             at_home: roles.iter().map(fits_line).collect(),
+            ended: vec![false; n],
         });
         self.step_probes(executors, events);
         true
@@ -921,7 +929,14 @@ impl Supervisor {
     ) {
         self.initial_checked = true;
         let name_of = |e: usize| executors.get(e).map_or("?", |x| x.name.as_str());
-        let choices = bind_from_probes(&p.roles, executors, self.scheduling.margin);
+        let kept: Vec<ProbedRole> = p
+            .roles
+            .iter()
+            .zip(&p.ended)
+            .filter(|(_, ended)| !**ended)
+            .map(|(r, _)| r.clone())
+            .collect();
+        let choices = bind_from_probes(&kept, executors, self.scheduling.margin);
         let mut rebound = false;
         let mut probed_lines = Vec::new();
         for c in &choices {
@@ -973,8 +988,10 @@ impl Supervisor {
         }
         let mut reasons = Vec::new();
         for (i, r) in self.roles.iter_mut().enumerate() {
+            let ended = p.roles.iter().zip(&p.ended).any(|(r, e)| r.role == i && *e);
             let line = match probed_lines.iter().find(|(role, _)| *role == i) {
                 Some((_, line)) => line.clone(),
+                None if ended => "probes ended early: moved by hand or restarted".into(),
                 None => {
                     let fits = p.at_home.get(i).cloned().unwrap_or_default();
                     if r.migrations == 0 {
