@@ -498,9 +498,16 @@ impl Planner {
             } else {
                 TOUCHDOWN_KEEP_M
             };
-            self.search.touchdown = self
-                .map
-                .next_to(p, from, TOUCHDOWN_CLEAR_M, previous, keep_m);
+            // over it, the touchdown stays while its own cell is free ground: the landmark's
+            // sighting can drift onto a neighbour (another footprint) and a wall cell seen
+            // close by in the descent can spoil its clear square, and either made the dense
+            // landing climb away to another point and come back for the rest of the episode
+            self.search.touchdown = match previous {
+                Some(t) if over && self.map.is_clear(t, 0.0) => Some(t),
+                _ => self
+                    .map
+                    .next_to(p, from, TOUCHDOWN_CLEAR_M, previous, keep_m),
+            };
         }
         let goal = self
             .search
@@ -1579,6 +1586,35 @@ mod tests {
         let d2 = p.decide(over, se, false, Some(&s2));
         assert!(!on_roof(d2.target), "{:?}", d2.target);
         assert_eq!((d2.target[0], d2.target[1]), (d.target[0], d.target[1]));
+        // over the touchdown, descending: a frame now shows a 3 m obstacle (a wall cell
+        // read close by) 2 m from it, which spoils its clear square; the touchdown stays
+        // (its own cell is free) and the landing goes on
+        let t = p.search.touchdown.expect("a touchdown");
+        let above = [t[0], t[1], 12.0];
+        let mut s4 = seen("blue roof", [0.45, 0.6, 0.1, 0.1], 30.0, above, se);
+        let mut near_wall = grid([t[0], t[1]], false);
+        let half = (aeris_schemas::OCCUPANCY_SIDE / 2) as f32;
+        for (i, cell) in near_wall.cells.iter_mut().enumerate() {
+            let n = t[0] + ((i / aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
+            let e = t[1] + ((i % aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
+            if (n - t[0] - 3.0).abs() <= 1.0 && (e - t[1]).abs() <= 1.0 {
+                *cell = 3;
+            }
+        }
+        s4.occupancy = near_wall;
+        let d4 = p.decide(above, se, false, Some(&s4));
+        assert!(
+            !p.map.is_clear(t, TOUCHDOWN_CLEAR_M),
+            "the wall cell spoils the square: {t:?} {:?} {:?} {:?}",
+            p.map.height_at([t[0] + 3.0, t[1]]),
+            p.map.height_at([t[0] + 2.0, t[1]]),
+            p.map.height_at([t[0] + 4.0, t[1]])
+        );
+        assert_eq!(p.search.touchdown, Some(t));
+        assert_eq!(
+            (ActionMode::from_u8(d4.action), d4.target[0], d4.target[1]),
+            (Some(ActionMode::Land), t[0], t[1])
+        );
         // a planner that never saw clear ground beside it (only 16 m off, farther than
         // "next to" reaches) lands there rather than on the roof under it
         let mut q = Planner::new(&m, &CameraSpec::default()).unwrap();
