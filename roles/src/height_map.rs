@@ -222,6 +222,29 @@ impl HeightMap {
         })
     }
 
+    /// A board (a sign) sighted at `p`: the centre of its footprint and the unit normal of
+    /// its faces, `[N, E]`, when the footprint is at least twice as long one way as the
+    /// other and at least 3 cells long. A board is read from in front of a face; seen
+    /// edge-on it shows no text.
+    pub fn board(&mut self, p: [f32; 2]) -> Option<([f32; 2], [f32; 2])> {
+        let f = self.footprint(p)?;
+        if f.cells == 0 {
+            return None;
+        }
+        let [r0, c0, r1, c1] = f.rows_cols;
+        let (rows, cols) = (r1 - r0 + 1, c1 - c0 + 1);
+        let a = self.centre(r0, c0);
+        let b = self.centre(r1, c1);
+        let centre = [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])];
+        if cols >= 3 && cols >= 2 * rows {
+            Some((centre, [1.0, 0.0]))
+        } else if rows >= 3 && rows >= 2 * cols {
+            Some((centre, [0.0, 1.0]))
+        } else {
+            None
+        }
+    }
+
     /// Whether a cell of `footprint` lies within [`NEXT_TO_MAX_M`] of `p`.
     fn beside(&self, footprint: &Footprint, p: [f32; 2]) -> bool {
         let Some((pr, pc)) = self.cell(p) else {
@@ -455,6 +478,43 @@ mod tests {
         let roof = [110.0, 110.0];
         let again = m.next_to([130.0, 130.0], from, 4.0, Some(roof), f32::INFINITY);
         assert_eq!(again, Some(t));
+    }
+
+    #[test]
+    fn a_board_faces_across_its_long_side() {
+        // a sign board 12 m long east-west, 1 m thick, 8 m tall at N 50, E 70..82
+        let mut m = HeightMap::covering([-200.0, -200.0], [200.0, 200.0]);
+        m.absorb(&grid([30.0, 76.0], |p| {
+            Some(
+                if (49.0..51.0).contains(&p[0]) && (70.0..82.0).contains(&p[1]) {
+                    8
+                } else {
+                    0
+                },
+            )
+        }));
+        let (centre, normal) = m.board([52.0, 75.0]).expect("a board");
+        assert_eq!(normal, [1.0, 0.0], "its faces look north and south");
+        assert!(
+            (centre[0] - 50.0).abs() <= 2.0 && (centre[1] - 76.0).abs() <= 2.0,
+            "{centre:?}"
+        );
+        // turned a quarter: faces east and west
+        let mut m = HeightMap::covering([-200.0, -200.0], [200.0, 200.0]);
+        m.absorb(&grid([50.0, 50.0], |p| {
+            Some(
+                if (70.0..82.0).contains(&p[0]) && (49.0..51.0).contains(&p[1]) {
+                    8
+                } else {
+                    0
+                },
+            )
+        }));
+        assert_eq!(m.board([76.0, 52.0]).unwrap().1, [0.0, 1.0]);
+        // a square building is no board; nothing seen, no board
+        let mut m = map_with_building();
+        assert_eq!(m.board([120.0, 120.0]), None);
+        assert_eq!(m.board([0.0, 0.0]), None);
     }
 
     #[test]

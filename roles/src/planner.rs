@@ -57,6 +57,12 @@ const READ_RANGE_M: f32 = 30.0;
 const SAME_PLACE_M: f32 = 15.0;
 /// Length (m) of a leg toward a landmark seen beyond the depth sensor's range.
 const APPROACH_LEG_M: f32 = 30.0;
+/// Heartbeats a step that quotes a sign's text waits at the sign it found, facing it, for
+/// the reader to read the quoted text before it takes the sign unread (a reader that never
+/// reads the text must not stop the flight). Sign ground points are estimates that can be
+/// 15-20 m off, so a sign rejected from one side can be found again from the other: only
+/// a reading at the sign tells them apart.
+const READ_WAIT: u32 = 3;
 /// Heartbeats a landing waits over the stand-off point for clear ground to show.
 const TOUCHDOWN_WAIT: u32 = 3;
 /// Half-side (m) of the square around a touchdown point that must hold no obstacle.
@@ -130,6 +136,11 @@ struct Search {
     strike: Option<([f32; 2], u8)>,
     /// The quoted text was read close to the landmark found.
     confirmed: bool,
+    /// Heartbeats spent at the sign found without reading the quoted text there.
+    unread: u32,
+    /// Where a step to a quoted sign reads it: in front of the face of its board nearer
+    /// the vehicle ([`HeightMap::board`]); `None` until the map shows the board.
+    face: Option<[f32; 2]>,
     /// Where a "land next to" step touches down: beside the landmark's footprint, on
     /// ground the flight has seen clear ([`HeightMap::next_to`]).
     touchdown: Option<[f32; 2]>,
@@ -288,8 +299,15 @@ impl Planner {
                     (ActionMode::Land, _) => {
                         landed && (at_touchdown || d <= STANDOFF_M + GROUNDED_REACH_M)
                     }
-                    (_, Relation::Over) => d <= GROUNDED_REACH_M,
-                    _ => d <= STANDOFF_M + GROUNDED_REACH_M,
+                    (_, Relation::Over) => d <= GROUNDED_REACH_M && self.sign_settled(&phrase),
+                    // a board is passed edge-on on the way to its face: not there yet
+                    _ => match self.search.face {
+                        Some(f) => {
+                            ground_distance([position[0], position[1]], f) <= GROUNDED_REACH_M
+                                && self.sign_settled(&phrase)
+                        }
+                        None => d <= STANDOFF_M + GROUNDED_REACH_M && self.sign_settled(&phrase),
+                    },
                 };
             }
         };
@@ -305,6 +323,39 @@ impl Planner {
             ActionMode::Stop => false,
             ActionMode::Goto => distance(position, w) <= radius,
         }
+    }
+
+    /// For a step to a quoted sign: [`STANDOFF_M`] in front of the face of its board on
+    /// the vehicle's side (the side chosen before while it still is one), remembered in
+    /// the search. `None` for other steps, or while the map does not show the board.
+    fn reading_point(
+        &mut self,
+        phrase: &LandmarkPhrase,
+        p: [f32; 2],
+        here: [f32; 2],
+    ) -> Option<[f32; 2]> {
+        if phrase.sign_text.is_empty() {
+            return None;
+        }
+        let Some((c, n)) = self.map.board(p) else {
+            return self.search.face;
+        };
+        let front = [c[0] + n[0] * STANDOFF_M, c[1] + n[1] * STANDOFF_M];
+        let back = [c[0] - n[0] * STANDOFF_M, c[1] - n[1] * STANDOFF_M];
+        let toward = self.search.face.unwrap_or(here);
+        let face = if ground_distance(toward, front) <= ground_distance(toward, back) {
+            front
+        } else {
+            back
+        };
+        self.search.face = Some(face);
+        Some(face)
+    }
+
+    /// A step that quotes a sign's text takes the sign it found once the text was read
+    /// there, or after [`READ_WAIT`] heartbeats there without a reading; other steps at once.
+    fn sign_settled(&self, phrase: &LandmarkPhrase) -> bool {
+        phrase.sign_text.is_empty() || self.search.confirmed || self.search.unread >= READ_WAIT
     }
 
     /// Advance the memory on the vehicle's state and on `state`, the S_t this decision is
@@ -468,6 +519,8 @@ impl Planner {
                 self.search.found = None;
                 self.search.toward = None;
                 self.search.scan = 0;
+                self.search.unread = 0;
+                self.search.face = None;
                 return;
             }
             match seen.point {
@@ -567,7 +620,10 @@ impl Planner {
                         .nearest_clear(standoff, FALLBACK_CLEAR_M, TOUCHDOWN_CLEAR_M)
                         .unwrap_or(standoff)
                 }),
-                Relation::To => short_of(here, p, STANDOFF_M),
+                Relation::To => match self.reading_point(phrase, p, here) {
+                    Some(face) => face,
+                    None => short_of(here, p, STANDOFF_M),
+                },
             };
             // no clear ground seen next to it yet: wait over the stand-off point (the grid
             // fills in as the camera looks around), then land there after all
@@ -576,6 +632,13 @@ impl Planner {
                 && self.search.grid_seen
                 && phrase.relation == Relation::NextTo
                 && self.search.waited < TOUCHDOWN_WAIT;
+            // where the step goes, facing the sign: a heartbeat its text was not read there
+            if !self.sign_settled(phrase) && ground_distance(here, goal) <= GROUNDED_REACH_M {
+                self.search.unread += 1;
+            }
+            // a landing by a quoted sign reads it first, as a step that flies to one does
+            let waiting =
+                waiting || (step.action == ActionMode::Land && !self.sign_settled(phrase));
             if waiting && ground_distance(here, goal) <= GROUNDED_REACH_M {
                 self.search.waited += 1;
             }
@@ -1382,12 +1445,82 @@ mod tests {
         let here = d.target;
         let s = seen("yellow sign", [0.3, 0.3, 0.1, 0.1], 25.0, here, east);
         let d = p.decide(here, east, false, Some(&s));
+        // the sign is HOTEL's only if it reads so: the landing waits by it for a reading,
+        // and comes down unread after READ_WAIT heartbeats there
+        assert_eq!(
+            (d.step, ActionMode::from_u8(d.action)),
+            (3, Some(ActionMode::Goto))
+        );
+        let there = [d.target[0], d.target[1], 15.0];
+        let s = seen("yellow sign", [0.45, 0.3, 0.1, 0.1], 12.0, there, east);
+        let mut d = d;
+        for _ in 0..READ_WAIT {
+            d = p.decide(there, east, false, Some(&s));
+        }
         assert_eq!(
             (d.step, ActionMode::from_u8(d.action)),
             (3, Some(ActionMode::Land))
         );
         assert_eq!(d.target[2], 0.0);
         assert!(d.validate(&limits).is_ok());
+    }
+
+    /// `s` with the reader's text `read` in its summary.
+    fn reading(mut s: PerceptionState, read: &str) -> PerceptionState {
+        s.blocks |= aeris_schemas::block::TEXT;
+        s.summary = aeris_schemas::FixedText::from_str_truncated(&format!("reads \"{read}\""));
+        s
+    }
+
+    #[test]
+    fn a_quoted_sign_is_taken_once_read_there_and_a_sign_found_again_is_read_first() {
+        let mut m = vln_mission();
+        m.subgoals[1].text = "fly to the yellow sign that says STADIUM".into();
+        let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
+        let _ = p.decide([0.0; 3], 0.0, true, None);
+        let at = [0.0, 0.0, 15.0];
+        // a yellow sign 20 m north, seen without a reading: found, not yet taken
+        let s = seen("yellow sign", [0.45, 0.3, 0.1, 0.1], 20.0, at, 0.0);
+        let d = p.decide(at, 0.0, false, Some(&s));
+        assert_eq!(d.step, 2);
+        assert!(p.search.found.is_some());
+        // there, it reads CAFE twice: not STADIUM's, the search goes on
+        let cafe = reading(s, "CAFE");
+        let _ = p.decide(at, 0.0, false, Some(&cafe));
+        let d = p.decide(at, 0.0, false, Some(&cafe));
+        assert_eq!((d.step, p.search.found), (2, None), "{d:?}");
+        // the same sign seen from 20 m further east puts its estimate 18 m away from the
+        // rejected one (the open episode's miss): found again, but not taken unread
+        let east = [0.0, 20.0, 15.0];
+        let s = seen("yellow sign", [0.45, 0.3, 0.1, 0.1], 38.0, east, 0.0);
+        let d = p.decide(east, 0.0, false, Some(&s));
+        assert!(p.search.found.is_some(), "{d:?}");
+        let near = short_of([east[0], east[1]], p.search.found.unwrap(), STANDOFF_M);
+        let there = [near[0], near[1], 15.0];
+        let cafe = reading(
+            seen("yellow sign", [0.45, 0.3, 0.1, 0.1], 12.0, there, 0.0),
+            "CAFE",
+        );
+        let _ = p.decide(there, 0.0, false, Some(&cafe));
+        let d = p.decide(there, 0.0, false, Some(&cafe));
+        assert_eq!(
+            (d.step, p.search.found),
+            (2, None),
+            "read again, rejected again"
+        );
+        // the right sign reads STADIUM at once: taken without waiting
+        let s = reading(
+            seen(
+                "yellow sign",
+                [0.45, 0.3, 0.1, 0.1],
+                20.0,
+                [-60.0, 0.0, 15.0],
+                0.0,
+            ),
+            "STADIUM",
+        );
+        let d = p.decide([-60.0, 0.0, 15.0], 0.0, false, Some(&s));
+        assert_eq!(d.step, 3, "{d:?}");
     }
 
     #[test]
@@ -1457,7 +1590,8 @@ mod tests {
         let d = p.decide(at, 0.0, false, Some(&s));
         assert_eq!(d.step, 2);
         let stadium = p.search.found.unwrap();
-        let d = p.decide(d.target, 0.0, false, None);
+        // at the stand-off point, the sign reads STADIUM: taken
+        let d = p.decide(d.target, 0.0, false, Some(&reading(s, "STADIUM")));
         assert_eq!(d.step, 3, "reached the stand-off point");
         // the same sign seen again: not HOTEL's, the search goes on
         let here = d.target;
@@ -1476,6 +1610,20 @@ mod tests {
         let d = p.decide(here, core::f32::consts::PI, false, Some(&s));
         let found = p.search.found.expect("the other sign");
         assert!(found[0] < here[0] - 30.0, "{found:?}");
+        // approached, to be read before the landing
+        assert_eq!(ActionMode::from_u8(d.action), Some(ActionMode::Goto));
+        let there = [d.target[0], d.target[1], 15.0];
+        let hotel = reading(
+            seen(
+                "yellow sign",
+                [0.45, 0.3, 0.1, 0.1],
+                12.0,
+                there,
+                core::f32::consts::PI,
+            ),
+            "HOTEL",
+        );
+        let d = p.decide(there, core::f32::consts::PI, false, Some(&hotel));
         assert_eq!(ActionMode::from_u8(d.action), Some(ActionMode::Land));
     }
 
@@ -1523,6 +1671,50 @@ mod tests {
         let d = p.decide(at, core::f32::consts::PI, false, Some(&s));
         assert!(p.search.found.is_some());
         assert_eq!(ActionMode::from_u8(d.action), Some(ActionMode::Land));
+    }
+
+    #[test]
+    fn a_quoted_sign_is_approached_in_front_of_a_face_not_edge_on() {
+        let mut m = vln_mission();
+        m.subgoals[1].text = "fly to the yellow sign that says STADIUM".into();
+        let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
+        let _ = p.decide([0.0; 3], 0.0, true, None);
+        // a board 12 m long north-south (faces east and west) at N 40..52, E 0: the
+        // vehicle comes from the south, so it sees the board edge-on
+        let mut board = aeris_schemas::OccupancyGrid {
+            origin: [0.0, 0.0],
+            resolution_m: 2.0,
+            ..Default::default()
+        };
+        let half = (aeris_schemas::OCCUPANCY_SIDE / 2) as f32;
+        for (i, cell) in board.cells.iter_mut().enumerate() {
+            let n = ((i / aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
+            let e = ((i % aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
+            *cell = if (40.0..52.0).contains(&n) && (-1.0..1.0).contains(&e) {
+                8
+            } else {
+                0
+            };
+        }
+        let at = [0.0, 0.0, 15.0];
+        let mut s = seen("yellow sign", [0.45, 0.3, 0.1, 0.1], 40.0, at, 0.0);
+        s.occupancy = board;
+        let d = p.decide(at, 0.0, false, Some(&s));
+        assert_eq!(d.step, 2);
+        // to a face: 12 m east or west of the board's middle, not short of it on the way
+        assert!(
+            (d.target[0] - 46.0).abs() <= 2.0 && (d.target[1].abs() - STANDOFF_M).abs() <= 2.0,
+            "{:?}",
+            d.target
+        );
+        // 12 m short of the board's end, edge-on, the step is not done (the old rule took it)
+        let edge = [28.0, 0.0, 15.0];
+        let mut s = seen("yellow sign", [0.45, 0.3, 0.1, 0.1], 12.0, edge, 0.0);
+        s.occupancy = board;
+        for _ in 0..READ_WAIT + 1 {
+            let d = p.decide(edge, 0.0, false, Some(&s));
+            assert_eq!(d.step, 2, "{d:?}");
+        }
     }
 
     #[test]
