@@ -282,22 +282,24 @@ fn starts_every_role_bound_and_tracks_heartbeats_and_the_board() {
     }
 }
 
-/// pi_0 probes a role that does not fit its budget where the workflow put it: the running
-/// process is moved, live, to every other executor for a few ticks and bound where its
-/// probes measured it fastest (home unless a probe beat home by the margin). Which one that
-/// is depends on this machine's load, so the test checks the decision against the figures
-/// the supervisor reported, not a fixed answer.
-#[test]
-fn the_initial_binding_probes_a_role_over_budget_on_every_other_executor() {
-    let run = RunDir::new("probe");
+/// A flight whose `reasoning` role is a busy loop named `burner`, after it reported 8
+/// cycles at 5x its budget and went silent (a long cycle, not a stall: it keeps using CPU).
+struct Burner {
+    sup: Supervisor,
+    /// The burner's declared executor.
+    home: String,
+    pid: u32,
+    /// The cycle it reported (ms).
+    latency_ms: f64,
+    /// Kept alive: a dropped publisher takes its unread samples with it.
+    _heartbeats: (FlightBus, TypedPublisher<RoleHeartbeat>),
+}
+
+/// Start a [`Burner`] flight; `edit` changes the workflow further.
+fn burner_over_budget(tag: &str, run: &RunDir, edit: impl FnOnce(&mut Workflow)) -> Burner {
     let mut w = renamed("reasoning", "burner", 0);
-    // a CPU hog beside it on its declared executor (a busy loop as well, never heartbeating)
-    w.roles
-        .iter_mut()
-        .find(|r| r.name == "camera")
-        .unwrap()
-        .name = "hog".into();
     w.scheduling.interval_ms = 50;
+    edit(&mut w);
     let home = w
         .roles
         .iter()
@@ -306,34 +308,62 @@ fn the_initial_binding_probes_a_role_over_budget_on_every_other_executor() {
         .executor
         .clone()
         .unwrap();
-    let margin = w.scheduling.margin;
-    let mut sup = Supervisor::start(options(w, "probe", &run)).unwrap();
-    let executors: Vec<String> = sup
-        .registry()
-        .executors()
-        .iter()
-        .map(|e| e.name.clone())
-        .collect();
-    let burner_pid = sup.role("burner").unwrap().pid().unwrap();
-    let budget = sup.role("burner").unwrap().budget_ms().unwrap();
-    // eight worked cycles at 5x its budget, then silence (a long cycle, not a stall: the
-    // process keeps using CPU)
+    let sup = Supervisor::start(options(w, tag, run)).unwrap();
+    let pid = sup.role("burner").unwrap().pid().unwrap();
+    let latency_ms = 5.0 * sup.role("burner").unwrap().budget_ms().unwrap();
     let bus = FlightBus::builder(sup.flight())
         .node_name("fake-roles")
         .create()
         .unwrap();
     let hbs: TypedPublisher<RoleHeartbeat> = bus.publisher(topics::HEARTBEAT).unwrap();
-    let latency_ms = 5.0 * budget;
     for seq in 1..=8 {
         hbs.publish(&heartbeat(
             "burner",
-            burner_pid,
+            pid,
             seq,
             RoleStatus::Running,
             (latency_ms * 1e6) as u64,
         ))
         .unwrap();
     }
+    Burner {
+        sup,
+        home,
+        pid,
+        latency_ms,
+        _heartbeats: (bus, hbs),
+    }
+}
+
+/// pi_0 probes a role that does not fit its budget where the workflow put it: the running
+/// process is moved, live, to every other executor for a few ticks and bound where its
+/// probes measured it fastest (home unless a probe beat home by the margin). Which one that
+/// is depends on this machine's load, so the test checks the decision against the figures
+/// the supervisor reported, not a fixed answer.
+#[test]
+fn the_initial_binding_probes_a_role_over_budget_on_every_other_executor() {
+    let run = RunDir::new("probe");
+    // a CPU hog beside it on its declared executor (a busy loop as well, never heartbeating)
+    let Burner {
+        mut sup,
+        home,
+        pid: burner_pid,
+        latency_ms,
+        _heartbeats,
+    } = burner_over_budget("probe", &run, |w| {
+        w.roles
+            .iter_mut()
+            .find(|r| r.name == "camera")
+            .unwrap()
+            .name = "hog".into();
+    });
+    let margin = sup.scheduling().margin;
+    let executors: Vec<String> = sup
+        .registry()
+        .executors()
+        .iter()
+        .map(|e| e.name.clone())
+        .collect();
     let events = step_until(&mut sup, "the initial binding", |_, all| {
         all.iter()
             .any(|e| matches!(e, SupervisorEvent::InitialBinding { .. }))
@@ -409,36 +439,16 @@ fn the_initial_binding_probes_a_role_over_budget_on_every_other_executor() {
 #[test]
 fn a_move_by_hand_ends_a_roles_probes() {
     let run = RunDir::new("probe-hand");
-    let mut w = renamed("reasoning", "burner", 0);
-    w.scheduling.interval_ms = 50;
     // long probes, so the move by hand lands during one
-    w.scheduling.probe_ticks = 40;
-    let home = w
-        .roles
-        .iter()
-        .find(|r| r.name == "burner")
-        .unwrap()
-        .executor
-        .clone()
-        .unwrap();
-    let mut sup = Supervisor::start(options(w, "probe-hand", &run)).unwrap();
-    let pid = sup.role("burner").unwrap().pid().unwrap();
-    let budget = sup.role("burner").unwrap().budget_ms().unwrap();
-    let bus = FlightBus::builder(sup.flight())
-        .node_name("fake-roles")
-        .create()
-        .unwrap();
-    let hbs: TypedPublisher<RoleHeartbeat> = bus.publisher(topics::HEARTBEAT).unwrap();
-    for seq in 1..=8 {
-        hbs.publish(&heartbeat(
-            "burner",
-            pid,
-            seq,
-            RoleStatus::Running,
-            (5.0 * budget * 1e6) as u64,
-        ))
-        .unwrap();
-    }
+    let Burner {
+        mut sup,
+        home,
+        pid,
+        _heartbeats,
+        ..
+    } = burner_over_budget("probe-hand", &run, |w| {
+        w.scheduling.probe_ticks = 40;
+    });
     step_until(&mut sup, "a probe under way", |s, _| {
         s.role("burner")
             .unwrap()
