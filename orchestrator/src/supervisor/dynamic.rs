@@ -17,8 +17,9 @@ const MIN_RUN_FOR_SLOWDOWN_NS: u64 = 2_000_000;
 /// appearing.
 const MOVE_PASSES: usize = 4;
 
-/// A role that uses less CPU than this (cores) is not probed: its slowdown cannot be
-/// measured in a few ticks, and a move would not shorten cycles spent waiting on input.
+/// A role that runs or waits to run less than this (cores) is not probed: its slowdown
+/// cannot be measured in a few ticks, and a move would not shorten cycles spent waiting on
+/// input.
 const MIN_PROBE_DEMAND: f64 = 0.05;
 
 /// The initial binding's probes while they run: each role that does not fit where the
@@ -495,11 +496,11 @@ impl Supervisor {
                 .iter()
                 .any(|r| r.sched.len() >= INITIAL_PROBE_TICKS);
             // a role without a finished cycle cannot be judged: wait for one (a language
-            // model's first decision takes seconds), but not for ever
-            let cycled = self
-                .roles
-                .iter()
-                .all(|r| r.budget_ms.is_none() || !r.running || r.worked_cycles > 0);
+            // model's first decision takes seconds, and a role still loading its models
+            // has not even said it runs), but not for ever
+            let cycled = self.roles.iter().all(|r| {
+                r.budget_ms.is_none() || r.state != RoleState::Running || r.worked_cycles > 0
+            });
             if sampled {
                 self.initial_wait_ticks += 1;
             }
@@ -766,7 +767,11 @@ impl Supervisor {
             else {
                 continue;
             };
-            if !r.movable || r.demand < MIN_PROBE_DEMAND || latency_ms <= budget_ms * (1.0 - margin)
+            // CPU-bound: running or runnable (a starved role waits in a run queue)
+            let wants_cpu = r.demand + r.waiting;
+            if !r.movable
+                || wants_cpu < MIN_PROBE_DEMAND
+                || latency_ms <= budget_ms * (1.0 - margin)
             {
                 continue;
             }
