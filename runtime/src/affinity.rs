@@ -1,5 +1,7 @@
 //! CPU sets: parsing "0-2,5" lists and binding processes (every thread) to them.
 
+use aeris_schemas::FixedText;
+
 /// Why a CPU list cannot be used.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum CpuSetError {
@@ -151,28 +153,69 @@ impl CpuSet {
 
 impl core::fmt::Display for CpuSet {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        let mut i = 0;
-        let mut first = true;
-        while i < self.cpus.len() {
-            let start = self.cpus[i];
-            let mut end = start;
-            while i + 1 < self.cpus.len() && self.cpus[i + 1] == end + 1 {
-                i += 1;
-                end = self.cpus[i];
-            }
-            if !first {
-                write!(f, ",")?;
-            }
-            first = false;
-            if start == end {
-                write!(f, "{start}")?
-            } else {
-                write!(f, "{start}-{end}")?
-            }
-            i += 1;
-        }
-        Ok(())
+        write_cpu_list(self.cpus.iter().copied(), f)
     }
+}
+
+/// Write ascending CPU indices as a list with ranges (`0-2,5`).
+fn write_cpu_list(
+    cpus: impl Iterator<Item = usize>,
+    out: &mut impl core::fmt::Write,
+) -> core::fmt::Result {
+    let mut range: Option<(usize, usize)> = None;
+    let mut first = true;
+    let mut flush = |out: &mut dyn core::fmt::Write, (start, end): (usize, usize)| {
+        if !first {
+            out.write_char(',')?;
+        }
+        first = false;
+        if start == end {
+            write!(out, "{start}")
+        } else {
+            write!(out, "{start}-{end}")
+        }
+    };
+    for c in cpus {
+        range = match range {
+            Some((start, end)) if c == end + 1 => Some((start, c)),
+            Some(done) => {
+                flush(out, done)?;
+                Some((c, c))
+            }
+            None => Some((c, c)),
+        };
+    }
+    match range {
+        Some(done) => flush(out, done),
+        None => Ok(()),
+    }
+}
+
+/// Replace `label` with the affinity of task `tid` (0 = caller) as a CPU list (`0-1`), the
+/// way a role reports where it runs after the supervisor moved it. Never allocates; on an
+/// error `label` is left as it was.
+///
+/// # Errors
+/// The `sched_getaffinity` error, or [`std::io::ErrorKind::InvalidData`] when the list does
+/// not fit in `N` bytes.
+pub fn write_task_affinity<const N: usize>(
+    tid: i32,
+    label: &mut FixedText<N>,
+) -> std::io::Result<()> {
+    // SAFETY: zeroed cpu_set_t is valid; the kernel fills it.
+    let mut set: libc::cpu_set_t = unsafe { core::mem::zeroed() };
+    // SAFETY: `set` is writable and of the size passed.
+    let rc =
+        unsafe { libc::sched_getaffinity(tid, core::mem::size_of::<libc::cpu_set_t>(), &mut set) };
+    if rc != 0 {
+        return Err(std::io::Error::last_os_error());
+    }
+    let mut text = FixedText::<N>::new();
+    // SAFETY: reading bits of a valid set.
+    let cpus = (0..libc::CPU_SETSIZE as usize).filter(|c| unsafe { libc::CPU_ISSET(*c, &set) });
+    write_cpu_list(cpus, &mut text).map_err(|_| std::io::ErrorKind::InvalidData)?;
+    *label = text;
+    Ok(())
 }
 
 #[cfg(test)]
@@ -201,5 +244,34 @@ mod tests {
         one.bind_task(0).unwrap();
         assert_eq!(CpuSet::of_task(0).unwrap(), one);
         before.bind_task(0).unwrap();
+    }
+
+    #[test]
+    fn a_task_reports_its_affinity_as_a_cpu_list() {
+        let before = CpuSet::of_task(0).unwrap();
+        let mut label = FixedText::<32>::from_str_truncated("stale");
+        write_task_affinity(0, &mut label).unwrap();
+        assert_eq!(label.as_str(), Some(before.to_string().as_str()));
+        let one = CpuSet::parse("0").unwrap();
+        one.bind_task(0).unwrap();
+        write_task_affinity(0, &mut label).unwrap();
+        before.bind_task(0).unwrap();
+        assert_eq!(label.as_str(), Some("0"));
+        // a list that does not fit leaves the label as it was
+        let mut short = FixedText::<0>::new();
+        assert!(write_task_affinity(0, &mut short).is_err());
+    }
+
+    #[test]
+    fn lists_group_consecutive_cpus() {
+        let list = |cpus: &[usize]| {
+            let mut t = FixedText::<32>::new();
+            write_cpu_list(cpus.iter().copied(), &mut t).unwrap();
+            t.as_str().unwrap().to_string()
+        };
+        assert_eq!(list(&[]), "");
+        assert_eq!(list(&[4]), "4");
+        assert_eq!(list(&[0, 1, 2, 5, 7, 8]), "0-2,5,7-8");
+        assert_eq!(list(&[0, 2, 4]), "0,2,4");
     }
 }

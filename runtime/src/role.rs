@@ -7,6 +7,7 @@
 //! `Starting` before the role is built and `Running` as soon as it is.
 //! `cycle` must not allocate: ports and buffers are created in `new`.
 
+use crate::affinity::write_task_affinity;
 use crate::bus::{BusError, FlightBus, TypedPublisher};
 use crate::clock::{duration_ns, monotonic_ns, sleep_until_ns};
 use crate::signals;
@@ -132,6 +133,8 @@ impl RoleHost {
         hb.role.set(&ctx.spec.name);
         hb.variant.set(&ctx.spec.variant);
         hb.executor.set(&ctx.spec.cpus);
+        // what the kernel says, so a live move by the supervisor shows in the next heartbeat
+        let _ = write_task_affinity(0, &mut hb.executor);
         hb.pid = std::process::id();
         hb.status = RoleStatus::Starting as u8;
         hb.seq = 1;
@@ -174,6 +177,8 @@ impl RoleHost {
                 hb.status = report.status as u8;
                 hb.counters = report.counters;
                 hb.worked = u8::from(outcome == CycleOutcome::Worked);
+                // a failed read keeps the last label
+                let _ = write_task_affinity(0, &mut hb.executor);
                 if outcome == CycleOutcome::Worked {
                     hb.cycle_latency_ns = end - start;
                     for (slot, (name, ns)) in hb.stages.iter_mut().zip(report.stages.iter()) {

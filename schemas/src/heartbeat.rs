@@ -65,7 +65,8 @@ pub struct RoleHeartbeat {
     pub role: FixedText<NAME_MAX>,
     /// Variant the role runs.
     pub variant: FixedText<NAME_MAX>,
-    /// Executor the role is bound to (CPU list such as "0-1").
+    /// CPUs the role's main thread may run on (a CPU list such as "0-1"), read from the
+    /// kernel for every heartbeat, so a live move shows in the next one.
     pub executor: FixedText<NAME_MAX>,
     /// OS process id.
     pub pid: u32,

@@ -96,6 +96,17 @@ impl<const N: usize> Default for FixedText<N> {
     }
 }
 
+/// `write!` into the text; a write that does not fit fails (what fits is kept).
+impl<const N: usize> core::fmt::Write for FixedText<N> {
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        if self.push_str(s) {
+            Err(core::fmt::Error)
+        } else {
+            Ok(())
+        }
+    }
+}
+
 impl<const N: usize> core::fmt::Debug for FixedText<N> {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self.as_str() {

@@ -1,13 +1,13 @@
 //! Dynamic scheduling and stall handling end to end, in one flight of the default workflow:
 //! - `aeris migrate` moves the running reasoner, live, to the control executor: same pid,
-//!   every thread reports the new affinity, no decision is lost;
+//!   every thread reports the new affinity, so do its heartbeats, no decision is lost;
 //! - a role stopped with SIGSTOP (alive, silent) is detected as stalled, killed and
 //!   restarted; SIGCONT to the old pid then finds nothing;
 //! - the flight still reaches its goal.
 
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::bus::FlightBus;
-use aeris_schemas::{RoleStatusEntry, SupervisorStatus};
+use aeris_schemas::{RoleHeartbeat, RoleStatusEntry, SupervisorStatus, topics};
 use aeris_tests::*;
 use std::process::Command;
 use std::time::Duration;
@@ -48,6 +48,9 @@ fn a_role_moves_live_and_a_stopped_role_is_replaced_while_the_flight_completes()
     .unwrap_or_else(|| panic!("flight never came up: {:?}", run_output(&dir.0)));
     let before = entry(&board, "reasoning").unwrap();
     let hub = entry(&board, "hub").unwrap();
+    let heartbeats = observer
+        .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
+        .unwrap();
     let target_cpus = CpuSet::parse(hub.cpus.as_str().unwrap()).unwrap();
 
     // --- live move by hand
@@ -93,6 +96,26 @@ fn a_role_moves_live_and_a_stopped_role_is_replaced_while_the_flight_completes()
             .map(|_| ())
     })
     .expect("the moved reasoner keeps sending heartbeats");
+    // and its own heartbeats say where it runs now
+    let mut last = None;
+    poll_until(Duration::from_secs(60), || {
+        let mut relabelled = false;
+        heartbeats
+            .drain(|hb| {
+                if hb.pid == before.pid {
+                    last = Some(*hb);
+                    relabelled |= hb.executor.as_str() == hub.cpus.as_str();
+                }
+            })
+            .unwrap();
+        relabelled.then_some(())
+    })
+    .unwrap_or_else(|| {
+        panic!(
+            "the moved reasoner's heartbeats do not name the CPUs it was moved to ({:?}); the last: {last:?}",
+            hub.cpus
+        )
+    });
 
     // refusals are clear errors, and move nothing
     let bad = Command::new(aeris_bin())
