@@ -63,6 +63,14 @@ const APPROACH_LEG_M: f32 = 30.0;
 /// 15-20 m off, so a sign rejected from one side can be found again from the other: only
 /// a reading at the sign tells them apart.
 const READ_WAIT: u32 = 3;
+/// Within this (m) of a board's reading point, the vehicle comes down to read it: the
+/// camera looks 15 degrees down with a 74-degree vertical field, so a board 8 m tall seen
+/// from 12 m in front of it is below the frame from above about 24 m.
+const READ_DESCENT_REACH_M: f32 = 3.0;
+/// The descent to read a board needs the map to know every cell within this (m) of the
+/// reading point, and then keeps [`OBSTACLE_MARGIN_M`] above the highest top there and
+/// above the board's.
+const READ_CLEAR_M: f32 = 6.0;
 /// Heartbeats a landing waits over the stand-off point for clear ground to show.
 const TOUCHDOWN_WAIT: u32 = 3;
 /// Half-side (m) of the square around a touchdown point that must hold no obstacle.
@@ -141,6 +149,8 @@ struct Search {
     /// Where a step to a quoted sign reads it: in front of the face of its board nearer
     /// the vehicle ([`HeightMap::board`]); `None` until the map shows the board.
     face: Option<[f32; 2]>,
+    /// The centre of the board whose face is [`Search::face`].
+    board: Option<[f32; 2]>,
     /// Where a "land next to" step touches down: beside the landmark's footprint, on
     /// ground the flight has seen clear ([`HeightMap::next_to`]).
     touchdown: Option<[f32; 2]>,
@@ -349,7 +359,30 @@ impl Planner {
             back
         };
         self.search.face = Some(face);
+        self.search.board = Some(c);
         Some(face)
+    }
+
+    /// The height from which to read the board of a quoted sign step, once within
+    /// [`READ_DESCENT_REACH_M`] of its reading point and below `altitude`: the highest top
+    /// the map knows within [`READ_CLEAR_M`] of the point and up to the board, plus
+    /// [`OBSTACLE_MARGIN_M`]. `None` (stay at `altitude`) elsewhere, once the sign is
+    /// settled, or while the map does not know every cell there.
+    fn reading_height(
+        &self,
+        phrase: &LandmarkPhrase,
+        here: [f32; 2],
+        altitude: f32,
+    ) -> Option<f32> {
+        let (face, board) = (self.search.face?, self.search.board?);
+        if self.sign_settled(phrase) || ground_distance(here, face) > READ_DESCENT_REACH_M {
+            return None;
+        }
+        let (top, known) = self
+            .map
+            .top_along(face, board, 0.0, READ_CLEAR_M, STANDOFF_M);
+        let height = (top + OBSTACLE_MARGIN_M).max(self.h_min);
+        (known && height < altitude).then_some(height)
     }
 
     /// A step that quotes a sign's text takes the sign it found once the text was read
@@ -609,7 +642,12 @@ impl Planner {
             )
         };
         if let Some(p) = self.search.found {
-            if climbing && step.action != ActionMode::Land {
+            // at a board's reading point, low enough for the camera to see the board
+            let reading_height = match (phrase.relation, step.action) {
+                (Relation::To, ActionMode::Goto) => self.reading_height(phrase, here, altitude),
+                _ => None,
+            };
+            if climbing && step.action != ActionMode::Land && reading_height.is_none() {
                 return climb(Some((p[1] - here[1]).atan2(p[0] - here[0])));
             }
             let goal = match phrase.relation {
@@ -625,6 +663,7 @@ impl Planner {
                     None => short_of(here, p, STANDOFF_M),
                 },
             };
+
             // no clear ground seen next to it yet: wait over the stand-off point (the grid
             // fills in as the camera looks around), then land there after all
             let waiting = step.action == ActionMode::Land
@@ -632,8 +671,11 @@ impl Planner {
                 && self.search.grid_seen
                 && phrase.relation == Relation::NextTo
                 && self.search.waited < TOUCHDOWN_WAIT;
-            // where the step goes, facing the sign: a heartbeat its text was not read there
-            if !self.sign_settled(phrase) && ground_distance(here, goal) <= GROUNDED_REACH_M {
+            // where the step goes, facing the sign (down at the reading height, when there is
+            // one): a heartbeat its text was not read there
+            let down = reading_height.is_none_or(|h| position[2] <= h + CLIMB_FIRST_M);
+            if !self.sign_settled(phrase) && ground_distance(here, goal) <= GROUNDED_REACH_M && down
+            {
                 self.search.unread += 1;
             }
             // a landing by a quoted sign reads it first, as a step that flies to one does
@@ -650,14 +692,14 @@ impl Planner {
             let u = if action == ActionMode::Land {
                 0.0
             } else {
-                altitude
+                reading_height.unwrap_or(altitude)
             };
             // a landing approaches at the transit height too: the gate binds the descent
             // once over the touchdown point
             let alt = if action == ActionMode::Land {
                 altitude.max(position[2]).max(self.h_min)
             } else {
-                altitude
+                reading_height.unwrap_or(altitude)
             };
             // face the landmark, not the stand-off point, once there
             let facing = ground_distance(here, p) > 1.0;
@@ -685,6 +727,10 @@ impl Planner {
             );
         }
         if self.search.legs < MAX_SEARCH_LEGS {
+            // down from reading a board: up to the transit height before a leg
+            if climbing {
+                return climb(Some(search_heading));
+            }
             self.search.legs += 1;
             self.search.scan = 0;
             let t = ahead(position, search_heading, SEARCH_LEG_M);
@@ -1714,6 +1760,89 @@ mod tests {
         for _ in 0..READ_WAIT + 1 {
             let d = p.decide(edge, 0.0, false, Some(&s));
             assert_eq!(d.step, 2, "{d:?}");
+        }
+    }
+
+    #[test]
+    fn a_board_below_the_frame_is_read_from_low_down_and_the_next_leg_climbs_first() {
+        let mut m = vln_mission();
+        m.subgoals[0].text = "take off from the helipad to 28 metres".into();
+        m.subgoals[1].text = "fly to the yellow sign that says STADIUM".into();
+        let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
+        let _ = p.decide([0.0; 3], 0.0, true, None);
+        // an 8 m board at N 40..52, E 0, on ground the grid shows clear all around
+        let mut board = aeris_schemas::OccupancyGrid {
+            origin: [0.0, 0.0],
+            resolution_m: 2.0,
+            ..Default::default()
+        };
+        let half = (aeris_schemas::OCCUPANCY_SIDE / 2) as f32;
+        for (i, cell) in board.cells.iter_mut().enumerate() {
+            let n = ((i / aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
+            let e = ((i % aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
+            *cell = u8::from((40.0..52.0).contains(&n) && (-1.0..1.0).contains(&e)) * 8;
+        }
+        let sign = |at: [f32; 3], range_m: f32, yaw: f32| {
+            let mut s = seen("yellow sign", [0.45, 0.45, 0.1, 0.1], range_m, at, yaw);
+            s.occupancy = board;
+            s
+        };
+        let d = p.decide(
+            [0.0, 0.0, 28.0],
+            0.0,
+            false,
+            Some(&sign([0.0, 0.0, 28.0], 40.0, 0.0)),
+        );
+        assert_eq!((d.step, d.altitude), (2, 28.0), "{d:?}");
+        let face = [d.target[0], d.target[1]];
+        // at the reading point at 28 m the board is below the frame: come down to the
+        // board's top + the margin, and the heartbeats up there do not count as unread
+        let toward_board = if face[1] > 0.0 {
+            -core::f32::consts::FRAC_PI_2
+        } else {
+            core::f32::consts::FRAC_PI_2
+        };
+        let high = [face[0], face[1], 28.0];
+        for _ in 0..READ_WAIT + 2 {
+            let d = p.decide(
+                high,
+                toward_board,
+                false,
+                Some(&sign(high, 12.0, toward_board)),
+            );
+            assert_eq!(d.step, 2, "{d:?}");
+            assert_eq!(
+                (d.altitude, d.target[2]),
+                (8.0 + OBSTACLE_MARGIN_M, 8.0 + OBSTACLE_MARGIN_M)
+            );
+            assert!(horizontal(d.target, high) <= 1.0, "{d:?}");
+        }
+        // down there, unread for READ_WAIT heartbeats: taken unread, as before
+        let low = [face[0], face[1], 8.0 + OBSTACLE_MARGIN_M];
+        let mut step = 2;
+        for _ in 0..READ_WAIT + 1 {
+            step = p
+                .decide(
+                    low,
+                    toward_board,
+                    false,
+                    Some(&sign(low, 12.0, toward_board)),
+                )
+                .step;
+        }
+        assert_eq!(step, 3);
+        // the next step, still low, climbs in place (scanning) and flies no search leg
+        // before it is up at the transit height
+        let empty = PerceptionState::default();
+        let mut yaw = toward_board;
+        for k in 0..SCAN_OFFSETS.len() + 2 {
+            let d = p.decide(low, yaw, false, Some(&empty));
+            yaw = d.yaw;
+            assert_eq!(d.step, 3);
+            assert!(
+                horizontal(d.target, low) <= 1e-3 && d.target[2] == 28.0,
+                "decision {k} of the next step, from low down: {d:?}"
+            );
         }
     }
 
