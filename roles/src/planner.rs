@@ -1719,14 +1719,9 @@ mod tests {
         assert_eq!(ActionMode::from_u8(d.action), Some(ActionMode::Land));
     }
 
-    #[test]
-    fn a_quoted_sign_is_approached_in_front_of_a_face_not_edge_on() {
-        let mut m = vln_mission();
-        m.subgoals[1].text = "fly to the yellow sign that says STADIUM".into();
-        let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
-        let _ = p.decide([0.0; 3], 0.0, true, None);
-        // a board 12 m long north-south (faces east and west) at N 40..52, E 0: the
-        // vehicle comes from the south, so it sees the board edge-on
+    /// An occupancy grid around N, E = 0 showing free ground but for a board 8 m high and
+    /// 12 m long north-south (facing east and west) at N 40..52, E 0.
+    fn north_south_board() -> aeris_schemas::OccupancyGrid {
         let mut board = aeris_schemas::OccupancyGrid {
             origin: [0.0, 0.0],
             resolution_m: 2.0,
@@ -1736,12 +1731,19 @@ mod tests {
         for (i, cell) in board.cells.iter_mut().enumerate() {
             let n = ((i / aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
             let e = ((i % aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
-            *cell = if (40.0..52.0).contains(&n) && (-1.0..1.0).contains(&e) {
-                8
-            } else {
-                0
-            };
+            *cell = u8::from((40.0..52.0).contains(&n) && (-1.0..1.0).contains(&e)) * 8;
         }
+        board
+    }
+
+    #[test]
+    fn a_quoted_sign_is_approached_in_front_of_a_face_not_edge_on() {
+        let mut m = vln_mission();
+        m.subgoals[1].text = "fly to the yellow sign that says STADIUM".into();
+        let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
+        let _ = p.decide([0.0; 3], 0.0, true, None);
+        // the vehicle comes from the south, so it sees the board edge-on
+        let board = north_south_board();
         let at = [0.0, 0.0, 15.0];
         let mut s = seen("yellow sign", [0.45, 0.3, 0.1, 0.1], 40.0, at, 0.0);
         s.occupancy = board;
@@ -1770,18 +1772,7 @@ mod tests {
         m.subgoals[1].text = "fly to the yellow sign that says STADIUM".into();
         let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
         let _ = p.decide([0.0; 3], 0.0, true, None);
-        // an 8 m board at N 40..52, E 0, on ground the grid shows clear all around
-        let mut board = aeris_schemas::OccupancyGrid {
-            origin: [0.0, 0.0],
-            resolution_m: 2.0,
-            ..Default::default()
-        };
-        let half = (aeris_schemas::OCCUPANCY_SIDE / 2) as f32;
-        for (i, cell) in board.cells.iter_mut().enumerate() {
-            let n = ((i / aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
-            let e = ((i % aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
-            *cell = u8::from((40.0..52.0).contains(&n) && (-1.0..1.0).contains(&e)) * 8;
-        }
+        let board = north_south_board();
         let sign = |at: [f32; 3], range_m: f32, yaw: f32| {
             let mut s = seen("yellow sign", [0.45, 0.45, 0.1, 0.1], range_m, at, yaw);
             s.occupancy = board;
