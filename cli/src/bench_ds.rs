@@ -36,10 +36,11 @@ pub struct DsArgs {
 /// One flight of the scenario.
 #[derive(Debug, Clone, Serialize)]
 pub struct DsRun {
-    /// Mean cycle time over the cycles after the hog landed (s).
-    pub ct_mean_s: f64,
-    /// Its 95th percentile (s).
-    pub ct_p95_s: f64,
+    /// Mean cycle time over the committed cycles after the hog landed (s); `None` (JSON
+    /// null) when none committed: a cycle time of 0 would read as a perfect one.
+    pub ct_mean_s: Option<f64>,
+    /// Its 95th percentile (s); `None` when no cycle committed.
+    pub ct_p95_s: Option<f64>,
     /// Execution error rate over those cycles (reused / all).
     pub eer: f64,
     /// Automatic live moves after the hog landed.
@@ -201,8 +202,8 @@ fn fly_once(a: &DsArgs, dynamic: bool) -> Result<DsRun> {
         .collect();
     let reused = after.iter().filter(|c| c.reused).count();
     Ok(DsRun {
-        ct_mean_s: mean_std(&ct).map(|(m, _)| m).unwrap_or(0.0),
-        ct_p95_s: percentile(&ct, 95.0).unwrap_or(0.0),
+        ct_mean_s: mean_std(&ct).map(|(m, _)| m),
+        ct_p95_s: percentile(&ct, 95.0),
         eer: if after.is_empty() {
             0.0
         } else {
@@ -235,12 +236,13 @@ pub fn ds(a: DsArgs) -> Result<()> {
         "  {:<7} {:>10} {:>10} {:>7} {:>10} {:>16}  hogged role (CPUs)",
         "", "CT mean s", "CT p95 s", "EER %", "migrations", "slip->moved ms"
     );
+    let seconds = |s: Option<f64>| s.map_or_else(|| "-".into(), |s| format!("{s:.3}"));
     for (name, r) in [("DS on", &ds_on), ("DS off", &ds_off)] {
         println!(
-            "  {:<7} {:>10.3} {:>10.3} {:>7.1} {:>10} {:>16}  {} ({})",
+            "  {:<7} {:>10} {:>10} {:>7.1} {:>10} {:>16}  {} ({})",
             name,
-            r.ct_mean_s,
-            r.ct_p95_s,
+            seconds(r.ct_mean_s),
+            seconds(r.ct_p95_s),
             r.eer * 100.0,
             r.migrations,
             r.slip_to_migrated_ms
