@@ -689,17 +689,13 @@ impl Planner {
             } else {
                 ActionMode::Goto
             };
-            let u = if action == ActionMode::Land {
-                0.0
-            } else {
-                reading_height.unwrap_or(altitude)
-            };
             // a landing approaches at the transit height too: the gate binds the descent
             // once over the touchdown point
-            let alt = if action == ActionMode::Land {
-                altitude.max(position[2]).max(self.h_min)
+            let (u, alt) = if action == ActionMode::Land {
+                (0.0, altitude.max(position[2]).max(self.h_min))
             } else {
-                reading_height.unwrap_or(altitude)
+                let h = reading_height.unwrap_or(altitude);
+                (h, h)
             };
             // face the landmark, not the stand-off point, once there
             let facing = ground_distance(here, p) > 1.0;

@@ -162,33 +162,22 @@ fn write_cpu_list(
     cpus: impl Iterator<Item = usize>,
     out: &mut impl core::fmt::Write,
 ) -> core::fmt::Result {
-    let mut range: Option<(usize, usize)> = None;
-    let mut first = true;
-    let mut flush = |out: &mut dyn core::fmt::Write, (start, end): (usize, usize)| {
-        if !first {
-            out.write_char(',')?;
+    let mut cpus = cpus.peekable();
+    let mut separator = "";
+    while let Some(start) = cpus.next() {
+        let mut end = start;
+        while cpus.next_if_eq(&(end + 1)).is_some() {
+            end += 1;
         }
-        first = false;
+        out.write_str(separator)?;
+        separator = ",";
         if start == end {
-            write!(out, "{start}")
+            write!(out, "{start}")?;
         } else {
-            write!(out, "{start}-{end}")
+            write!(out, "{start}-{end}")?;
         }
-    };
-    for c in cpus {
-        range = match range {
-            Some((start, end)) if c == end + 1 => Some((start, c)),
-            Some(done) => {
-                flush(out, done)?;
-                Some((c, c))
-            }
-            None => Some((c, c)),
-        };
     }
-    match range {
-        Some(done) => flush(out, done),
-        None => Ok(()),
-    }
+    Ok(())
 }
 
 /// Replace `label` with the affinity of task `tid` (0 = caller) as a CPU list (`0-1`), the
