@@ -97,7 +97,7 @@ impl ControlService {
                 reply.new_instance = role.map_or(0, |r| r.instance);
             }
             reply.elapsed_ms = self.requests[k].2.elapsed().as_millis() as u64;
-            let _ = self.server.reply(&self.requests[k].1, &reply);
+            self.reply(&self.requests[k].1, &reply);
             if stage.is_final() {
                 self.requests.swap_remove(k);
             }
