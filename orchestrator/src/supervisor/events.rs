@@ -1,0 +1,350 @@
+//! What a supervisor step reports: [`SupervisorEvent`] and the live moves behind
+//! [`SupervisorEvent::RoleMigrated`], with the one-line text the CLI prints for each.
+
+use crate::ladder::StepDirection;
+use crate::restart::RoleExit;
+
+/// Something that happened to a role during a [`Supervisor::step`](super::Supervisor::step).
+#[derive(Debug, Clone, PartialEq)]
+pub enum SupervisorEvent {
+    /// The role process was started for the first time.
+    RoleStarted {
+        /// Role name.
+        name: String,
+        /// Its pid.
+        pid: u32,
+    },
+    /// The role process exited.
+    RoleExited {
+        /// Role name.
+        name: String,
+        /// How.
+        status: RoleExit,
+    },
+    /// The role process was started again after an exit.
+    RoleRestarted {
+        /// Role name.
+        name: String,
+        /// The new pid.
+        pid: u32,
+        /// Restarts of this role so far, this one included.
+        restarts: u32,
+    },
+    /// A restart could not spawn the process; it counts against the budget.
+    RestartFailed {
+        /// Role name.
+        name: String,
+        /// Why.
+        reason: String,
+    },
+    /// The restart budget is spent: the role stays down.
+    RoleGaveUp {
+        /// Role name.
+        name: String,
+    },
+    /// The first heartbeat of the role's current process arrived.
+    FirstHeartbeat {
+        /// Role name.
+        name: String,
+    },
+    /// A hot swap started the new process; the old one keeps running.
+    SwapStarted {
+        /// Role name.
+        name: String,
+        /// The variant being brought up.
+        variant: String,
+        /// The running process.
+        old_pid: Option<u32>,
+        /// The new process.
+        new_pid: u32,
+        /// Its instance number.
+        instance: u32,
+    },
+    /// The new process loaded, warmed up and sent its first heartbeat: it is the role now
+    /// (its normal scheduling restored), and the old one was asked to stop.
+    SwapReady {
+        /// Role name.
+        name: String,
+        /// The variant now running.
+        variant: String,
+        /// The process being stopped.
+        old_pid: Option<u32>,
+        /// The new process.
+        new_pid: u32,
+        /// Its instance number.
+        instance: u32,
+        /// Milliseconds from the start of the swap to the new process's first heartbeat.
+        ready_ms: u64,
+    },
+    /// The old process of a swap exited: the swap is complete.
+    SwapDone {
+        /// Role name.
+        name: String,
+        /// The variant now running.
+        variant: String,
+        /// The process that was replaced.
+        old_pid: Option<u32>,
+        /// How it ended (`None`: there was none).
+        exit: Option<RoleExit>,
+    },
+    /// The new process failed to come up; it was stopped and the old one keeps running.
+    SwapFailed {
+        /// Role name.
+        name: String,
+        /// The variant that failed.
+        variant: String,
+        /// Why, with the tail of the new process's log.
+        reason: String,
+    },
+    /// A role's process was moved, live, to another executor: every thread, same pid.
+    RoleMigrated(Migration),
+    /// The variant ladder stepped a role to another variant: a hot swap to it started
+    /// (its `SwapStarted` .. `SwapDone`/`SwapFailed` follow).
+    VariantStepped {
+        /// Role name.
+        name: String,
+        /// The variant it ran.
+        from: String,
+        /// The variant it is swapped to.
+        to: String,
+        /// Down (lighter, the current one misses its budget) or up (heavier, fits again).
+        direction: StepDirection,
+        /// The last cycle's latency (ms) when the ladder stepped.
+        latency_ms: f64,
+        /// The role's budget (ms).
+        budget_ms: f64,
+        /// The latency (ms) predicted for `to` from its earlier cycles, if it ran before.
+        predicted_ms: Option<f64>,
+    },
+    /// A running role was alive but silent: it was killed, and its restart policy applies.
+    RoleStalled {
+        /// Role name.
+        name: String,
+        /// The stalled process.
+        pid: u32,
+        /// Milliseconds since its last heartbeat.
+        silent_ms: u64,
+        /// What gave it away ("stopped (state T)", "no CPU time", "silent").
+        why: String,
+    },
+    /// A service of the flight disappeared from under running roles (its files were
+    /// removed from outside); the roles registered at it were killed so that their restarts
+    /// create a fresh service and join it.
+    ServiceLost {
+        /// The service (relative to the flight).
+        service: String,
+        /// The roles killed, with the pids they had.
+        roles: Vec<(String, u32)>,
+    },
+    /// An automatic move could not be made; the role stays where it was.
+    MigrationFailed {
+        /// Role name.
+        name: String,
+        /// Why.
+        reason: String,
+    },
+    /// The initial binding measured a role, moved live, on another executor (a probe).
+    BindingProbed {
+        /// Role name.
+        name: String,
+        /// Executor probed.
+        executor: String,
+        /// Slowdown `(run + wait) / run` measured there.
+        slowdown: f64,
+        /// Latency the probe predicts there (ms).
+        predicted_ms: f64,
+        /// `true` when a whole cycle finished there (the prediction is that cycle).
+        measured_cycle: bool,
+    },
+    /// The initial binding was checked against the budgets (kept, or re-bound).
+    InitialBinding {
+        /// `true` when roles were moved.
+        rebound: bool,
+        /// One line per role: where it runs and why.
+        reasons: Vec<String>,
+    },
+}
+
+/// One live move of a role between executors.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Migration {
+    /// Role name.
+    pub role: String,
+    /// Its pid (unchanged by the move).
+    pub pid: u32,
+    /// Executor it left (name, or the CPU list when unnamed).
+    pub from: String,
+    /// Executor it went to.
+    pub to: String,
+    /// CPUs it runs on now.
+    pub cpus: String,
+    /// Threads moved.
+    pub threads: usize,
+    /// Time the move took (µs), affinity checked on every thread.
+    pub took_us: u64,
+    /// Why: `None` by hand (`aeris migrate`), else the latency that triggered it.
+    pub trigger: Option<MigrationTrigger>,
+    /// CLOCK_MONOTONIC ns when the move completed.
+    pub done_ns: u64,
+}
+
+/// The figures behind an automatic move.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MigrationTrigger {
+    /// The role's latency signal (ms) when the policy acted.
+    pub latency_ms: f64,
+    /// Its budget (ms).
+    pub budget_ms: f64,
+    /// The latency predicted after the move (ms).
+    pub predicted_ms: f64,
+    /// `true` when it was part of the initial binding.
+    pub initial: bool,
+}
+
+impl core::fmt::Display for SupervisorEvent {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            SupervisorEvent::RoleStarted { name, pid } => {
+                write!(f, "role `{name}` started (pid {pid})")
+            }
+            SupervisorEvent::RoleExited { name, status } => {
+                write!(f, "role `{name}` exited ({status})")
+            }
+            SupervisorEvent::RoleRestarted {
+                name,
+                pid,
+                restarts,
+            } => write!(f, "role `{name}` restarted (pid {pid}, restart {restarts})"),
+            SupervisorEvent::RestartFailed { name, reason } => {
+                write!(f, "role `{name}` could not be restarted: {reason}")
+            }
+            SupervisorEvent::RoleGaveUp { name } => {
+                write!(f, "role `{name}` spent its restart budget and stays down")
+            }
+            SupervisorEvent::FirstHeartbeat { name } => {
+                write!(f, "role `{name}` is alive (first heartbeat)")
+            }
+            SupervisorEvent::SwapStarted {
+                name,
+                variant,
+                new_pid,
+                instance,
+                ..
+            } => write!(
+                f,
+                "role `{name}`: swap to `{variant}` started (pid {new_pid}, instance {instance})"
+            ),
+            SupervisorEvent::SwapReady {
+                name,
+                variant,
+                new_pid,
+                ready_ms,
+                ..
+            } => write!(
+                f,
+                "role `{name}`: `{variant}` (pid {new_pid}) is ready after {ready_ms} ms; stopping the old process"
+            ),
+            SupervisorEvent::SwapDone {
+                name,
+                variant,
+                old_pid,
+                exit,
+            } => match (old_pid, exit) {
+                (Some(pid), Some(e)) => write!(
+                    f,
+                    "role `{name}`: swap to `{variant}` done (old pid {pid} {e})"
+                ),
+                _ => write!(f, "role `{name}`: swap to `{variant}` done"),
+            },
+            SupervisorEvent::SwapFailed {
+                name,
+                variant,
+                reason,
+            } => write!(
+                f,
+                "role `{name}`: swap to `{variant}` rolled back, the old process keeps running: {reason}"
+            ),
+            SupervisorEvent::RoleMigrated(m) => {
+                write!(
+                    f,
+                    "role `{}` (pid {}) moved from {} to {} (CPUs {}, {} threads, {} µs)",
+                    m.role, m.pid, m.from, m.to, m.cpus, m.threads, m.took_us
+                )?;
+                match &m.trigger {
+                    Some(t) => write!(
+                        f,
+                        ": {}latency {:.1} ms over its {:.1} ms budget, {:.1} ms predicted there",
+                        if t.initial { "initial binding, " } else { "" },
+                        t.latency_ms,
+                        t.budget_ms,
+                        t.predicted_ms
+                    ),
+                    None => write!(f, " by hand"),
+                }
+            }
+            SupervisorEvent::RoleStalled {
+                name,
+                pid,
+                silent_ms,
+                why,
+            } => write!(
+                f,
+                "role `{name}` (pid {pid}) stalled: no heartbeat for {silent_ms} ms, {why}; killed"
+            ),
+            SupervisorEvent::MigrationFailed { name, reason } => {
+                write!(f, "role `{name}` could not be moved: {reason}")
+            }
+            SupervisorEvent::VariantStepped {
+                name,
+                from,
+                to,
+                direction,
+                latency_ms,
+                budget_ms,
+                predicted_ms,
+            } => {
+                let way = match direction {
+                    StepDirection::Down => "down",
+                    StepDirection::Up => "up",
+                };
+                write!(
+                    f,
+                    "role `{name}`: variant ladder steps {way} from `{from}` to `{to}`: last cycle {latency_ms:.1} ms, budget {budget_ms:.1} ms"
+                )?;
+                match predicted_ms {
+                    Some(p) => write!(f, ", `{to}` predicted at {p:.1} ms"),
+                    None => write!(f, ", `{to}` not measured yet"),
+                }
+            }
+            SupervisorEvent::ServiceLost { service, roles } => {
+                write!(f, "service `{service}` was removed under ")?;
+                for (i, (name, pid)) in roles.iter().enumerate() {
+                    let sep = if i == 0 { "" } else { ", " };
+                    write!(f, "{sep}`{name}` (pid {pid})")?;
+                }
+                write!(f, "; killed them to rebuild it")
+            }
+            SupervisorEvent::BindingProbed {
+                name,
+                executor,
+                slowdown,
+                predicted_ms,
+                measured_cycle,
+            } => write!(
+                f,
+                "initial binding probe: `{name}` on {executor}: slowdown {slowdown:.2}, {predicted_ms:.0} ms {}",
+                if *measured_cycle {
+                    "(a cycle measured there)"
+                } else {
+                    "predicted"
+                }
+            ),
+            SupervisorEvent::InitialBinding { rebound, reasons } => write!(
+                f,
+                "initial binding {}: {}",
+                if *rebound { "re-bound" } else { "kept" },
+                reasons.join("; ")
+            ),
+        }
+    }
+}

@@ -1,0 +1,374 @@
+//! Hot swap, make-before-break: the new process of a role loads and warms up beside the
+//! running one (under SCHED_IDLE where the supervisor may restore SCHED_OTHER); with its
+//! first working heartbeat it becomes the role and the old process retires (SIGTERM, SIGKILL
+//! after [`RETIRE_GRACE`]); a new process that exits or stays silent is rolled back.
+
+use super::Supervisor;
+use super::error::SwapError;
+use super::events::SupervisorEvent;
+use super::logs::{log_tail, open_log, quote_tail};
+use super::role_runtime::{LATENCY_WINDOW, RoleRuntime, RoleState};
+use super::spawn::{LoadPolicy, may_leave_idle, set_normal_policy};
+use crate::restart::RoleExit;
+use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::stats::LatencyWindow;
+use aeris_schemas::RoleHeartbeat;
+use std::path::{Path, PathBuf};
+use std::process::Child;
+use std::time::{Duration, Instant};
+
+/// How long a swapped-in process may take, by default, to load, warm up and report its
+/// first heartbeat before the swap is rolled back.
+pub const DEFAULT_SWAP_READY_TIMEOUT: Duration = Duration::from_secs(90);
+/// How long a replaced process has to exit after SIGTERM before it gets SIGKILL.
+pub const RETIRE_GRACE: Duration = Duration::from_secs(5);
+/// Lines of a failed swap's log quoted in its reply (the error a role prints is its last).
+const SWAP_LOG_LINES: usize = 4;
+
+/// The new side of a make-before-break swap, until its first heartbeat after warm-up.
+#[derive(Debug)]
+pub(super) struct SwapInProgress {
+    /// The variant being brought up.
+    pub(super) variant: String,
+    /// Its spec (`NAME.iN.json`).
+    pub(super) spec_path: PathBuf,
+    /// Its log (`NAME.iN.log`).
+    pub(super) log_path: PathBuf,
+    /// The new process.
+    pub(super) child: Child,
+    /// Its pid.
+    pub(super) pid: u32,
+    /// Its instance number.
+    pub(super) instance: u32,
+    /// When the swap started.
+    pub(super) started: Instant,
+    /// When it is rolled back if the new process is not ready.
+    pub(super) deadline: Instant,
+    /// Its first working heartbeat: it is ready.
+    pub(super) ready: Option<RoleHeartbeat>,
+}
+
+/// A replaced process, asked to stop, until it exits.
+#[derive(Debug)]
+struct Retiring {
+    /// The role.
+    name: String,
+    /// The variant it was swapped to.
+    variant: String,
+    /// The replaced process's pid.
+    pid: u32,
+    /// The replaced process.
+    child: Child,
+    /// When it was asked to stop.
+    since: Instant,
+}
+
+/// The replaced processes of committed swaps, asked to stop, until they exit.
+#[derive(Debug, Default)]
+pub(super) struct RetiringProcesses {
+    /// The processes, in the order they were asked to stop.
+    processes: Vec<Retiring>,
+}
+
+impl RetiringProcesses {
+    /// Ask `old`, the process role `name` ran before its swap to `variant`, to stop
+    /// (SIGTERM) at `now`, and watch it until it exits: the swap is done then
+    /// ([`SupervisorEvent::SwapDone`]).
+    pub(super) fn retire(
+        &mut self,
+        name: &str,
+        variant: String,
+        mut old: Child,
+        now: Instant,
+        events: &mut Vec<SupervisorEvent>,
+    ) {
+        let pid = old.id();
+        if let Ok(raw) = libc::pid_t::try_from(pid) {
+            // SAFETY: kill has no memory-safety preconditions; the pid is our unreaped
+            // child, so it cannot have been reused.
+            unsafe { libc::kill(raw, libc::SIGTERM) };
+        }
+        match old.try_wait() {
+            Ok(None) => self.processes.push(Retiring {
+                name: name.to_string(),
+                variant,
+                pid,
+                child: old,
+                since: now,
+            }),
+            exited => events.push(SupervisorEvent::SwapDone {
+                name: name.to_string(),
+                variant,
+                old_pid: Some(pid),
+                exit: exited.ok().flatten().map(RoleExit::from_status),
+            }),
+        }
+    }
+
+    /// Reap replaced processes; SIGKILL those still running after [`RETIRE_GRACE`].
+    pub(super) fn reap(&mut self, events: &mut Vec<SupervisorEvent>) {
+        let mut i = 0;
+        while i < self.processes.len() {
+            let r = &mut self.processes[i];
+            let exit = match r.child.try_wait() {
+                Ok(Some(status)) => Some(RoleExit::from_status(status)),
+                Ok(None) if r.since.elapsed() < RETIRE_GRACE => None,
+                _ => {
+                    let _ = r.child.kill();
+                    r.child.wait().ok().map(RoleExit::from_status)
+                }
+            };
+            match exit {
+                None => i += 1,
+                Some(exit) => {
+                    let r = self.processes.swap_remove(i);
+                    events.push(SupervisorEvent::SwapDone {
+                        name: r.name,
+                        variant: r.variant,
+                        old_pid: Some(r.pid),
+                        exit: Some(exit),
+                    });
+                }
+            }
+        }
+    }
+
+    /// Kill every replaced process still exiting.
+    pub(super) fn kill_all(&mut self) {
+        for mut r in self.processes.drain(..) {
+            let _ = r.child.kill();
+            let _ = r.child.wait();
+        }
+    }
+}
+
+impl RoleRuntime {
+    /// Commit `swap`: its process, ready since `now`, becomes the role's running process,
+    /// with a fresh latency window (a new model's latency is a new distribution). Returns
+    /// the replaced process.
+    fn take_over(&mut self, swap: SwapInProgress, now: Instant) -> (Option<u32>, Option<Child>) {
+        let old_pid = self.pid.take();
+        let old_child = self.child.take();
+        self.variant = swap.variant;
+        self.child = Some(swap.child);
+        self.pid = Some(swap.pid);
+        self.instance = swap.instance;
+        self.spec_path = swap.spec_path;
+        self.log_path = swap.log_path;
+        self.state = RoleState::Running;
+        self.last_heartbeat = swap.ready;
+        self.heartbeats += 1;
+        self.incarnation_heartbeats = 1;
+        self.new_incarnation();
+        self.running = true;
+        self.heard_at = Some(now);
+        self.window = LatencyWindow::new(LATENCY_WINDOW);
+        self.latency_ms = None;
+        (old_pid, old_child)
+    }
+}
+
+impl Supervisor {
+    /// Start replacing role `role` by `variant`, make-before-break: a new process (a new
+    /// instance number) loads and warms up beside the running one, under SCHED_IDLE so it
+    /// takes only idle CPU; with its first heartbeat it becomes the role (normal policy
+    /// restored) and the old process is stopped ([`SupervisorEvent::SwapReady`], then
+    /// [`SupervisorEvent::SwapDone`]). If it exits
+    /// first, or sends no heartbeat within `ready_timeout`, it is stopped and the old process
+    /// keeps running ([`SupervisorEvent::SwapFailed`]). Returns the new pid.
+    pub fn begin_swap(
+        &mut self,
+        role: &str,
+        variant: &str,
+        ready_timeout: Duration,
+    ) -> Result<u32, SwapError> {
+        self.start_swap(role, variant, ready_timeout, true)
+    }
+
+    /// [`Supervisor::begin_swap`], with the new process loading idle (`load_idle`) or at
+    /// the normal policy. The variant ladder loads a lighter variant at the normal policy:
+    /// the role it replaces already misses its budget, so the CPUs are saturated, and an
+    /// idle load gets no CPU at all (measured: SmolLM2 stepping in for Gemma-3 on 2 busy
+    /// CPUs was not ready within 90 s and the step was rolled back).
+    pub(crate) fn start_swap(
+        &mut self,
+        role: &str,
+        variant: &str,
+        ready_timeout: Duration,
+        load_idle: bool,
+    ) -> Result<u32, SwapError> {
+        let Some(i) = self.roles.iter().position(|r| r.name == role) else {
+            return Err(SwapError::UnknownRole {
+                role: role.to_string(),
+                known: self.role_names(),
+            });
+        };
+        let instance = self.launcher.next_instance();
+        let exe = self.launcher.exe().to_path_buf();
+        let r = &mut self.roles[i];
+        let refusal = aeris_runtime::catalog::role_kind(&r.kind)
+            .map_or(Some("unknown kind"), |k| k.swap_refusal);
+        if let Some(why) = refusal {
+            return Err(SwapError::NotSwappable {
+                role: r.name.clone(),
+                kind: r.kind.clone(),
+                why,
+            });
+        }
+        if !r.pool.iter().any(|v| v == variant) {
+            return Err(SwapError::NotInPool {
+                role: r.name.clone(),
+                variant: variant.to_string(),
+                pool: r.pool.join(", "),
+            });
+        }
+        if let Some(s) = &r.swap {
+            return Err(SwapError::InProgress {
+                role: r.name.clone(),
+                variant: s.variant.clone(),
+            });
+        }
+        if r.state != RoleState::Running || r.child.is_none() {
+            return Err(SwapError::NotRunning {
+                role: r.name.clone(),
+                state: r.describe_state(),
+            });
+        }
+        let prepare = |reason: String| SwapError::Prepare {
+            role: role.to_string(),
+            variant: variant.to_string(),
+            reason,
+        };
+        let mut spec =
+            aeris_runtime::RoleSpec::load(&r.spec_path).map_err(|e| prepare(e.to_string()))?;
+        spec.variant = variant.to_string();
+        let dir = r.spec_path.parent().unwrap_or(Path::new("."));
+        let spec_path = dir.join(format!("{}.i{instance}.json", r.name));
+        let json = serde_json::to_string_pretty(&spec).map_err(|e| prepare(e.to_string()))?;
+        std::fs::write(&spec_path, json)
+            .map_err(|e| prepare(format!("{}: {e}", spec_path.display())))?;
+        let log_dir = r.log_path.parent().unwrap_or(Path::new("."));
+        let log_path = log_dir.join(format!("{}.i{instance}.log", r.name));
+        let header = format!(
+            "=== aeris supervisor: hot swap of role `{}` from `{}` to `{variant}`, instance {instance} on CPUs [{}], monotonic {} ns ===",
+            r.name,
+            r.variant,
+            r.cpus,
+            monotonic_ns()
+        );
+        let cleanup = |e: String| {
+            let _ = std::fs::remove_file(&spec_path);
+            prepare(e)
+        };
+        let log = open_log(&log_path, &header)
+            .map_err(|e| cleanup(format!("{}: {e}", log_path.display())))?;
+        let policy = if load_idle && may_leave_idle() {
+            LoadPolicy::IdleUntilReady
+        } else {
+            LoadPolicy::Normal
+        };
+        let child = self
+            .launcher
+            .spawn(&spec_path, log, r.cpu_set.as_ref(), policy)
+            .map_err(|e| cleanup(format!("cannot start `{}`: {e}", exe.display())))?;
+        let pid = child.id();
+        let now = Instant::now();
+        r.swap = Some(SwapInProgress {
+            variant: variant.to_string(),
+            spec_path,
+            log_path,
+            child,
+            pid,
+            instance,
+            started: now,
+            deadline: now + ready_timeout,
+            ready: None,
+        });
+        self.pending.push(SupervisorEvent::SwapStarted {
+            name: r.name.clone(),
+            variant: variant.to_string(),
+            old_pid: r.pid,
+            new_pid: pid,
+            instance,
+        });
+        Ok(pid)
+    }
+
+    /// Commit swaps whose new process works, roll back those whose new process died or
+    /// timed out.
+    pub(super) fn advance_swaps(&mut self, events: &mut Vec<SupervisorEvent>) {
+        let now = Instant::now();
+        for role in &mut self.roles {
+            let Some(swap) = role.swap.as_mut() else {
+                continue;
+            };
+            let failure = match swap.child.try_wait() {
+                Ok(Some(status)) => Some(format!(
+                    "the new process exited ({}) before it was ready",
+                    RoleExit::from_status(status)
+                )),
+                Err(e) => Some(format!("cannot wait on the new process: {e}")),
+                Ok(None) if swap.ready.is_some() => None,
+                Ok(None) if now >= swap.deadline => Some(format!(
+                    "not ready (loaded, warmed up, first heartbeat) within {:.0} s",
+                    (swap.deadline - swap.started).as_secs_f64()
+                )),
+                Ok(None) => continue,
+            };
+            let Some(swap) = role.swap.take() else {
+                continue;
+            };
+            if let Some(why) = failure {
+                let mut child = swap.child;
+                let _ = child.kill();
+                let _ = child.wait();
+                role.old_pids.push(swap.pid);
+                let _ = std::fs::remove_file(&swap.spec_path);
+                let mut reason = format!("{why}; its log {}:", swap.log_path.display());
+                quote_tail(&mut reason, &log_tail(&swap.log_path, SWAP_LOG_LINES));
+                events.push(SupervisorEvent::SwapFailed {
+                    name: role.name.clone(),
+                    variant: swap.variant,
+                    reason,
+                });
+                continue;
+            }
+            // commit: the new process is the role (normal policy back, on every thread)
+            set_normal_policy(swap.pid);
+            let (variant, new_pid, instance) = (swap.variant.clone(), swap.pid, swap.instance);
+            let ready_ms = swap.started.elapsed().as_millis() as u64;
+            let (old_pid, old_child) = role.take_over(swap, now);
+            events.push(SupervisorEvent::SwapReady {
+                name: role.name.clone(),
+                variant: variant.clone(),
+                old_pid,
+                new_pid,
+                instance,
+                ready_ms,
+            });
+            // then stop the old one; the swap is done when it has exited
+            let Some(old) = old_child else {
+                events.push(SupervisorEvent::SwapDone {
+                    name: role.name.clone(),
+                    variant,
+                    old_pid: None,
+                    exit: None,
+                });
+                continue;
+            };
+            role.old_pids.push(old.id());
+            self.retiring.retire(&role.name, variant, old, now, events);
+        }
+    }
+
+    /// Kill the new sides of unfinished swaps and the replaced processes still exiting.
+    pub(super) fn stop_swaps(&mut self) {
+        for role in &mut self.roles {
+            if let Some(mut swap) = role.swap.take() {
+                let _ = swap.child.kill();
+                let _ = swap.child.wait();
+            }
+        }
+        self.retiring.kill_all();
+    }
+}
