@@ -94,7 +94,7 @@ pub enum BusError {
         reason: String,
     },
     /// The flight's manifest says it runs another schema.
-    #[error("cannot join flight `{flight}`: {source}")]
+    #[error("cannot join flight `{flight}`")]
     Manifest {
         /// Flight.
         flight: String,
