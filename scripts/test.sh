@@ -18,7 +18,13 @@ export CMAKE_C_COMPILER_LAUNCHER=ccache CMAKE_CXX_COMPILER_LAUNCHER=ccache
 export CARGO_INCREMENTAL=0
 export CCACHE_DIR="${CCACHE_DIR:-$HOME/.cache/aeris/ccache}" CCACHE_NOHASHDIR=1 CCACHE_BASEDIR="$PWD"
 
+# Each step says what it does; cargo shows its own progress (the first clippy and build
+# compile llama.cpp and iceoryx2: ~10 min on 2 cores).
+echo "test: 1/4 formatting (cargo fmt --check)" >&2
 cargo fmt --all -- --check
-cargo clippy --workspace --all-targets --quiet -- -D warnings
-cargo build --workspace --all-targets --quiet
+echo "test: 2/4 lints (cargo clippy -D warnings)" >&2
+cargo clippy --workspace --all-targets -- -D warnings
+echo "test: 3/4 building the workspace and the aeris binary the end-to-end tests spawn" >&2
+cargo build --workspace --all-targets
+echo "test: 4/4 every test of the workspace" >&2
 cargo test --workspace --no-fail-fast -- --test-threads=2

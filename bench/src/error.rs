@@ -22,7 +22,7 @@ pub enum BenchError {
         reason: String,
     },
     /// An operating-system call failed.
-    #[error("{what}: {source}")]
+    #[error("{what}")]
     Io {
         /// What was being done.
         what: String,
@@ -58,8 +58,17 @@ pub enum BenchError {
     /// A benchmark thread could not be started or panicked.
     #[error("benchmark thread: {0}")]
     Thread(String),
+    /// A model would not load or run.
+    #[error(transparent)]
+    Model(#[from] aeris_models::ModelError),
+    /// A language model would not load or decide.
+    #[error(transparent)]
+    Llm(#[from] aeris_llm::LlmError),
+    /// A role's own setup (e.g. the mission brief a reasoner builds) failed.
+    #[error(transparent)]
+    Role(#[from] aeris_runtime::RoleError),
     /// A pong spec is not valid JSON of [`crate::PongSpec`].
-    #[error("bad pong spec: {0}")]
+    #[error("bad pong spec")]
     Spec(#[from] serde_json::Error),
 }
 

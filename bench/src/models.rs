@@ -140,10 +140,6 @@ trait Probe {
     }
 }
 
-fn model_err(e: impl std::fmt::Display) -> BenchError {
-    BenchError::Config(e.to_string())
-}
-
 struct OcrProbe {
     reader: OcrReader,
     rgb: Vec<u8>,
@@ -155,8 +151,7 @@ struct OcrProbe {
 impl Probe for OcrProbe {
     fn run(&mut self, _: usize) -> Result<String, BenchError> {
         self.reader
-            .read(&self.rgb, self.width, self.height, &mut self.out)
-            .map_err(model_err)?;
+            .read(&self.rgb, self.width, self.height, &mut self.out)?;
         Ok(self
             .out
             .iter()
@@ -177,8 +172,7 @@ struct DetectorProbe {
 impl Probe for DetectorProbe {
     fn run(&mut self, _: usize) -> Result<String, BenchError> {
         self.detector
-            .detect(&self.rgb, self.width, self.height, &mut self.out)
-            .map_err(model_err)?;
+            .detect(&self.rgb, self.width, self.height, &mut self.out)?;
         let names = self.detector.names();
         Ok(self
             .out
@@ -205,9 +199,7 @@ struct EmbedProbe {
 impl Probe for EmbedProbe {
     fn run(&mut self, _: usize) -> Result<String, BenchError> {
         let texts: Vec<&str> = self.texts.iter().map(String::as_str).collect();
-        self.embedder
-            .embed_into(&texts, &mut self.out)
-            .map_err(model_err)?;
+        self.embedder.embed_into(&texts, &mut self.out)?;
         let best = (4..self.out.len())
             .map(|c| aeris_models::cosine(&self.out[3], &self.out[c]))
             .fold(f32::NEG_INFINITY, f32::max);
@@ -282,7 +274,7 @@ impl Probe for LlmProbe {
             previous: self.previous.as_ref(),
             plan: Some(&plan),
         };
-        let t = self.reasoner.decide(&obs).map_err(model_err)?;
+        let t = self.reasoner.decide(&obs)?;
         self.last = Some((
             t.tokens_per_s(),
             t.prompt_tokens - t.reused_tokens,
@@ -299,7 +291,7 @@ impl Probe for LlmProbe {
 
 /// Decode `file` of the cache to packed RGB8.
 fn load_rgb(store: &ModelStore, file: &str) -> Result<(Vec<u8>, usize, usize), BenchError> {
-    let path = store.verified(file).map_err(model_err)?;
+    let path = store.verified(file)?;
     let img = image::open(&path)
         .map_err(|e| BenchError::Config(format!("cannot decode {}: {e}", path.display())))?
         .to_rgb8();
@@ -339,7 +331,7 @@ fn load_probe(
         "ppocr" => {
             let (rgb, width, height) = sign_frame()?;
             Box::new(OcrProbe {
-                reader: OcrReader::load(store, threads).map_err(model_err)?,
+                reader: OcrReader::load(store, threads)?,
                 rgb,
                 width,
                 height,
@@ -354,7 +346,7 @@ fn load_probe(
             };
             let (rgb, width, height) = load_rgb(store, "assets/bus.jpg")?;
             Box::new(DetectorProbe {
-                detector: aeris_models::Detector::load(store, file, threads).map_err(model_err)?,
+                detector: aeris_models::Detector::load(store, file, threads)?,
                 rgb,
                 width,
                 height,
@@ -367,7 +359,7 @@ fn load_probe(
                 ["LAKE VIEW", "yellow sign", "red roof", "blue water tower"].map(String::from),
             );
             Box::new(EmbedProbe {
-                embedder: TextEmbedder::load(store, threads).map_err(model_err)?,
+                embedder: TextEmbedder::load(store, threads)?,
                 texts,
                 out: Vec::new(),
             })
@@ -382,11 +374,11 @@ fn load_probe(
                 threads: threads as i32,
                 ..ReasonerConfig::default()
             };
-            let brief = aeris_roles::language::mission_brief(mission).map_err(model_err)?;
+            let brief = aeris_roles::language::mission_brief(mission)?;
             let planner = Planner::new(mission, &aeris_runtime::spec::CameraSpec::default())
                 .ok_or_else(|| BenchError::Config("the mission names an unknown action".into()))?;
             Box::new(LlmProbe {
-                reasoner: LanguageReasoner::load(store, file, brief, config).map_err(model_err)?,
+                reasoner: LanguageReasoner::load(store, file, brief, config)?,
                 fresh: planner.clone(),
                 planner,
                 states: (0..PATH.len()).map(sample_state).collect(),

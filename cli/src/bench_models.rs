@@ -116,10 +116,12 @@ pub fn run(a: ModelsArgs) -> Result<()> {
             }
             _ => {
                 let stderr = String::from_utf8_lossy(&out.stderr);
+                // the probe's own error line, without its `aeris: error: ` prefix
                 let why = stderr
                     .lines()
                     .rev()
                     .find(|l| !l.trim().is_empty())
+                    .map(|l| l.strip_prefix("aeris: error: ").unwrap_or(l))
                     .unwrap_or("no output")
                     .to_string();
                 println!("{:<12} failed: {why}", case.name);
@@ -160,8 +162,8 @@ pub fn probe(a: ModelProbeArgs) -> Result<()> {
         models::model_case(&a.model).with_context(|| format!("unknown model `{}`", a.model))?;
     let store = aeris_models::ModelStore::open(a.models_dir.as_deref())?;
     let workflow = Workflow::builtin_default().context("built-in default workflow")?;
-    let row = models::probe(case, &store, a.threads, a.runs, &workflow.mission)
-        .with_context(|| format!("bench models: {}", case.name))?;
+    // the parent (`aeris bench models`) names the model on the line it prints
+    let row = models::probe(case, &store, a.threads, a.runs, &workflow.mission)?;
     println!("{}", serde_json::to_string(&row)?);
     Ok(())
 }

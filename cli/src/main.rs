@@ -176,8 +176,9 @@ fn roles() -> anyhow::Result<ExitCode> {
 }
 
 fn main() -> ExitCode {
-    // iceoryx2 warns on every start that no config file exists; keep its errors only,
-    // unless the user asks for more with IOX2_LOG_LEVEL.
+    // iceoryx2 is configured explicitly (aeris_runtime::bus::iceoryx_config), so it has no
+    // config-file warning to print; what fails on the bus comes back as a BusError naming
+    // the service, so its own log keeps to errors unless IOX2_LOG_LEVEL asks for more.
     iceoryx2::prelude::set_log_level_from_env_or(iceoryx2::prelude::LogLevel::Error);
     let cli = Cli::parse();
     let result = match cli.command {

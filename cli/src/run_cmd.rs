@@ -53,7 +53,8 @@ pub struct RunArgs {
 
 fn load(path: Option<&Path>) -> Result<Workflow> {
     match path {
-        Some(p) => Workflow::from_path(p).with_context(|| format!("workflow {}", p.display())),
+        // the error names the file
+        Some(p) => Ok(Workflow::from_path(p)?),
         None => Workflow::builtin_default().context("built-in default workflow"),
     }
 }

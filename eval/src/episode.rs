@@ -208,7 +208,7 @@ pub struct EpisodeFile {
 #[derive(Debug, thiserror::Error)]
 pub enum EpisodeError {
     /// The file could not be read.
-    #[error("cannot read episode file {path}: {source}")]
+    #[error("cannot read episode file {path}")]
     Read {
         /// The file.
         path: PathBuf,
@@ -216,7 +216,7 @@ pub enum EpisodeError {
         source: std::io::Error,
     },
     /// The file could not be written.
-    #[error("cannot write episode file {path}: {source}")]
+    #[error("cannot write episode file {path}")]
     Write {
         /// The file.
         path: PathBuf,
@@ -239,6 +239,14 @@ pub enum EpisodeError {
         /// What is wrong.
         problem: String,
     },
+    /// A file's content is not valid episodes.
+    #[error("episode file {path} is invalid")]
+    Content {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        source: Box<EpisodeError>,
+    },
     /// Two episodes share an id.
     #[error("episodes[{index}].episode_id `{id}` is used twice")]
     DuplicateId {
@@ -254,6 +262,7 @@ impl EpisodeError {
     pub fn field(&self) -> Option<&str> {
         match self {
             EpisodeError::Format { field, .. } | EpisodeError::Invalid { field, .. } => Some(field),
+            EpisodeError::Content { source, .. } => source.field(),
             _ => None,
         }
     }
@@ -307,7 +316,10 @@ pub fn load_episodes(path: &Path) -> Result<Vec<Episode>, EpisodeError> {
         path: path.to_path_buf(),
         source,
     })?;
-    parse_episodes(&text)
+    parse_episodes(&text).map_err(|e| EpisodeError::Content {
+        path: path.to_path_buf(),
+        source: Box::new(e),
+    })
 }
 
 /// Write `episodes` as `{"episodes": [...]}` (pretty-printed) to `path`.

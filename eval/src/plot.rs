@@ -44,7 +44,7 @@ pub enum PlotError {
         height: u32,
     },
     /// Writing the PNG failed.
-    #[error("cannot write {path}: {source}")]
+    #[error("cannot write {path}")]
     Write {
         /// The file.
         path: PathBuf,

@@ -47,7 +47,7 @@ use aeris_schemas::{
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum GateError {
     /// Valid(D_t) failed: a field is missing, NaN/inf, or out of range.
-    #[error("invalid decision: {0}")]
+    #[error("invalid decision")]
     Invalid(#[from] DecisionError),
     /// The vehicle position given to the gate is NaN or infinite.
     #[error("vehicle position {0:?} is not finite")]

@@ -60,7 +60,7 @@ pub enum LlmError {
         reason: String,
     },
     /// No grammar exists for the mission's limits.
-    #[error("decision grammar: {0}")]
+    #[error("cannot build the decision grammar")]
     Grammar(#[from] GrammarError),
     /// llama.cpp rejected the generated grammar (a bug in the generator).
     #[error("llama.cpp rejected the decision grammar: {0}")]
@@ -89,7 +89,7 @@ pub enum LlmError {
     #[error("no complete decision within {0} tokens")]
     Truncated(usize),
     /// The output is not a decision (cannot happen under the grammar; checked anyway).
-    #[error("output {text:?} is not a decision: {source}")]
+    #[error("output {text:?} is not a decision")]
     Output {
         /// What the model wrote.
         text: String,

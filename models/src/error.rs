@@ -53,7 +53,7 @@ pub enum ModelError {
         actual: String,
     },
     /// An I/O error while reading a model file.
-    #[error("cannot read {path}: {source}")]
+    #[error("cannot read {path}")]
     Io {
         /// The file.
         path: PathBuf,

@@ -221,9 +221,7 @@ pub enum WorkflowError {
     #[error("[mission] is invalid: {0}")]
     Mission(MissionError),
     /// An executor's `cpus` is not a usable CPU list.
-    #[error(
-        "[executors.{executor}] cpus = \"{cpus}\": {source}; write a CPU list, \"all\" or \"auto\""
-    )]
+    #[error("[executors.{executor}] cpus is unusable (write a CPU list, \"all\" or \"auto\")")]
     BadCpuSet {
         /// Executor name.
         executor: String,
@@ -408,7 +406,7 @@ fn cycle_text(path: &[String], topics: &[String]) -> String {
 #[derive(Debug, thiserror::Error)]
 pub enum WorkflowFileError {
     /// The file could not be read.
-    #[error("cannot read workflow file {path}: {source}")]
+    #[error("cannot read workflow file {path}")]
     Read {
         /// The path.
         path: String,
@@ -416,7 +414,7 @@ pub enum WorkflowFileError {
         source: std::io::Error,
     },
     /// The file was read but is not a valid workflow.
-    #[error("workflow file {path}: {source}")]
+    #[error("workflow file {path} is invalid")]
     Invalid {
         /// The path.
         path: String,

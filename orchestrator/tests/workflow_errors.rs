@@ -13,13 +13,14 @@ fn fixture(name: &str) -> PathBuf {
         .join(name)
 }
 
-/// Load a fixture that must fail; returns the validation error and the full message.
+/// Load a fixture that must fail; returns the validation error and the full message (the
+/// error and its cause, as the binary prints them).
 fn load_bad(name: &str) -> (WorkflowError, String) {
     match Workflow::from_path(&fixture(name)) {
         Ok(_) => panic!("{name} was accepted"),
         Err(e @ WorkflowFileError::Read { .. }) => panic!("{name}: {e}"),
         Err(e) => {
-            let msg = e.to_string();
+            let msg = aeris_runtime::error_chain::chain(&e).to_string();
             assert!(msg.contains(name), "the message names the file: {msg}");
             match e {
                 WorkflowFileError::Invalid { source, .. } => (source, msg),

@@ -14,6 +14,7 @@ use aeris_models::embed::Embedding;
 use aeris_models::{TextEmbedder, cosine};
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::error_chain::chain;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{
     Cue, FixedText, MAX_CUES, MAX_DETECTIONS, MAX_SUBGOALS, PerceptionState, block, topics,
@@ -112,7 +113,7 @@ impl Role for CueRole {
     fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
         let store = open_store(ctx)?;
         let mut embedder = TextEmbedder::load(&store, threads(ctx))
-            .map_err(|e| RoleError::Config(e.to_string()))?;
+            .map_err(|e| RoleError::step("loading the sentence embedder", e))?;
         let texts: Vec<&str> = ctx
             .spec
             .mission
@@ -123,7 +124,7 @@ impl Role for CueRole {
         let mut subgoals = Vec::new();
         embedder
             .embed_into(&texts, &mut subgoals)
-            .map_err(|e| RoleError::Config(e.to_string()))?;
+            .map_err(|e| RoleError::step("embedding the mission's subgoals", e))?;
         Ok(Self {
             texts: ctx.bus.subscriber(topics::PERCEPTION_TEXT)?,
             detections: ctx.bus.subscriber(topics::PERCEPTION_DETECTIONS)?,
@@ -186,7 +187,7 @@ impl Role for CueRole {
         self.pending = None;
         self.done_frame = frame;
         if let Err(e) = self.embedder.embed_into(&refs, &mut self.embedded) {
-            eprintln!("cues: frame {frame}: {e}");
+            eprintln!("cues: frame {frame}: {}", chain(&e));
             return Ok(CycleOutcome::Idle);
         }
         *self.state = PerceptionState::default();

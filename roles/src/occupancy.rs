@@ -19,6 +19,7 @@ use crate::vision::{FrameStride, begin_block, open_store, threads};
 use aeris_models::OnnxModel;
 use aeris_runtime::bus::{FrameSubscriber, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::error_chain::chain;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{
     FrameFormat, FrameHeader, OCCUPANCY_CELLS, OCCUPANCY_UNKNOWN, PerceptionState, block, topics,
@@ -68,7 +69,7 @@ impl LearnedGrid {
                 }
                 Ok(())
             })
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| chain(&e).to_string())?;
         let p = header.camera_position;
         state.occupancy.origin = [p[0], p[1]];
         state.occupancy.resolution_m = OCCUPANCY_RESOLUTION_M;
@@ -97,7 +98,7 @@ impl Role for OccupancyRole {
                 .to_string();
             let store = open_store(ctx)?;
             let model = OnnxModel::load(&store, &file, threads(ctx))
-                .map_err(|e| RoleError::Config(e.to_string()))?;
+                .map_err(|e| RoleError::step(format!("loading the occupancy model {file}"), e))?;
             Some(LearnedGrid {
                 model,
                 input: Vec::new(),

@@ -10,6 +10,7 @@ use crate::vision::{FrameStride, begin_block, open_store, threads};
 use aeris_models::ocr::{OcrReader, TextRegion};
 use aeris_runtime::bus::{FrameSubscriber, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::error_chain::chain;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{FixedText, FrameFormat, MAX_CUES, PerceptionState, block, topics};
 use core::time::Duration;
@@ -51,12 +52,12 @@ pub struct TextReaderRole {
 impl Role for TextReaderRole {
     fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
         let store = open_store(ctx)?;
-        let mut reader =
-            OcrReader::load(&store, threads(ctx)).map_err(|e| RoleError::Config(e.to_string()))?;
+        let mut reader = OcrReader::load(&store, threads(ctx))
+            .map_err(|e| RoleError::step("loading PP-OCR", e))?;
         let camera = &ctx.spec.camera;
         reader
             .warm_up(camera.width as usize, camera.height as usize)
-            .map_err(|e| RoleError::Config(format!("PP-OCR warm-up: {e}")))?;
+            .map_err(|e| RoleError::step("warming up PP-OCR", e))?;
         Ok(Self {
             rgb: ctx.bus.frame_subscriber(topics::CAMERA_RGB)?,
             out: ctx.bus.publisher(topics::PERCEPTION_TEXT)?,
@@ -101,7 +102,7 @@ impl Role for TextReaderRole {
             // a frame the reader cannot take is dropped, the role keeps running
             self.rejected += 1;
             report.counters[2] = self.rejected;
-            eprintln!("text-reader: frame {} rejected: {e}", header.seq);
+            eprintln!("text-reader: frame {} rejected: {}", header.seq, chain(&e));
             return Ok(CycleOutcome::Idle);
         }
         begin_block(&mut self.state, &header, block::TEXT);

@@ -68,7 +68,7 @@ impl FrameStride {
 /// `~/.cache/aeris/models`. Errors name the provisioning command.
 pub fn open_store(ctx: &RoleContext) -> Result<ModelStore, RoleError> {
     ModelStore::open(ctx.spec.param_str("models_dir").map(Path::new))
-        .map_err(|e| RoleError::Config(e.to_string()))
+        .map_err(|e| RoleError::step("opening the model cache", e))
 }
 
 /// The role's `model` parameter, or `default`.

@@ -30,6 +30,15 @@ use iceoryx2::service::builder::request_response::{
 /// The iceoryx2 service flavour AERIS uses between processes.
 pub type Ipc = ipc::Service;
 
+/// The iceoryx2 configuration of every AERIS process: iceoryx2's built-in defaults, set
+/// explicitly instead of looked up. Every process of a flight then agrees on it whatever its
+/// working directory (iceoryx2's lookup starts with a file relative to the current
+/// directory), and no process logs iceoryx2's "No config file was loaded" warning.
+pub fn iceoryx_config() -> &'static Config {
+    static CONFIG: std::sync::OnceLock<Config> = std::sync::OnceLock::new();
+    CONFIG.get_or_init(Config::default)
+}
+
 /// Why a bus operation failed. Every variant names the service involved.
 #[derive(Debug, thiserror::Error)]
 pub enum BusError {
@@ -94,7 +103,7 @@ pub enum BusError {
         reason: String,
     },
     /// The flight's manifest says it runs another schema.
-    #[error("cannot join flight `{flight}`: {source}")]
+    #[error("cannot join flight `{flight}`")]
     Manifest {
         /// Flight.
         flight: String,
@@ -182,6 +191,7 @@ impl FlightBusBuilder {
         let full = format!("{}/{}", self.flight, self.node_name);
         let node_name = NodeName::new(&full).map_err(|_| BusError::InvalidName(full.clone()))?;
         let node = NodeBuilder::new()
+            .config(iceoryx_config())
             .name(&node_name)
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<Ipc>()
@@ -909,7 +919,7 @@ impl FrameSubscriber {
 pub fn list_flight_services(flight: &str) -> Vec<String> {
     let prefix = format!("aeris/s{SCHEMA_VERSION}/{flight}/");
     let mut out = Vec::new();
-    let _ = <Ipc as iceoryx2::service::Service>::list(Config::global_config(), |s| {
+    let _ = <Ipc as iceoryx2::service::Service>::list(iceoryx_config(), |s| {
         let name = s.static_details.name().as_str();
         if let Some(rest) = name.strip_prefix(&prefix) {
             out.push(rest.to_string());
@@ -928,7 +938,7 @@ pub fn flight_service_nodes(flight: &str) -> Vec<(String, Vec<String>)> {
     let prefix = format!("aeris/s{SCHEMA_VERSION}/{flight}/");
     let node_prefix = format!("{flight}/");
     let mut out: Vec<(String, Vec<String>)> = Vec::new();
-    let _ = <Ipc as iceoryx2::service::Service>::list(Config::global_config(), |s| {
+    let _ = <Ipc as iceoryx2::service::Service>::list(iceoryx_config(), |s| {
         let name = s.static_details.name().as_str();
         if let Some(rest) = name.strip_prefix(&prefix) {
             let mut nodes: Vec<String> = s
@@ -966,7 +976,7 @@ pub fn flight_service_nodes(flight: &str) -> Vec<(String, Vec<String>)> {
 pub fn remove_flight_service_files(flight: &str, topic: &str) -> std::io::Result<usize> {
     let full = format!("aeris/s{SCHEMA_VERSION}/{flight}/{topic}");
     let mut hash = None;
-    let _ = <Ipc as iceoryx2::service::Service>::list(Config::global_config(), |s| {
+    let _ = <Ipc as iceoryx2::service::Service>::list(iceoryx_config(), |s| {
         if s.static_details.name().as_str() == full {
             hash = Some(s.static_details.service_hash().as_str().to_string());
             return CallbackProgression::Stop;
@@ -979,7 +989,7 @@ pub fn remove_flight_service_files(flight: &str, topic: &str) -> std::io::Result
             format!("no service `{topic}` in flight `{flight}`"),
         ));
     };
-    let global = &Config::global_config().global;
+    let global = &iceoryx_config().global;
     let root = std::path::PathBuf::from(global.root_path().to_string());
     let dirs = [
         root.join(global.service.directory.to_string()),
@@ -1003,7 +1013,7 @@ pub fn remove_flight_service_files(flight: &str, topic: &str) -> std::io::Result
 /// Flights that have a manifest on this host.
 pub fn list_flights() -> Vec<String> {
     let mut out = Vec::new();
-    let _ = <Ipc as iceoryx2::service::Service>::list(Config::global_config(), |s| {
+    let _ = <Ipc as iceoryx2::service::Service>::list(iceoryx_config(), |s| {
         let name = s.static_details.name().as_str();
         if let Some(rest) = name.strip_prefix("aeris/")
             && let Some(flight) = rest.strip_suffix("/manifest")
@@ -1022,7 +1032,7 @@ pub fn list_flights() -> Vec<String> {
 pub fn flight_node_census(flight: &str) -> (usize, usize) {
     let prefix = format!("{flight}/");
     let (mut alive, mut dead) = (0, 0);
-    let _ = Node::<Ipc>::list(Config::global_config(), |state| {
+    let _ = Node::<Ipc>::list(iceoryx_config(), |state| {
         let of_flight = |d: &Option<iceoryx2::node::NodeDetails>| {
             d.as_ref()
                 .is_some_and(|d| d.name().as_str().starts_with(&prefix))
@@ -1041,6 +1051,7 @@ pub fn flight_node_census(flight: &str) -> (usize, usize) {
 /// nodes were cleaned up.
 pub fn cleanup_dead_nodes() -> u64 {
     match NodeBuilder::new()
+        .config(iceoryx_config())
         .signal_handling_mode(SignalHandlingMode::Disabled)
         .create::<Ipc>()
     {

@@ -7,6 +7,7 @@
 //!   [`role::RoleHost`] that runs a role as a process (heartbeats, signals, deadlines).
 //! - [`spec`]: what the supervisor hands a role at launch ([`spec::RoleSpec`]).
 //! - [`clock`], [`signals`], [`affinity`]: monotonic time, termination requests, CPU sets.
+//! - [`error_chain`]: an error printed with its causes, for logs and replies.
 
 #![deny(missing_docs)]
 
@@ -14,6 +15,7 @@ pub mod affinity;
 pub mod bus;
 pub mod catalog;
 pub mod clock;
+pub mod error_chain;
 pub mod role;
 pub mod signals;
 pub mod spec;

@@ -30,6 +30,28 @@ pub enum RoleError {
     /// The role cannot go on.
     #[error("{0}")]
     Fatal(String),
+    /// A step of the role failed for a cause of its own (a model that would not load, a
+    /// frame a model refused): `what` says which step, the source says why.
+    #[error("{what}")]
+    Step {
+        /// The step that failed, e.g. "loading the PP-OCR reader".
+        what: String,
+        /// Why it failed.
+        source: Box<dyn std::error::Error + Send + Sync + 'static>,
+    },
+}
+
+impl RoleError {
+    /// `what` failed because of `source` (see [`RoleError::Step`]).
+    pub fn step(
+        what: impl Into<String>,
+        source: impl Into<Box<dyn std::error::Error + Send + Sync + 'static>>,
+    ) -> Self {
+        RoleError::Step {
+            what: what.into(),
+            source: source.into(),
+        }
+    }
 }
 
 /// What a cycle did.

@@ -307,7 +307,7 @@ pub struct RoleSpec {
 #[derive(Debug, thiserror::Error)]
 pub enum SpecError {
     /// The file could not be read.
-    #[error("cannot read role spec {path}: {source}")]
+    #[error("cannot read role spec {path}")]
     Read {
         /// Path.
         path: String,
@@ -315,7 +315,7 @@ pub enum SpecError {
         source: std::io::Error,
     },
     /// The file is not a valid spec.
-    #[error("role spec {path} is invalid: {source}")]
+    #[error("role spec {path} is invalid")]
     Parse {
         /// Path.
         path: String,
@@ -323,7 +323,7 @@ pub enum SpecError {
         source: serde_json::Error,
     },
     /// The mission inside is invalid.
-    #[error("role spec {path}: {source}")]
+    #[error("role spec {path} has an unusable mission")]
     Mission {
         /// Path.
         path: String,

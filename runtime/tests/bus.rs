@@ -107,3 +107,41 @@ fn a_service_of_another_schema_is_refused_with_a_clear_error() {
     // SAFETY: type_name has no preconditions.
     let _ = unsafe { <OldDecision as ZeroCopySend>::type_name() };
 }
+
+/// Set in the child process of [`joining_a_flight_logs_nothing_of_iceoryx2s_own`].
+const QUIET_CHILD: &str = "AERIS_BUS_QUIET_CHILD";
+
+/// A process that joins a flight, opens a topic and lists the flight's services writes
+/// nothing to stderr: iceoryx2 is configured explicitly, so its "No config file was loaded"
+/// warning (in every role and test log before) has no cause. Checked in a child process (this
+/// test binary run again on this test alone), whose stderr holds only what it printed.
+#[test]
+fn joining_a_flight_logs_nothing_of_iceoryx2s_own() {
+    if std::env::var_os(QUIET_CHILD).is_some() {
+        let f = flight("quiet");
+        let bus = FlightBus::builder(&f).node_name("quiet").create().unwrap();
+        let _publisher = bus
+            .publisher::<Decision>(topics::REASONING_DECISION)
+            .unwrap();
+        assert!(list_flight_services(&f).contains(&topics::REASONING_DECISION.to_string()));
+        return;
+    }
+    let out = std::process::Command::new(std::env::current_exe().unwrap())
+        .args([
+            "--exact",
+            "joining_a_flight_logs_nothing_of_iceoryx2s_own",
+            "--nocapture",
+            "--test-threads=1",
+        ])
+        .env(QUIET_CHILD, "1")
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "child failed: {stdout}{stderr}");
+    assert!(
+        stdout.contains("1 passed"),
+        "the child ran no test: {stdout}"
+    );
+    assert!(stderr.trim().is_empty(), "the child logged: {stderr}");
+}

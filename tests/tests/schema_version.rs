@@ -13,7 +13,10 @@ use std::process::Command;
 fn a_role_refuses_a_flight_of_another_schema() {
     let dir = TempDir::new("schema");
     let flight = unique_flight("schema");
-    let node = NodeBuilder::new().create::<ipc::Service>().unwrap();
+    let node = NodeBuilder::new()
+        .config(aeris_runtime::bus::iceoryx_config())
+        .create::<ipc::Service>()
+        .unwrap();
     let other = FlightManifest {
         schema_version: SCHEMA_VERSION + 1,
         layout_hash: 0x0123_4567_89ab_cdef,

@@ -1,0 +1,203 @@
+//! Every kind of bad input gives an error that says each thing once: the binary prints the
+//! error chain (`aeris: error: what failed: why: root cause`) and no clause of it, nor the
+//! offending file or name, appears twice. A library error whose message repeated its
+//! `#[source]` printed `workflow file bad.toml: TOML syntax error ...: TOML syntax error ...`.
+
+use aeris_tests::*;
+use std::path::Path;
+use std::process::Command;
+
+/// One bad input: the arguments, extra environment, and the offender the error must name
+/// exactly once.
+struct Case {
+    what: &'static str,
+    args: Vec<String>,
+    env: Vec<(&'static str, String)>,
+    offender: String,
+}
+
+fn case(what: &'static str, args: &[&str], offender: &str) -> Case {
+    Case {
+        what,
+        args: args.iter().map(|s| s.to_string()).collect(),
+        env: Vec::new(),
+        offender: offender.to_string(),
+    }
+}
+
+fn path_str(p: &Path) -> String {
+    p.to_str().expect("utf-8 temp path").to_string()
+}
+
+/// The clauses of an error line: the text after `aeris: error:` split at `: `.
+fn clauses(line: &str) -> Vec<&str> {
+    let text = line.split_once("error:").map_or(line, |(_, rest)| rest);
+    text.split(": ")
+        .map(str::trim)
+        .filter(|c| !c.is_empty())
+        .collect()
+}
+
+/// The first clause that appears twice, ignoring case and surrounding punctuation.
+fn repeated_clause(line: &str) -> Option<String> {
+    let all: Vec<String> = clauses(line)
+        .iter()
+        .map(|c| c.trim_matches(|ch: char| ch.is_ascii_punctuation() || ch.is_whitespace()))
+        .map(str::to_lowercase)
+        .collect();
+    all.iter()
+        .enumerate()
+        .find(|(i, c)| all[..*i].contains(c))
+        .map(|(_, c)| c.clone())
+}
+
+#[test]
+fn clause_splitting_finds_a_repeated_source() {
+    // the defect this test guards against, as `aeris validate` printed it
+    let line = "aeris: error: workflow file bad.toml: TOML syntax error at line 1, column 12: \
+                unclosed array: TOML syntax error at line 1, column 12: unclosed array";
+    assert_eq!(
+        repeated_clause(line).as_deref(),
+        Some("toml syntax error at line 1, column 12")
+    );
+    assert_eq!(
+        repeated_clause("aeris: error: workflow bad.toml: unknown variant `x`"),
+        None
+    );
+}
+
+#[test]
+fn every_kind_of_bad_input_names_its_offender_once() {
+    let dir = TempDir::new("error-messages");
+    let d = &dir.0;
+
+    // workflows: TOML syntax, an unknown variant, a bad CPU list, a missing file
+    let syntax = d.join("syntax.toml");
+    std::fs::write(&syntax, "roles = [\n").expect("write");
+    let mut w = default_workflow();
+    set_variant(&mut w, "reasoning", "gpt-9");
+    let variant = write_workflow(d, "variant", &w);
+    let mut w = default_workflow();
+    w["executors"]["control"]["cpus"] = toml::Value::String("0-x".into());
+    let cpus = write_workflow(d, "cpus", &w);
+    let missing_workflow = d.join("no-such-workflow.toml");
+
+    // episode files: JSON syntax, a missing field, a missing file
+    let episodes_syntax = d.join("episodes-syntax.json");
+    std::fs::write(&episodes_syntax, "{\"episodes\": [\n").expect("write");
+    let episodes_field = d.join("episodes-field.json");
+    std::fs::write(&episodes_field, "{\"episodes\": [{\"episode_id\": 3}]}").expect("write");
+    let missing_episodes = d.join("no-such-episodes.json");
+
+    // models: a cache without a manifest, and one whose files are missing
+    let no_cache = d.join("no-model-cache");
+    std::fs::create_dir_all(&no_cache).expect("mkdir");
+    let hollow_cache = d.join("hollow-model-cache");
+    std::fs::create_dir_all(&hollow_cache).expect("mkdir");
+    std::fs::write(
+        hollow_cache.join("MANIFEST.sha256"),
+        format!("{}  llm/smollm2-135m-instruct-q8_0.gguf\n", "0".repeat(64)),
+    )
+    .expect("write manifest");
+
+    let mut cases = Vec::new();
+    for cmd in ["validate", "run"] {
+        cases.push(case(
+            "TOML syntax",
+            &[cmd, &path_str(&syntax)],
+            &path_str(&syntax),
+        ));
+        cases.push(case(
+            "unknown variant",
+            &[cmd, &path_str(&variant)],
+            "gpt-9",
+        ));
+        cases.push(case("bad CPU list", &[cmd, &path_str(&cpus)], "0-x"));
+        cases.push(case(
+            "missing workflow",
+            &[cmd, &path_str(&missing_workflow)],
+            &path_str(&missing_workflow),
+        ));
+    }
+    for file in [&episodes_syntax, &episodes_field, &missing_episodes] {
+        let f = path_str(file);
+        cases.push(case("episode file", &["episodes", "check", &f], &f));
+        cases.push(case(
+            "episode file",
+            &["eval", "--episodes-file", &f, "--episodes", "1"],
+            &f,
+        ));
+    }
+    cases.push(case(
+        "--variant argument",
+        &["run", "--variant", "reasoning"],
+        "reasoning",
+    ));
+    cases.push(case(
+        "--max-duration argument",
+        &["run", "--max-duration", "nan"],
+        "--max-duration",
+    ));
+    for cache in [&no_cache, &hollow_cache] {
+        cases.push(Case {
+            what: "missing model",
+            args: ["bench", "models", "--only", "smollm2", "--runs", "1"]
+                .iter()
+                .map(|s| s.to_string())
+                .collect(),
+            env: vec![("AERIS_MODELS", path_str(cache))],
+            offender: path_str(cache),
+        });
+    }
+
+    let mut failures = Vec::new();
+    for c in &cases {
+        let out = Command::new(aeris_bin())
+            .args(&c.args)
+            .envs(c.env.iter().map(|(k, v)| (k, v)))
+            .output()
+            .expect("run aeris");
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let label = format!("{} (aeris {})", c.what, c.args.join(" "));
+        if out.status.success() {
+            failures.push(format!("{label}: exited 0:\n{text}"));
+            continue;
+        }
+        if text.contains("panicked") {
+            failures.push(format!("{label}: panicked:\n{text}"));
+            continue;
+        }
+        let errors: Vec<&str> = text.lines().filter(|l| l.contains("error")).collect();
+        if errors.is_empty() {
+            failures.push(format!("{label}: no error line:\n{text}"));
+            continue;
+        }
+        let named = errors.iter().filter(|l| l.contains(&c.offender)).count();
+        if named == 0 {
+            failures.push(format!("{label}: `{}` not named:\n{text}", c.offender));
+        }
+        for line in &errors {
+            if let Some(clause) = repeated_clause(line) {
+                failures.push(format!("{label}: clause `{clause}` twice in:\n  {line}"));
+            }
+            let times = line.matches(c.offender.as_str()).count();
+            if times > 1 {
+                failures.push(format!(
+                    "{label}: `{}` named {times} times in:\n  {line}",
+                    c.offender
+                ));
+            }
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} of {} bad inputs gave errors that repeat themselves:\n\n{}",
+        failures.len(),
+        cases.len(),
+        failures.join("\n\n")
+    );
+}
