@@ -138,6 +138,11 @@ fn every_kind_of_bad_input_names_its_offender_once() {
         &["run", "--max-duration", "nan"],
         "--max-duration",
     ));
+    cases.push(case(
+        "--run-dir argument",
+        &["run", "--run-dir", "/proc/aeris-no-such-dir"],
+        "/proc/aeris-no-such-dir",
+    ));
     for cache in [&no_cache, &hollow_cache] {
         cases.push(Case {
             what: "missing model",

@@ -11,7 +11,7 @@ use std::time::Duration;
 #[derive(Debug, thiserror::Error)]
 pub enum SupervisorError {
     /// The flight could not be planned (flight name, workflow, vehicle link).
-    #[error("cannot plan flight `{flight}`: {source}")]
+    #[error("cannot plan flight `{flight}`")]
     Plan {
         /// Flight name.
         flight: String,
@@ -21,7 +21,7 @@ pub enum SupervisorError {
     /// The supervisor's iceoryx2 node, heartbeat subscriber or status board failed. A
     /// status board that already exists means another supervisor runs this flight.
     #[error(
-        "supervisor of flight `{flight}`: {source} (is another supervisor running this flight? pick another flight name)"
+        "the supervisor of flight `{flight}` cannot open its services (is another supervisor running this flight? pick another flight name)"
     )]
     Bus {
         /// Flight name.
@@ -30,7 +30,7 @@ pub enum SupervisorError {
         source: BusError,
     },
     /// The run directory could not be prepared.
-    #[error("cannot create run directory {path}: {source} (pass a writable --run-dir)")]
+    #[error("cannot create run directory {path} (pass a writable --run-dir)")]
     RunDir {
         /// The directory.
         path: PathBuf,
@@ -38,7 +38,7 @@ pub enum SupervisorError {
         source: std::io::Error,
     },
     /// A role spec could not be written.
-    #[error("cannot write the spec of role `{role}` to {path}: {source}")]
+    #[error("cannot write the spec of role `{role}` to {path}")]
     WriteSpec {
         /// Role name.
         role: String,
@@ -48,7 +48,7 @@ pub enum SupervisorError {
         source: std::io::Error,
     },
     /// A role's log could not be opened.
-    #[error("cannot open the log of role `{role}` at {path}: {source}")]
+    #[error("cannot open the log of role `{role}` at {path}")]
     OpenLog {
         /// Role name.
         role: String,
@@ -59,7 +59,7 @@ pub enum SupervisorError {
     },
     /// A role process could not be started.
     #[error(
-        "cannot start role `{role}` as `{exe} role --spec {spec}`{cpus}: {source} (build the binary with `cargo build --bin aeris`)"
+        "cannot start role `{role}` as `{exe} role --spec {spec}`{cpus} (build the binary with `cargo build --bin aeris`)"
     )]
     Spawn {
         /// Role name.
@@ -74,7 +74,7 @@ pub enum SupervisorError {
         source: std::io::Error,
     },
     /// Waiting on a role process failed.
-    #[error("cannot wait on role `{role}` (pid {pid}): {source}")]
+    #[error("cannot wait on role `{role}` (pid {pid})")]
     Wait {
         /// Role name.
         role: String,

@@ -93,7 +93,7 @@ impl Supervisor {
                 Err(e) => {
                     events.push(SupervisorEvent::RestartFailed {
                         name: name.clone(),
-                        reason: e.to_string(),
+                        reason: aeris_runtime::error_chain::chain(&e).to_string(),
                     });
                     let role = &mut self.roles[i];
                     let exit = role.last_exit.unwrap_or(RoleExit::Code(-1));

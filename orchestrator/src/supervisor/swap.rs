@@ -239,8 +239,8 @@ impl Supervisor {
             variant: variant.to_string(),
             reason,
         };
-        let mut spec =
-            aeris_runtime::RoleSpec::load(&r.spec_path).map_err(|e| prepare(e.to_string()))?;
+        let mut spec = aeris_runtime::RoleSpec::load(&r.spec_path)
+            .map_err(|e| prepare(aeris_runtime::error_chain::chain(&e).to_string()))?;
         spec.variant = variant.to_string();
         let dir = r.spec_path.parent().unwrap_or(Path::new("."));
         let spec_path = dir.join(format!("{}.i{instance}.json", r.name));
