@@ -67,6 +67,7 @@
 //! The cycle does not allocate: the subscriber, publisher, link and buffers are made in
 //! `new`; the mavlink crate serialises into a stack buffer and writes it with one syscall.
 
+use aeris_geometry::wrap_pi;
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::role::try_sched_fifo;
@@ -790,13 +791,6 @@ impl AutopilotState {
             Some(_) => false,
         }
     }
-}
-
-/// `a` (finite, rad) as the same angle in `[-pi, pi]`.
-fn wrap_pi(a: f32) -> f32 {
-    use core::f32::consts::{PI, TAU};
-    let w = (a + PI).rem_euclid(TAU) - PI;
-    w.clamp(-PI, PI)
 }
 
 /// Whether a message comes from the autopilot we command (the only one we believe).

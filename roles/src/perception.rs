@@ -9,8 +9,8 @@
 //!   becomes one [`Detection`](aeris_schemas::Detection) (label from [`LABELS`], score from its pixel share, range =
 //!   median distance of its pixels);
 //! - **occupancy**: every depth return is back-projected with the frame's pose, field of
-//!   view and the shared camera model ([`aeris_sim::render::CameraModel`] with
-//!   [`aeris_sim::render::CAMERA_PITCH_RAD`]) into `[N, E, U]`; each cell of the 64x64,
+//!   view and the shared camera model ([`aeris_geometry::CameraModel`] with
+//!   [`aeris_geometry::CAMERA_PITCH_RAD`]) into `[N, E, U]`; each cell of the 64x64,
 //!   2 m grid centred on the vehicle keeps the highest obstacle top seen (ground returns
 //!   give 0, cells without returns stay [`OCCUPANCY_UNKNOWN`]);
 //! - **summary**: instruction cues (detection labels whose words overlap a subgoal's words,
@@ -22,6 +22,7 @@
 //!
 //! Heartbeat counters: `[states published, frames rejected, 0..]`.
 
+use aeris_geometry::{CAMERA_MOUNT_HEIGHT_M, CAMERA_PITCH_RAD, CameraModel, CameraModelError};
 use aeris_runtime::bus::{FrameSample, FrameSubscriber, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, MissionSpec, Role, RoleContext, RoleError};
@@ -29,7 +30,7 @@ use aeris_schemas::{
     Cue, FixedText, FrameError, FrameFormat, FrameHeader, MAX_CUES, MAX_DETECTIONS,
     OCCUPANCY_UNKNOWN, PerceptionState, block, topics,
 };
-use aeris_sim::render::{CAMERA_MOUNT_HEIGHT_M, CAMERA_PITCH_RAD, CameraModel, FACE_SHADES};
+use aeris_sim::render::FACE_SHADES;
 use aeris_sim::world::palette;
 use core::time::Duration;
 
@@ -113,7 +114,7 @@ pub enum PerceiveError {
     PairMismatch,
     /// The camera geometry is unusable.
     #[error("camera geometry: {0}")]
-    Geometry(aeris_sim::render::RenderError),
+    Geometry(CameraModelError),
 }
 
 /// The words of each subgoal of the instruction, lower-cased; built once per mission.
