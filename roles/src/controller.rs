@@ -68,6 +68,8 @@
 //! `new`; the mavlink crate serialises into a stack buffer and writes it with one syscall.
 
 use aeris_geometry::wrap_pi;
+use aeris_mavlink::px4::{PX4_MAIN_MODE_OFFBOARD, px4_main_mode};
+use aeris_mavlink::{LINK_POLL, LinkError, MavLink, PendingLink, prepare_link};
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::role::try_sched_fifo;
@@ -75,9 +77,6 @@ use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, Rol
 use aeris_schemas::{
     ActionMode, BoundSetpoint, ControllerLease, DecisionLimits, LEASE_HAS_HOLD,
     LEASE_HAS_REFERENCE, SetpointError, VehicleTelemetry, topics,
-};
-use aeris_sim::mav_vehicle::{
-    LINK_POLL, LinkError, MavLink, PX4_MAIN_MODE_OFFBOARD, PendingLink, prepare_link, px4_main_mode,
 };
 use mavlink::MavHeader;
 use mavlink::dialects::common::{

@@ -11,11 +11,11 @@ use aeris_hub::DecisionGate;
 use aeris_hub::gate::{fuzz_check_bytes, fuzz_check_model_decision, fuzz_decision_to_bytes};
 use aeris_llm::DecisionView;
 use aeris_llm::view::fuzz_check_text;
+use aeris_mavlink::px4::PX4_MAIN_MODE_OFFBOARD;
 use aeris_orchestrator::workflow::Workflow;
 use aeris_roles::controller::{TrackerConfig, fuzz_check_mavlink};
 use aeris_runtime::RoleSpec;
 use aeris_schemas::{ActionMode, Decision, OCCUPANCY_SIDE};
-use aeris_sim::mav_vehicle::PX4_MAIN_MODE_OFFBOARD;
 use mavlink::MavHeader;
 use mavlink::dialects::common::{
     ATTITUDE_DATA, COMMAND_ACK_DATA, EXTENDED_SYS_STATE_DATA, HEARTBEAT_DATA,

@@ -6,7 +6,8 @@
 //! - [`scene_gen`]: seeded open and dense scenes for evaluation (`open-7`, `dense-42`);
 //! - [`render`]: a CPU ray-caster producing FPV RGB and depth frames of a world;
 //! - [`multirotor`]: simple multirotor kinematics with velocity and acceleration limits;
-//! - [`mav_vehicle`]: a MAVLink v2 endpoint that behaves like a PX4 multirotor in offboard mode.
+//! - [`mav_vehicle`]: a MAVLink v2 endpoint that behaves like a PX4 multirotor in offboard mode
+//!   (on the links of `aeris-mavlink`).
 
 #![deny(missing_docs)]
 
