@@ -8,6 +8,10 @@
 //! - [`multirotor`]: simple multirotor kinematics with velocity and acceleration limits;
 //! - [`mav_vehicle`]: a MAVLink v2 endpoint that behaves like a PX4 multirotor in offboard mode
 //!   (on the links of `aeris-mavlink`).
+//!
+//! The roles that run the simulation in a flight (vehicle, camera, geometric perception,
+//! palette detector) are in `aeris-sim-roles`; no flight role outside it depends on this
+//! crate.
 
 #![deny(missing_docs)]
 
