@@ -51,3 +51,55 @@ impl DetectionEngine for PaletteDetection {
         perceived.is_ok()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::perception::perceive;
+    use aeris_geometry::CAMERA_MOUNT_HEIGHT_M;
+    use aeris_schemas::FrameFormat;
+    use aeris_sim::render::Renderer;
+    use aeris_sim::world::World;
+
+    /// The engine fills the detection block exactly as the geometric perception fills
+    /// its detections, and nothing without the frame's depth.
+    #[test]
+    fn the_palette_block_is_the_geometric_perceptions_detections() {
+        let (w, h, hfov) = (160, 120, core::f32::consts::FRAC_PI_2);
+        let r = Renderer::new(w, h, hfov).unwrap();
+        let (mut rgb, mut depth) = (vec![0; r.rgb_len()], vec![0; r.depth_len()]);
+        let cam = [40.0, 18.0, 20.0 + CAMERA_MOUNT_HEIGHT_M];
+        let world = World::builtin("village").unwrap();
+        r.render(&world, cam, 0.3, &mut rgb, &mut depth).unwrap();
+        let header = FrameHeader {
+            seq: 7,
+            capture_ns: 1,
+            width: w,
+            height: h,
+            camera_position: cam,
+            camera_yaw: 0.3,
+            hfov,
+            format: FrameFormat::Rgb8 as u8,
+            reserved: [0; 3],
+        };
+        let words = InstructionWords::new(["turn right at the red-roofed building"]);
+        let mut full = PerceptionState::default();
+        perceive(&rgb, &depth, &header, &words, &mut full).unwrap();
+        assert!(full.detection_count > 0, "a scene with something in it");
+
+        let mut engine = PaletteDetection {
+            segmenter: Box::default(),
+            words,
+            full: Box::default(),
+        };
+        let mut block = PerceptionState::default();
+        assert!(engine.detect(&rgb, Some(&depth), &header, &mut block));
+        assert_eq!(block.detection_count, full.detection_count);
+        assert_eq!(block.detections, full.detections);
+        assert_eq!(block.cue_count, 0, "only the detection block");
+
+        let mut without_depth = PerceptionState::default();
+        assert!(!engine.detect(&rgb, None, &header, &mut without_depth));
+        assert!(!engine.detect(&rgb, Some(&depth[2..]), &header, &mut without_depth));
+    }
+}
