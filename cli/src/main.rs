@@ -156,6 +156,8 @@ fn run_role(spec: PathBuf, instance: Option<u32>) -> anyhow::Result<ExitCode> {
     let name = spec.name.clone();
     let result = if spec.kind == "hub" {
         aeris_hub::run(spec)
+    } else if let Some(run) = aeris_sim_roles::runner(&spec.kind, &spec.variant) {
+        run(spec)
     } else {
         aeris_roles::run(spec)
     };

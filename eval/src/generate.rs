@@ -14,7 +14,7 @@
 //! scenes no `train` episode uses ([`Split::scene_seeds`]).
 
 use crate::episode::{Episode, Goal, Instruction, SubgoalAnnotation};
-use aeris_sim::multirotor::wrap_pi;
+use aeris_geometry::wrap_pi;
 use aeris_sim::scene_gen::{Airspace, SceneId};
 use aeris_sim::world::{Extent, Landmark, LandmarkKind, World};
 use rand::{Rng, SeedableRng};

@@ -1,14 +1,15 @@
 //! The controller's MAVLink input path: bytes from the autopilot link, decoded by the
 //! mavlink crate as the link does, applied by the receive thread's state update, then control
 //! ticks. Input: one scene byte (the hub's setpoint, MAVLink 1 or not), then the byte stream.
-//! Checks: `aeris_roles::controller::fuzz_check_mavlink`.
+//! Checks: `aeris_roles::controller::testing::fuzz_check_mavlink`.
 //!
 //! The mutator repairs the CRC of the frames in most mutated inputs (not all: broken
 //! checksums must be fuzzed too), so mutations reach the payload decoders.
 
 #![no_main]
 
-use aeris_roles::controller::{TrackerConfig, fuzz_check_mavlink};
+use aeris_roles::controller::TrackerConfig;
+use aeris_roles::controller::testing::fuzz_check_mavlink;
 use libfuzzer_sys::{fuzz_mutator, fuzz_target, fuzzer_mutate};
 use std::sync::LazyLock;
 

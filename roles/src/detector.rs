@@ -7,14 +7,14 @@
 //! - `yolov8`: any Ultralytics-layout model (YOLOv8/YOLO11 `[1, 4 + classes, anchors]`;
 //!   default the one such model on the registries, `detect/nudenet-320n.onnx`);
 //! - `palette`: the colour segmentation of the built-in worlds (no model; what the
-//!   `geometric` perception role uses), for flights where COCO classes are not what matters.
+//!   `geometric` perception role uses), for flights where COCO classes are not what matters;
+//!   a [`DetectionEngine`] of the simulator's (`aeris-sim-roles`), run by this role.
 //!
 //! Each detection's range is the median depth inside the middle of its box, when the depth
 //! frame of the same `seq` is at hand. Parameters: `model`, `interval_ms` (default 2000),
 //! `threads` (default 1), `min_score`, `models_dir`.
 //! Heartbeat counters: `[blocks published, detections in the last block, frames rejected, 0..]`.
 
-use crate::perception::{InstructionWords, Segmenter};
 use crate::vision::{FrameStride, begin_block, model_file, open_store, threads};
 use aeris_models::detect::{COCO_DETECTOR, YOLOV8_DETECTOR};
 use aeris_models::{DetectedBox, Detector};
@@ -63,48 +63,80 @@ pub fn box_range_m(
     *m as f32 * 0.001
 }
 
-enum Engine {
-    Model(Box<Detector>),
-    Palette(Box<Segmenter>, InstructionWords, Box<PerceptionState>),
+/// What a detector role runs on the frames it picks: it fills the detection block of S_t.
+/// [`ModelDetection`] runs the YOLO models; the simulator's colour segmentation (variant
+/// `palette`) is another engine, beside the simulator (`aeris-sim-roles`).
+pub trait DetectionEngine: Sized {
+    /// The engine for the role's spec (loads and warms up its models, if any).
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError>;
+
+    /// Detect in `rgb` (RGB8, described by `header`, already validated), with the same
+    /// frame's `depth` (u16 LE mm z-depth) when at hand, into `state.detections` and
+    /// `state.detection_count` (`state` is an empty block of this frame). `false` when the
+    /// frame gave no block; the role counts it as rejected. Must not allocate.
+    fn detect(
+        &mut self,
+        rgb: &[u8],
+        depth: Option<&[u8]>,
+        header: &FrameHeader,
+        state: &mut PerceptionState,
+    ) -> bool;
 }
 
-/// The detector role.
-pub struct DetectorRole {
-    rgb: FrameSubscriber,
-    depth: FrameSubscriber,
-    held_depth: Option<FrameSample>,
-    out: TypedPublisher<PerceptionState>,
-    engine: Engine,
-    stride: FrameStride,
+/// The model engine (variants `yolo` and `yolov8`): boxes from the detector, each with the
+/// median depth of its middle as its range.
+pub struct ModelDetection {
+    detector: Box<Detector>,
     boxes: Vec<DetectedBox>,
     scratch: Vec<u16>,
-    state: Box<PerceptionState>,
-    seq: u64,
-    rejected: u64,
 }
 
-impl DetectorRole {
-    fn fill_from_boxes(&mut self, header: &FrameHeader) {
-        let Engine::Model(det) = &self.engine else {
-            return;
+impl DetectionEngine for ModelDetection {
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+        let default = if ctx.spec.variant == "yolov8" {
+            YOLOV8_DETECTOR
+        } else {
+            COCO_DETECTOR
         };
+        let store = open_store(ctx)?;
+        let file = model_file(ctx, default).to_string();
+        let mut det = Detector::load(&store, &file, threads(ctx))
+            .map_err(|e| RoleError::Config(e.to_string()))?;
+        if let Some(s) = ctx.spec.param_f64("min_score") {
+            det.min_score = s as f32;
+        }
+        det.warm_up()
+            .map_err(|e| RoleError::Config(format!("{file} warm-up: {e}")))?;
+        Ok(Self {
+            detector: Box::new(det),
+            boxes: Vec::with_capacity(256),
+            scratch: Vec::with_capacity(320 * 240),
+        })
+    }
+
+    fn detect(
+        &mut self,
+        rgb: &[u8],
+        depth: Option<&[u8]>,
+        header: &FrameHeader,
+        state: &mut PerceptionState,
+    ) -> bool {
         let (w, h) = (header.width as usize, header.height as usize);
-        let depth = self
-            .held_depth
-            .as_ref()
-            .filter(|d| d.user_header().seq == header.seq)
-            .map(|d| d.payload());
+        if self.detector.detect(rgb, w, h, &mut self.boxes).is_err() {
+            return false;
+        }
         let mut n = 0;
         for b in self.boxes.iter().take(MAX_DETECTIONS) {
             let range_m = depth
                 .map(|d| box_range_m(d, w, h, b.bbox, &mut self.scratch))
                 .unwrap_or(0.0);
-            let name = det
+            let name = self
+                .detector
                 .names()
                 .get(b.class_id)
                 .map(String::as_str)
                 .unwrap_or("object");
-            self.state.detections[n] = Detection {
+            state.detections[n] = Detection {
                 label: FixedText::from_str_truncated(name),
                 class_id: b.class_id as u32,
                 score: b.score.clamp(0.0, 1.0),
@@ -118,36 +150,30 @@ impl DetectorRole {
             };
             n += 1;
         }
-        self.state.detection_count = n as u32;
+        state.detection_count = n as u32;
+        true
     }
 }
 
-impl Role for DetectorRole {
+/// The detector role, running engine `E` on the frames its stride picks.
+pub struct DetectorRole<E> {
+    rgb: FrameSubscriber,
+    depth: FrameSubscriber,
+    held_depth: Option<FrameSample>,
+    out: TypedPublisher<PerceptionState>,
+    engine: E,
+    stride: FrameStride,
+    state: Box<PerceptionState>,
+    seq: u64,
+    rejected: u64,
+}
+
+/// The detector role on the YOLO models (variants `yolo`, `yolov8`).
+pub type ModelDetectorRole = DetectorRole<ModelDetection>;
+
+impl<E: DetectionEngine> Role for DetectorRole<E> {
     fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
-        let engine = match ctx.spec.variant.as_str() {
-            "palette" => Engine::Palette(
-                Box::default(),
-                InstructionWords::from_mission(&ctx.spec.mission),
-                Box::default(),
-            ),
-            variant => {
-                let default = if variant == "yolov8" {
-                    YOLOV8_DETECTOR
-                } else {
-                    COCO_DETECTOR
-                };
-                let store = open_store(ctx)?;
-                let file = model_file(ctx, default).to_string();
-                let mut det = Detector::load(&store, &file, threads(ctx))
-                    .map_err(|e| RoleError::Config(e.to_string()))?;
-                if let Some(s) = ctx.spec.param_f64("min_score") {
-                    det.min_score = s as f32;
-                }
-                det.warm_up()
-                    .map_err(|e| RoleError::Config(format!("{file} warm-up: {e}")))?;
-                Engine::Model(Box::new(det))
-            }
-        };
+        let engine = E::new(ctx)?;
         Ok(Self {
             rgb: ctx.bus.frame_subscriber(topics::CAMERA_RGB)?,
             depth: ctx.bus.frame_subscriber(topics::CAMERA_DEPTH)?,
@@ -155,8 +181,6 @@ impl Role for DetectorRole {
             out: ctx.bus.publisher(topics::PERCEPTION_DETECTIONS)?,
             engine,
             stride: FrameStride::from_ctx(ctx),
-            boxes: Vec::with_capacity(256),
-            scratch: Vec::with_capacity(320 * 240),
             state: Box::default(),
             seq: 0,
             rejected: 0,
@@ -186,45 +210,20 @@ impl Role for DetectorRole {
         }
         let t0 = monotonic_ns();
         begin_block(&mut self.state, &header, block::DETECTIONS);
-        let ok = match &mut self.engine {
-            Engine::Model(det) => det
-                .detect(
-                    frame.payload(),
-                    header.width as usize,
-                    header.height as usize,
-                    &mut self.boxes,
-                )
-                .is_ok(),
-            Engine::Palette(seg, words, full) => {
-                let depth = self
-                    .held_depth
-                    .as_ref()
-                    .filter(|d| d.user_header().seq == header.seq);
-                match depth {
-                    Some(d) => {
-                        let r = seg.perceive(
-                            frame.payload(),
-                            d.payload(),
-                            &header,
-                            words,
-                            full,
-                            &mut |_, _| {},
-                        );
-                        self.state.detections = full.detections;
-                        self.state.detection_count = full.detection_count;
-                        r.is_ok()
-                    }
-                    None => false,
-                }
-            }
-        };
+        let depth = self
+            .held_depth
+            .as_ref()
+            .filter(|d| d.user_header().seq == header.seq)
+            .map(|d| d.payload());
+        let ok = self
+            .engine
+            .detect(frame.payload(), depth, &header, &mut self.state);
         drop(frame);
         if !ok {
             self.rejected += 1;
             report.counters[2] = self.rejected;
             return Ok(CycleOutcome::Idle);
         }
-        self.fill_from_boxes(&header);
         report.stage("detect", monotonic_ns() - t0);
         self.seq += 1;
         self.state.seq = self.seq;

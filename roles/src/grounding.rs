@@ -16,9 +16,9 @@
 //!
 //! Everything here is allocation-free: the phrase lives in fixed-size text.
 
+use aeris_geometry::CameraModel;
 use aeris_schemas::state::CUE_MAX;
 use aeris_schemas::{Detection, FixedText, PerceptionState};
-use aeris_sim::render::CameraModel;
 
 /// How a step relates the vehicle to its landmark.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -18,7 +18,7 @@
 use aeris_schemas::{OCCUPANCY_SIDE, OCCUPANCY_UNKNOWN, OccupancyGrid};
 
 /// Metres per cell: the occupancy grid's resolution.
-pub const CELL_M: f32 = crate::perception::OCCUPANCY_RESOLUTION_M;
+pub const CELL_M: f32 = crate::depth_occupancy::OCCUPANCY_RESOLUTION_M;
 /// Most cells per side (a 1 km square at 2 m); a larger geofence is covered around its
 /// centre only.
 pub const MAX_SIDE: usize = 500;

@@ -3,7 +3,7 @@
 //! Variants:
 //! - `depth`: every depth return of the frame is back-projected with the frame's pose into
 //!   the ego-centred 64 x 64, 2 m grid (highest obstacle top per cell), as in the
-//!   `geometric` perception role ([`crate::perception::occupancy_from_depth`]);
+//!   `geometric` perception role ([`crate::depth_occupancy::occupancy_from_depth`]);
 //! - `onnx`: the slot for the paper's learned occupancy models through ONNX Runtime. Input
 //!   `[1, 1, H, W]` depth in metres, output `[1, 64, 64]` (or `[64, 64]`) obstacle heights in
 //!   metres, NaN for unknown. No such weights are published on the package registries, so
@@ -14,7 +14,7 @@
 //! Heartbeat counters: `[blocks published, observed cells in the last block, frames rejected,
 //! 0..]`.
 
-use crate::perception::{OCCUPANCY_RESOLUTION_M, occupancy_from_depth};
+use crate::depth_occupancy::{OCCUPANCY_RESOLUTION_M, occupancy_from_depth};
 use crate::vision::{FrameStride, begin_block, open_store, threads};
 use aeris_models::OnnxModel;
 use aeris_runtime::bus::{FrameSubscriber, TypedPublisher};

@@ -20,6 +20,7 @@ use crate::grounding::{
 };
 use crate::heartbeat_clock::{Basis, HeartbeatClock};
 use crate::height_map::HeightMap;
+use aeris_geometry::{CameraModel, wrap_pi};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::spec::CameraSpec;
 use aeris_runtime::{
@@ -31,8 +32,6 @@ use aeris_schemas::{
     ActionMode, Decision, Detection, FixedText, MAX_SUBGOALS, PerceptionState, VehicleTelemetry,
     topics,
 };
-use aeris_sim::multirotor::wrap_pi;
-use aeris_sim::render::CameraModel;
 use core::time::Duration;
 
 /// A turn step is done when the yaw is this close to the bearing of its waypoint.

@@ -1,11 +1,11 @@
 //! What the model-backed perception roles share: frame selection, the model cache and the
 //! frame fields every block carries.
 
+use aeris_geometry::CAMERA_MOUNT_HEIGHT_M;
 use aeris_models::ModelStore;
 use aeris_runtime::bus::{FrameSample, FrameSubscriber};
 use aeris_runtime::{RoleContext, RoleError};
 use aeris_schemas::{FrameHeader, PerceptionState};
-use aeris_sim::render::CAMERA_MOUNT_HEIGHT_M;
 use std::path::Path;
 
 /// Default interval between the frames a model role processes (ms).

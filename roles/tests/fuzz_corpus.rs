@@ -1,7 +1,8 @@
 //! The `cargo fuzz` corpora (`fuzz/corpus/<target>/`) and crash inputs
 //! (`fuzz/regressions/<target>/`) replayed on stable Rust, with the same checks as the fuzz
 //! targets (`aeris_hub::gate::fuzz_check_bytes`, `aeris_llm::view::fuzz_check_text` with
-//! `aeris_hub::gate::fuzz_check_model_decision`, `aeris_roles::controller::fuzz_check_mavlink`)
+//! `aeris_hub::gate::fuzz_check_model_decision`,
+//! `aeris_roles::controller::testing::fuzz_check_mavlink`)
 //! and the limits of the built-in default flight.
 //!
 //! The seed inputs are written by the ignored test `write_seed_corpus`:
@@ -11,11 +12,12 @@ use aeris_hub::DecisionGate;
 use aeris_hub::gate::{fuzz_check_bytes, fuzz_check_model_decision, fuzz_decision_to_bytes};
 use aeris_llm::DecisionView;
 use aeris_llm::view::fuzz_check_text;
+use aeris_mavlink::px4::PX4_MAIN_MODE_OFFBOARD;
 use aeris_orchestrator::workflow::Workflow;
-use aeris_roles::controller::{TrackerConfig, fuzz_check_mavlink};
+use aeris_roles::controller::TrackerConfig;
+use aeris_roles::controller::testing::fuzz_check_mavlink;
 use aeris_runtime::RoleSpec;
 use aeris_schemas::{ActionMode, Decision, OCCUPANCY_SIDE};
-use aeris_sim::mav_vehicle::PX4_MAIN_MODE_OFFBOARD;
 use mavlink::MavHeader;
 use mavlink::dialects::common::{
     ATTITUDE_DATA, COMMAND_ACK_DATA, EXTENDED_SYS_STATE_DATA, HEARTBEAT_DATA,

@@ -6,7 +6,12 @@
 //! - [`scene_gen`]: seeded open and dense scenes for evaluation (`open-7`, `dense-42`);
 //! - [`render`]: a CPU ray-caster producing FPV RGB and depth frames of a world;
 //! - [`multirotor`]: simple multirotor kinematics with velocity and acceleration limits;
-//! - [`mav_vehicle`]: a MAVLink v2 endpoint that behaves like a PX4 multirotor in offboard mode.
+//! - [`mav_vehicle`]: a MAVLink v2 endpoint that behaves like a PX4 multirotor in offboard mode
+//!   (on the links of `aeris-mavlink`).
+//!
+//! The roles that run the simulation in a flight (vehicle, camera, geometric perception,
+//! palette detector) are in `aeris-sim-roles`; no flight role outside it depends on this
+//! crate.
 
 #![deny(missing_docs)]
 

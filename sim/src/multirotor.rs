@@ -14,7 +14,7 @@
 //!
 //! Yaw is in radians, 0 = north, positive clockwise (towards east), wrapped to `[-pi, pi]`.
 
-use core::f32::consts::PI;
+use aeris_geometry::wrap_pi;
 
 /// Standard gravity (m/s^2).
 pub const GRAVITY: f32 = 9.806_65;
@@ -154,18 +154,6 @@ pub struct MultirotorModel {
     state: MultirotorState,
 }
 
-/// Wrap an angle to `[-pi, pi]`.
-pub fn wrap_pi(a: f32) -> f32 {
-    if !a.is_finite() {
-        return 0.0;
-    }
-    let mut x = (a + PI).rem_euclid(2.0 * PI) - PI;
-    if x < -PI {
-        x = -PI;
-    }
-    x
-}
-
 fn norm2(v: [f32; 2]) -> f32 {
     (v[0] * v[0] + v[1] * v[1]).sqrt()
 }
@@ -175,7 +163,8 @@ fn norm3(v: [f32; 3]) -> f32 {
 }
 
 impl MultirotorModel {
-    /// A disarmed vehicle at `position` (clamped to the ground) with `yaw`, at rest.
+    /// A disarmed vehicle at `position` (clamped to the ground) with `yaw` (north when not
+    /// finite), at rest.
     pub fn new(params: MultirotorParams, position: [f32; 3], yaw: f32) -> Self {
         let position = [position[0], position[1], position[2].max(GROUND_U)];
         let on_ground = position[2] <= GROUND_U;
@@ -185,7 +174,7 @@ impl MultirotorModel {
                 position,
                 velocity: [0.0; 3],
                 acceleration: [0.0; 3],
-                yaw: wrap_pi(yaw),
+                yaw: if yaw.is_finite() { wrap_pi(yaw) } else { 0.0 },
                 yaw_rate: 0.0,
                 roll: 0.0,
                 pitch: 0.0,
@@ -382,6 +371,7 @@ impl MultirotorModel {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use core::f32::consts::PI;
 
     fn armed_at(p: [f32; 3]) -> MultirotorModel {
         let mut m = MultirotorModel::new(MultirotorParams::default(), p, 0.0);
@@ -555,9 +545,8 @@ mod tests {
     }
 
     #[test]
-    fn wrap_pi_wraps() {
-        assert!((wrap_pi(3.0 * PI) - PI).abs() < 1e-5 || (wrap_pi(3.0 * PI) + PI).abs() < 1e-5);
-        assert!((wrap_pi(0.5 + 2.0 * PI) - 0.5).abs() < 1e-5);
-        assert!((wrap_pi(-0.5 - 4.0 * PI) + 0.5).abs() < 1e-5);
+    fn a_non_finite_start_yaw_faces_north() {
+        let m = MultirotorModel::new(MultirotorParams::default(), [0.0; 3], f32::NAN);
+        assert_eq!(m.state().yaw, 0.0);
     }
 }

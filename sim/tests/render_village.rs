@@ -1,8 +1,8 @@
 //! FPV frames of the village: colours, depth, sky, lettering, and argument checks.
 
 use aeris_sim::render::{
-    CAMERA_PITCH_RAD, CameraModel, FACE_SHADES, MAX_DEPTH_M, RenderError, Renderer, ppm_bytes,
-    shaded,
+    CAMERA_PITCH_RAD, CameraModel, CameraModelError, FACE_SHADES, MAX_DEPTH_M, RenderError,
+    Renderer, ppm_bytes, shaded,
 };
 use aeris_sim::world::{World, palette};
 
@@ -194,11 +194,11 @@ fn pitch_is_the_documented_constant() {
 fn bad_arguments_are_errors() {
     assert!(matches!(
         Renderer::new(0, 10, 1.0),
-        Err(RenderError::BadGeometry { .. })
+        Err(RenderError::Camera(CameraModelError::BadGeometry { .. }))
     ));
     assert!(matches!(
         CameraModel::new(10, 10, 3.5),
-        Err(RenderError::BadGeometry { .. })
+        Err(CameraModelError::BadGeometry { .. })
     ));
     let world = World::builtin("village").unwrap();
     let r = Renderer::new(8, 6, 1.0).unwrap();

@@ -1,15 +1,16 @@
 //! The simulated PX4-like vehicle over a real MAVLink link (UDP and TCP loopback): a client
 //! arms it, switches it to offboard, streams setpoints and watches it fly, fail safe, land.
 
-use aeris_sim::mav_vehicle::{
-    FlightMode, LINK_POLL, MavLink, PX4_AUTO_SUB_MODE_LOITER, PX4_MAIN_MODE_AUTO,
-    PX4_MAIN_MODE_OFFBOARD, SimVehicle, SimVehicleConfig, open_link, px4_main_mode, px4_sub_mode,
-};
-use mavlink::MavHeader;
-use mavlink::dialects::common::{
+use aeris_mavlink::dialect::{
     COMMAND_LONG_DATA, MavCmd, MavFrame, MavLandedState, MavMessage, MavModeFlag, MavResult,
     PositionTargetTypemask, SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
+use aeris_mavlink::px4::{
+    PX4_AUTO_SUB_MODE_LOITER, PX4_MAIN_MODE_AUTO, PX4_MAIN_MODE_OFFBOARD, px4_main_mode,
+    px4_sub_mode,
+};
+use aeris_mavlink::{LINK_POLL, MavHeader, MavLink, open_link};
+use aeris_sim::mav_vehicle::{FlightMode, SimVehicle, SimVehicleConfig};
 use std::time::{Duration, Instant};
 
 const BOUND: Duration = Duration::from_secs(90);

@@ -3,9 +3,9 @@
 //! `hub/setpoint` over iceoryx2) and reads `vehicle/telemetry` back.
 
 use aeris_roles::controller::ControllerRole;
-use aeris_roles::vehicle::VehicleRole;
 use aeris_runtime::{CycleReport, FlightBus, Role, RoleContext, RoleSpec};
 use aeris_schemas::{ActionMode, BoundSetpoint, VehicleTelemetry, topics};
+use aeris_sim_roles::vehicle::VehicleRole;
 use std::time::{Duration, Instant};
 
 const BOUND: Duration = Duration::from_secs(120);

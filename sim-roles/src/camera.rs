@@ -11,11 +11,12 @@
 //!
 //! Stages: `render`, `publish`. Heartbeat counters: `[frames published, 0..]`.
 
+use aeris_geometry::CAMERA_MOUNT_HEIGHT_M;
 use aeris_runtime::bus::{BusError, FramePublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{FrameFormat, FrameHeader, VehicleTelemetry, topics};
-use aeris_sim::render::{CAMERA_MOUNT_HEIGHT_M, RenderError, Renderer};
+use aeris_sim::render::{RenderError, Renderer};
 use aeris_sim::world::World;
 use core::time::Duration;
 

@@ -1,11 +1,11 @@
 //! Geometric perception on rendered frames of the village.
 
-use aeris_roles::perception::{InstructionWords, LABELS, Segmenter, perceive, push_u32};
 use aeris_schemas::{FixedText, FrameFormat, FrameHeader, OCCUPANCY_UNKNOWN, PerceptionState};
 use aeris_sim::render::{
     CAMERA_MOUNT_HEIGHT_M, FACE_SHADES, Renderer, SKY_HORIZON, SKY_ZENITH, shaded,
 };
 use aeris_sim::world::{World, palette};
+use aeris_sim_roles::perception::{InstructionWords, LABELS, Segmenter, perceive, push_u32};
 
 const W: u32 = 320;
 const H: u32 = 240;

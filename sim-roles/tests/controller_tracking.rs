@@ -1,13 +1,14 @@
 //! The controller's setpoint gate and tracking reference, alone and in closed loop with the
 //! simulated multirotor (no processes, simulated time).
 
+use aeris_mavlink::dialect::{MavFrame, MavMessage};
+use aeris_mavlink::neu_to_ned;
 use aeris_roles::controller::{
-    TrackCommand, Tracker, TrackerConfig, VehicleView, neu_to_ned, position_target_message,
+    TrackCommand, Tracker, TrackerConfig, VehicleView, position_target_message,
     position_velocity_yaw_mask,
 };
 use aeris_schemas::{ActionMode, BoundSetpoint, DecisionLimits, SetpointError};
 use aeris_sim::multirotor::{Command, MultirotorModel, MultirotorParams};
-use mavlink::dialects::common::{MavFrame, MavMessage};
 
 const TICK_NS: u64 = 20_000_000;
 const T0: u64 = 1_000_000_000_000;

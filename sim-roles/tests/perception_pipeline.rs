@@ -1,11 +1,11 @@
 //! The camera and perception roles in one process, over real iceoryx2 services: telemetry ->
 //! camera frames in shared memory -> perception state.
 
-use aeris_roles::camera::CameraRole;
-use aeris_roles::perception::PerceptionRole;
 use aeris_runtime::{CycleOutcome, CycleReport, FlightBus, Role, RoleContext, RoleError, RoleSpec};
 use aeris_schemas::{FrameFormat, FrameHeader, PerceptionState, VehicleTelemetry, topics};
 use aeris_sim::render::CAMERA_MOUNT_HEIGHT_M;
+use aeris_sim_roles::camera::CameraRole;
+use aeris_sim_roles::perception::PerceptionRole;
 
 fn spec(flight: &str, kind: &str, variant: &str, world: &str) -> RoleSpec {
     let json = serde_json::json!({

@@ -9,10 +9,10 @@
 //!   becomes one [`Detection`](aeris_schemas::Detection) (label from [`LABELS`], score from its pixel share, range =
 //!   median distance of its pixels);
 //! - **occupancy**: every depth return is back-projected with the frame's pose, field of
-//!   view and the shared camera model ([`aeris_sim::render::CameraModel`] with
-//!   [`aeris_sim::render::CAMERA_PITCH_RAD`]) into `[N, E, U]`; each cell of the 64x64,
-//!   2 m grid centred on the vehicle keeps the highest obstacle top seen (ground returns
-//!   give 0, cells without returns stay [`OCCUPANCY_UNKNOWN`]);
+//!   view and the shared camera model into `[N, E, U]`
+//!   ([`aeris_roles::depth_occupancy::fill_occupancy`], as the `occupancy` role does); each
+//!   cell of the 64x64, 2 m grid centred on the vehicle keeps the highest obstacle top seen
+//!   (ground returns give 0, cells without returns stay unknown);
 //! - **summary**: instruction cues (detection labels whose words overlap a subgoal's words,
 //!   score = overlap x detection score) and a bounded scene summary such as
 //!   `"red roof ahead-right 34 m; road ahead; lake left"`.
@@ -22,14 +22,16 @@
 //!
 //! Heartbeat counters: `[states published, frames rejected, 0..]`.
 
+use aeris_geometry::{CAMERA_MOUNT_HEIGHT_M, CAMERA_PITCH_RAD, CameraModel, CameraModelError};
+use aeris_roles::depth_occupancy::fill_occupancy;
 use aeris_runtime::bus::{FrameSample, FrameSubscriber, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, MissionSpec, Role, RoleContext, RoleError};
 use aeris_schemas::{
     Cue, FixedText, FrameError, FrameFormat, FrameHeader, MAX_CUES, MAX_DETECTIONS,
-    OCCUPANCY_UNKNOWN, PerceptionState, block, topics,
+    PerceptionState, block, topics,
 };
-use aeris_sim::render::{CAMERA_MOUNT_HEIGHT_M, CAMERA_PITCH_RAD, CameraModel, FACE_SHADES};
+use aeris_sim::render::FACE_SHADES;
 use aeris_sim::world::palette;
 use core::time::Duration;
 
@@ -54,10 +56,6 @@ pub const LABELS: [&str; 12] = [
 pub const MIN_PIXELS: u32 = 12;
 /// Pixel share at which a detection's score reaches 1 - 1/e (score = 1 - exp(-share / this)).
 pub const SCORE_SHARE_SCALE: f32 = 0.01;
-/// Back-projected points lower than this (m) are ground.
-pub const GROUND_EPS_M: f32 = 0.5;
-/// Occupancy cell size (m).
-pub const OCCUPANCY_RESOLUTION_M: f32 = 2.0;
 /// Width of one bin of the per-class range histogram (m).
 pub const RANGE_BIN_M: f32 = 0.5;
 /// Detections mentioned in the summary.
@@ -113,7 +111,7 @@ pub enum PerceiveError {
     PairMismatch,
     /// The camera geometry is unusable.
     #[error("camera geometry: {0}")]
-    Geometry(aeris_sim::render::RenderError),
+    Geometry(CameraModelError),
 }
 
 /// The words of each subgoal of the instruction, lower-cased; built once per mission.
@@ -423,75 +421,6 @@ pub fn perceive(
     state: &mut PerceptionState,
 ) -> Result<(), PerceiveError> {
     Segmenter::new().perceive(rgb, depth, header, words, state, &mut |_, _| {})
-}
-
-/// Fill only the occupancy block of `state` (and its frame fields) from one depth frame:
-/// the occupancy role's whole work. Never allocates.
-pub fn occupancy_from_depth(
-    depth: &[u8],
-    header: &FrameHeader,
-    state: &mut PerceptionState,
-) -> Result<(), PerceiveError> {
-    if header.validate(depth.len()) != Ok(FrameFormat::DepthU16Mm) {
-        return Err(PerceiveError::PairMismatch);
-    }
-    let camera =
-        CameraModel::with_pitch(header.width, header.height, header.hfov, CAMERA_PITCH_RAD)
-            .map_err(PerceiveError::Geometry)?;
-    fill_occupancy(depth, header, &camera, state);
-    let p = header.camera_position;
-    state.frame_seq = header.seq;
-    state.capture_ns = header.capture_ns;
-    state.position = [p[0], p[1], p[2] - CAMERA_MOUNT_HEIGHT_M];
-    state.yaw = header.camera_yaw;
-    state.blocks = block::OCCUPANCY;
-    Ok(())
-}
-
-fn fill_occupancy(
-    depth: &[u8],
-    header: &FrameHeader,
-    camera: &CameraModel,
-    state: &mut PerceptionState,
-) {
-    let cam = header.camera_position;
-    let grid = &mut state.occupancy;
-    grid.origin = [cam[0], cam[1]];
-    grid.resolution_m = OCCUPANCY_RESOLUTION_M;
-    grid.cells.fill(OCCUPANCY_UNKNOWN);
-    let w = camera.width as usize;
-    let f = camera.focal_px();
-    let (sp, cp) = camera.pitch.sin_cos();
-    let (sy, cy) = header.camera_yaw.sin_cos();
-    let (half_w, half_h) = (0.5 * camera.width as f32, 0.5 * camera.height as f32);
-    for (i, dz) in depth.chunks_exact(2).enumerate() {
-        let z = u16::from_le_bytes([dz[0], dz[1]]);
-        if z == 0 {
-            continue;
-        }
-        let z = z as f32 * 0.001;
-        let (col, row) = (i % w, i / w);
-        let rx = (col as f32 + 0.5 - half_w) / f;
-        let ry = (row as f32 + 0.5 - half_h) / f;
-        // the shared camera model (CameraModel::ray_at), inlined with per-frame constants
-        let fwd = cp - ry * sp;
-        let up = -sp - ry * cp;
-        let n = cam[0] + z * (fwd * cy - rx * sy);
-        let e = cam[1] + z * (fwd * sy + rx * cy);
-        let u = cam[2] + z * up;
-        let Some(cell) = grid.cell_of([n, e]) else {
-            continue;
-        };
-        let height = if u < GROUND_EPS_M {
-            0
-        } else {
-            (u + 0.5).min(254.0) as u8
-        };
-        let c = &mut grid.cells[cell];
-        if *c == OCCUPANCY_UNKNOWN || height > *c {
-            *c = height;
-        }
-    }
 }
 
 fn fill_cues(words: &InstructionWords, state: &mut PerceptionState) {

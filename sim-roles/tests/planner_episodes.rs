@@ -12,11 +12,11 @@
 use aeris_eval::episode::Episode;
 use aeris_eval::generate::{AirspaceFilter, Split, generate_split};
 use aeris_eval::mission::{Agent, episode_mission};
-use aeris_roles::perception::{InstructionWords, Segmenter};
 use aeris_roles::planner::Planner;
 use aeris_runtime::spec::CameraSpec;
 use aeris_schemas::{ActionMode, FrameFormat, FrameHeader, PerceptionState};
 use aeris_sim::render::{CAMERA_MOUNT_HEIGHT_M, Renderer};
+use aeris_sim_roles::perception::{InstructionWords, Segmenter};
 
 /// Seconds per heartbeat (one frame and one decision each).
 const HEARTBEAT_S: f32 = 2.0;

@@ -6,12 +6,12 @@
 //! (`ChunkMutSharedState::new` in `Publisher::loan_*`); that is the transport's, not the
 //! roles': the camera loans 2 samples per cycle, perception 1.
 
-use aeris_roles::camera::CameraRole;
-use aeris_roles::perception::{InstructionWords, PerceptionRole, Segmenter};
 use aeris_runtime::{CycleOutcome, CycleReport, FlightBus, Role, RoleContext, RoleSpec};
 use aeris_schemas::{FrameFormat, FrameHeader, PerceptionState, VehicleTelemetry, topics};
 use aeris_sim::render::Renderer;
 use aeris_sim::world::World;
+use aeris_sim_roles::camera::CameraRole;
+use aeris_sim_roles::perception::{InstructionWords, PerceptionRole, Segmenter};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 

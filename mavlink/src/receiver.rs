@@ -1,0 +1,186 @@
+//! The receive thread of a link: it establishes the link (accepting the peer of a `tcpin:`
+//! server), makes it available for sending, and hands every decoded message to its owner's
+//! handler until stopped. Both ends use it: the controller feeds the autopilot's state, the
+//! simulated vehicle its inbox.
+
+use crate::MavHeader;
+use crate::dialect::MavMessage;
+use crate::link::{LINK_POLL, LinkError, MavLink, PendingLink};
+use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, OnceLock};
+use std::thread::JoinHandle;
+
+/// A link and the thread that receives on it. Dropping it stops and joins the thread.
+#[derive(Debug)]
+pub struct LinkReceiver {
+    link: Arc<OnceLock<MavLink>>,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl LinkReceiver {
+    /// Spawn the thread `name`: it establishes `pending`, then calls `on_message` with
+    /// every message received until [`LinkReceiver::stop`] or until `on_message` returns
+    /// [`ControlFlow::Break`]. Undecodable bytes are skipped; after a transport error the
+    /// thread waits [`LINK_POLL`] before it reads again (a closed TCP peer does not make it
+    /// spin). When the link cannot be established the thread writes
+    /// `"{failure_context}: {error}"` to stderr and ends; [`LinkReceiver::link`] stays
+    /// `None` then.
+    pub fn spawn<F>(
+        name: &str,
+        pending: PendingLink,
+        failure_context: &'static str,
+        on_message: F,
+    ) -> std::io::Result<Self>
+    where
+        F: FnMut(&MavHeader, MavMessage) -> ControlFlow<()> + Send + 'static,
+    {
+        let link = Arc::new(OnceLock::new());
+        let stop = Arc::new(AtomicBool::new(false));
+        let thread = {
+            let (link, stop) = (link.clone(), stop.clone());
+            std::thread::Builder::new()
+                .name(name.to_string())
+                .spawn(move || {
+                    if let Err(e) = receive_loop(pending, &link, &stop, on_message) {
+                        eprintln!("{failure_context}: {e}");
+                    }
+                })?
+        };
+        Ok(Self {
+            link,
+            stop,
+            thread: Some(thread),
+        })
+    }
+
+    /// The established link (to send on); `None` until the receive thread established it
+    /// (a `tcpin:` server before its peer connected) or when it could not.
+    pub fn link(&self) -> Option<&MavLink> {
+        self.link.get()
+    }
+
+    /// Stop the receive thread and wait for it (at most about one [`LINK_POLL`]); the link
+    /// stays usable for sending. Calling it again does nothing.
+    pub fn stop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(h) = self.thread.take() {
+            let _ = h.join();
+        }
+    }
+}
+
+impl Drop for LinkReceiver {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}
+
+/// Establish `pending` into `slot`, then receive until `stop` or a `Break` from
+/// `on_message`. Errs only when the link could not be established.
+fn receive_loop<F>(
+    pending: PendingLink,
+    slot: &OnceLock<MavLink>,
+    stop: &AtomicBool,
+    mut on_message: F,
+) -> Result<(), LinkError>
+where
+    F: FnMut(&MavHeader, MavMessage) -> ControlFlow<()>,
+{
+    let Some(link) = pending.establish(stop)? else {
+        return Ok(());
+    };
+    let _ = slot.set(link);
+    let Some(link) = slot.get() else {
+        return Ok(());
+    };
+    while !stop.load(Ordering::Relaxed) {
+        match link.recv() {
+            Ok(Some((header, msg))) => {
+                if on_message(&header, msg).is_break() {
+                    return Ok(());
+                }
+            }
+            Ok(None) | Err(LinkError::Decode) => {}
+            // closed or failing transport: back off without spinning
+            Err(_) => std::thread::sleep(LINK_POLL),
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dialect::{HEARTBEAT_DATA, MavAutopilot, MavModeFlag, MavState, MavType};
+    use crate::link::{open_link, prepare_link};
+    use std::sync::mpsc::sync_channel;
+
+    fn heartbeat(custom_mode: u32) -> MavMessage {
+        MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            custom_mode,
+            mavtype: MavType::MAV_TYPE_QUADROTOR,
+            autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+            base_mode: MavModeFlag::empty(),
+            system_status: MavState::MAV_STATE_ACTIVE,
+            mavlink_version: 3,
+        })
+    }
+
+    /// A `tcpin:` server: the thread accepts the peer, delivers what it sends in order with
+    /// its header, the link then sends back, and a `Break` ends the thread.
+    #[test]
+    fn a_tcp_server_accepts_its_peer_and_hands_over_every_message() {
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let addr = listener.local_addr().unwrap();
+        drop(listener);
+        let pending = prepare_link(&format!("tcpin:{addr}"), LINK_POLL).unwrap();
+        let (tx, rx) = sync_channel(16);
+        let mut receiver = LinkReceiver::spawn("test-rx", pending, "test link", move |h, m| {
+            let done = matches!(&m, MavMessage::HEARTBEAT(hb) if hb.custom_mode == 3);
+            tx.send((h.system_id, m)).unwrap();
+            if done {
+                ControlFlow::Break(())
+            } else {
+                ControlFlow::Continue(())
+            }
+        })
+        .unwrap();
+        let peer = open_link(&format!("tcpout:{addr}"), LINK_POLL).unwrap();
+        let header = MavHeader {
+            system_id: 42,
+            component_id: 1,
+            sequence: 0,
+        };
+        for mode in 1..=3 {
+            peer.send(&header, &heartbeat(mode)).unwrap();
+        }
+        for mode in 1..=3 {
+            let (sys, msg) = rx.recv().unwrap();
+            assert_eq!(sys, 42);
+            assert!(matches!(msg, MavMessage::HEARTBEAT(hb) if hb.custom_mode == mode));
+        }
+        // the thread ended on the Break; the established link still sends
+        receiver.stop();
+        let link = receiver.link().expect("established");
+        assert!(link.send(&header, &heartbeat(9)).unwrap() > 0);
+        // (a bound on the polls, not on time: a lost message fails instead of hanging)
+        let back = (0..200).find_map(|_| peer.recv().unwrap());
+        assert!(
+            matches!(&back, Some((_, MavMessage::HEARTBEAT(hb))) if hb.custom_mode == 9),
+            "{back:?}"
+        );
+    }
+
+    #[test]
+    fn a_receiver_stops_while_its_server_still_waits_for_a_peer() {
+        let pending = prepare_link("tcpin:127.0.0.1:0", LINK_POLL).unwrap();
+        let mut receiver = LinkReceiver::spawn("test-rx", pending, "test link", |_, _| {
+            ControlFlow::Continue(())
+        })
+        .unwrap();
+        receiver.stop();
+        assert!(receiver.link().is_none());
+    }
+}

@@ -1,0 +1,391 @@
+//! The controller role: ports, the receive thread, and the cycle that runs the lease, the
+//! tracker and the autopilot sequencer and writes what they decide (see the module
+//! documentation of [`crate::controller`]).
+
+use super::autopilot_state::AutopilotState;
+use super::lease::{LEASE_LISTEN_PERIODS, LeaseArbiter, LeaseChange};
+use super::messages::{
+    command_long, companion_header, companion_heartbeat, from_autopilot, position_target_message,
+};
+use super::sequencer::{AutopilotSequencer, AutopilotStatus};
+use super::tracker::{Tracker, TrackerConfig};
+use aeris_mavlink::dialect::{MavCmd, MavMessage};
+use aeris_mavlink::{Autopilot, LINK_POLL, LinkReceiver, MavHeader, ned_to_neu, prepare_link};
+use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
+use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::role::try_sched_fifo;
+use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
+use aeris_schemas::{BoundSetpoint, ControllerLease, VehicleTelemetry, topics};
+use std::ops::ControlFlow;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+/// Autopilot URL used when the spec gives none.
+pub const DEFAULT_AUTOPILOT: &str = "udpout:127.0.0.1:14600";
+/// Polls of the autopilot lease per control period.
+pub const POLLS_PER_TICK: u32 = 4;
+
+/// The 50 Hz MAVLink controller role.
+pub struct ControllerRole {
+    /// The autopilot link and its receive thread (which applies what arrives to `shared`).
+    receiver: LinkReceiver,
+    shared: Arc<Mutex<AutopilotState>>,
+    /// The last autopilot state copied out of `shared` (used when the lock is busy).
+    ap_cache: AutopilotState,
+    setpoints: TypedSubscriber<BoundSetpoint>,
+    telemetry: TypedPublisher<VehicleTelemetry>,
+    /// The holder's telemetry, read while standing by.
+    telemetry_in: TypedSubscriber<VehicleTelemetry>,
+    lease_out: TypedPublisher<ControllerLease>,
+    lease_in: TypedSubscriber<ControllerLease>,
+    arbiter: LeaseArbiter,
+    /// What the holder last reported (the standby's view of the vehicle).
+    standby_ap: AutopilotState,
+    tracker: Tracker,
+    sequencer: AutopilotSequencer,
+    period: Duration,
+    period_ns: u64,
+    next_tick_ns: u64,
+    /// Control ticks run and skipped in the current term of the lease.
+    ticks: u64,
+    missed_ticks: u64,
+    /// The tracker's hold ticks when this process last took the lease.
+    hold_ticks_base: u64,
+    /// Setpoints sent in the current term.
+    term_sent: u64,
+    start_ns: u64,
+    sent: u64,
+    send_errors: u64,
+    commands_sent: u64,
+    telemetry_seq: u64,
+    header: MavHeader,
+}
+
+impl core::fmt::Debug for ControllerRole {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("ControllerRole")
+            .field("sent", &self.sent)
+            .field("refused", &self.tracker.refused())
+            .finish_non_exhaustive()
+    }
+}
+
+fn param_bool(spec: &RoleSpec, key: &str, default: bool) -> Result<bool, RoleError> {
+    match spec.params.get(key) {
+        None => Ok(default),
+        Some(v) => v
+            .as_bool()
+            .ok_or_else(|| RoleError::Config(format!("param `{key}` must be true or false"))),
+    }
+}
+
+impl ControllerRole {
+    /// MAVLink messages of the last run written successfully (setpoints only).
+    pub fn setpoints_sent(&self) -> u64 {
+        self.sent
+    }
+
+    /// Writes to the autopilot link that failed.
+    pub fn send_errors(&self) -> u64 {
+        self.send_errors
+    }
+
+    /// The tracker (setpoint gate and reference).
+    pub fn tracker(&self) -> &Tracker {
+        &self.tracker
+    }
+
+    /// The heartbeat counters (see the module documentation).
+    fn counters(&self) -> [u64; 8] {
+        [
+            self.ticks,
+            self.missed_ticks,
+            self.tracker.refused(),
+            self.tracker.hold_ticks() - self.hold_ticks_base,
+            self.sent,
+            u64::from(self.arbiter.is_active()),
+            self.arbiter.takeovers(),
+            self.arbiter.epoch(),
+        ]
+    }
+
+    fn send(&mut self, msg: &MavMessage) -> bool {
+        let Some(link) = self.receiver.link() else {
+            return false;
+        };
+        match link.send(&self.header, msg) {
+            Ok(n) => n > 0,
+            Err(_) => {
+                self.send_errors += 1;
+                false
+            }
+        }
+    }
+
+    fn command(&mut self, command: MavCmd, params: [f32; 3], confirmation: u8) {
+        if self.send(&command_long(command, params, confirmation)) {
+            self.commands_sent += 1;
+        }
+    }
+}
+
+impl Role for ControllerRole {
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+        let spec = &ctx.spec;
+        let rate = spec.timing.control_rate_hz;
+        if !(rate.is_finite() && rate > 0.0 && rate <= 1000.0) {
+            return Err(RoleError::Config(format!(
+                "timing.control_rate_hz = {rate} must be in (0, 1000]"
+            )));
+        }
+        let url = match spec.params.get("autopilot") {
+            None => DEFAULT_AUTOPILOT.to_string(),
+            Some(v) => v
+                .as_str()
+                .ok_or_else(|| RoleError::Config("param `autopilot` must be a string".into()))?
+                .to_string(),
+        };
+        let realtime = param_bool(spec, "realtime", true)?;
+        let standby = param_bool(spec, "standby", false)?;
+        let tracker = Tracker::new(TrackerConfig::from_spec(spec));
+        let setpoints = ctx.bus.subscriber::<BoundSetpoint>(topics::HUB_SETPOINT)?;
+        let telemetry = ctx
+            .bus
+            .publisher::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)?;
+        let telemetry_in = ctx
+            .bus
+            .subscriber::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)?;
+        let lease_out = ctx
+            .bus
+            .publisher::<ControllerLease>(topics::CONTROLLER_LEASE)?;
+        let lease_in = ctx
+            .bus
+            .subscriber::<ControllerLease>(topics::CONTROLLER_LEASE)?;
+        let pending = prepare_link(&url, LINK_POLL)
+            .map_err(|e| RoleError::Config(format!("autopilot link: {e}")))?;
+        let autopilot = Autopilot::Px4;
+        let shared = Arc::new(Mutex::new(AutopilotState::default()));
+        // Spawned before switching to SCHED_FIFO so the receive thread keeps the normal policy.
+        let receiver = {
+            let shared = shared.clone();
+            LinkReceiver::spawn(
+                "controller-rx",
+                pending,
+                "aeris controller: autopilot link failed",
+                move |header, msg| {
+                    if from_autopilot(header) {
+                        let now = monotonic_ns();
+                        if let Ok(mut s) = shared.lock() {
+                            s.apply(&msg, now, autopilot);
+                        }
+                    }
+                    ControlFlow::Continue(())
+                },
+            )
+            .map_err(|e| RoleError::Fatal(format!("cannot spawn the receive thread: {e}")))?
+        };
+        if realtime && !try_sched_fifo(50) {
+            eprintln!(
+                "aeris controller `{}`: SCHED_FIFO not permitted, running with the normal scheduler",
+                spec.name
+            );
+        }
+        let now = monotonic_ns();
+        let period = Duration::from_secs_f64(1.0 / rate);
+        let period_ns = (period.as_nanos() as u64).max(1);
+        Ok(Self {
+            receiver,
+            shared,
+            ap_cache: AutopilotState::default(),
+            setpoints,
+            telemetry,
+            telemetry_in,
+            lease_out,
+            lease_in,
+            arbiter: LeaseArbiter::new(
+                std::process::id(),
+                !standby,
+                now,
+                period_ns,
+                // a standby listens twice as long, so that at a flight's start the primary
+                // claims first
+                period_ns.saturating_mul(LEASE_LISTEN_PERIODS * if standby { 2 } else { 1 }),
+            ),
+            standby_ap: AutopilotState::default(),
+            tracker,
+            sequencer: AutopilotSequencer::new(autopilot, now),
+            period,
+            period_ns,
+            next_tick_ns: now,
+            ticks: 0,
+            missed_ticks: 0,
+            hold_ticks_base: 0,
+            term_sent: 0,
+            start_ns: now,
+            sent: 0,
+            send_errors: 0,
+            commands_sent: 0,
+            telemetry_seq: 0,
+            header: companion_header(),
+        })
+    }
+
+    fn period(&self) -> Duration {
+        self.period / POLLS_PER_TICK
+    }
+
+    fn cycle(
+        &mut self,
+        ctx: &mut RoleContext,
+        report: &mut CycleReport,
+    ) -> Result<CycleOutcome, RoleError> {
+        // lease: who may write to the autopilot
+        let t0 = monotonic_ns();
+        let arbiter = &mut self.arbiter;
+        self.lease_in.drain(|l| arbiter.observe(l, t0))?;
+        let standby_ap = &mut self.standby_ap;
+        let holding = self.arbiter.is_active();
+        self.telemetry_in.drain(|t| {
+            if !holding && t.validate().is_ok() {
+                *standby_ap = AutopilotState::from_telemetry(t);
+            }
+        })?;
+        let change = self.arbiter.decide(t0);
+        let active = self.arbiter.is_active();
+        if change == LeaseChange::TookOver {
+            // fly from this poll on (the holder's last tick was a period or more ago), from
+            // the reference the holder last published
+            self.next_tick_ns = t0;
+            if let Some(l) = self.arbiter.highest_seen() {
+                self.tracker.adopt(l);
+            }
+            self.hold_ticks_base = self.tracker.hold_ticks();
+            self.term_sent = 0;
+            // a new term publishes like a new process: sequence and counters from zero
+            self.telemetry_seq = 0;
+            self.ticks = 0;
+            self.missed_ticks = 0;
+            eprintln!(
+                "aeris controller `{}`: took the autopilot lease (epoch {})",
+                ctx.spec.name,
+                self.arbiter.epoch()
+            );
+        } else if change == LeaseChange::SteppedDown {
+            eprintln!(
+                "aeris controller `{}`: another controller holds the autopilot lease, standing by",
+                ctx.spec.name
+            );
+        }
+        if active {
+            let mut lease = self.arbiter.lease(t0, self.term_sent);
+            self.tracker.write_handover(&mut lease);
+            self.lease_out.publish(&lease)?;
+        }
+        if t0 < self.next_tick_ns {
+            return Ok(CycleOutcome::Idle);
+        }
+        self.next_tick_ns += self.period_ns;
+        if t0 > self.next_tick_ns {
+            // a control tick was skipped: count it and re-anchor instead of bursting
+            let late = t0 - self.next_tick_ns;
+            if active {
+                self.missed_ticks += late / self.period_ns + 1;
+            }
+            self.next_tick_ns = t0 + self.period_ns - late % self.period_ns;
+        }
+
+        // read
+        let tracker = &mut self.tracker;
+        self.setpoints.drain(|sp| {
+            let _ = tracker.offer(sp, t0);
+        })?;
+        // Never block the real-time tick on the receive thread (std mutexes have no
+        // priority inheritance): when the lock is busy, fly on the previous copy.
+        if let Ok(s) = self.shared.try_lock() {
+            self.ap_cache = *s;
+        }
+        let t1 = monotonic_ns();
+        if !active {
+            // a standby keeps the setpoints and the holder's view, and writes nothing; its
+            // tracker takes the holder's reference when it takes over
+            report.stage("read", t1 - t0);
+            report.counters = self.counters();
+            return Ok(CycleOutcome::Worked);
+        }
+        let ap = self.ap_cache.or_else(&self.standby_ap);
+
+        // track
+        let view = ap.vehicle_view(self.tracker.config().floor());
+        let landed = view.landed;
+        let cmd = self.tracker.tick(t1, &view);
+        let t2 = monotonic_ns();
+        self.ticks += 1;
+
+        // send
+        let time_boot_ms = ((t2.saturating_sub(self.start_ns)) / 1_000_000) as u32;
+        if self.send(&position_target_message(&cmd, time_boot_ms)) {
+            self.sent += 1;
+            self.term_sent += 1;
+            self.sequencer.setpoint_sent(t2);
+        }
+        let link_up = ap.link_up(t2);
+        let status = AutopilotStatus {
+            link_up,
+            armed: ap.armed,
+            offboard: ap.offboard,
+        };
+        let wants_flight = self.tracker.wants_flight(t2, landed);
+        let requests = self.sequencer.step(t2, status, wants_flight);
+        if requests.heartbeat {
+            self.send(&companion_heartbeat());
+        }
+        if let Some(params) = requests.set_mode {
+            self.command(MavCmd::MAV_CMD_DO_SET_MODE, params, requests.confirmation);
+        }
+        if requests.arm {
+            self.command(
+                MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+                [1.0, 0.0, 0.0],
+                requests.confirmation,
+            );
+        }
+        // Telemetry carries what the autopilot reported; nothing is published before its
+        // first LOCAL_POSITION_NED (a made-up position would be taken as real downstream).
+        let Some(position_ned) = ap.position_ned else {
+            report.stage("read", t1 - t0);
+            report.stage("track", t2 - t1);
+            report.counters = self.counters();
+            return Ok(CycleOutcome::Worked);
+        };
+        let attitude = ap.attitude.unwrap_or([0.0; 3]);
+        self.telemetry_seq += 1;
+        let telemetry = VehicleTelemetry {
+            seq: self.telemetry_seq,
+            stamp_ns: t2,
+            autopilot_time_ms: ap.time_boot_ms,
+            armed: u8::from(ap.armed),
+            offboard: u8::from(ap.offboard),
+            link_up: u8::from(link_up),
+            landed: u8::from(landed),
+            position: ned_to_neu(position_ned),
+            velocity: ned_to_neu(ap.velocity_ned),
+            attitude,
+            controller_ticks: self.ticks,
+            controller_missed_ticks: self.missed_ticks,
+            setpoints_refused: self.tracker.refused(),
+            hold_ticks: self.tracker.hold_ticks() - self.hold_ticks_base,
+        };
+        self.telemetry.publish(&telemetry)?;
+        let t3 = monotonic_ns();
+
+        report.stage("read", t1 - t0);
+        report.stage("track", t2 - t1);
+        report.stage("send", t3 - t2);
+        report.counters = self.counters();
+        Ok(CycleOutcome::Worked)
+    }
+
+    fn shutdown(&mut self, _ctx: &mut RoleContext) {
+        self.receiver.stop();
+    }
+}

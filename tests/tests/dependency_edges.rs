@@ -1,0 +1,85 @@
+//! The simulator stays at the edge: the flight roles (the controller among them), the hub
+//! and the MAVLink crate build without `aeris-sim`, and the geometry leaf needs no crate of
+//! ours. Asked of cargo itself (`cargo tree -e normal`: what a build of the crate compiles,
+//! dev-dependencies left out), so a dependency that comes back through any path, a new
+//! crate in between included, fails here.
+
+use std::collections::BTreeSet;
+use std::path::Path;
+use std::process::Command;
+
+/// Every package `package` compiles in a normal build (itself included), by name.
+fn normal_dependencies(package: &str) -> BTreeSet<String> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_string());
+    let workspace = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let out = Command::new(&cargo)
+        .current_dir(&workspace)
+        .args([
+            "tree",
+            "--offline",
+            "--locked",
+            "-e",
+            "normal",
+            "-p",
+            package,
+        ])
+        .args(["--prefix", "none", "--format", "{p}"])
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run `{cargo} tree`: {e}"));
+    assert!(
+        out.status.success(),
+        "`cargo tree -p {package}` failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let names: BTreeSet<String> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|l| l.split_whitespace().next())
+        .map(str::to_string)
+        .collect();
+    assert!(
+        names.contains(package),
+        "`cargo tree -p {package}` does not list {package} itself: {names:?}"
+    );
+    names
+}
+
+/// The crates of this workspace among `names`, but `package` itself.
+fn ours(names: &BTreeSet<String>, package: &str) -> BTreeSet<String> {
+    names
+        .iter()
+        .filter(|n| n.starts_with("aeris") && *n != package)
+        .cloned()
+        .collect()
+}
+
+#[test]
+fn the_flight_roles_and_the_hub_build_without_the_simulator() {
+    for package in ["aeris-roles", "aeris-hub", "aeris-mavlink"] {
+        let deps = normal_dependencies(package);
+        assert!(
+            !deps.contains("aeris-sim") && !deps.contains("aeris-sim-roles"),
+            "{package} depends on the simulator again: {:?}",
+            ours(&deps, package)
+        );
+    }
+    // not vacuous: the tree is the real one
+    let roles = normal_dependencies("aeris-roles");
+    for dep in [
+        "aeris-runtime",
+        "aeris-mavlink",
+        "aeris-geometry",
+        "mavlink",
+    ] {
+        assert!(roles.contains(dep), "aeris-roles without {dep}: {roles:?}");
+    }
+    // and the simulator's roles are where the simulator is
+    assert!(normal_dependencies("aeris-sim-roles").contains("aeris-sim"));
+}
+
+#[test]
+fn geometry_and_the_mavlink_link_depend_on_no_crate_of_ours() {
+    for package in ["aeris-geometry", "aeris-mavlink"] {
+        let deps = normal_dependencies(package);
+        assert_eq!(ours(&deps, package), BTreeSet::new(), "{package}");
+    }
+}
