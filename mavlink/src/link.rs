@@ -28,7 +28,7 @@ pub enum LinkError {
     )]
     Address(String),
     /// The transport could not be opened (bind, connect, device).
-    #[error("cannot open MAVLink link `{url}`: {source}")]
+    #[error("cannot open MAVLink link `{url}`")]
     Open {
         /// The URL.
         url: String,

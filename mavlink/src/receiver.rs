@@ -44,7 +44,14 @@ impl LinkReceiver {
                 .name(name.to_string())
                 .spawn(move || {
                     if let Err(e) = receive_loop(pending, &link, &stop, on_message) {
-                        eprintln!("{failure_context}: {e}");
+                        // the error and its causes, each once
+                        let mut line = format!("{failure_context}: {e}");
+                        let mut cause = std::error::Error::source(&e);
+                        while let Some(c) = cause {
+                            line.push_str(&format!(": {c}"));
+                            cause = c.source();
+                        }
+                        eprintln!("{line}");
                     }
                 })?
         };

@@ -56,7 +56,7 @@ impl Role for CameraRole {
         }
         let hfov = cam.hfov_deg.to_radians();
         let renderer = Renderer::new(cam.width, cam.height, hfov)
-            .map_err(|e| RoleError::Config(format!("camera: {e}")))?;
+            .map_err(|e| RoleError::step("setting up the camera's renderer", e))?;
         let rgb = ctx
             .bus
             .frame_publisher(topics::CAMERA_RGB, renderer.rgb_len())?;
@@ -140,7 +140,7 @@ impl Role for CameraRole {
             });
         })?;
         depth_sent?;
-        rendered.map_err(|e| RoleError::Fatal(format!("render failed: {e}")))?;
+        rendered.map_err(|e| RoleError::step("rendering a frame", e))?;
         self.seq += 1;
         let total = monotonic_ns().saturating_sub(t0);
         report.stage("render", render_ns);

@@ -169,14 +169,12 @@ impl Role for VehicleRole {
                     .write(true)
                     .truncate(false)
                     .open(path)
-                    .map_err(|e| {
-                        RoleError::Config(format!("cannot open state_file {path}: {e}"))
-                    })?,
+                    .map_err(|e| RoleError::step(format!("cannot open state_file {path}"), e))?,
             ),
             None => None,
         };
         let sim = SimVehicle::start(url, config)
-            .map_err(|e| RoleError::Config(format!("simulated vehicle: {e}")))?;
+            .map_err(|e| RoleError::step("starting the simulated vehicle", e))?;
         Ok(Self {
             sim,
             last_ns: monotonic_ns(),

@@ -162,7 +162,7 @@ impl Role for ControllerRole {
             .bus
             .subscriber::<ControllerLease>(topics::CONTROLLER_LEASE)?;
         let pending = prepare_link(&url, LINK_POLL)
-            .map_err(|e| RoleError::Config(format!("autopilot link: {e}")))?;
+            .map_err(|e| RoleError::step("preparing the autopilot link", e))?;
         let autopilot = Autopilot::Px4;
         let shared = Arc::new(Mutex::new(AutopilotState::default()));
         // Spawned before switching to SCHED_FIFO so the receive thread keeps the normal policy.
