@@ -630,6 +630,7 @@ mod tests {
             r_max: 10.0,
             geofence_min: [-100.0, -100.0, 0.0],
             geofence_max: [100.0, 100.0, 60.0],
+            obstacle_clearance_m: 3.0,
             subgoals: 3,
         }
     }
@@ -644,7 +645,7 @@ mod tests {
         )
         .unwrap();
         HubCore::new(
-            DecisionGate::new(limits(), 3.0).unwrap(),
+            DecisionGate::new(limits()).unwrap(),
             attention,
             HubConfig {
                 heartbeat_period_ns: 2 * S,

@@ -116,34 +116,29 @@ struct Hit {
     top: f32,
 }
 
-/// The decision gate of one flight: the mission's limits and obstacle clearance.
+/// The decision gate of one flight: its limits, obstacle clearance included.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DecisionGate {
     limits: DecisionLimits,
-    clearance_m: f32,
 }
 
 impl DecisionGate {
-    /// A gate for `limits` keeping `clearance_m` metres from obstacles.
-    pub fn new(limits: DecisionLimits, clearance_m: f32) -> Result<Self, GateConfigError> {
+    /// A gate for `limits`, keeping `limits.obstacle_clearance_m` metres from obstacles (a
+    /// flight's gate: `DecisionGate::new(mission.decision_limits())`).
+    pub fn new(limits: DecisionLimits) -> Result<Self, GateConfigError> {
         if !limits.is_coherent() {
             return Err(GateConfigError::IncoherentLimits);
         }
+        let clearance_m = limits.obstacle_clearance_m;
         if !(clearance_m.is_finite() && clearance_m >= 0.0) {
             return Err(GateConfigError::BadClearance(clearance_m));
         }
-        Ok(Self {
-            limits,
-            clearance_m,
-        })
+        Ok(Self { limits })
     }
 
-    /// The gate of `mission`: `mission.decision_limits()` and `limits.obstacle_clearance_m`.
+    /// The gate of `mission`: its decision limits.
     pub fn from_mission(mission: &MissionSpec) -> Result<Self, GateConfigError> {
-        Self::new(
-            mission.decision_limits(),
-            mission.limits.obstacle_clearance_m,
-        )
+        Self::new(mission.decision_limits())
     }
 
     /// The limits decisions are checked against.
@@ -153,7 +148,7 @@ impl DecisionGate {
 
     /// The obstacle clearance (m).
     pub fn clearance_m(&self) -> f32 {
-        self.clearance_m
+        self.limits.obstacle_clearance_m
     }
 
     /// The altitude band `[max(h_min, fence_min.U), min(h_max, fence_max.U)]` (may be empty).
@@ -221,7 +216,7 @@ impl DecisionGate {
                 0.0
             }
         };
-        let c = self.clearance_m;
+        let c = self.clearance_m();
         let position = match mode {
             ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend | ActionMode::Turn => {
                 if let Some(top) = grid.and_then(|g| obstacle_top(g, here))
@@ -278,12 +273,13 @@ impl DecisionGate {
         let Some(g) = grid else {
             return Ok((to, false));
         };
-        let Some(hit) = first_blocking(g, from, to, h - self.clearance_m) else {
+        let clearance = self.clearance_m();
+        let Some(hit) = first_blocking(g, from, to, h - clearance) else {
             return Ok((to, false));
         };
         let (dn, de) = (to[0] as f64 - from[0] as f64, to[1] as f64 - from[1] as f64);
         let length = dn.hypot(de);
-        let free = hit.t * length - self.clearance_m as f64;
+        let free = hit.t * length - clearance as f64;
         if free < g.resolution_m as f64 || length <= 0.0 {
             return Err(GateError::Blocked {
                 at: cell_centre(g, hit.cell),
@@ -870,12 +866,13 @@ mod tests {
             r_max: 10.0,
             geofence_min: [-100.0, -100.0, 0.0],
             geofence_max: [100.0, 100.0, 60.0],
+            obstacle_clearance_m: 3.0,
             subgoals: 4,
         }
     }
 
     fn gate() -> DecisionGate {
-        DecisionGate::new(limits(), 3.0).unwrap()
+        DecisionGate::new(limits()).unwrap()
     }
 
     fn decision(action: ActionMode, target: [f32; 3], altitude: f32) -> Decision {
@@ -1059,12 +1056,12 @@ mod tests {
     fn altitude_is_kept_inside_the_fence() {
         let mut l = limits();
         l.geofence_max[2] = 40.0;
-        let g = DecisionGate::new(l, 3.0).unwrap();
+        let g = DecisionGate::new(l).unwrap();
         let d = decision(ActionMode::Goto, [10.0, 0.0, 10.0], 55.0);
         let sp = g.admit(&d, [0.0; 3], None).unwrap();
         assert_eq!((sp.position[2], sp.clamped), (40.0, 1));
         l.geofence_max[2] = 1.0; // below h_min: no altitude
-        let g = DecisionGate::new(l, 3.0).unwrap();
+        let g = DecisionGate::new(l).unwrap();
         assert!(matches!(
             g.admit(
                 &decision(ActionMode::Goto, [1.0, 0.0, 1.0], 10.0),
@@ -1089,17 +1086,26 @@ mod tests {
     #[test]
     fn config_is_checked() {
         assert!(matches!(
-            DecisionGate::new(limits(), f32::NAN),
+            DecisionGate::new(DecisionLimits {
+                obstacle_clearance_m: f32::NAN,
+                ..limits()
+            }),
             Err(GateConfigError::BadClearance(_))
         ));
         assert!(matches!(
-            DecisionGate::new(limits(), -1.0),
+            DecisionGate::new(DecisionLimits {
+                obstacle_clearance_m: -1.0,
+                ..limits()
+            }),
             Err(GateConfigError::BadClearance(_))
         ));
         let mut l = limits();
         l.h_min = 70.0;
         assert_eq!(
-            DecisionGate::new(l, 1.0),
+            DecisionGate::new(DecisionLimits {
+                obstacle_clearance_m: 1.0,
+                ..l
+            }),
             Err(GateConfigError::IncoherentLimits)
         );
     }
