@@ -35,7 +35,6 @@
 use crate::att::{Attention, AttentionResult};
 use crate::gate::{DecisionGate, GateError};
 use crate::ordering::{SeqVerdict, SequenceTracker, SourceSelector, SourceVerdict};
-use aeris_runtime::spec::TimingSpec;
 use aeris_schemas::{
     ActionMode, BoundSetpoint, Decision, HubReport, MAX_SUBGOALS, OccupancyGrid, PerceptionState,
     StateError, all_finite,
@@ -50,17 +49,6 @@ pub struct HubConfig {
     pub decision_deadline_ns: u64,
     /// No-ATT ablation: the active step is the reasoner's declared step.
     pub no_att: bool,
-}
-
-impl HubConfig {
-    /// From the flight's timing (milliseconds to nanoseconds, period at least 1 ms).
-    pub fn from_timing(timing: &TimingSpec, no_att: bool) -> Self {
-        Self {
-            heartbeat_period_ns: timing.heartbeat_period_ms.max(1).saturating_mul(1_000_000),
-            decision_deadline_ns: timing.decision_deadline_ms.saturating_mul(1_000_000),
-            no_att,
-        }
-    }
 }
 
 /// The hub's counters (also carried by every [`HubReport`]).

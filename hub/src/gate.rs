@@ -37,7 +37,6 @@
 //! controller agree: a land setpoint is at U = 0, which `validate` accepts below h_min for
 //! land (and takeoff, hover, stop) by design.
 
-use aeris_runtime::MissionSpec;
 use aeris_schemas::{
     ActionMode, BoundSetpoint, Decision, DecisionError, DecisionLimits, OCCUPANCY_SIDE,
     OCCUPANCY_UNKNOWN, OccupancyGrid, SetpointError, all_finite,
@@ -134,11 +133,6 @@ impl DecisionGate {
             return Err(GateConfigError::BadClearance(clearance_m));
         }
         Ok(Self { limits })
-    }
-
-    /// The gate of `mission`: its decision limits.
-    pub fn from_mission(mission: &MissionSpec) -> Result<Self, GateConfigError> {
-        Self::new(mission.decision_limits())
     }
 
     /// The limits decisions are checked against.

@@ -42,7 +42,7 @@ fn default_spec() -> RoleSpec {
 }
 
 fn default_gate() -> DecisionGate {
-    DecisionGate::from_mission(&default_spec().mission).expect("coherent limits")
+    DecisionGate::new(default_spec().mission.decision_limits()).expect("coherent limits")
 }
 
 fn fuzz_dir() -> PathBuf {
