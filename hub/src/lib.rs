@@ -14,7 +14,9 @@
 //!   scorer and the [`att::Attention`] state machine with its trace;
 //! - [`core`]: [`core::HubCore`], the state machine that ties them together;
 //! - [`role`] (feature `role`, on by default): [`role::HubRole`], the thin process shell that
-//!   feeds it messages and the clock, and turns the flight's spec into the core's types.
+//!   feeds it messages and the clock, and turns the flight's spec into the core's types;
+//! - [`testing`]: the gate's promises as checks, shared by the fuzz targets and the corpus
+//!   replay tests.
 
 #![deny(missing_docs)]
 
@@ -24,6 +26,7 @@ pub mod gate;
 pub mod ordering;
 #[cfg(feature = "role")]
 pub mod role;
+pub mod testing;
 
 pub use crate::core::{DecisionVerdict, HubConfig, HubCore, HubCounters, RejectReason, TickOutput};
 pub use att::{
