@@ -24,11 +24,14 @@
 //!   reuse of the last valid decision and emits a report with `reused = 1`. A rejected or
 //!   late decision counts its slot's reuse at once (at most one per slot, so a burst of
 //!   garbage counts once). Nothing is reused before the first valid decision.
-//! - **Setpoint**: every tick, the last valid decision is re-bound against the latest
-//!   position and occupancy (in-place actions stay anchored where they were committed); if it
-//!   became infeasible the hub holds where the vehicle was when that happened (mode hover).
-//!   `reused = 1` once its slot closed without a fresh decision. No setpoint before the first
-//!   valid decision.
+//! - **Setpoint**: a decision is gated once, when it is committed; every tick re-publishes
+//!   the setpoint it was bound to then (in-place actions stay anchored where they were
+//!   committed, a goto keeps the clamp it got), with a fresh sequence number, time, active
+//!   step and `reused` flag. A new S_t whose occupancy shows the way from the vehicle to that
+//!   setpoint blocked ([`DecisionGate::check_way`]) turns it into a hold where the vehicle
+//!   was when that happened (mode hover), latched while the vehicle drifts, until a later
+//!   S_t shows the way clear again or a fresh decision commits. `reused = 1` once its slot
+//!   closed without a fresh decision. No setpoint before the first valid decision.
 //! - **ATT** runs on every valid state; its active step annotates every setpoint and report.
 //!   With `no_att`, the active step is the reasoner's declared step.
 
@@ -36,8 +39,8 @@ use crate::att::{Attention, AttentionResult};
 use crate::gate::{DecisionGate, GateError};
 use crate::ordering::{SeqVerdict, SequenceTracker, SourceSelector, SourceVerdict};
 use aeris_schemas::{
-    ActionMode, BoundSetpoint, Decision, HubReport, MAX_SUBGOALS, OccupancyGrid, PerceptionState,
-    StateError, all_finite,
+    BoundSetpoint, Decision, HubReport, MAX_SUBGOALS, OccupancyGrid, PerceptionState, StateError,
+    all_finite,
 };
 
 /// Timing and mode of the hub.
@@ -163,12 +166,13 @@ pub enum HubCoreError {
     BadStart,
 }
 
-/// The last valid decision and where in-place actions are anchored.
+/// The last valid decision and the setpoint the gate bound it to when it was committed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct LastValid {
     decision: Decision,
-    mode: ActionMode,
-    anchor: [f32; 2],
+    /// As the gate bound it (`seq`, `publish_ns`, `active_step` and `reused` are set anew
+    /// every time it is published).
+    bound: BoundSetpoint,
 }
 
 /// The hub's pure state machine.
@@ -188,6 +192,8 @@ pub struct HubCore {
     att: AttentionResult,
     last: Option<LastValid>,
     hold: Option<[f32; 3]>,
+    /// A valid S_t arrived since the committed setpoint's way was last checked.
+    way_check_due: bool,
     slot_deadline_ns: u64,
     slot_accounted: bool,
     reuse_active: bool,
@@ -239,6 +245,7 @@ impl HubCore {
             att: AttentionResult::one_hot(0, subgoals),
             last: None,
             hold: None,
+            way_check_due: false,
             slot_deadline_ns: 0,
             slot_accounted: false,
             reuse_active: false,
@@ -258,6 +265,7 @@ impl HubCore {
             return Err(e);
         }
         self.last_state_ns = Some(now_ns);
+        self.way_check_due = true;
         self.grid_present = state.occupancy.is_present();
         if self.grid_present {
             self.grid = state.occupancy;
@@ -363,13 +371,13 @@ impl HubCore {
             self.sequence.observe(d.seq, d.cycle_start_ns);
         }
         let commit_ns = commit_clock().max(receive_ns);
-        let mode = ActionMode::from_u8(setpoint.mode).unwrap_or(ActionMode::Hover);
         self.last = Some(LastValid {
             decision: *d,
-            mode,
-            anchor: [setpoint.position[0], setpoint.position[1]],
+            bound: setpoint,
         });
         self.hold = None;
+        // the gate just admitted it against the latest position and occupancy
+        self.way_check_due = false;
         self.reuse_active = false;
         self.reuses_since_commit = 0;
         let next = d
@@ -503,25 +511,21 @@ impl HubCore {
         }
     }
 
-    /// The last valid decision re-bound now, or a hold when it became infeasible.
+    /// The committed setpoint, or a hold when a newer S_t showed its way blocked.
     fn current_setpoint(&mut self, now_ns: u64) -> Option<BoundSetpoint> {
         let last = self.last?;
-        let at = match last.mode {
-            ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend | ActionMode::Turn => {
-                [last.anchor[0], last.anchor[1], self.position[2]]
+        if self.way_check_due {
+            self.way_check_due = false;
+            match self.gate.check_way(&last.bound, self.position, self.grid()) {
+                Ok(()) => self.hold = None,
+                Err(_) => {
+                    self.hold.get_or_insert(self.position);
+                }
             }
-            _ => self.position,
-        };
-        let grid = self.grid_present.then_some(&self.grid);
-        let mut sp = match self.gate.admit(&last.decision, at, grid) {
-            Ok(sp) => {
-                self.hold = None;
-                sp
-            }
-            Err(_) => {
-                let here = *self.hold.get_or_insert(self.position);
-                self.gate.hold(&last.decision, here).ok()?
-            }
+        }
+        let mut sp = match self.hold {
+            None => last.bound,
+            Some(here) => self.gate.hold(&last.decision, here).ok()?,
         };
         self.setpoint_seq += 1;
         sp.seq = self.setpoint_seq;
@@ -601,7 +605,7 @@ impl HubCore {
 mod tests {
     use super::*;
     use crate::att::{AttentionPrior, LexicalScorer};
-    use aeris_schemas::{DecisionLimits, OCCUPANCY_CELLS};
+    use aeris_schemas::{ActionMode, DecisionLimits, OCCUPANCY_CELLS};
 
     const S: u64 = 1_000_000_000;
     const TEXTS: [&str; 3] = [
@@ -966,6 +970,53 @@ mod tests {
         assert_eq!(
             (sp.mode, sp.position),
             (ActionMode::Goto as u8, [30.0, 0.0, 10.0])
+        );
+    }
+
+    /// The setpoint a decision was committed to is the one flown: the vehicle moving (with
+    /// or without a new S_t whose grid leaves its way clear) does not make the hub run the
+    /// gate again and bind it elsewhere, though a fresh admission would.
+    #[test]
+    fn a_decision_is_gated_once_and_its_setpoint_kept_while_the_vehicle_moves() {
+        let mut h = hub();
+        h.on_telemetry([0.0, 0.0, 10.0]);
+        // a wall 20 m high across the way at N in [10, 11)
+        let mut s = state("a wall ahead");
+        s.occupancy = OccupancyGrid {
+            origin: [0.0, 0.0],
+            resolution_m: 1.0,
+            cells: [0; OCCUPANCY_CELLS],
+        };
+        for c in 0..64 {
+            s.occupancy.cells[42 * 64 + c] = 20;
+        }
+        h.on_state(&s, S).unwrap();
+        let d = goto(1, 1, S, [25.0, 0.0, 10.0]);
+        let (committed, _) = self::committed(h.on_decision(&d, S));
+        // pulled back 3 m before the wall
+        assert_eq!(
+            (committed.position, committed.clamped),
+            ([7.0, 0.0, 10.0], 1)
+        );
+        let first = h.on_tick(S + 1).setpoint.unwrap();
+        assert_eq!((first.position, first.clamped), (committed.position, 1));
+        // the vehicle moves east: from there the gate would pull the goal back elsewhere
+        let moved = [2.0, 6.0, 10.0];
+        h.on_telemetry(moved);
+        let again = h.gate().admit(&d, moved, Some(&s.occupancy)).unwrap();
+        assert_ne!(again.position, committed.position);
+        let sp = h.on_tick(S + 2).setpoint.unwrap();
+        assert_eq!(
+            (sp.position, sp.mode, sp.clamped, sp.decision_seq),
+            (committed.position, ActionMode::Goto as u8, 1, 1)
+        );
+        assert_eq!(sp.seq, first.seq + 1);
+        // a new S_t with the same wall: the way to the committed setpoint is still clear
+        h.on_state(&s, S + 3).unwrap();
+        let sp = h.on_tick(S + 4).setpoint.unwrap();
+        assert_eq!(
+            (sp.position, sp.mode),
+            (committed.position, ActionMode::Goto as u8)
         );
     }
 

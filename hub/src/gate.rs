@@ -325,6 +325,64 @@ impl DecisionGate {
         self.bind(d, &f)
     }
 
+    /// Whether the setpoint `sp` this gate bound (a committed one) can still be flown from
+    /// `position` with what `grid` shows now. Nothing is validated, clamped or bound again:
+    /// the way is walked as [`DecisionGate::feasible`] walks a decision's, and any obstacle
+    /// it meets is an error. A goto, hover or stop crosses at the setpoint's altitude, a land
+    /// at the vehicle's and onto a free cell; an in-place setpoint must still clear the cell
+    /// under it by the clearance. A setpoint the gate just bound for the same `position` and
+    /// `grid` passes.
+    pub fn check_way(
+        &self,
+        sp: &BoundSetpoint,
+        position: [f32; 3],
+        grid: Option<&OccupancyGrid>,
+    ) -> Result<(), GateError> {
+        if !all_finite(&position) {
+            return Err(GateError::BadPosition(position));
+        }
+        let Some(g) = usable_grid(grid)? else {
+            return Ok(());
+        };
+        let c = self.clearance_m();
+        let here = self.project([position[0], position[1]]);
+        let to = [sp.position[0], sp.position[1]];
+        let blocked = |cell: usize, top_m: f32, free_m: f32| GateError::Blocked {
+            at: cell_centre(g, cell),
+            top_m,
+            free_m,
+        };
+        let walk = |cross: f32| match first_blocking(g, here, to, cross - c) {
+            None => Ok(()),
+            Some(hit) => {
+                let length = f64::from(to[0] - here[0]).hypot(f64::from(to[1] - here[1]));
+                let free = (hit.t * length - f64::from(c)).max(0.0);
+                Err(blocked(hit.cell, hit.top, free as f32))
+            }
+        };
+        match ActionMode::from_u8(sp.mode) {
+            Some(
+                ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend | ActionMode::Turn,
+            ) => {
+                // the gate raised it to exactly top + clearance: rounding is not an obstacle
+                match g.cell_of(to).and_then(|i| Some((i, obstacle(g.cells[i])?))) {
+                    Some((cell, top)) if top > sp.position[2] - c + 1e-3 => {
+                        Err(blocked(cell, top, 0.0))
+                    }
+                    _ => Ok(()),
+                }
+            }
+            Some(ActionMode::Land) => {
+                walk(position[2])?;
+                match g.cell_of(to).and_then(|i| Some((i, obstacle(g.cells[i])?))) {
+                    Some((cell, top)) => Err(blocked(cell, top, 0.0)),
+                    None => Ok(()),
+                }
+            }
+            _ => walk(sp.position[2]),
+        }
+    }
+
     /// A hover setpoint holding `position` (projected into the geofence, altitude capped at
     /// the band's top), with the yaw, speed and radius of `d` (sanitised) — what the hub
     /// flies when the last valid decision became infeasible.
@@ -653,6 +711,80 @@ mod tests {
         let d = decision(ActionMode::Goto, [31.0, 0.0, 12.0], 12.0);
         let sp = g.admit(&d, [50.0, 3.0, 12.0], Some(&grid)).unwrap();
         assert_eq!((sp.position, sp.clamped), ([31.0, 0.0, 12.0], 0));
+    }
+
+    /// What the gate bound passes the way check from where it was bound (a clamped goto, a
+    /// raised climb, a landing); an obstacle that shows up on the way afterwards fails it.
+    #[test]
+    fn a_bound_setpoint_passes_the_way_check_until_an_obstacle_shows_up() {
+        let g = gate();
+        let mut grid = free_grid();
+        for e in -32..32 {
+            set(&mut grid, 10.5, e as f32 + 0.5, 20);
+        }
+        set(&mut grid, -5.5, -5.5, 15);
+        let v = [0.5, 0.5, 10.0];
+        let roof = [-5.5, -5.5, 10.0];
+        for (mode, at, target, altitude) in [
+            (ActionMode::Goto, v, [25.0, 0.0, 10.0], 10.0),
+            (ActionMode::Hover, v, [5.0, -5.0, 10.0], 10.0),
+            (ActionMode::Ascend, roof, [0.0, 0.0, 12.0], 12.0),
+            (ActionMode::Land, v, [5.0, 5.0, 0.0], 10.0),
+        ] {
+            let sp = g
+                .admit(&decision(mode, target, altitude), at, Some(&grid))
+                .unwrap();
+            assert_eq!(
+                g.check_way(&sp, at, Some(&grid)),
+                Ok(()),
+                "{mode:?}: {sp:?}"
+            );
+            assert_eq!(g.check_way(&sp, at, None), Ok(()), "{mode:?}");
+        }
+        // the climb was raised to 18 m over the 15 m roof: a taller one under it blocks it
+        let climb = g
+            .admit(
+                &decision(ActionMode::Ascend, [0.0, 0.0, 12.0], 12.0),
+                roof,
+                Some(&grid),
+            )
+            .unwrap();
+        assert_eq!((climb.position[2], climb.clamped), (18.0, 1));
+        set(&mut grid, -5.5, -5.5, 16);
+        assert!(matches!(
+            g.check_way(&climb, roof, Some(&grid)),
+            Err(GateError::Blocked { top_m: 16.0, .. })
+        ));
+        // the clamped goto stops 3 m short of the wall; a second wall before that blocks it
+        let sp = g
+            .admit(
+                &decision(ActionMode::Goto, [25.0, 0.0, 10.0], 10.0),
+                v,
+                Some(&grid),
+            )
+            .unwrap();
+        assert_eq!(sp.clamped, 1);
+        for e in -32..32 {
+            set(&mut grid, 4.5, e as f32 + 0.5, 30);
+        }
+        assert!(matches!(
+            g.check_way(&sp, v, Some(&grid)),
+            Err(GateError::Blocked { top_m: 30.0, .. })
+        ));
+        // a landing whose touchdown cell is taken now
+        let mut grid = free_grid();
+        let land = g
+            .admit(
+                &decision(ActionMode::Land, [5.0, 5.0, 0.0], 10.0),
+                v,
+                Some(&grid),
+            )
+            .unwrap();
+        set(&mut grid, 5.0, 5.0, 1);
+        assert!(matches!(
+            g.check_way(&land, v, Some(&grid)),
+            Err(GateError::Blocked { .. })
+        ));
     }
 
     #[test]

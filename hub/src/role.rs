@@ -11,8 +11,9 @@
 //! SCHED_FIFO priority 49, just below the controller, so model roles loading or deciding on
 //! the same CPUs never delay a setpoint).
 //!
-//! Heartbeat stages: `route` (transport: draining and publishing), `gate` (decisions and the
-//! tick's re-binding), `att` (states and ATT). Heartbeat counters: `[decisions received,
+//! Heartbeat stages: `route` (transport: draining and publishing), `gate` (decisions, and the
+//! tick: reuse slots, the committed setpoint's way check after a new S_t), `att` (states and
+//! ATT). Heartbeat counters: `[decisions received,
 //! rejected, late, reused cycles, sequence gaps, reorders, states received, decisions
 //! superseded]`.
 

@@ -236,6 +236,12 @@ fn fuzz_check_admission(
     }
 
     let sp = admitted.ok()?;
+    // what the hub commits, it keeps flying while the way stays as the gate saw it
+    assert_eq!(
+        gate.check_way(&sp, position, grid),
+        Ok(()),
+        "a setpoint just bound fails its way check: {sp:?}"
+    );
     // only a decision that passes Valid(D_t) is admitted, in its own mode
     let mode = d
         .validate(&l)
