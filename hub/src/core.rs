@@ -681,6 +681,19 @@ mod tests {
         s
     }
 
+    /// A grid of 1 m cells centred on the origin, free but for a wall `top` m high across
+    /// it at N in `[north, north + 1)`.
+    fn wall_north(north: i32, top: u8) -> OccupancyGrid {
+        let mut g = OccupancyGrid {
+            origin: [0.0, 0.0],
+            resolution_m: 1.0,
+            cells: [0; OCCUPANCY_CELLS],
+        };
+        let row = (north + 32) as usize;
+        g.cells[row * 64..(row + 1) * 64].fill(top);
+        g
+    }
+
     fn committed(v: DecisionVerdict) -> (BoundSetpoint, HubReport) {
         match v {
             DecisionVerdict::Committed { setpoint, report } => (setpoint, report),
@@ -941,14 +954,7 @@ mod tests {
         // a wall appears 2 m ahead: pulling back leaves no motion
         let mut s = state("a wall");
         s.position = [0.0, 0.0, 10.0];
-        s.occupancy = OccupancyGrid {
-            origin: [0.0, 0.0],
-            resolution_m: 1.0,
-            cells: [0; OCCUPANCY_CELLS],
-        };
-        for c in 0..64 {
-            s.occupancy.cells[34 * 64 + c] = 40;
-        }
+        s.occupancy = wall_north(2, 40);
         h.on_state(&s, S).unwrap();
         h.on_telemetry([0.4, 0.1, 10.2]);
         let sp = h.on_tick(S + 1).setpoint.unwrap();
@@ -982,14 +988,7 @@ mod tests {
         h.on_telemetry([0.0, 0.0, 10.0]);
         // a wall 20 m high across the way at N in [10, 11)
         let mut s = state("a wall ahead");
-        s.occupancy = OccupancyGrid {
-            origin: [0.0, 0.0],
-            resolution_m: 1.0,
-            cells: [0; OCCUPANCY_CELLS],
-        };
-        for c in 0..64 {
-            s.occupancy.cells[42 * 64 + c] = 20;
-        }
+        s.occupancy = wall_north(10, 20);
         h.on_state(&s, S).unwrap();
         let d = goto(1, 1, S, [25.0, 0.0, 10.0]);
         let (committed, _) = self::committed(h.on_decision(&d, S));
