@@ -8,6 +8,8 @@
 //!   perception roles, each filling its block of S_t ([`vision`] holds what they share);
 //! - [`planner`]: the deterministic reasoning variant (and a garbage-emitting fault injector);
 //! - [`language`]: the language-model reasoning variants (llama.cpp, grammar-constrained);
+//! - [`reasoner_io`]: what every reasoning variant does around its decision (inputs, when to
+//!   decide, stamping and publishing);
 //! - [`controller`]: tracks bound setpoints at the control rate over MAVLink.
 
 #![deny(missing_docs)]
@@ -24,6 +26,7 @@ pub mod language;
 pub mod occupancy;
 pub mod perception;
 pub mod planner;
+pub mod reasoner_io;
 pub mod text_reader;
 pub mod vehicle;
 pub mod vision;
