@@ -47,6 +47,7 @@ fn limits() -> DecisionLimits {
         r_max: 10.0,
         geofence_min: [-200.0, -200.0, 0.0],
         geofence_max: [200.0, 200.0, 60.0],
+        obstacle_clearance_m: 3.0,
         subgoals: 4,
     }
 }
@@ -96,7 +97,7 @@ pub fn run(calls: usize) -> Result<GateReport, BenchError> {
     if calls == 0 {
         return Err(BenchError::Config("--calls must be at least 1".into()));
     }
-    let gate = DecisionGate::new(limits(), 3.0).map_err(|e| BenchError::Config(e.to_string()))?;
+    let gate = DecisionGate::new(limits()).map_err(|e| BenchError::Config(e.to_string()))?;
     let grid = wall_grid();
     let position = [0.0, 0.0, 12.0];
     let valid: Vec<Decision> = (0..1024).map(decision).collect();
@@ -155,7 +156,7 @@ mod tests {
         assert_eq!(by("valid").admitted, 2048);
         assert_eq!(by("invalid").admitted, 0);
         // the wall blocks or clamps: every admitted setpoint stays short of it
-        let gate = DecisionGate::new(limits(), 3.0).unwrap();
+        let gate = DecisionGate::new(limits()).unwrap();
         let grid = wall_grid();
         for i in 0..1024 {
             if let Ok(sp) = gate.admit(&decision(i), [0.0, 0.0, 12.0], Some(&grid)) {

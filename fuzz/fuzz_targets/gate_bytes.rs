@@ -1,11 +1,11 @@
 //! The decision gate fed raw bytes as a `Decision` in shared memory (a misbehaving or
 //! compromised reasoning process can write any bytes), then a vehicle position and an
-//! occupancy grid from the bytes after it. Checks: `aeris_hub::gate::fuzz_check_bytes`.
+//! occupancy grid from the bytes after it. Checks: `aeris_hub::testing::fuzz_check_bytes`.
 
 #![no_main]
 
 use aeris_hub::DecisionGate;
-use aeris_hub::gate::fuzz_check_bytes;
+use aeris_hub::testing::fuzz_check_bytes;
 use libfuzzer_sys::fuzz_target;
 use std::sync::LazyLock;
 

@@ -1,12 +1,12 @@
 //! The text a language model emits, read the way the reasoner reads it
 //! (`DecisionView::parse`, then `to_decision`), then through the decision gate. Checks:
 //! `aeris_llm::view::fuzz_check_text` (the memory line of an admitted decision parses back)
-//! and `aeris_hub::gate::fuzz_check_model_decision` (the gate's promises).
+//! and `aeris_hub::testing::fuzz_check_model_decision` (the gate's promises).
 
 #![no_main]
 
 use aeris_hub::DecisionGate;
-use aeris_hub::gate::fuzz_check_model_decision;
+use aeris_hub::testing::fuzz_check_model_decision;
 use aeris_llm::view::fuzz_check_text;
 use libfuzzer_sys::fuzz_target;
 use std::sync::LazyLock;

@@ -25,7 +25,7 @@ pub fn default_controller_spec() -> RoleSpec {
 
 /// The decision gate of the built-in default flight.
 pub fn default_gate() -> DecisionGate {
-    DecisionGate::from_mission(&default_controller_spec().mission)
+    DecisionGate::new(default_controller_spec().mission.decision_limits())
         .expect("the default mission's limits are coherent")
 }
 

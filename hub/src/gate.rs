@@ -37,7 +37,6 @@
 //! controller agree: a land setpoint is at U = 0, which `validate` accepts below h_min for
 //! land (and takeoff, hover, stop) by design.
 
-use aeris_runtime::MissionSpec;
 use aeris_schemas::{
     ActionMode, BoundSetpoint, Decision, DecisionError, DecisionLimits, OCCUPANCY_SIDE,
     OCCUPANCY_UNKNOWN, OccupancyGrid, SetpointError, all_finite,
@@ -116,34 +115,24 @@ struct Hit {
     top: f32,
 }
 
-/// The decision gate of one flight: the mission's limits and obstacle clearance.
+/// The decision gate of one flight: its limits, obstacle clearance included.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DecisionGate {
     limits: DecisionLimits,
-    clearance_m: f32,
 }
 
 impl DecisionGate {
-    /// A gate for `limits` keeping `clearance_m` metres from obstacles.
-    pub fn new(limits: DecisionLimits, clearance_m: f32) -> Result<Self, GateConfigError> {
+    /// A gate for `limits`, keeping `limits.obstacle_clearance_m` metres from obstacles (a
+    /// flight's gate: `DecisionGate::new(mission.decision_limits())`).
+    pub fn new(limits: DecisionLimits) -> Result<Self, GateConfigError> {
         if !limits.is_coherent() {
             return Err(GateConfigError::IncoherentLimits);
         }
+        let clearance_m = limits.obstacle_clearance_m;
         if !(clearance_m.is_finite() && clearance_m >= 0.0) {
             return Err(GateConfigError::BadClearance(clearance_m));
         }
-        Ok(Self {
-            limits,
-            clearance_m,
-        })
-    }
-
-    /// The gate of `mission`: `mission.decision_limits()` and `limits.obstacle_clearance_m`.
-    pub fn from_mission(mission: &MissionSpec) -> Result<Self, GateConfigError> {
-        Self::new(
-            mission.decision_limits(),
-            mission.limits.obstacle_clearance_m,
-        )
+        Ok(Self { limits })
     }
 
     /// The limits decisions are checked against.
@@ -153,7 +142,7 @@ impl DecisionGate {
 
     /// The obstacle clearance (m).
     pub fn clearance_m(&self) -> f32 {
-        self.clearance_m
+        self.limits.obstacle_clearance_m
     }
 
     /// The altitude band `[max(h_min, fence_min.U), min(h_max, fence_max.U)]` (may be empty).
@@ -221,7 +210,7 @@ impl DecisionGate {
                 0.0
             }
         };
-        let c = self.clearance_m;
+        let c = self.clearance_m();
         let position = match mode {
             ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend | ActionMode::Turn => {
                 if let Some(top) = grid.and_then(|g| obstacle_top(g, here))
@@ -278,12 +267,13 @@ impl DecisionGate {
         let Some(g) = grid else {
             return Ok((to, false));
         };
-        let Some(hit) = first_blocking(g, from, to, h - self.clearance_m) else {
+        let clearance = self.clearance_m();
+        let Some(hit) = first_blocking(g, from, to, h - clearance) else {
             return Ok((to, false));
         };
         let (dn, de) = (to[0] as f64 - from[0] as f64, to[1] as f64 - from[1] as f64);
         let length = dn.hypot(de);
-        let free = hit.t * length - self.clearance_m as f64;
+        let free = hit.t * length - clearance as f64;
         if free < g.resolution_m as f64 || length <= 0.0 {
             return Err(GateError::Blocked {
                 at: cell_centre(g, hit.cell),
@@ -335,6 +325,64 @@ impl DecisionGate {
         self.bind(d, &f)
     }
 
+    /// Whether the setpoint `sp` this gate bound (a committed one) can still be flown from
+    /// `position` with what `grid` shows now. Nothing is validated, clamped or bound again:
+    /// the way is walked as [`DecisionGate::feasible`] walks a decision's, and any obstacle
+    /// it meets is an error. A goto, hover or stop crosses at the setpoint's altitude, a land
+    /// at the vehicle's and onto a free cell; an in-place setpoint must still clear the cell
+    /// under it by the clearance. A setpoint the gate just bound for the same `position` and
+    /// `grid` passes.
+    pub fn check_way(
+        &self,
+        sp: &BoundSetpoint,
+        position: [f32; 3],
+        grid: Option<&OccupancyGrid>,
+    ) -> Result<(), GateError> {
+        if !all_finite(&position) {
+            return Err(GateError::BadPosition(position));
+        }
+        let Some(g) = usable_grid(grid)? else {
+            return Ok(());
+        };
+        let c = self.clearance_m();
+        let here = self.project([position[0], position[1]]);
+        let to = [sp.position[0], sp.position[1]];
+        let blocked = |cell: usize, top_m: f32, free_m: f32| GateError::Blocked {
+            at: cell_centre(g, cell),
+            top_m,
+            free_m,
+        };
+        let walk = |cross: f32| match first_blocking(g, here, to, cross - c) {
+            None => Ok(()),
+            Some(hit) => {
+                let length = f64::from(to[0] - here[0]).hypot(f64::from(to[1] - here[1]));
+                let free = (hit.t * length - f64::from(c)).max(0.0);
+                Err(blocked(hit.cell, hit.top, free as f32))
+            }
+        };
+        match ActionMode::from_u8(sp.mode) {
+            Some(
+                ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend | ActionMode::Turn,
+            ) => {
+                // the gate raised it to exactly top + clearance: rounding is not an obstacle
+                match g.cell_of(to).and_then(|i| Some((i, obstacle(g.cells[i])?))) {
+                    Some((cell, top)) if top > sp.position[2] - c + 1e-3 => {
+                        Err(blocked(cell, top, 0.0))
+                    }
+                    _ => Ok(()),
+                }
+            }
+            Some(ActionMode::Land) => {
+                walk(position[2])?;
+                match g.cell_of(to).and_then(|i| Some((i, obstacle(g.cells[i])?))) {
+                    Some((cell, top)) => Err(blocked(cell, top, 0.0)),
+                    None => Ok(()),
+                }
+            }
+            _ => walk(sp.position[2]),
+        }
+    }
+
     /// A hover setpoint holding `position` (projected into the geofence, altitude capped at
     /// the band's top), with the yaw, speed and radius of `d` (sanitised) — what the hub
     /// flies when the last valid decision became infeasible.
@@ -381,12 +429,12 @@ fn usable_grid(grid: Option<&OccupancyGrid>) -> Result<Option<&OccupancyGrid>, G
 }
 
 /// Obstacle top of a cell value: observed and above the ground.
-fn obstacle(v: u8) -> Option<f32> {
+pub(crate) fn obstacle(v: u8) -> Option<f32> {
     (v != OCCUPANCY_UNKNOWN && v > 0).then_some(v as f32)
 }
 
 /// Obstacle top in the cell under `p`, if any.
-fn obstacle_top(g: &OccupancyGrid, p: [f32; 2]) -> Option<f32> {
+pub(crate) fn obstacle_top(g: &OccupancyGrid, p: [f32; 2]) -> Option<f32> {
     g.cell_of(p).and_then(|i| obstacle(g.cells[i]))
 }
 
@@ -496,611 +544,5 @@ fn first_blocking(g: &OccupancyGrid, from: [f32; 2], to: [f32; 2], threshold: f3
     }
 }
 
-// --- Fuzzing support -------------------------------------------------------------------------
-// Shared by the `cargo fuzz` targets in `fuzz/` and the corpus replay tests, so both check
-// exactly the same promises. Not API: hidden from the docs, and every check panics on a
-// broken promise (that is how a fuzzer sees it).
-
-/// Size of a [`Decision`] in shared memory: every byte belongs to a field (no padding), so
-/// any byte pattern is a `Decision` a misbehaving publisher could write.
-#[doc(hidden)]
-pub const FUZZ_DECISION_BYTES: usize = core::mem::size_of::<Decision>();
-
-const _: () = assert!(FUZZ_DECISION_BYTES == 6 * 8 + 8 * 4 + 2 + 1 + 1 + 4);
-
-/// The [`Decision`] whose in-memory (`repr(C)`, native-endian) bytes start with `bytes`;
-/// missing bytes read as zero, extra bytes are ignored.
-#[doc(hidden)]
-pub fn fuzz_decision_from_bytes(bytes: &[u8]) -> Decision {
-    use core::mem::offset_of;
-    let mut raw = [0u8; FUZZ_DECISION_BYTES];
-    let n = bytes.len().min(raw.len());
-    raw[..n].copy_from_slice(&bytes[..n]);
-    let at = |o: usize| -> [u8; 8] {
-        let mut w = [0u8; 8];
-        let end = (o + 8).min(raw.len());
-        w[..end - o].copy_from_slice(&raw[o..end]);
-        w
-    };
-    let u64_at = |o: usize| u64::from_ne_bytes(at(o));
-    let f32_at = |o: usize| {
-        let w = at(o);
-        f32::from_ne_bytes([w[0], w[1], w[2], w[3]])
-    };
-    let target = offset_of!(Decision, target);
-    let step = at(offset_of!(Decision, step));
-    let source = at(offset_of!(Decision, source));
-    Decision {
-        seq: u64_at(offset_of!(Decision, seq)),
-        cycle: u64_at(offset_of!(Decision, cycle)),
-        cycle_start_ns: u64_at(offset_of!(Decision, cycle_start_ns)),
-        state_stamp_ns: u64_at(offset_of!(Decision, state_stamp_ns)),
-        reasoning_start_ns: u64_at(offset_of!(Decision, reasoning_start_ns)),
-        publish_ns: u64_at(offset_of!(Decision, publish_ns)),
-        target: [f32_at(target), f32_at(target + 4), f32_at(target + 8)],
-        yaw: f32_at(offset_of!(Decision, yaw)),
-        speed: f32_at(offset_of!(Decision, speed)),
-        altitude: f32_at(offset_of!(Decision, altitude)),
-        acceptance_radius: f32_at(offset_of!(Decision, acceptance_radius)),
-        confidence: f32_at(offset_of!(Decision, confidence)),
-        step: u16::from_ne_bytes([step[0], step[1]]),
-        action: raw[offset_of!(Decision, action)],
-        reserved: raw[offset_of!(Decision, reserved)],
-        source: u32::from_ne_bytes([source[0], source[1], source[2], source[3]]),
-    }
-}
-
-/// The in-memory bytes of `d` (the inverse of [`fuzz_decision_from_bytes`]), for seeds.
-#[doc(hidden)]
-pub fn fuzz_decision_to_bytes(d: &Decision) -> [u8; FUZZ_DECISION_BYTES] {
-    use core::mem::offset_of;
-    let mut raw = [0u8; FUZZ_DECISION_BYTES];
-    let mut put = |o: usize, b: &[u8]| raw[o..o + b.len()].copy_from_slice(b);
-    put(offset_of!(Decision, seq), &d.seq.to_ne_bytes());
-    put(offset_of!(Decision, cycle), &d.cycle.to_ne_bytes());
-    put(
-        offset_of!(Decision, cycle_start_ns),
-        &d.cycle_start_ns.to_ne_bytes(),
-    );
-    put(
-        offset_of!(Decision, state_stamp_ns),
-        &d.state_stamp_ns.to_ne_bytes(),
-    );
-    put(
-        offset_of!(Decision, reasoning_start_ns),
-        &d.reasoning_start_ns.to_ne_bytes(),
-    );
-    put(
-        offset_of!(Decision, publish_ns),
-        &d.publish_ns.to_ne_bytes(),
-    );
-    for (i, v) in d.target.iter().enumerate() {
-        put(offset_of!(Decision, target) + 4 * i, &v.to_ne_bytes());
-    }
-    put(offset_of!(Decision, yaw), &d.yaw.to_ne_bytes());
-    put(offset_of!(Decision, speed), &d.speed.to_ne_bytes());
-    put(offset_of!(Decision, altitude), &d.altitude.to_ne_bytes());
-    put(
-        offset_of!(Decision, acceptance_radius),
-        &d.acceptance_radius.to_ne_bytes(),
-    );
-    put(
-        offset_of!(Decision, confidence),
-        &d.confidence.to_ne_bytes(),
-    );
-    put(offset_of!(Decision, step), &d.step.to_ne_bytes());
-    put(offset_of!(Decision, action), &[d.action]);
-    put(offset_of!(Decision, reserved), &[d.reserved]);
-    put(offset_of!(Decision, source), &d.source.to_ne_bytes());
-    raw
-}
-
-/// Reads fuzz bytes front to back; past the end everything reads as zero.
-struct FuzzBytes<'a>(&'a [u8]);
-
-impl FuzzBytes<'_> {
-    fn u8(&mut self) -> u8 {
-        let (&b, rest) = self.0.split_first().unwrap_or((&0, &[]));
-        self.0 = rest;
-        b
-    }
-
-    fn bits32(&mut self) -> [u8; 4] {
-        [self.u8(), self.u8(), self.u8(), self.u8()]
-    }
-
-    /// Any f32 bit pattern (NaN, inf, huge, subnormal) when `wild`, else a plausible
-    /// coordinate: a whole centimetre in [-327.68, 327.67] m.
-    fn coordinate(&mut self, wild: bool) -> f32 {
-        if wild {
-            f32::from_ne_bytes(self.bits32())
-        } else {
-            i16::from_le_bytes([self.u8(), self.u8()]) as f32 * 0.01
-        }
-    }
-}
-
-/// Replay `data` as the gate's input: the first [`FUZZ_DECISION_BYTES`] bytes are a
-/// [`Decision`] exactly as it would lie in shared memory (see
-/// [`fuzz_decision_from_bytes`]); the rest chooses the vehicle position and the occupancy
-/// grid (see [`fuzz_check_decision`]). Panics when the gate breaks one of its promises.
-#[doc(hidden)]
-pub fn fuzz_check_bytes(gate: &DecisionGate, data: &[u8]) -> Option<BoundSetpoint> {
-    let (head, aux) = data.split_at(data.len().min(FUZZ_DECISION_BYTES));
-    fuzz_check_decision(gate, &fuzz_decision_from_bytes(head), aux)
-}
-
-/// Run `d` through the gate for the vehicle position and occupancy grid that `aux` encodes,
-/// and check every promise of the module documentation; the admitted setpoint, if any.
-///
-/// `aux`: a flags byte (bit 0: a grid is present; bit 1: its cells start unknown instead of
-/// free; bit 2: raw f32 bit patterns for the position and grid geometry instead of whole
-/// centimetres; bit 3: the grid's resolution is raw too), the position `[N, E, U]`, the
-/// grid's origin `[N, E]`, its resolution byte (`(b + 1) / 16` m), then `(index lo, index hi,
-/// top)` triples that set cells. Missing bytes read as zero.
-#[doc(hidden)]
-pub fn fuzz_check_decision(gate: &DecisionGate, d: &Decision, aux: &[u8]) -> Option<BoundSetpoint> {
-    let mut r = FuzzBytes(aux);
-    let flags = r.u8();
-    let wild = flags & 4 != 0;
-    let position = [r.coordinate(wild), r.coordinate(wild), r.coordinate(wild)];
-    let grid = (flags & 1 != 0).then(|| {
-        let origin = [r.coordinate(wild), r.coordinate(wild)];
-        let resolution_m = if flags & 8 != 0 {
-            f32::from_ne_bytes(r.bits32())
-        } else {
-            (r.u8() as f32 + 1.0) / 16.0
-        };
-        let fill = if flags & 2 != 0 { OCCUPANCY_UNKNOWN } else { 0 };
-        let mut g = OccupancyGrid {
-            origin,
-            resolution_m,
-            cells: [fill; aeris_schemas::OCCUPANCY_CELLS],
-        };
-        while r.0.len() >= 3 {
-            let i = u16::from_le_bytes([r.u8(), r.u8()]) as usize % aeris_schemas::OCCUPANCY_CELLS;
-            g.cells[i] = r.u8();
-        }
-        g
-    });
-    fuzz_check_admission(gate, d, position, grid.as_ref())
-}
-
-/// [`fuzz_check_decision`] for a decision parsed from a language model's text: the vehicle
-/// on the ground at the origin with no grid, then in the air with a grid holding a wall
-/// across its way north. The first admitted setpoint, if any.
-#[doc(hidden)]
-pub fn fuzz_check_model_decision(gate: &DecisionGate, d: &Decision) -> Option<BoundSetpoint> {
-    let on_ground = fuzz_check_admission(gate, d, [0.0; 3], None);
-    let mut g = OccupancyGrid {
-        origin: [20.0, 0.0],
-        resolution_m: 1.0,
-        cells: [0; aeris_schemas::OCCUPANCY_CELLS],
-    };
-    // a wall 20 m high at N in [30, 31), and an unobserved strip beside it
-    for c in 0..OCCUPANCY_SIDE {
-        g.cells[(OCCUPANCY_SIDE / 2 + 10) * OCCUPANCY_SIDE + c] = 20;
-        g.cells[(OCCUPANCY_SIDE / 2 + 12) * OCCUPANCY_SIDE + c] = OCCUPANCY_UNKNOWN;
-    }
-    let airborne = fuzz_check_admission(gate, d, [10.0, 5.0, 12.0], Some(&g));
-    on_ground.or(airborne)
-}
-
-/// The checks behind [`fuzz_check_decision`].
-fn fuzz_check_admission(
-    gate: &DecisionGate,
-    d: &Decision,
-    position: [f32; 3],
-    grid: Option<&OccupancyGrid>,
-) -> Option<BoundSetpoint> {
-    let l = *gate.limits();
-    let (lo, hi) = gate.altitude_band();
-    let c = gate.clearance_m();
-    let pi = core::f32::consts::PI;
-    let admitted = gate.admit(d, position, grid);
-    // admit is exactly validate -> feasible -> bind (Debug: NaN-carrying errors compare)
-    let chained = gate
-        .validate(d)
-        .and_then(|m| gate.feasible(d, m, position, grid))
-        .and_then(|f| gate.bind(d, &f));
-    assert_eq!(
-        format!("{admitted:?}"),
-        format!("{chained:?}"),
-        "admit != chain"
-    );
-
-    // the hub's fallback: any finite position can be held
-    let held = gate.hold(d, position);
-    if all_finite(&position) {
-        let h = held.unwrap_or_else(|e| panic!("hold({position:?}) failed: {e}"));
-        assert_eq!(h.validate(&l), Ok(ActionMode::Hover), "hold: {h:?}");
-        assert!(all_finite(&h.position) && all_finite(&[h.yaw, h.speed, h.acceptance_radius]));
-        assert!(
-            inside_fence_ne(&l, h.position),
-            "hold outside the fence: {h:?}"
-        );
-        assert_eq!(h.position[2], position[2].min(hi), "hold altitude: {h:?}");
-        assert!(h.acceptance_radius >= 0.0 && h.acceptance_radius <= l.r_max);
-        assert_eq!(h.clamped, 1);
-    } else {
-        assert!(matches!(held, Err(GateError::BadPosition(_))), "{held:?}");
-    }
-
-    let sp = admitted.ok()?;
-    // only a decision that passes Valid(D_t) is admitted, in its own mode
-    let mode = d
-        .validate(&l)
-        .unwrap_or_else(|e| panic!("admitted an invalid decision ({e}): {d:?}"));
-    assert_eq!(sp.mode, mode as u8);
-    assert_eq!(
-        sp.validate(&l),
-        Ok(mode),
-        "admitted an unflyable setpoint: {sp:?}"
-    );
-    assert!(all_finite(&sp.position), "{sp:?}");
-    assert!(
-        all_finite(&[sp.yaw, sp.speed, sp.acceptance_radius]),
-        "{sp:?}"
-    );
-    assert!(
-        inside_fence_ne(&l, sp.position),
-        "outside the geofence: {sp:?}"
-    );
-    if mode == ActionMode::Land {
-        assert_eq!(sp.position[2], 0.0, "land not at the ground: {sp:?}");
-    } else {
-        assert!(
-            sp.position[2] >= lo && sp.position[2] <= hi,
-            "outside the band: {sp:?}"
-        );
-    }
-    assert!(sp.speed >= 0.0 && sp.speed <= l.v_max, "{sp:?}");
-    assert!(sp.yaw >= -pi && sp.yaw <= pi, "{sp:?}");
-    assert!(sp.acceptance_radius >= 0.0 && sp.acceptance_radius <= l.r_max);
-    assert_eq!(
-        (
-            sp.yaw,
-            sp.acceptance_radius,
-            sp.decision_seq,
-            sp.active_step
-        ),
-        (d.yaw, d.acceptance_radius, d.seq, d.step)
-    );
-    assert_eq!(
-        (sp.seq, sp.publish_ns, sp.reused, sp.reserved),
-        (0, 0, 0, [0; 3])
-    );
-    // the binding table, and `clamped` set whenever anything differs from it
-    let here = [
-        position[0].clamp(l.geofence_min[0], l.geofence_max[0]),
-        position[1].clamp(l.geofence_min[1], l.geofence_max[1]),
-    ];
-    let h = d.altitude.clamp(lo, hi);
-    let unclamped = match mode {
-        ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend | ActionMode::Turn => {
-            [position[0], position[1], d.altitude]
-        }
-        ActionMode::Goto | ActionMode::Hover | ActionMode::Stop => {
-            [d.target[0], d.target[1], d.altitude]
-        }
-        ActionMode::Land => [d.target[0], d.target[1], 0.0],
-    };
-    if sp.clamped == 0 {
-        assert_eq!(
-            (sp.position, sp.speed),
-            (unclamped, d.speed),
-            "unflagged change: {sp:?}"
-        );
-    } else {
-        assert_eq!(sp.clamped, 1);
-    }
-    // obstacles, as the module documentation states them
-    if let Some(g) = grid.filter(|g| g.resolution_m > 0.0) {
-        let p = sp.position;
-        match mode {
-            ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend | ActionMode::Turn => {
-                assert_eq!([p[0], p[1]], here);
-                if let Some(top) = obstacle_top(g, here) {
-                    assert!(top <= p[2] - c + 1e-3, "{top} m obstacle under {sp:?}");
-                }
-            }
-            ActionMode::Goto | ActionMode::Hover | ActionMode::Stop => {
-                fuzz_assert_clear(g, here, [p[0], p[1]], p[2] - c, &sp);
-            }
-            ActionMode::Land => {
-                fuzz_assert_clear(g, here, [p[0], p[1]], h.min(position[2]) - c, &sp);
-                assert!(
-                    obstacle_top(g, [p[0], p[1]]).is_none(),
-                    "landed on an obstacle: {sp:?}"
-                );
-            }
-        }
-    }
-    Some(sp)
-}
-
-fn inside_fence_ne(l: &DecisionLimits, p: [f32; 3]) -> bool {
-    (0..2).all(|i| p[i] >= l.geofence_min[i] && p[i] <= l.geofence_max[i])
-}
-
-/// No point of the segment `from -> to` (sampled finely, independent of the gate's grid
-/// traversal) lies in a cell whose obstacle top is `>= threshold`.
-fn fuzz_assert_clear(
-    g: &OccupancyGrid,
-    from: [f32; 2],
-    to: [f32; 2],
-    threshold: f32,
-    sp: &BoundSetpoint,
-) {
-    const SAMPLES: usize = 1024;
-    let res = g.resolution_m as f64;
-    let half = (OCCUPANCY_SIDE / 2) as f64;
-    let cell = |n: f64, e: f64| {
-        let x = ((n - g.origin[0] as f64) / res + half).floor();
-        let y = ((e - g.origin[1] as f64) / res + half).floor();
-        let side = OCCUPANCY_SIDE as f64;
-        (x >= 0.0 && y >= 0.0 && x < side && y < side)
-            .then(|| x as usize * OCCUPANCY_SIDE + y as usize)
-    };
-    for k in 0..=SAMPLES {
-        let t = k as f64 / SAMPLES as f64;
-        let n = from[0] as f64 + (to[0] as f64 - from[0] as f64) * t;
-        let e = from[1] as f64 + (to[1] as f64 - from[1] as f64) * t;
-        if let Some(i) = cell(n, e)
-            && let Some(top) = obstacle(g.cells[i])
-        {
-            assert!(
-                top < threshold,
-                "the way {from:?} -> {to:?} crosses a {top} m obstacle in cell {i}: {sp:?}"
-            );
-        }
-    }
-}
-
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use aeris_schemas::OCCUPANCY_CELLS;
-
-    fn limits() -> DecisionLimits {
-        DecisionLimits {
-            v_max: 8.0,
-            h_min: 2.0,
-            h_max: 60.0,
-            r_max: 10.0,
-            geofence_min: [-100.0, -100.0, 0.0],
-            geofence_max: [100.0, 100.0, 60.0],
-            subgoals: 4,
-        }
-    }
-
-    fn gate() -> DecisionGate {
-        DecisionGate::new(limits(), 3.0).unwrap()
-    }
-
-    fn decision(action: ActionMode, target: [f32; 3], altitude: f32) -> Decision {
-        Decision {
-            seq: 9,
-            target,
-            yaw: 0.25,
-            speed: 5.0,
-            altitude,
-            acceptance_radius: 2.0,
-            confidence: 0.9,
-            step: 2,
-            action: action as u8,
-            ..Decision::default()
-        }
-    }
-
-    /// 1 m cells centred on the origin, all free ground.
-    fn free_grid() -> OccupancyGrid {
-        OccupancyGrid {
-            origin: [0.0, 0.0],
-            resolution_m: 1.0,
-            cells: [0; OCCUPANCY_CELLS],
-        }
-    }
-
-    fn set(g: &mut OccupancyGrid, n: f32, e: f32, top: u8) {
-        let i = g.cell_of([n, e]).unwrap();
-        g.cells[i] = top;
-    }
-
-    #[test]
-    fn binds_each_action() {
-        let g = gate();
-        let v = [1.0, 2.0, 5.0];
-        let t = [30.0, -10.0, 12.0];
-        let cases = [
-            (ActionMode::Takeoff, [1.0, 2.0, 12.0]),
-            (ActionMode::Ascend, [1.0, 2.0, 12.0]),
-            (ActionMode::Descend, [1.0, 2.0, 12.0]),
-            (ActionMode::Turn, [1.0, 2.0, 12.0]),
-            (ActionMode::Goto, [30.0, -10.0, 12.0]),
-            (ActionMode::Hover, [30.0, -10.0, 12.0]),
-            (ActionMode::Stop, [30.0, -10.0, 12.0]),
-            (ActionMode::Land, [30.0, -10.0, 0.0]),
-        ];
-        for (mode, want) in cases {
-            let sp = g.admit(&decision(mode, t, 12.0), v, None).unwrap();
-            assert_eq!(sp.position, want, "{mode:?}");
-            assert_eq!(sp.mode, mode as u8);
-            assert_eq!((sp.yaw, sp.speed, sp.acceptance_radius), (0.25, 5.0, 2.0));
-            assert_eq!((sp.active_step, sp.decision_seq, sp.clamped), (2, 9, 0));
-        }
-    }
-
-    #[test]
-    fn rejects_invalid_and_non_finite() {
-        let g = gate();
-        let mut d = decision(ActionMode::Goto, [10.0, 0.0, 10.0], 10.0);
-        d.speed = f32::NAN;
-        assert!(matches!(
-            g.admit(&d, [0.0; 3], None),
-            Err(GateError::Invalid(DecisionError::NonFinite { .. }))
-        ));
-        let d = decision(ActionMode::Goto, [10.0, 0.0, 10.0], 10.0);
-        assert!(matches!(
-            g.admit(&d, [f32::NAN, 0.0, 0.0], None),
-            Err(GateError::BadPosition(_))
-        ));
-        let mut grid = free_grid();
-        grid.origin[0] = f32::INFINITY;
-        assert_eq!(g.admit(&d, [0.0; 3], Some(&grid)), Err(GateError::BadGrid));
-    }
-
-    #[test]
-    fn clamps_before_a_wall_with_clearance() {
-        let g = gate();
-        let mut grid = free_grid();
-        // a wall 20 m high across the path at N in [10, 11)
-        for e in -32..32 {
-            set(&mut grid, 10.5, e as f32 + 0.5, 20);
-        }
-        let d = decision(ActionMode::Goto, [25.0, 0.0, 10.0], 10.0);
-        let sp = g.admit(&d, [0.0, 0.0, 10.0], Some(&grid)).unwrap();
-        assert_eq!(sp.clamped, 1);
-        assert!((sp.position[0] - 7.0).abs() < 1e-4, "{:?}", sp.position);
-        assert_eq!(sp.position[1], 0.0);
-        // flying above the wall (20 <= 24 - 3) passes
-        let d = decision(ActionMode::Goto, [25.0, 0.0, 24.0], 24.0);
-        let sp = g.admit(&d, [0.0, 0.0, 10.0], Some(&grid)).unwrap();
-        assert_eq!((sp.position, sp.clamped), ([25.0, 0.0, 24.0], 0));
-        // too close to pull back: rejected
-        let d = decision(ActionMode::Goto, [25.0, 0.0, 10.0], 10.0);
-        assert!(matches!(
-            g.admit(&d, [6.5, 0.0, 10.0], Some(&grid)),
-            Err(GateError::Blocked { top_m: 20.0, .. })
-        ));
-    }
-
-    #[test]
-    fn unknown_cells_are_free_and_corners_are_not_skipped() {
-        let g = gate();
-        let mut grid = OccupancyGrid {
-            origin: [0.0, 0.0],
-            resolution_m: 1.0,
-            ..OccupancyGrid::default()
-        };
-        let d = decision(ActionMode::Goto, [20.0, 20.0, 10.0], 10.0);
-        assert_eq!(
-            g.admit(&d, [0.0; 3], Some(&grid)).unwrap().position,
-            [20.0, 20.0, 10.0]
-        );
-        // a single cell the diagonal only grazes at its corner region: (10, 9)
-        grid.cells[(32 + 10) * OCCUPANCY_SIDE + 32 + 9] = 50;
-        let d = decision(ActionMode::Goto, [20.0, 19.9, 10.0], 10.0);
-        let sp = g.admit(&d, [0.0; 3], Some(&grid)).unwrap();
-        assert_eq!(sp.clamped, 1);
-        assert!(sp.position[0] < 10.0 - 2.0, "{:?}", sp.position);
-    }
-
-    /// Regression (found by the `gate_json` fuzz corpus, `fuzz/regressions/gate_json/`): a
-    /// target exactly on the near edge of a blocking cell is inside that cell, but the walk
-    /// stopped one cell short when the rounding of its accumulated crossing times put the
-    /// last crossing just past the end (here 20 x 0.05 = 1.0000000000000002 > 1), and the
-    /// decision was admitted with no clearance to a wall higher than its altitude.
-    #[test]
-    fn a_target_on_the_edge_of_a_blocking_cell_is_pulled_back() {
-        let g = gate();
-        let mut grid = free_grid();
-        grid.origin = [20.0, 0.0];
-        // a wall 20 m high at N in [30, 31)
-        for e in -32..32 {
-            set(&mut grid, 30.5, e as f32 + 0.5, 20);
-        }
-        for mode in [ActionMode::Hover, ActionMode::Goto, ActionMode::Stop] {
-            let d = decision(mode, [30.0, 0.0, 12.0], 12.0);
-            let sp = g.admit(&d, [10.0, 5.0, 12.0], Some(&grid)).unwrap();
-            assert_eq!(sp.clamped, 1, "{mode:?}: {sp:?}");
-            // 3 m before the wall along the way from [10, 5]
-            let back = [30.0 - 20.0 * 3.0 / 425f32.sqrt(), 5.0 * 3.0 / 425f32.sqrt()];
-            assert!((sp.position[0] - back[0]).abs() < 1e-3, "{mode:?}: {sp:?}");
-            assert!((sp.position[1] - back[1]).abs() < 1e-3, "{mode:?}: {sp:?}");
-        }
-        // coming from the north, N = 31 is the first point outside the wall's cell
-        let d = decision(ActionMode::Goto, [31.0, 0.0, 12.0], 12.0);
-        let sp = g.admit(&d, [50.0, 3.0, 12.0], Some(&grid)).unwrap();
-        assert_eq!((sp.position, sp.clamped), ([31.0, 0.0, 12.0], 0));
-    }
-
-    #[test]
-    fn raises_in_place_climbs_over_an_obstacle() {
-        let g = gate();
-        let mut grid = free_grid();
-        set(&mut grid, 0.5, 0.5, 15);
-        let d = decision(ActionMode::Descend, [0.0, 0.0, 5.0], 5.0);
-        let sp = g.admit(&d, [0.5, 0.5, 30.0], Some(&grid)).unwrap();
-        assert_eq!((sp.position[2], sp.clamped), (18.0, 1));
-        set(&mut grid, 0.5, 0.5, 59);
-        assert!(matches!(
-            g.admit(&d, [0.5, 0.5, 30.0], Some(&grid)),
-            Err(GateError::NoAltitude { .. })
-        ));
-    }
-
-    #[test]
-    fn land_goes_to_ground_but_not_onto_an_obstacle() {
-        let g = gate();
-        let mut grid = free_grid();
-        let d = decision(ActionMode::Land, [5.0, 5.0, 0.0], 10.0);
-        let sp = g.admit(&d, [0.0, 0.0, 10.0], Some(&grid)).unwrap();
-        assert_eq!(sp.position, [5.0, 5.0, 0.0]);
-        assert_eq!(sp.validate(&limits()), Ok(ActionMode::Land));
-        set(&mut grid, 5.0, 5.0, 1);
-        assert!(matches!(
-            g.admit(&d, [0.0, 0.0, 10.0], Some(&grid)),
-            Err(GateError::Blocked { .. })
-        ));
-    }
-
-    #[test]
-    fn altitude_is_kept_inside_the_fence() {
-        let mut l = limits();
-        l.geofence_max[2] = 40.0;
-        let g = DecisionGate::new(l, 3.0).unwrap();
-        let d = decision(ActionMode::Goto, [10.0, 0.0, 10.0], 55.0);
-        let sp = g.admit(&d, [0.0; 3], None).unwrap();
-        assert_eq!((sp.position[2], sp.clamped), (40.0, 1));
-        l.geofence_max[2] = 1.0; // below h_min: no altitude
-        let g = DecisionGate::new(l, 3.0).unwrap();
-        assert!(matches!(
-            g.admit(
-                &decision(ActionMode::Goto, [1.0, 0.0, 1.0], 10.0),
-                [0.0; 3],
-                None
-            ),
-            Err(GateError::Invalid(_)) | Err(GateError::NoAltitude { .. })
-        ));
-    }
-
-    #[test]
-    fn a_vehicle_outside_the_fence_is_brought_back() {
-        let g = gate();
-        let d = decision(ActionMode::Takeoff, [0.0, 0.0, 10.0], 10.0);
-        let sp = g.admit(&d, [150.0, -120.0, 0.0], None).unwrap();
-        assert_eq!((sp.position, sp.clamped), ([100.0, -100.0, 10.0], 1));
-        let h = g.hold(&d, [150.0, 0.0, 90.0]).unwrap();
-        assert_eq!(h.position, [100.0, 0.0, 60.0]);
-        assert_eq!(h.mode, ActionMode::Hover as u8);
-    }
-
-    #[test]
-    fn config_is_checked() {
-        assert!(matches!(
-            DecisionGate::new(limits(), f32::NAN),
-            Err(GateConfigError::BadClearance(_))
-        ));
-        assert!(matches!(
-            DecisionGate::new(limits(), -1.0),
-            Err(GateConfigError::BadClearance(_))
-        ));
-        let mut l = limits();
-        l.h_min = 70.0;
-        assert_eq!(
-            DecisionGate::new(l, 1.0),
-            Err(GateConfigError::IncoherentLimits)
-        );
-    }
-}
+mod tests;

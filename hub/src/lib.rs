@@ -3,7 +3,9 @@
 //! The communication hub (MISSION §4): ordered delivery, the decision gate, the heartbeat
 //! deadline with last-valid reuse, and ATT (attention-subgoal alignment).
 //!
-//! The decision logic is pure and deterministic, so it can be tested and fuzzed on its own:
+//! The decision logic is pure and deterministic, so it can be tested and fuzzed on its own;
+//! it depends on `aeris-schemas` only (build with `--no-default-features` to leave out the
+//! role shell and with it the runtime and iceoryx2):
 //! - [`gate`]: [`gate::DecisionGate`] validates D_t, makes it feasible against the geofence,
 //!   the altitude band and the occupancy grid (clamp or reject), and binds it to a
 //!   [`aeris_schemas::BoundSetpoint`];
@@ -11,7 +13,10 @@
 //! - [`att`]: instruction segmentation, the pluggable [`att::AttentionScorer`], the lexical
 //!   scorer and the [`att::Attention`] state machine with its trace;
 //! - [`core`]: [`core::HubCore`], the state machine that ties them together;
-//! - [`role`]: [`role::HubRole`], the thin process shell that feeds it messages and the clock.
+//! - [`role`] (feature `role`, on by default): [`role::HubRole`], the thin process shell that
+//!   feeds it messages and the clock, and turns the flight's spec into the core's types;
+//! - [`testing`]: the gate's promises as checks, shared by the fuzz targets and the corpus
+//!   replay tests.
 
 #![deny(missing_docs)]
 
@@ -19,7 +24,9 @@ pub mod att;
 pub mod core;
 pub mod gate;
 pub mod ordering;
+#[cfg(feature = "role")]
 pub mod role;
+pub mod testing;
 
 pub use crate::core::{DecisionVerdict, HubConfig, HubCore, HubCounters, RejectReason, TickOutput};
 pub use att::{
@@ -28,14 +35,17 @@ pub use att::{
 };
 pub use gate::{DecisionGate, Feasible, GateConfigError, GateError};
 pub use ordering::{SeqVerdict, SequenceTracker, SourceSelector, SourceVerdict};
+#[cfg(feature = "role")]
 pub use role::HubRole;
 
+#[cfg(feature = "role")]
 use aeris_runtime::{RoleError, RoleHost, RoleSpec};
 
 /// The one variant of the hub this build has.
 pub const HUB_VARIANT: &str = "gate";
 
 /// Run the hub role (kind `hub`, variant [`HUB_VARIANT`]) in this process.
+#[cfg(feature = "role")]
 pub fn run(spec: RoleSpec) -> Result<(), RoleError> {
     if spec.variant != HUB_VARIANT {
         return Err(RoleError::Config(format!(
@@ -46,7 +56,7 @@ pub fn run(spec: RoleSpec) -> Result<(), RoleError> {
     RoleHost::run::<HubRole>(spec)
 }
 
-#[cfg(test)]
+#[cfg(all(test, feature = "role"))]
 mod catalog_tests {
     /// The catalog the supervisor validates against must list exactly what `run` accepts.
     #[test]

@@ -11,8 +11,9 @@
 //! SCHED_FIFO priority 49, just below the controller, so model roles loading or deciding on
 //! the same CPUs never delay a setpoint).
 //!
-//! Heartbeat stages: `route` (transport: draining and publishing), `gate` (decisions and the
-//! tick's re-binding), `att` (states and ATT). Heartbeat counters: `[decisions received,
+//! Heartbeat stages: `route` (transport: draining and publishing), `gate` (decisions, and the
+//! tick: reuse slots, the committed setpoint's way check after a new S_t), `att` (states and
+//! ATT). Heartbeat counters: `[decisions received,
 //! rejected, late, reused cycles, sequence gaps, reorders, states received, decisions
 //! superseded]`.
 
@@ -22,6 +23,7 @@ use crate::gate::DecisionGate;
 use aeris_runtime::bus::{BusError, TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::role::try_sched_fifo;
+use aeris_runtime::spec::TimingSpec;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
 use aeris_schemas::{
     BoundSetpoint, Decision, HubReport, MAX_SUBGOALS, PerceptionState, RoleStatus,
@@ -37,6 +39,15 @@ pub const DEFAULT_ATT_TEMPERATURE: f32 = 0.5;
 pub const HUB_FIFO_PRIORITY: i32 = 49;
 /// Entries kept in the attention trace.
 pub const TRACE_CAPACITY: usize = 4096;
+
+/// The hub's timing from the flight's (milliseconds to nanoseconds, period at least 1 ms).
+pub fn hub_config(timing: &TimingSpec, no_att: bool) -> HubConfig {
+    HubConfig {
+        heartbeat_period_ns: timing.heartbeat_period_ms.max(1).saturating_mul(1_000_000),
+        decision_deadline_ns: timing.decision_deadline_ms.saturating_mul(1_000_000),
+        no_att,
+    }
+}
 
 /// Build the hub's core from a role spec (mission, timing, `no_att`, `att_temperature`).
 pub fn core_from_spec(spec: &RoleSpec) -> Result<HubCore, RoleError> {
@@ -59,7 +70,7 @@ pub fn core_from_spec(spec: &RoleSpec) -> Result<HubCore, RoleError> {
             "the mission has {count} subgoals; the hub needs 1..={MAX_SUBGOALS}"
         )));
     }
-    let gate = DecisionGate::from_mission(mission)
+    let gate = DecisionGate::new(mission.decision_limits())
         .map_err(|e| RoleError::Config(format!("hub gate: {e}")))?;
     let texts: Vec<&str> = mission.subgoals.iter().map(|s| s.text.as_str()).collect();
     let attention = Attention::new(
@@ -78,7 +89,7 @@ pub fn core_from_spec(spec: &RoleSpec) -> Result<HubCore, RoleError> {
     HubCore::new(
         gate,
         attention,
-        HubConfig::from_timing(&spec.timing, no_att),
+        hub_config(&spec.timing, no_att),
         mission.start,
     )
     .map_err(|e| RoleError::Config(format!("hub: {e}")))

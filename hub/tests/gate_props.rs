@@ -34,6 +34,7 @@ fn limits() -> impl Strategy<Value = DecisionLimits> {
                 r_max,
                 geofence_min: [lo.0, lo.1, lo.2],
                 geofence_max: [span.0, span.1, lo.2 + span.2],
+                obstacle_clearance_m: 3.0,
                 subgoals,
             },
         )
@@ -182,7 +183,11 @@ proptest! {
         (limits, d, position, grid) in case(),
         clearance in 0.0f32..10.0,
     ) {
-        let gate = DecisionGate::new(limits, clearance).unwrap();
+        let gate = DecisionGate::new(DecisionLimits {
+            obstacle_clearance_m: clearance,
+            ..limits
+        })
+        .unwrap();
         let result = gate.admit(&d, position, grid.as_ref());
         if !is_finite_decision(&d) {
             prop_assert!(matches!(result, Err(GateError::Invalid(_))), "{result:?}");
@@ -215,7 +220,11 @@ proptest! {
         (limits, d, position, grid) in case(),
         clearance in 0.5f32..6.0,
     ) {
-        let gate = DecisionGate::new(limits, clearance).unwrap();
+        let gate = DecisionGate::new(DecisionLimits {
+            obstacle_clearance_m: clearance,
+            ..limits
+        })
+        .unwrap();
         let Some(g) = grid.filter(|g| g.resolution_m.is_finite() && g.resolution_m > 0.0 && g.origin.iter().all(|v| v.is_finite())) else {
             return Ok(());
         };
@@ -276,9 +285,10 @@ proptest! {
             r_max: 10.0,
             geofence_min: [-1000.0, -1000.0, 0.0],
             geofence_max: [1000.0, 1000.0, 120.0],
+            obstacle_clearance_m: clearance,
             subgoals: 2,
         };
-        let gate = DecisionGate::new(limits, clearance).unwrap();
+        let gate = DecisionGate::new(limits).unwrap();
         let mut g = OccupancyGrid {
             origin: [0.0, 0.0],
             resolution_m: resolution,
@@ -349,7 +359,11 @@ fn generators_cover_admitted_clamped_and_blocked_cases() {
     for _ in 0..n {
         let ((limits, d, position, grid), clearance) =
             strategy.new_tree(&mut runner).unwrap().current();
-        let gate = DecisionGate::new(limits, clearance).unwrap();
+        let gate = DecisionGate::new(DecisionLimits {
+            obstacle_clearance_m: clearance,
+            ..limits
+        })
+        .unwrap();
         match gate.admit(&d, position, grid.as_ref()) {
             Ok(sp) => {
                 ok += 1;

@@ -63,6 +63,7 @@ fn hub_core_hot_path_does_not_allocate() {
         r_max: 10.0,
         geofence_min: [-100.0, -100.0, 0.0],
         geofence_max: [100.0, 100.0, 60.0],
+        obstacle_clearance_m: 3.0,
         subgoals: 3,
     };
     let texts = ["take off", "fly to the red towers", "land on the blue roof"];
@@ -75,7 +76,7 @@ fn hub_core_hot_path_does_not_allocate() {
     )
     .unwrap();
     let mut hub = HubCore::new(
-        DecisionGate::new(limits, 3.0).unwrap(),
+        DecisionGate::new(limits).unwrap(),
         attention,
         HubConfig {
             heartbeat_period_ns: 2 * S,

@@ -4,12 +4,13 @@
 use aeris_hub::HubRole;
 use aeris_hub::role::core_from_spec;
 use aeris_runtime::clock::monotonic_ns;
-use aeris_runtime::spec::{CameraSpec, LimitsSpec, SubgoalSpec, TimingSpec};
+use aeris_runtime::spec::{CameraSpec, SubgoalSpec, TimingSpec};
 use aeris_runtime::{
     CycleOutcome, CycleReport, FlightBus, MissionSpec, Role, RoleContext, RoleError, RoleSpec,
 };
 use aeris_schemas::{
-    ActionMode, BoundSetpoint, Decision, HubReport, PerceptionState, VehicleTelemetry, topics,
+    ActionMode, BoundSetpoint, Decision, DecisionLimits, HubReport, PerceptionState,
+    VehicleTelemetry, topics,
 };
 
 fn spec(flight: &str) -> RoleSpec {
@@ -43,7 +44,7 @@ fn spec(flight: &str) -> RoleSpec {
             cruise_speed: 5.0,
             acceptance_radius_m: 2.0,
             max_duration_s: 60.0,
-            limits: LimitsSpec::default(),
+            limits: DecisionLimits::default(),
         },
         params: Default::default(),
         instance: 0,

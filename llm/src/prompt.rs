@@ -246,6 +246,7 @@ mod tests {
                 r_max: 10.0,
                 geofence_min: [-20.0, -40.0, 0.0],
                 geofence_max: [160.0, 140.0, 60.0],
+                obstacle_clearance_m: 3.0,
                 subgoals: 2,
             },
             cruise_speed: 5.0,

@@ -55,6 +55,7 @@ land next to the yellow sign that says LAKE VIEW."
             r_max: 10.0,
             geofence_min: [-20.0, -40.0, 0.0],
             geofence_max: [160.0, 140.0, 60.0],
+            obstacle_clearance_m: 3.0,
             subgoals: 4,
         },
         cruise_speed: 5.0,

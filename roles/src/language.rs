@@ -10,9 +10,9 @@
 //! the draft the decoder verifies in one batch.
 //!
 //! The role polls every 50 ms and decides once per heartbeat on the first fresh S_t, or on
-//! the telemetry alone when no S_t came for a heartbeat and a half
-//! ([`HeartbeatClock`]). The model is loaded and warmed up (one decision) in `new`, before
-//! the first heartbeat, so a swapped-in reasoner is ready when the supervisor sees it.
+//! the telemetry alone when no S_t came for a heartbeat and a half ([`ReasonerIo`], shared
+//! with the planner's variants). The model is loaded and warmed up (one decision) in `new`,
+//! before the first heartbeat, so a swapped-in reasoner is ready when the supervisor sees it.
 //!
 //! Parameters: `model` (cache-relative GGUF, default per variant), `threads` (default 2, at most the CPUs of its executor),
 //! `context_tokens` (default 2048), `models_dir`, `plan` (bool, default true; false leaves
@@ -25,20 +25,19 @@
 //! verified from the draft (last decision), 1 when the last decision's step departed from
 //! the plan's]`.
 
-use crate::heartbeat_clock::{Basis, HeartbeatClock};
-use crate::planner::{Planner, RESUME_WAIT, hub_active_step};
+use crate::planner::{Planner, mission_planner};
+use crate::reasoner_io::ReasonerIo;
 use crate::vision::open_store;
 use aeris_llm::{
     DecisionView, GEMMA3_270M, LanguageReasoner, MissionBrief, Observation, ReasonerConfig,
     SMOLLM2_135M, StepBrief,
 };
-use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, MissionSpec, Role, RoleContext, RoleError};
-use aeris_schemas::{Decision, PerceptionState, VehicleTelemetry, topics};
+use aeris_schemas::Decision;
 use core::time::Duration;
 
-pub use crate::planner::POLL;
+pub use crate::reasoner_io::POLL;
 
 /// The mission as the language model reads it.
 pub fn mission_brief(mission: &MissionSpec) -> Result<MissionBrief, RoleError> {
@@ -77,39 +76,11 @@ pub fn default_model(variant: &str) -> Option<&'static str> {
 pub struct LanguageRole {
     reasoner: LanguageReasoner,
     planner: Planner,
-    states: TypedSubscriber<PerceptionState>,
-    telemetry: TypedSubscriber<VehicleTelemetry>,
-    decisions: TypedPublisher<Decision>,
-    clock: HeartbeatClock,
-    state: Option<Box<PerceptionState>>,
-    fresh_state: bool,
-    telemetry_last: Option<VehicleTelemetry>,
+    io: ReasonerIo,
     previous: Option<DecisionView>,
-    start: [f32; 3],
-    seq: u64,
-    cycle: u64,
     failures: u64,
-    source: u32,
     /// Whether the prompt shows the planner's plan.
     show_plan: bool,
-}
-
-impl LanguageRole {
-    fn read_inputs(&mut self) -> Result<(), RoleError> {
-        if let Some(s) = self.states.latest()?
-            && s.validate().is_ok()
-            && self.state.as_ref().is_none_or(|old| old.seq != s.seq)
-        {
-            self.state = Some(Box::new(s));
-            self.fresh_state = true;
-        }
-        if let Some(t) = self.telemetry.latest()?
-            && t.validate().is_ok()
-        {
-            self.telemetry_last = Some(t);
-        }
-        Ok(())
-    }
 }
 
 impl Role for LanguageRole {
@@ -145,9 +116,7 @@ impl Role for LanguageRole {
         let show_plan = ctx.spec.param_bool("plan", true)?;
         let store = open_store(ctx)?;
         let brief = mission_brief(&ctx.spec.mission)?;
-        let mut planner = Planner::new(&ctx.spec.mission, &ctx.spec.camera).ok_or_else(|| {
-            RoleError::Config("the mission names an unknown action or the camera is invalid".into())
-        })?;
+        let mut planner = mission_planner(&ctx.spec)?;
         let start = ctx.spec.mission.start;
         let mut reasoner = LanguageReasoner::load(&store, &file, brief, config)
             .map_err(|e| RoleError::Config(format!("reasoning/{variant}: {e}")))?;
@@ -166,28 +135,13 @@ impl Role for LanguageRole {
             .decide(&warm)
             .map_err(|e| RoleError::Config(format!("reasoning/{variant} warm-up: {e}")))?;
         // started during a flight (restart, hot swap): take the mission up where it is
-        if let Some(step) = hub_active_step(ctx, RESUME_WAIT)? {
-            planner.resume(step);
-        }
+        let io = ReasonerIo::new(ctx, &mut planner)?;
         Ok(Self {
             reasoner,
             planner,
-            states: ctx.bus.subscriber(topics::PERCEPTION_STATE)?,
-            telemetry: ctx.bus.subscriber(topics::VEHICLE_TELEMETRY)?,
-            decisions: ctx.bus.publisher(topics::REASONING_DECISION)?,
-            clock: HeartbeatClock::new(
-                ctx.spec.timing.heartbeat_period_ms.max(1) * 1_000_000,
-                monotonic_ns(),
-            ),
-            state: None,
-            fresh_state: false,
-            telemetry_last: None,
+            io,
             previous: None,
-            start,
-            seq: 0,
-            cycle: 0,
             failures: 0,
-            source: ctx.spec.instance,
             show_plan,
         })
     }
@@ -201,23 +155,12 @@ impl Role for LanguageRole {
         _ctx: &mut RoleContext,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
-        let t0 = monotonic_ns();
-        self.read_inputs()?;
-        let Some(basis) = self.clock.due(t0, self.fresh_state) else {
+        let Some(due) = self.io.poll()? else {
             return Ok(CycleOutcome::Idle);
         };
-        self.fresh_state = false;
-        self.clock.decided(t0);
         // a decision on telemetry alone does not show the model an old view
-        let state = match basis {
-            Basis::State => self.state.as_deref(),
-            Basis::TelemetryOnly => None,
-        };
-        let (position, yaw, landed) = match (&self.telemetry_last, &self.state) {
-            (Some(t), _) => (t.position, t.attitude[2], t.landed == 1),
-            (None, Some(s)) => (s.position, s.yaw, s.position[2] < 0.3),
-            (None, None) => (self.start, 0.0, true),
-        };
+        let state = self.io.state(&due);
+        let (position, yaw, landed) = (due.position, due.yaw, due.landed);
         let plan = DecisionView::from_decision(&self.planner.decide(position, yaw, landed, state));
         let obs = Observation {
             position,
@@ -228,7 +171,7 @@ impl Role for LanguageRole {
             plan: self.show_plan.then_some(&plan),
         };
         let reasoning_start = monotonic_ns();
-        report.stage("read", reasoning_start - t0);
+        report.stage("read", reasoning_start - due.poll_ns);
         let thought = match self.reasoner.decide(&obs) {
             Ok(t) => t,
             Err(e) => {
@@ -241,28 +184,13 @@ impl Role for LanguageRole {
         };
         report.stage("prompt", (thought.prompt_s * 1e9) as u64);
         report.stage("generate", (thought.generate_s * 1e9) as u64);
-        let mut d = thought.decision;
-        self.cycle += 1;
-        self.seq += 1;
-        d.seq = self.seq;
-        d.cycle = self.cycle;
-        d.source = self.source;
-        match state {
-            Some(s) => {
-                d.cycle_start_ns = s.capture_ns;
-                d.state_stamp_ns = s.publish_ns;
-            }
-            None => {
-                d.cycle_start_ns = t0;
-                d.state_stamp_ns = t0;
-            }
-        }
-        d.reasoning_start_ns = reasoning_start;
-        let tp = monotonic_ns();
-        d.publish_ns = tp;
-        self.decisions.publish(&d)?;
-        report.stage("publish", monotonic_ns() - tp);
-        report.counters[0] = self.seq;
+        // the model's decision carries no numbering: the I/O gives it the next
+        let mut d = Decision {
+            seq: 0,
+            ..thought.decision
+        };
+        self.io.stamp(&mut d, &due, reasoning_start);
+        self.io.publish(&mut d, report)?;
         report.counters[1] = (thought.tokens_per_s() * 100.0) as u64;
         report.counters[2] = thought.generated_tokens as u64;
         report.counters[3] = self.failures;

@@ -8,6 +8,8 @@
 //!   [`depth_occupancy`] the back-projection of depth frames);
 //! - [`planner`]: the deterministic reasoning variant (and a garbage-emitting fault injector);
 //! - [`language`]: the language-model reasoning variants (llama.cpp, grammar-constrained);
+//! - [`reasoner_io`]: what every reasoning variant does around its decision (inputs, when to
+//!   decide, stamping and publishing);
 //! - [`controller`]: tracks bound setpoints at the control rate over MAVLink.
 
 #![deny(missing_docs)]
@@ -23,6 +25,7 @@ pub mod height_map;
 pub mod language;
 pub mod occupancy;
 pub mod planner;
+pub mod reasoner_io;
 pub mod text_reader;
 pub mod vision;
 

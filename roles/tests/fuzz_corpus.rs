@@ -1,7 +1,7 @@
 //! The `cargo fuzz` corpora (`fuzz/corpus/<target>/`) and crash inputs
 //! (`fuzz/regressions/<target>/`) replayed on stable Rust, with the same checks as the fuzz
-//! targets (`aeris_hub::gate::fuzz_check_bytes`, `aeris_llm::view::fuzz_check_text` with
-//! `aeris_hub::gate::fuzz_check_model_decision`,
+//! targets (`aeris_hub::testing::fuzz_check_bytes`, `aeris_llm::view::fuzz_check_text` with
+//! `aeris_hub::testing::fuzz_check_model_decision`,
 //! `aeris_roles::controller::testing::fuzz_check_mavlink`)
 //! and the limits of the built-in default flight.
 //!
@@ -9,7 +9,7 @@
 //! `cargo test -p aeris-roles --test fuzz_corpus -- --ignored write_seed_corpus`.
 
 use aeris_hub::DecisionGate;
-use aeris_hub::gate::{fuzz_check_bytes, fuzz_check_model_decision, fuzz_decision_to_bytes};
+use aeris_hub::testing::{fuzz_check_bytes, fuzz_check_model_decision, fuzz_decision_to_bytes};
 use aeris_llm::DecisionView;
 use aeris_llm::view::fuzz_check_text;
 use aeris_mavlink::px4::PX4_MAIN_MODE_OFFBOARD;
@@ -44,7 +44,7 @@ fn default_spec() -> RoleSpec {
 }
 
 fn default_gate() -> DecisionGate {
-    DecisionGate::from_mission(&default_spec().mission).expect("coherent limits")
+    DecisionGate::new(default_spec().mission.decision_limits()).expect("coherent limits")
 }
 
 fn fuzz_dir() -> PathBuf {
@@ -158,7 +158,7 @@ fn decision(step: u16, action: ActionMode, target: [f32; 3], altitude: f32) -> D
     }
 }
 
-/// The bytes after the decision (see `aeris_hub::gate::fuzz_check_decision`): tame
+/// The bytes after the decision (see `aeris_hub::testing::fuzz_check_decision`): tame
 /// coordinates, a 1 m grid centred on `origin` when given, `cells` as `(row, col, top)`.
 /// A seed grid: origin `[N, E]`, unknown (not free) cells, cells set as `(row, col, top)`.
 type SeedGrid<'a> = ([f32; 2], bool, &'a [(usize, usize, u8)]);

@@ -83,39 +83,11 @@ impl SubgoalSpec {
     }
 }
 
-/// Hard limits of the flight (MISSION §3 ranges).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct LimitsSpec {
-    /// v_max (m/s).
-    pub v_max: f32,
-    /// h_min (m).
-    pub h_min: f32,
-    /// h_max (m).
-    pub h_max: f32,
-    /// r_max (m).
-    pub r_max: f32,
-    /// Geofence lower corner `[N, E, U]`.
-    pub geofence_min: [f32; 3],
-    /// Geofence upper corner `[N, E, U]`.
-    pub geofence_max: [f32; 3],
-    /// Clearance kept from obstacles by the hub's clamp (m).
-    pub obstacle_clearance_m: f32,
-}
-
-impl Default for LimitsSpec {
-    fn default() -> Self {
-        Self {
-            v_max: 8.0,
-            h_min: 0.0,
-            h_max: 60.0,
-            r_max: 10.0,
-            geofence_min: [-200.0, -200.0, 0.0],
-            geofence_max: [200.0, 200.0, 60.0],
-            obstacle_clearance_m: 3.0,
-        }
-    }
-}
+/// Hard limits of the flight (MISSION §3 ranges): the workflow's `[mission.limits]`, which
+/// is the schemas' [`DecisionLimits`] (one type for the file, Valid(D_t) and the gate).
+/// Kept under this name for the crates that name it; its `subgoals` is not read from the
+/// file: [`MissionSpec::decision_limits`] sets it from the mission.
+pub type LimitsSpec = DecisionLimits;
 
 /// The mission G: instruction, its subgoals, and the limits it is flown under.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -142,7 +114,7 @@ pub struct MissionSpec {
     pub max_duration_s: f64,
     /// Hard limits.
     #[serde(default)]
-    pub limits: LimitsSpec,
+    pub limits: DecisionLimits,
 }
 
 fn default_world() -> String {
@@ -199,17 +171,11 @@ pub enum MissionError {
 }
 
 impl MissionSpec {
-    /// The limits Valid(D_t) uses.
+    /// The limits Valid(D_t) and the gate use: the mission's limits with its subgoal count.
     pub fn decision_limits(&self) -> DecisionLimits {
-        let l = &self.limits;
         DecisionLimits {
-            v_max: l.v_max,
-            h_min: l.h_min,
-            h_max: l.h_max,
-            r_max: l.r_max,
-            geofence_min: l.geofence_min,
-            geofence_max: l.geofence_max,
             subgoals: self.subgoals.len().min(MAX_SUBGOALS) as u16,
+            ..self.limits
         }
     }
 
@@ -378,5 +344,41 @@ impl RoleSpec {
                 ))
             }),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mission(limits: &str) -> Result<MissionSpec, serde_json::Error> {
+        serde_json::from_str(&format!(
+            r#"{{"instruction": "take off, then land",
+                "subgoals": [{{"text": "take off", "action": "takeoff"}},
+                             {{"text": "land", "action": "land"}}],
+                "limits": {limits}}}"#
+        ))
+    }
+
+    /// The workflow's limits are the gate's: fields left out take the defaults, the
+    /// subgoal count comes from the mission, and a file cannot set it.
+    #[test]
+    fn mission_limits_read_as_decision_limits_with_the_missions_subgoal_count() {
+        let m = mission(r#"{"v_max": 6.0, "obstacle_clearance_m": 4.5}"#).unwrap();
+        let l = m.decision_limits();
+        assert_eq!((l.v_max, l.obstacle_clearance_m, l.subgoals), (6.0, 4.5, 2));
+        assert_eq!(
+            DecisionLimits {
+                v_max: 6.0,
+                obstacle_clearance_m: 4.5,
+                subgoals: 2,
+                ..DecisionLimits::default()
+            },
+            l
+        );
+        assert!(mission(r#"{"subgoals": 9}"#).is_err());
+        // what a role reads back is what the supervisor wrote
+        let again: MissionSpec = serde_json::from_str(&serde_json::to_string(&m).unwrap()).unwrap();
+        assert_eq!(again.decision_limits(), l);
     }
 }

@@ -131,8 +131,16 @@ impl Default for Decision {
     }
 }
 
-/// The bounds Valid(D_t) checks against (from the mission and the vehicle).
+/// The hard limits of a flight (MISSION §3 ranges): the bounds Valid(D_t) checks decisions
+/// against, and what the hub's gate keeps them inside.
+///
+/// It is also the workflow's `[mission.limits]` table (with this crate's `serde` feature):
+/// every field but `subgoals` comes from the file, with the defaults of [`Default`];
+/// `subgoals` is the mission's subgoal count, set where the mission is known (the runtime's
+/// `MissionSpec::decision_limits`), never read from a file.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields, default))]
 pub struct DecisionLimits {
     /// Maximum speed v_max (m/s).
     pub v_max: f32,
@@ -146,8 +154,28 @@ pub struct DecisionLimits {
     pub geofence_min: [f32; 3],
     /// Geofence upper corner `[N, E, U]`.
     pub geofence_max: [f32; 3],
+    /// Clearance kept from obstacles by the hub's clamp (m).
+    pub obstacle_clearance_m: f32,
     /// Number of subgoals L (1..=MAX_SUBGOALS).
+    #[cfg_attr(feature = "serde", serde(skip))]
     pub subgoals: u16,
+}
+
+impl Default for DecisionLimits {
+    /// The limits of a workflow that gives none: 8 m/s, 0-60 m, 10 m acceptance radius, a
+    /// 400 m square geofence up to 60 m, 3 m obstacle clearance; one subgoal.
+    fn default() -> Self {
+        Self {
+            v_max: 8.0,
+            h_min: 0.0,
+            h_max: 60.0,
+            r_max: 10.0,
+            geofence_min: [-200.0, -200.0, 0.0],
+            geofence_max: [200.0, 200.0, 60.0],
+            obstacle_clearance_m: 3.0,
+            subgoals: 1,
+        }
+    }
 }
 
 impl DecisionLimits {
@@ -284,6 +312,7 @@ mod tests {
             r_max: 10.0,
             geofence_min: [-100.0, -100.0, 0.0],
             geofence_max: [100.0, 100.0, 60.0],
+            obstacle_clearance_m: 3.0,
             subgoals: 4,
         }
     }

@@ -10,7 +10,8 @@
 //! Frames: `[N, E, U]` means a local frame with x north, y east, z **up** (metres). The
 //! controller converts to MAVLink's NED at the autopilot boundary, nowhere else.
 //!
-//! This crate is a leaf: it depends on nothing of ours.
+//! This crate is a leaf: it depends on nothing of ours. Its `serde` feature derives the
+//! (de)serialisation of [`DecisionLimits`], which the workflow's mission limits are.
 
 #![deny(missing_docs)]
 

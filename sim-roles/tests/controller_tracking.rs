@@ -21,6 +21,7 @@ fn limits() -> DecisionLimits {
         r_max: 10.0,
         geofence_min: [-100.0, -100.0, 0.0],
         geofence_max: [100.0, 100.0, 30.0],
+        obstacle_clearance_m: 3.0,
         subgoals: 3,
     }
 }

@@ -423,6 +423,7 @@ mod tests {
                 geofence_min: [-20.0, -40.0, 0.0],
                 geofence_max: [160.0, 140.0, 60.0],
                 subgoals: 4,
+                obstacle_clearance_m: 3.0,
             },
             start: [0.0; 3],
             period_s: 0.02,

@@ -1,0 +1,331 @@
+//! The decision gate's unit tests: binding, validation, clamping and rejection against
+//! walls, the altitude band and the geofence, and the way check of a bound setpoint.
+
+use super::*;
+use aeris_schemas::OCCUPANCY_CELLS;
+
+fn limits() -> DecisionLimits {
+    DecisionLimits {
+        v_max: 8.0,
+        h_min: 2.0,
+        h_max: 60.0,
+        r_max: 10.0,
+        geofence_min: [-100.0, -100.0, 0.0],
+        geofence_max: [100.0, 100.0, 60.0],
+        obstacle_clearance_m: 3.0,
+        subgoals: 4,
+    }
+}
+
+fn gate() -> DecisionGate {
+    DecisionGate::new(limits()).unwrap()
+}
+
+fn decision(action: ActionMode, target: [f32; 3], altitude: f32) -> Decision {
+    Decision {
+        seq: 9,
+        target,
+        yaw: 0.25,
+        speed: 5.0,
+        altitude,
+        acceptance_radius: 2.0,
+        confidence: 0.9,
+        step: 2,
+        action: action as u8,
+        ..Decision::default()
+    }
+}
+
+/// 1 m cells centred on the origin, all free ground.
+fn free_grid() -> OccupancyGrid {
+    OccupancyGrid {
+        origin: [0.0, 0.0],
+        resolution_m: 1.0,
+        cells: [0; OCCUPANCY_CELLS],
+    }
+}
+
+fn set(g: &mut OccupancyGrid, n: f32, e: f32, top: u8) {
+    let i = g.cell_of([n, e]).unwrap();
+    g.cells[i] = top;
+}
+
+#[test]
+fn binds_each_action() {
+    let g = gate();
+    let v = [1.0, 2.0, 5.0];
+    let t = [30.0, -10.0, 12.0];
+    let cases = [
+        (ActionMode::Takeoff, [1.0, 2.0, 12.0]),
+        (ActionMode::Ascend, [1.0, 2.0, 12.0]),
+        (ActionMode::Descend, [1.0, 2.0, 12.0]),
+        (ActionMode::Turn, [1.0, 2.0, 12.0]),
+        (ActionMode::Goto, [30.0, -10.0, 12.0]),
+        (ActionMode::Hover, [30.0, -10.0, 12.0]),
+        (ActionMode::Stop, [30.0, -10.0, 12.0]),
+        (ActionMode::Land, [30.0, -10.0, 0.0]),
+    ];
+    for (mode, want) in cases {
+        let sp = g.admit(&decision(mode, t, 12.0), v, None).unwrap();
+        assert_eq!(sp.position, want, "{mode:?}");
+        assert_eq!(sp.mode, mode as u8);
+        assert_eq!((sp.yaw, sp.speed, sp.acceptance_radius), (0.25, 5.0, 2.0));
+        assert_eq!((sp.active_step, sp.decision_seq, sp.clamped), (2, 9, 0));
+    }
+}
+
+#[test]
+fn rejects_invalid_and_non_finite() {
+    let g = gate();
+    let mut d = decision(ActionMode::Goto, [10.0, 0.0, 10.0], 10.0);
+    d.speed = f32::NAN;
+    assert!(matches!(
+        g.admit(&d, [0.0; 3], None),
+        Err(GateError::Invalid(DecisionError::NonFinite { .. }))
+    ));
+    let d = decision(ActionMode::Goto, [10.0, 0.0, 10.0], 10.0);
+    assert!(matches!(
+        g.admit(&d, [f32::NAN, 0.0, 0.0], None),
+        Err(GateError::BadPosition(_))
+    ));
+    let mut grid = free_grid();
+    grid.origin[0] = f32::INFINITY;
+    assert_eq!(g.admit(&d, [0.0; 3], Some(&grid)), Err(GateError::BadGrid));
+}
+
+#[test]
+fn clamps_before_a_wall_with_clearance() {
+    let g = gate();
+    let mut grid = free_grid();
+    // a wall 20 m high across the path at N in [10, 11)
+    for e in -32..32 {
+        set(&mut grid, 10.5, e as f32 + 0.5, 20);
+    }
+    let d = decision(ActionMode::Goto, [25.0, 0.0, 10.0], 10.0);
+    let sp = g.admit(&d, [0.0, 0.0, 10.0], Some(&grid)).unwrap();
+    assert_eq!(sp.clamped, 1);
+    assert!((sp.position[0] - 7.0).abs() < 1e-4, "{:?}", sp.position);
+    assert_eq!(sp.position[1], 0.0);
+    // flying above the wall (20 <= 24 - 3) passes
+    let d = decision(ActionMode::Goto, [25.0, 0.0, 24.0], 24.0);
+    let sp = g.admit(&d, [0.0, 0.0, 10.0], Some(&grid)).unwrap();
+    assert_eq!((sp.position, sp.clamped), ([25.0, 0.0, 24.0], 0));
+    // too close to pull back: rejected
+    let d = decision(ActionMode::Goto, [25.0, 0.0, 10.0], 10.0);
+    assert!(matches!(
+        g.admit(&d, [6.5, 0.0, 10.0], Some(&grid)),
+        Err(GateError::Blocked { top_m: 20.0, .. })
+    ));
+}
+
+#[test]
+fn unknown_cells_are_free_and_corners_are_not_skipped() {
+    let g = gate();
+    let mut grid = OccupancyGrid {
+        origin: [0.0, 0.0],
+        resolution_m: 1.0,
+        ..OccupancyGrid::default()
+    };
+    let d = decision(ActionMode::Goto, [20.0, 20.0, 10.0], 10.0);
+    assert_eq!(
+        g.admit(&d, [0.0; 3], Some(&grid)).unwrap().position,
+        [20.0, 20.0, 10.0]
+    );
+    // a single cell the diagonal only grazes at its corner region: (10, 9)
+    grid.cells[(32 + 10) * OCCUPANCY_SIDE + 32 + 9] = 50;
+    let d = decision(ActionMode::Goto, [20.0, 19.9, 10.0], 10.0);
+    let sp = g.admit(&d, [0.0; 3], Some(&grid)).unwrap();
+    assert_eq!(sp.clamped, 1);
+    assert!(sp.position[0] < 10.0 - 2.0, "{:?}", sp.position);
+}
+
+/// Regression (found by the `gate_json` fuzz corpus, `fuzz/regressions/gate_json/`): a
+/// target exactly on the near edge of a blocking cell is inside that cell, but the walk
+/// stopped one cell short when the rounding of its accumulated crossing times put the
+/// last crossing just past the end (here 20 x 0.05 = 1.0000000000000002 > 1), and the
+/// decision was admitted with no clearance to a wall higher than its altitude.
+#[test]
+fn a_target_on_the_edge_of_a_blocking_cell_is_pulled_back() {
+    let g = gate();
+    let mut grid = free_grid();
+    grid.origin = [20.0, 0.0];
+    // a wall 20 m high at N in [30, 31)
+    for e in -32..32 {
+        set(&mut grid, 30.5, e as f32 + 0.5, 20);
+    }
+    for mode in [ActionMode::Hover, ActionMode::Goto, ActionMode::Stop] {
+        let d = decision(mode, [30.0, 0.0, 12.0], 12.0);
+        let sp = g.admit(&d, [10.0, 5.0, 12.0], Some(&grid)).unwrap();
+        assert_eq!(sp.clamped, 1, "{mode:?}: {sp:?}");
+        // 3 m before the wall along the way from [10, 5]
+        let back = [30.0 - 20.0 * 3.0 / 425f32.sqrt(), 5.0 * 3.0 / 425f32.sqrt()];
+        assert!((sp.position[0] - back[0]).abs() < 1e-3, "{mode:?}: {sp:?}");
+        assert!((sp.position[1] - back[1]).abs() < 1e-3, "{mode:?}: {sp:?}");
+    }
+    // coming from the north, N = 31 is the first point outside the wall's cell
+    let d = decision(ActionMode::Goto, [31.0, 0.0, 12.0], 12.0);
+    let sp = g.admit(&d, [50.0, 3.0, 12.0], Some(&grid)).unwrap();
+    assert_eq!((sp.position, sp.clamped), ([31.0, 0.0, 12.0], 0));
+}
+
+/// What the gate bound passes the way check from where it was bound (a clamped goto, a
+/// raised climb, a landing); an obstacle that shows up on the way afterwards fails it.
+#[test]
+fn a_bound_setpoint_passes_the_way_check_until_an_obstacle_shows_up() {
+    let g = gate();
+    let mut grid = free_grid();
+    for e in -32..32 {
+        set(&mut grid, 10.5, e as f32 + 0.5, 20);
+    }
+    set(&mut grid, -5.5, -5.5, 15);
+    let v = [0.5, 0.5, 10.0];
+    let roof = [-5.5, -5.5, 10.0];
+    for (mode, at, target, altitude) in [
+        (ActionMode::Goto, v, [25.0, 0.0, 10.0], 10.0),
+        (ActionMode::Hover, v, [5.0, -5.0, 10.0], 10.0),
+        (ActionMode::Ascend, roof, [0.0, 0.0, 12.0], 12.0),
+        (ActionMode::Land, v, [5.0, 5.0, 0.0], 10.0),
+    ] {
+        let sp = g
+            .admit(&decision(mode, target, altitude), at, Some(&grid))
+            .unwrap();
+        assert_eq!(
+            g.check_way(&sp, at, Some(&grid)),
+            Ok(()),
+            "{mode:?}: {sp:?}"
+        );
+        assert_eq!(g.check_way(&sp, at, None), Ok(()), "{mode:?}");
+    }
+    // the climb was raised to 18 m over the 15 m roof: a taller one under it blocks it
+    let climb = g
+        .admit(
+            &decision(ActionMode::Ascend, [0.0, 0.0, 12.0], 12.0),
+            roof,
+            Some(&grid),
+        )
+        .unwrap();
+    assert_eq!((climb.position[2], climb.clamped), (18.0, 1));
+    set(&mut grid, -5.5, -5.5, 16);
+    assert!(matches!(
+        g.check_way(&climb, roof, Some(&grid)),
+        Err(GateError::Blocked { top_m: 16.0, .. })
+    ));
+    // the clamped goto stops 3 m short of the wall; a second wall before that blocks it
+    let sp = g
+        .admit(
+            &decision(ActionMode::Goto, [25.0, 0.0, 10.0], 10.0),
+            v,
+            Some(&grid),
+        )
+        .unwrap();
+    assert_eq!(sp.clamped, 1);
+    for e in -32..32 {
+        set(&mut grid, 4.5, e as f32 + 0.5, 30);
+    }
+    assert!(matches!(
+        g.check_way(&sp, v, Some(&grid)),
+        Err(GateError::Blocked { top_m: 30.0, .. })
+    ));
+    // a landing whose touchdown cell is taken now
+    let mut grid = free_grid();
+    let land = g
+        .admit(
+            &decision(ActionMode::Land, [5.0, 5.0, 0.0], 10.0),
+            v,
+            Some(&grid),
+        )
+        .unwrap();
+    set(&mut grid, 5.0, 5.0, 1);
+    assert!(matches!(
+        g.check_way(&land, v, Some(&grid)),
+        Err(GateError::Blocked { .. })
+    ));
+}
+
+#[test]
+fn raises_in_place_climbs_over_an_obstacle() {
+    let g = gate();
+    let mut grid = free_grid();
+    set(&mut grid, 0.5, 0.5, 15);
+    let d = decision(ActionMode::Descend, [0.0, 0.0, 5.0], 5.0);
+    let sp = g.admit(&d, [0.5, 0.5, 30.0], Some(&grid)).unwrap();
+    assert_eq!((sp.position[2], sp.clamped), (18.0, 1));
+    set(&mut grid, 0.5, 0.5, 59);
+    assert!(matches!(
+        g.admit(&d, [0.5, 0.5, 30.0], Some(&grid)),
+        Err(GateError::NoAltitude { .. })
+    ));
+}
+
+#[test]
+fn land_goes_to_ground_but_not_onto_an_obstacle() {
+    let g = gate();
+    let mut grid = free_grid();
+    let d = decision(ActionMode::Land, [5.0, 5.0, 0.0], 10.0);
+    let sp = g.admit(&d, [0.0, 0.0, 10.0], Some(&grid)).unwrap();
+    assert_eq!(sp.position, [5.0, 5.0, 0.0]);
+    assert_eq!(sp.validate(&limits()), Ok(ActionMode::Land));
+    set(&mut grid, 5.0, 5.0, 1);
+    assert!(matches!(
+        g.admit(&d, [0.0, 0.0, 10.0], Some(&grid)),
+        Err(GateError::Blocked { .. })
+    ));
+}
+
+#[test]
+fn altitude_is_kept_inside_the_fence() {
+    let mut l = limits();
+    l.geofence_max[2] = 40.0;
+    let g = DecisionGate::new(l).unwrap();
+    let d = decision(ActionMode::Goto, [10.0, 0.0, 10.0], 55.0);
+    let sp = g.admit(&d, [0.0; 3], None).unwrap();
+    assert_eq!((sp.position[2], sp.clamped), (40.0, 1));
+    l.geofence_max[2] = 1.0; // below h_min: no altitude
+    let g = DecisionGate::new(l).unwrap();
+    assert!(matches!(
+        g.admit(
+            &decision(ActionMode::Goto, [1.0, 0.0, 1.0], 10.0),
+            [0.0; 3],
+            None
+        ),
+        Err(GateError::Invalid(_)) | Err(GateError::NoAltitude { .. })
+    ));
+}
+
+#[test]
+fn a_vehicle_outside_the_fence_is_brought_back() {
+    let g = gate();
+    let d = decision(ActionMode::Takeoff, [0.0, 0.0, 10.0], 10.0);
+    let sp = g.admit(&d, [150.0, -120.0, 0.0], None).unwrap();
+    assert_eq!((sp.position, sp.clamped), ([100.0, -100.0, 10.0], 1));
+    let h = g.hold(&d, [150.0, 0.0, 90.0]).unwrap();
+    assert_eq!(h.position, [100.0, 0.0, 60.0]);
+    assert_eq!(h.mode, ActionMode::Hover as u8);
+}
+
+#[test]
+fn config_is_checked() {
+    assert!(matches!(
+        DecisionGate::new(DecisionLimits {
+            obstacle_clearance_m: f32::NAN,
+            ..limits()
+        }),
+        Err(GateConfigError::BadClearance(_))
+    ));
+    assert!(matches!(
+        DecisionGate::new(DecisionLimits {
+            obstacle_clearance_m: -1.0,
+            ..limits()
+        }),
+        Err(GateConfigError::BadClearance(_))
+    ));
+    let mut l = limits();
+    l.h_min = 70.0;
+    assert_eq!(
+        DecisionGate::new(DecisionLimits {
+            obstacle_clearance_m: 1.0,
+            ..l
+        }),
+        Err(GateConfigError::IncoherentLimits)
+    );
+}

@@ -1,0 +1,110 @@
+//! The planner as a reasoning process (kind `reasoning`, variant `planner`).
+//!
+//! [`PlannerRole`] turns the mission's subgoals into decisions D_t through exactly the path a
+//! language model's decisions take (`reasoning/decision` -> hub gate -> controller): it
+//! decides once per heartbeat on the first fresh S_t, or on the telemetry alone when no S_t
+//! came for a heartbeat and a half, polling every 50 ms ([`ReasonerIo`]).
+//!
+//! Heartbeat stages: `read`, `plan`, `publish`. Heartbeat counters: `[decisions,
+//! subgoal_index (0-based), corrupted (the garbage variant), 0, 0, 0, 0, 0]`.
+
+use super::Planner;
+use crate::reasoner_io::{POLL, ReasonerIo};
+use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
+use aeris_schemas::Decision;
+use core::time::Duration;
+
+/// The planner of the mission in `spec`, seen through its camera (every reasoning role
+/// keeps one: the planner variants decide with it, the language roles show its plan).
+pub fn mission_planner(spec: &RoleSpec) -> Result<Planner, RoleError> {
+    Planner::new(&spec.mission, &spec.camera).ok_or_else(|| {
+        RoleError::Config("the mission names an unknown action or the camera is invalid".into())
+    })
+}
+
+/// The planner with the reasoning role's I/O: what the planner, garbage and random
+/// variants share.
+pub(crate) struct PlannerReasoner {
+    pub(crate) planner: Planner,
+    pub(crate) io: ReasonerIo,
+}
+
+impl PlannerReasoner {
+    /// The mission's planner, resumed where the hub has the flight, and the role's ports.
+    pub(crate) fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+        let mut planner = mission_planner(&ctx.spec)?;
+        let io = ReasonerIo::new(ctx, &mut planner)?;
+        Ok(Self { planner, io })
+    }
+
+    /// Read inputs and, when a decision is due, make it (stamped, not yet published).
+    pub(crate) fn think(
+        &mut self,
+        report: &mut CycleReport,
+    ) -> Result<Option<Decision>, RoleError> {
+        let Some(due) = self.io.poll()? else {
+            return Ok(None);
+        };
+        let reasoning_start = monotonic_ns();
+        let before = self.planner.rejections().0;
+        let state = self.io.state(&due);
+        let mut d = self
+            .planner
+            .decide(due.position, due.yaw, due.landed, state);
+        if let (n, Some((p, read))) = self.planner.rejections()
+            && n > before
+        {
+            // rare (a few per flight): worth a line in the role's log
+            eprintln!(
+                "reasoning: step {}: the sign at [{:.0}, {:.0}] reads \"{read}\", not the one \
+                 the instruction quotes; searching on",
+                d.step, p[0], p[1]
+            );
+        }
+        self.io.stamp(&mut d, &due, reasoning_start);
+        report.stage("read", reasoning_start - due.poll_ns);
+        report.stage("plan", monotonic_ns() - reasoning_start);
+        Ok(Some(d))
+    }
+
+    /// Publish `d` (see [`ReasonerIo::publish`]) and report the subgoal in progress.
+    pub(crate) fn send(
+        &mut self,
+        d: &mut Decision,
+        report: &mut CycleReport,
+    ) -> Result<(), RoleError> {
+        self.io.publish(d, report)?;
+        report.counters[1] = self.planner.current() as u64;
+        Ok(())
+    }
+}
+
+/// The deterministic planner variant of the reasoning role.
+pub struct PlannerRole {
+    reasoner: PlannerReasoner,
+}
+
+impl Role for PlannerRole {
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+        Ok(Self {
+            reasoner: PlannerReasoner::new(ctx)?,
+        })
+    }
+
+    fn period(&self) -> Duration {
+        POLL
+    }
+
+    fn cycle(
+        &mut self,
+        _ctx: &mut RoleContext,
+        report: &mut CycleReport,
+    ) -> Result<CycleOutcome, RoleError> {
+        let Some(mut d) = self.reasoner.think(report)? else {
+            return Ok(CycleOutcome::Idle);
+        };
+        self.reasoner.send(&mut d, report)?;
+        Ok(CycleOutcome::Worked)
+    }
+}

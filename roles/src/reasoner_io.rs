@@ -1,0 +1,202 @@
+//! What every reasoning role does around its decision, whatever decides: the planner
+//! ([`crate::planner`]) and its garbage and random variants, and the language-model roles
+//! ([`crate::language`]).
+//!
+//! [`ReasonerIo`] reads the latest valid S_t and telemetry every poll, decides when a
+//! decision is due ([`HeartbeatClock`]: once per heartbeat on the first fresh S_t, or on the
+//! telemetry alone when no S_t came for a heartbeat and a half), stamps a decision's cycle
+//! and timing, and publishes it on `reasoning/decision`. A reasoner that starts during a
+//! flight (restart, hot swap) first takes the mission up at the hub's active step, read
+//! from the latest `hub/setpoint` ([`hub_active_step`]).
+//!
+//! A poll:
+//! ```text
+//! io.poll()? -> Some(due) -> decide on (due.position, due.yaw, due.landed, io.state(&due))
+//!            -> io.stamp(&mut d, &due, reasoning_start) -> io.publish(&mut d, report)?
+//! ```
+
+use crate::heartbeat_clock::{Basis, HeartbeatClock};
+use crate::planner::Planner;
+use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
+use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::{CycleReport, RoleContext, RoleError};
+use aeris_schemas::{BoundSetpoint, Decision, PerceptionState, VehicleTelemetry, topics};
+use core::time::Duration;
+
+/// How often the reasoning roles look for a fresh S_t.
+pub const POLL: Duration = Duration::from_millis(50);
+
+/// How long a starting reasoner waits for the hub's latest setpoint (the hub publishes
+/// every 20 ms once a decision is in force; at the flight's start there is none).
+pub const RESUME_WAIT: Duration = Duration::from_millis(250);
+
+/// The hub's active instruction step if the flight is under way: from the latest
+/// `hub/setpoint`, which its history hands to a new subscriber, waited for up to `wait`.
+/// `None` before the first decision of the flight.
+pub fn hub_active_step(ctx: &RoleContext, wait: Duration) -> Result<Option<u16>, RoleError> {
+    let setpoints = ctx.bus.subscriber::<BoundSetpoint>(topics::HUB_SETPOINT)?;
+    let deadline = monotonic_ns().saturating_add(aeris_runtime::clock::duration_ns(wait));
+    loop {
+        if let Some(sp) = setpoints.latest()?
+            && sp.active_step >= 1
+        {
+            return Ok(Some(sp.active_step));
+        }
+        if monotonic_ns() >= deadline {
+            return Ok(None);
+        }
+        aeris_runtime::role::sleep(Duration::from_millis(10));
+    }
+}
+
+/// A decision due now, and the vehicle's state it is made for (from [`ReasonerIo::poll`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DecisionDue {
+    /// When the poll that found it due began (ns, monotonic).
+    pub poll_ns: u64,
+    /// What it is based on: the fresh S_t ([`ReasonerIo::state`]), or the telemetry alone.
+    pub basis: Basis,
+    /// The vehicle's position `[N, E, U]`: from telemetry, else from the latest S_t, else
+    /// the mission's start.
+    pub position: [f32; 3],
+    /// The vehicle's yaw (rad), from the same source.
+    pub yaw: f32,
+    /// Whether the vehicle is on the ground, from the same source.
+    pub landed: bool,
+}
+
+/// A reasoning role's ports, its inputs so far and its decision numbering.
+pub struct ReasonerIo {
+    states: TypedSubscriber<PerceptionState>,
+    telemetry: TypedSubscriber<VehicleTelemetry>,
+    decisions: TypedPublisher<Decision>,
+    clock: HeartbeatClock,
+    state: Option<PerceptionState>,
+    fresh_state: bool,
+    telemetry_last: Option<VehicleTelemetry>,
+    start: [f32; 3],
+    seq: u64,
+    cycle: u64,
+    source: u32,
+}
+
+impl ReasonerIo {
+    /// Resume `planner` at the hub's active step when the flight is under way (waiting up
+    /// to [`RESUME_WAIT`] for it), then open the ports; the heartbeat clock starts now.
+    pub fn new(ctx: &mut RoleContext, planner: &mut Planner) -> Result<Self, RoleError> {
+        if let Some(step) = hub_active_step(ctx, RESUME_WAIT)? {
+            planner.resume(step);
+        }
+        Ok(Self {
+            states: ctx.bus.subscriber(topics::PERCEPTION_STATE)?,
+            telemetry: ctx.bus.subscriber(topics::VEHICLE_TELEMETRY)?,
+            decisions: ctx.bus.publisher(topics::REASONING_DECISION)?,
+            clock: HeartbeatClock::new(
+                ctx.spec.timing.heartbeat_period_ms.max(1) * 1_000_000,
+                monotonic_ns(),
+            ),
+            state: None,
+            fresh_state: false,
+            telemetry_last: None,
+            start: ctx.spec.mission.start,
+            seq: 0,
+            cycle: 0,
+            source: ctx.spec.instance,
+        })
+    }
+
+    /// Read the latest valid S_t and telemetry; when a decision is due, take it as made
+    /// now and say what it is based on.
+    pub fn poll(&mut self) -> Result<Option<DecisionDue>, RoleError> {
+        let poll_ns = monotonic_ns();
+        if let Some(s) = self.states.latest()?
+            && s.validate().is_ok()
+            && self.state.as_ref().is_none_or(|old| old.seq != s.seq)
+        {
+            self.state = Some(s);
+            self.fresh_state = true;
+        }
+        if let Some(t) = self.telemetry.latest()?
+            && t.validate().is_ok()
+        {
+            self.telemetry_last = Some(t);
+        }
+        let Some(basis) = self.clock.due(poll_ns, self.fresh_state) else {
+            return Ok(None);
+        };
+        self.fresh_state = false;
+        self.clock.decided(poll_ns);
+        let (position, yaw, landed) = match (&self.telemetry_last, &self.state) {
+            (Some(t), _) => (t.position, t.attitude[2], t.landed == 1),
+            (None, Some(s)) => (s.position, s.yaw, s.position[2] < 0.3),
+            (None, None) => (self.start, 0.0, true),
+        };
+        Ok(Some(DecisionDue {
+            poll_ns,
+            basis,
+            position,
+            yaw,
+            landed,
+        }))
+    }
+
+    /// The S_t `due` is based on; `None` for a decision on the telemetry alone (which
+    /// must not show the reasoner an old view).
+    pub fn state(&self, due: &DecisionDue) -> Option<&PerceptionState> {
+        match due.basis {
+            Basis::State => self.state.as_ref(),
+            Basis::TelemetryOnly => None,
+        }
+    }
+
+    /// The latest valid telemetry, if any came.
+    pub fn telemetry(&self) -> Option<&VehicleTelemetry> {
+        self.telemetry_last.as_ref()
+    }
+
+    /// The mission's start `[N, E, U]` (where the vehicle is before anything says otherwise).
+    pub fn start(&self) -> [f32; 3] {
+        self.start
+    }
+
+    /// The sequence number of the latest decision published (0 before the first).
+    pub fn last_seq(&self) -> u64 {
+        self.seq
+    }
+
+    /// Number `d` as this role's next cycle and stamp its timing: the cycle starts at the
+    /// capture of the S_t it is based on (at the poll, on the telemetry alone); the
+    /// reasoning at `reasoning_start_ns`.
+    pub fn stamp(&mut self, d: &mut Decision, due: &DecisionDue, reasoning_start_ns: u64) {
+        self.cycle += 1;
+        d.cycle = self.cycle;
+        d.source = self.source;
+        match self.state(due) {
+            Some(s) => {
+                d.cycle_start_ns = s.capture_ns;
+                d.state_stamp_ns = s.publish_ns;
+            }
+            None => {
+                d.cycle_start_ns = due.poll_ns;
+                d.state_stamp_ns = due.poll_ns;
+            }
+        }
+        d.reasoning_start_ns = reasoning_start_ns;
+    }
+
+    /// Publish `d`: a `seq` of 0 takes the next sequence number (any other is sent as it
+    /// is: the garbage role replays old ones). Reports the `publish` stage and the decisions
+    /// published so far as counter 0.
+    pub fn publish(&mut self, d: &mut Decision, report: &mut CycleReport) -> Result<(), RoleError> {
+        let t = monotonic_ns();
+        if d.seq == 0 {
+            self.seq += 1;
+            d.seq = self.seq;
+        }
+        d.publish_ns = monotonic_ns();
+        self.decisions.publish(d)?;
+        report.stage("publish", monotonic_ns() - t);
+        report.counters[0] = self.seq;
+        Ok(())
+    }
+}
