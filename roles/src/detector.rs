@@ -101,12 +101,12 @@ impl DetectionEngine for ModelDetection {
         let store = open_store(ctx)?;
         let file = model_file(ctx, default).to_string();
         let mut det = Detector::load(&store, &file, threads(ctx))
-            .map_err(|e| RoleError::Config(e.to_string()))?;
+            .map_err(|e| RoleError::step(format!("loading the detector {file}"), e))?;
         if let Some(s) = ctx.spec.param_f64("min_score") {
             det.min_score = s as f32;
         }
         det.warm_up()
-            .map_err(|e| RoleError::Config(format!("{file} warm-up: {e}")))?;
+            .map_err(|e| RoleError::step(format!("warming up the detector {file}"), e))?;
         Ok(Self {
             detector: Box::new(det),
             boxes: Vec::with_capacity(256),

@@ -33,6 +33,7 @@ use aeris_llm::{
     SMOLLM2_135M, StepBrief,
 };
 use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::error_chain::chain;
 use aeris_runtime::{CycleOutcome, CycleReport, MissionSpec, Role, RoleContext, RoleError};
 use aeris_schemas::Decision;
 use core::time::Duration;
@@ -119,7 +120,7 @@ impl Role for LanguageRole {
         let mut planner = mission_planner(&ctx.spec)?;
         let start = ctx.spec.mission.start;
         let mut reasoner = LanguageReasoner::load(&store, &file, brief, config)
-            .map_err(|e| RoleError::Config(format!("reasoning/{variant}: {e}")))?;
+            .map_err(|e| RoleError::step(format!("loading reasoning/{variant} from {file}"), e))?;
         // warm-up: the first decision pays for page faults and graph allocation
         // (on a copy of the planner: the flight's own starts at the first subgoal)
         let plan = DecisionView::from_decision(&planner.clone().decide(start, 0.0, true, None));
@@ -133,7 +134,7 @@ impl Role for LanguageRole {
         };
         reasoner
             .decide(&warm)
-            .map_err(|e| RoleError::Config(format!("reasoning/{variant} warm-up: {e}")))?;
+            .map_err(|e| RoleError::step(format!("warming up reasoning/{variant}"), e))?;
         // started during a flight (restart, hot swap): take the mission up where it is
         let io = ReasonerIo::new(ctx, &mut planner)?;
         Ok(Self {
@@ -178,7 +179,7 @@ impl Role for LanguageRole {
                 // no decision this heartbeat: the hub reuses the last valid one
                 self.failures += 1;
                 report.counters[3] = self.failures;
-                eprintln!("reasoning: no decision this heartbeat: {e}");
+                eprintln!("reasoning: no decision this heartbeat: {}", chain(&e));
                 return Ok(CycleOutcome::Worked);
             }
         };
