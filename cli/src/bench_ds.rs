@@ -4,8 +4,8 @@
 //! lands; the figures are taken over the cycles from the hog's landing to the end.
 
 use crate::bench_flight::FlightBenchArgs;
-use crate::flight::CycleTrace;
 use crate::run_cmd::{FlightPlan, StopRule, apply_overrides, fly};
+use aeris_flight::CycleTrace;
 use aeris_orchestrator::supervisor::SupervisorEvent;
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::affinity::CpuSet;

@@ -16,8 +16,8 @@
 //! lease at that moment (heartbeat counter 5), and the row names it; standby controllers get
 //! no rows of their own by default.
 
-use crate::flight::FlightMonitor;
 use crate::run_cmd::{FlightPlan, StopRule, apply_overrides, fly};
+use aeris_flight::FlightMonitor;
 use aeris_orchestrator::supervisor::{Supervisor, SupervisorEvent};
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::clock::monotonic_ns;

@@ -2,8 +2,8 @@
 //! `aeris bench cycle` (cycle time per stage and EER over N heartbeats) and
 //! `aeris bench swap` (hot swaps during the flight: missed heartbeats, setpoint gaps).
 
-use crate::flight::StageMeans;
 use crate::run_cmd::{FlightPlan, StopRule, apply_overrides, fly};
+use aeris_flight::StageMeans;
 use aeris_orchestrator::supervisor::{DEFAULT_SWAP_READY_TIMEOUT, Supervisor, SupervisorEvent};
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::clock::monotonic_ns;

@@ -1,6 +1,6 @@
 //! `aeris run` (the main job) and `aeris validate`.
 
-use crate::flight::{FlightMonitor, RunSummary};
+use aeris_flight::{FlightMonitor, FlightSummary};
 use aeris_orchestrator::executors::{
     AcceleratorInfo, ExecutorOrigin, ExecutorRegistry, accelerators_from,
 };
@@ -207,13 +207,13 @@ pub struct FlightPlan {
 /// How a flight went.
 pub struct FlightOutcome {
     /// The summary.
-    pub summary: RunSummary,
+    pub summary: FlightSummary,
     /// Why it ended early, if it did.
     pub failure: Option<String>,
     /// Cycle times (s) of every committed cycle.
     pub ct_samples_s: Vec<f64>,
     /// The per-cycle trace (what `cycles.jsonl` holds).
-    pub trace: Vec<crate::flight::CycleTrace>,
+    pub trace: Vec<aeris_flight::CycleTrace>,
 }
 
 /// Fly `workflow`: start the supervisor, wait for every role, then supervise until the
@@ -396,7 +396,7 @@ pub fn fly(
 }
 
 /// Write a flight's cycle trace, one JSON object per line.
-fn write_trace(path: &std::path::Path, trace: &[crate::flight::CycleTrace]) -> Result<()> {
+fn write_trace(path: &std::path::Path, trace: &[aeris_flight::CycleTrace]) -> Result<()> {
     use std::io::Write;
     let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
     for c in trace {
