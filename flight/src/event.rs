@@ -168,3 +168,22 @@ pub struct FlightStatus {
     /// Every role, once started.
     pub roles: Vec<RoleSnapshot>,
 }
+
+/// Who watches a flight ([`crate::Flight::watch`]): gets its events as they come, and may
+/// ask it to end. A closure over `&FlightEvent` is a watcher that never interrupts.
+pub trait FlightWatcher {
+    /// One event.
+    fn event(&mut self, event: &FlightEvent);
+
+    /// `true` ends the flight as [`FlightFailure::Interrupted`] (asked between events, at
+    /// least every 50 ms; e.g. once a termination signal arrived).
+    fn interrupted(&self) -> bool {
+        false
+    }
+}
+
+impl<F: FnMut(&FlightEvent)> FlightWatcher for F {
+    fn event(&mut self, event: &FlightEvent) {
+        self(event)
+    }
+}

@@ -2,7 +2,7 @@
 //! [`FlightBuilder`], which starts one.
 
 use crate::FlightFailure;
-use crate::event::{FlightEvent, FlightPhase, FlightStatus, StopRule};
+use crate::event::{FlightEvent, FlightPhase, FlightStatus, FlightWatcher, StopRule};
 use crate::hook::{FnHook, HookError, NoHook, StepContext, StepHook};
 use crate::monitor::{CycleTrace, FlightSummary};
 use crate::overrides::{OverrideError, Overrides};
@@ -11,9 +11,13 @@ use aeris_orchestrator::supervisor::SupervisorError;
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::bus::BusError;
 use std::path::{Path, PathBuf};
-use std::sync::mpsc::{self, Receiver};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
 use std::sync::{Arc, PoisonError};
 use std::thread::JoinHandle;
+use std::time::Duration;
+
+/// How often [`Flight::watch`] asks its watcher whether to interrupt the flight.
+const WATCH_POLL: Duration = Duration::from_millis(50);
 
 /// How a flight went.
 #[derive(Debug, Clone)]
@@ -275,23 +279,27 @@ impl<H: StepHook> Flight<H> {
         self.join()
     }
 
-    /// Hand every event to `on_event` as it comes, until the flight ends; then
-    /// [`Flight::wait_with_hook`].
-    pub fn watch(
-        self,
-        mut on_event: impl FnMut(&FlightEvent),
-    ) -> Result<(FlightOutcome, H), FlightError> {
-        for event in self.events.iter() {
-            on_event(&event);
+    /// Hand every event to `watcher` as it comes, and [`Flight::interrupt`] the flight
+    /// once the watcher says so, until the flight ends; then [`Flight::wait_with_hook`].
+    pub fn watch(self, watcher: &mut dyn FlightWatcher) -> Result<(FlightOutcome, H), FlightError> {
+        loop {
+            match self.events.recv_timeout(WATCH_POLL) {
+                Ok(event) => watcher.event(&event),
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => break,
+            }
+            if watcher.interrupted() {
+                self.interrupt();
+            }
         }
         self.wait_with_hook()
     }
 
+    /// Join the flight's thread (once: `wait*` consume the handle, `Drop` joins only a
+    /// thread not joined yet).
     fn join(&mut self) -> Result<(FlightOutcome, H), FlightError> {
-        match self.thread.take() {
-            Some(thread) => thread.join().map_err(|_| FlightError::Panicked)?,
-            None => Err(FlightError::Panicked),
-        }
+        let thread = self.thread.take().ok_or(FlightError::Panicked)?;
+        thread.join().map_err(|_| FlightError::Panicked)?
     }
 }
 

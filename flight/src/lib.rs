@@ -50,7 +50,8 @@ pub mod overrides;
 mod supervise;
 
 pub use event::{
-    FlightEvent, FlightFailure, FlightPhase, FlightProgress, FlightStatus, RoleSnapshot, StopRule,
+    FlightEvent, FlightFailure, FlightPhase, FlightProgress, FlightStatus, FlightWatcher,
+    RoleSnapshot, StopRule,
 };
 pub use handle::{Flight, FlightBuilder, FlightError, FlightOutcome};
 pub use hook::{FnHook, HookError, NoHook, StepContext, StepHook};
