@@ -46,16 +46,16 @@ pub enum FlightError {
     Thread(#[source] std::io::Error),
     /// The supervisor could not start the roles.
     #[error("starting the supervisor")]
-    Start(#[source] SupervisorError),
+    Start(#[source] Box<SupervisorError>),
     /// A role sent no first heartbeat in time, or stopped for good while starting.
     #[error("waiting for every role's first heartbeat")]
-    NotReady(#[source] SupervisorError),
+    NotReady(#[source] Box<SupervisorError>),
     /// The flight's hub reports, setpoints or telemetry could not be subscribed to.
     #[error("subscribing to the flight")]
     Subscribe(#[source] BusError),
     /// A supervisor step failed.
     #[error("supervising")]
-    Supervise(#[source] SupervisorError),
+    Supervise(#[source] Box<SupervisorError>),
     /// Reading the flight's hub reports, setpoints or telemetry failed.
     #[error("reading flight telemetry")]
     Telemetry(#[source] BusError),

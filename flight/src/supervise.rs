@@ -133,7 +133,7 @@ pub(crate) fn supervise<H: StepHook>(
         run_dir: run_dir.clone(),
         autopilot,
     })
-    .map_err(FlightError::Start)?;
+    .map_err(|e| FlightError::Start(Box::new(e)))?;
     if let Some(on) = dynamic {
         sup.set_dynamic(on);
     }
@@ -152,7 +152,7 @@ pub(crate) fn supervise<H: StepHook>(
     let _ = started.send(());
 
     sup.wait_ready(READY_TIMEOUT)
-        .map_err(FlightError::NotReady)?;
+        .map_err(|e| FlightError::NotReady(Box::new(e)))?;
     send(FlightEvent::Ready);
     shared.set_phase(FlightPhase::Flying);
     let mut monitor = FlightMonitor::new(sup.bus(), &mission).map_err(FlightError::Subscribe)?;
@@ -161,7 +161,9 @@ pub(crate) fn supervise<H: StepHook>(
     let mut failure: Option<FlightFailure> = None;
     let (mut swaps_done, mut swaps_failed) = (0u64, 0u64);
     loop {
-        let step_events = sup.step().map_err(FlightError::Supervise)?;
+        let step_events = sup
+            .step()
+            .map_err(|e| FlightError::Supervise(Box::new(e)))?;
         for event in &step_events {
             match event {
                 SupervisorEvent::SwapDone { .. } => swaps_done += 1,

@@ -75,7 +75,7 @@ pub enum FlightBenchError {
     NoCamera,
     /// The flight could not start, or ended with an error.
     #[error(transparent)]
-    Flight(Box<FlightError>),
+    Flight(#[from] FlightError),
     /// The flight ended before the benchmark had its figures.
     #[error("{bench}: the flight ended early: {failure}")]
     EndedEarly {
@@ -100,12 +100,6 @@ pub enum FlightBenchError {
         /// `ds-on` or `ds-off`.
         run: &'static str,
     },
-}
-
-impl From<FlightError> for FlightBenchError {
-    fn from(e: FlightError) -> Self {
-        Self::Flight(Box::new(e))
-    }
 }
 
 fn reason_text(failure: &Option<FlightFailure>) -> String {
