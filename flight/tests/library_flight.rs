@@ -3,27 +3,16 @@
 //! one dropped mid-air leave no role process behind; start-up failures come back from
 //! `start()`.
 //!
-//! Needs `target/<profile>/aeris`: run `cargo build -p aeris` first (scripts/test.sh does).
+//! Needs `target/<profile>/aeris`: run `cargo build -p aeris` first (scripts/test.sh builds
+//! the workspace before testing it).
 
 use aeris_flight::{
     Flight, FlightError, FlightEvent, FlightFailure, FlightPhase, OverrideError, Overrides,
     StopRule, VariantChoice,
 };
 use aeris_orchestrator::Workflow;
+use aeris_tests::aeris_bin;
 use std::path::PathBuf;
-
-/// `target/<profile>/aeris`, next to this test's executable.
-fn aeris_bin() -> PathBuf {
-    let exe = std::env::current_exe().unwrap();
-    // target/<profile>/deps/<test> -> target/<profile>/aeris
-    let bin = exe.parent().and_then(|d| d.parent()).unwrap().join("aeris");
-    assert!(
-        bin.exists(),
-        "{} is missing: run `cargo build -p aeris` first",
-        bin.display()
-    );
-    bin
-}
 
 fn run_dir(tag: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("aeris-flight-{tag}-{}", std::process::id()));
@@ -44,14 +33,29 @@ fn process_exists(pid: u32) -> bool {
     unsafe { libc::kill(pid as i32, 0) == 0 }
 }
 
-/// Events until `Ready` (panics on any other end).
-fn wait_until_ready(flight: &Flight) {
-    for event in flight.events().iter() {
-        if let FlightEvent::Ready = event {
-            return;
-        }
+/// Events until `Ready` (panics on any other end); then the pids of every role, each
+/// checked alive.
+fn role_pids_once_ready(flight: &Flight) -> Vec<u32> {
+    assert!(
+        flight
+            .events()
+            .iter()
+            .any(|event| matches!(event, FlightEvent::Ready)),
+        "the flight ended before every role was up"
+    );
+    let pids: Vec<u32> = flight.status().roles.iter().filter_map(|r| r.pid).collect();
+    assert!(pids.len() >= 6, "{pids:?}");
+    assert!(pids.iter().all(|&p| process_exists(p)), "{pids:?}");
+    pids
+}
+
+fn assert_all_gone(pids: &[u32]) {
+    for &pid in pids {
+        assert!(
+            !process_exists(pid),
+            "role process {pid} outlived the flight"
+        );
     }
-    panic!("the flight ended before every role was up");
 }
 
 #[test]
@@ -112,39 +116,24 @@ fn the_default_workflow_flies_to_its_goal_through_the_library() {
 #[test]
 fn a_flight_stopped_mid_air_ends_stopped_with_every_role_gone() {
     let flight = flight("stop").stop_when(StopRule::Hook).start().unwrap();
-    wait_until_ready(&flight);
-    let pids: Vec<u32> = flight.status().roles.iter().filter_map(|r| r.pid).collect();
-    assert!(pids.len() >= 6, "{pids:?}");
-    assert!(pids.iter().all(|&p| process_exists(p)));
+    let pids = role_pids_once_ready(&flight);
     flight.stop();
     flight.stop(); // idempotent
     let run_dir = flight.run_dir().to_path_buf();
     let outcome = flight.wait().unwrap();
     assert_eq!(outcome.failure, Some(FlightFailure::Stopped));
     assert_eq!(outcome.failure.unwrap().to_string(), "stopped");
-    for pid in pids {
-        assert!(
-            !process_exists(pid),
-            "role process {pid} outlived the flight"
-        );
-    }
+    assert_all_gone(&pids);
     let _ = std::fs::remove_dir_all(run_dir);
 }
 
 #[test]
 fn dropping_a_flight_stops_every_role() {
     let flight = flight("drop").stop_when(StopRule::Hook).start().unwrap();
-    wait_until_ready(&flight);
-    let pids: Vec<u32> = flight.status().roles.iter().filter_map(|r| r.pid).collect();
-    assert!(!pids.is_empty());
+    let pids = role_pids_once_ready(&flight);
     let run_dir = flight.run_dir().to_path_buf();
     drop(flight);
-    for pid in pids {
-        assert!(
-            !process_exists(pid),
-            "role process {pid} outlived the flight"
-        );
-    }
+    assert_all_gone(&pids);
     let _ = std::fs::remove_dir_all(run_dir);
 }
 
