@@ -100,13 +100,14 @@ impl EvalWatcher for EpisodePrinter {
             "[{}/{total}] {}: NE {} SR {} OSR {} nDTW {:.3} SPL {:.3} ASR {}/{} ({:.0} s{})",
             k + 1,
             line.episode_id,
-            line.ne
+            line.metrics
+                .ne
                 .map(|v| format!("{v:.1} m"))
                 .unwrap_or_else(|| "-".into()),
-            line.sr,
-            line.osr,
-            line.ndtw,
-            line.spl,
+            line.metrics.sr,
+            line.metrics.osr,
+            line.metrics.ndtw,
+            line.metrics.spl,
             line.subgoals_completed,
             line.subgoals_total,
             line.duration_s,

@@ -208,20 +208,9 @@ pub struct EpisodeLine<'a> {
     pub subgoals_completed: usize,
     /// The attention trace (distinct active steps).
     pub attention_steps: &'a [u16],
-    /// Navigation error (m).
-    pub ne: Option<f64>,
-    /// Success.
-    pub sr: f64,
-    /// Oracle success.
-    pub osr: f64,
-    /// nDTW.
-    pub ndtw: f64,
-    /// SPL.
-    pub spl: f64,
-    /// Subgoal success rate.
-    pub asr: Option<f64>,
-    /// Path length (m).
-    pub path_length_m: f64,
+    /// The paper's metrics (`ne`, `sr`, `osr`, `ndtw`, `spl`, `asr`, `path_length_m`).
+    #[serde(flatten)]
+    pub metrics: EpisodeMetrics,
     /// Flight duration (s).
     pub duration_s: f64,
     /// Mean cycle time (s).
@@ -579,13 +568,7 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
             subgoals_total,
             subgoals_completed,
             attention_steps: &summary.attention_steps,
-            ne: m.ne,
-            sr: m.sr,
-            osr: m.osr,
-            ndtw: m.ndtw,
-            spl: m.spl,
-            asr: m.asr,
-            path_length_m: m.path_length_m,
+            metrics: m,
             duration_s: summary.duration_s,
             ct_mean_s: summary.ct_mean_s,
             ct_p95_s: summary.ct_p95_s,
@@ -655,6 +638,45 @@ mod tests {
         })
         .unwrap();
         assert_eq!((oracle.label.as_str(), oracle.models), ("oracle", false));
+    }
+
+    #[test]
+    fn an_episode_line_keeps_its_keys_in_order_with_the_metrics_inline() {
+        let line = EpisodeLine {
+            episode_id: "e1",
+            scene_id: "s",
+            airspace: "open",
+            agent: "oracle",
+            instruction: "fly",
+            positions: &[[0.0, 0.0, 0.0]],
+            reference: &[],
+            goal: [1.0, 2.0, 3.0],
+            stopped: true,
+            collided: false,
+            subgoals_total: 1,
+            subgoals_completed: 1,
+            attention_steps: &[1],
+            metrics: EpisodeMetrics {
+                ne: None,
+                sr: 1.0,
+                osr: 1.0,
+                ndtw: 0.5,
+                spl: 0.25,
+                asr: Some(1.0),
+                path_length_m: 10.0,
+            },
+            duration_s: 2.0,
+            ct_mean_s: 0.1,
+            ct_p95_s: 0.2,
+            eer: 0.0,
+            failure: None,
+            variant_steps: 0,
+            run_dir: Path::new("runs/x"),
+        };
+        assert_eq!(
+            serde_json::to_string(&line).unwrap(),
+            r#"{"episode_id":"e1","scene_id":"s","airspace":"open","agent":"oracle","instruction":"fly","positions":[[0.0,0.0,0.0]],"reference":[],"goal":[1.0,2.0,3.0],"stopped":true,"collided":false,"subgoals_total":1,"subgoals_completed":1,"attention_steps":[1],"ne":null,"sr":1.0,"osr":1.0,"ndtw":0.5,"spl":0.25,"asr":1.0,"path_length_m":10.0,"duration_s":2.0,"ct_mean_s":0.1,"ct_p95_s":0.2,"eer":0.0,"failure":null,"variant_steps":0,"run_dir":"runs/x"}"#
+        );
     }
 
     #[test]
