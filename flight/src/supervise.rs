@@ -218,7 +218,10 @@ pub(crate) fn supervise<H: StepHook>(
                 send(FlightEvent::InvalidReports(monitor.invalid_reports()));
             }
         }
-        shared.set_roles(&sup);
+        // a role's process, state, variant or CPUs change only with an event
+        if !step_events.is_empty() {
+            shared.set_roles(&sup);
+        }
         shared.update(|s| s.progress = Some(progress));
         std::thread::sleep(STEP_PERIOD);
     }

@@ -166,3 +166,41 @@ fn start_up_failures_come_back_from_start() {
     );
     let _ = std::fs::remove_dir_all(run_dir("no-exe"));
 }
+
+#[test]
+fn a_step_hook_ends_the_flight_or_fails_it_with_its_own_error() {
+    // a closure hook sees the monitor every step; returning true ends the flight, unfailed
+    let ended = flight("hook-ends")
+        .stop_when(StopRule::Hook)
+        .on_step(|ctx| Ok(ctx.monitor.cycles() >= 2))
+        .start()
+        .unwrap();
+    let run_dir = ended.run_dir().to_path_buf();
+    let outcome = ended.wait().unwrap();
+    assert_eq!(outcome.failure, None);
+    assert!(outcome.summary.cycles >= 2, "{:?}", outcome.summary);
+    let _ = std::fs::remove_dir_all(run_dir);
+
+    // an error of the hook ends the flight and comes back from wait() as it was
+    let failing = flight("hook-fails")
+        .stop_when(StopRule::Hook)
+        .on_step(|_| Err("the hook gave up".into()))
+        .start()
+        .unwrap();
+    let run_dir = failing.run_dir().to_path_buf();
+    let pids: Vec<u32> = failing
+        .status()
+        .roles
+        .iter()
+        .filter_map(|r| r.pid)
+        .collect();
+    match failing.wait() {
+        Err(e @ FlightError::Hook(_)) => assert_eq!(e.to_string(), "the hook gave up"),
+        other => panic!(
+            "expected the hook's error, got {:?}",
+            other.map(|o| o.failure)
+        ),
+    }
+    assert_all_gone(&pids);
+    let _ = std::fs::remove_dir_all(run_dir);
+}
