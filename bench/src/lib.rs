@@ -1,4 +1,4 @@
-//! Benchmarks: IPC ping-pong, gate cost, controller jitter.
+//! Benchmarks: IPC ping-pong, gate cost, controller jitter, model costs, flights.
 //!
 //! - [`ipc`]: two-process round trips of 64 B to 6 MB payloads over iceoryx2 zero-copy
 //!   publish-subscribe (busy-poll and event wake-up) and over a Unix domain socket that copies.
@@ -7,6 +7,9 @@
 //!   control rate, alone and with a CPU hog on every core, under SCHED_FIFO where permitted.
 //! - [`models`]: load time, latency and memory of every model a role hosts, each in a
 //!   process of its own.
+//! - [`flights`]: benchmarks that fly the pipeline end to end as supervised flights
+//!   (`aeris-flight`): cycle time and EER, hot swaps, the fault table, dynamic scheduling
+//!   under a CPU hog.
 //!
 //! Every benchmark returns a report struct (serde `Serialize`); printing is the caller's job.
 
@@ -14,6 +17,7 @@
 
 pub mod control;
 pub mod error;
+pub mod flights;
 pub mod gate;
 pub mod ipc;
 pub mod models;

@@ -6,7 +6,7 @@ mod bench_faults;
 mod bench_flight;
 mod bench_models;
 mod eval_cmd;
-mod flight;
+mod flight_print;
 mod inspect;
 mod plot_cmd;
 mod run_cmd;

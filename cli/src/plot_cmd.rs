@@ -5,8 +5,8 @@
 //! supervisor wrote, mission included). `aeris eval` records each episode's run folder in
 //! episodes.jsonl (`run_dir`).
 
-use crate::flight::CycleTrace;
 use aeris_eval::plot::{TimingBar, fpv_strip, save_png, timing_chart};
+use aeris_flight::CycleTrace;
 use aeris_runtime::RoleSpec;
 use aeris_sim::render::{CAMERA_MOUNT_HEIGHT_M, Renderer};
 use aeris_sim::world::World;

@@ -1,19 +1,15 @@
 //! `aeris run` (the main job) and `aeris validate`.
 
-use crate::flight::{FlightMonitor, RunSummary};
-use aeris_orchestrator::executors::{
-    AcceleratorInfo, ExecutorOrigin, ExecutorRegistry, accelerators_from,
-};
-use aeris_orchestrator::plan_launch;
-use aeris_orchestrator::supervisor::{Supervisor, SupervisorEvent, SupervisorOptions};
+use crate::bench_flight::variant_choices;
+use crate::flight_print::FlightPrinter;
+use aeris_flight::executors::{accelerator_line, planned_registry};
+use aeris_flight::{Flight, Overrides, StopRule};
+use aeris_orchestrator::executors::ExecutorOrigin;
 use aeris_orchestrator::workflow::Workflow;
-use aeris_runtime::affinity::CpuSet;
-use aeris_runtime::signals;
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::Args;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::{Duration, Instant};
 
 /// Arguments of `aeris run`.
 #[derive(Debug, Args)]
@@ -78,13 +74,7 @@ pub fn validate(path: &Path) -> Result<ExitCode> {
         );
     }
     // the executor registry a flight of it would start with
-    let online = CpuSet::of_task(0).unwrap_or_else(|_| CpuSet::available());
-    let plan =
-        plan_launch(&w, "validate", None, &online, || Ok(0)).context("resolving the executors")?;
-    let mut registry = ExecutorRegistry::discover(&plan.executors, &online);
-    if let Some((providers, accelerators)) = onnx_accelerators() {
-        registry.set_accelerators(providers, accelerators);
-    }
+    let registry = planned_registry(&w).context("resolving the executors")?;
     println!("executors:");
     for e in registry.executors() {
         let origin = match e.origin {
@@ -97,346 +87,33 @@ pub fn validate(path: &Path) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// What the provisioned ONNX Runtime reports: its execution providers and the accelerator
-/// devices they found; `None` when no runtime is provisioned (the flight needs none unless
-/// it runs model roles).
-pub fn onnx_accelerators() -> Option<(Vec<String>, Vec<AcceleratorInfo>)> {
-    let store = aeris_models::ModelStore::open(None).ok()?;
-    let report = aeris_models::execution_providers(&store).ok()?;
-    let devices: Vec<(String, String, String, u32)> = report
-        .devices
-        .iter()
-        .map(|d| {
-            (
-                d.provider.clone(),
-                d.kind.as_str().to_string(),
-                d.vendor.clone(),
-                d.device_id,
-            )
-        })
-        .collect();
-    Some((report.providers, accelerators_from(&devices)))
-}
-
-/// One line on the registry's accelerators, for logs.
-pub fn accelerator_line(registry: &ExecutorRegistry) -> String {
-    let Some(providers) = registry.providers() else {
-        return "accelerators: unknown (no provisioned ONNX Runtime to ask)".into();
-    };
-    let providers = providers
-        .iter()
-        .map(|p| p.strip_suffix("ExecutionProvider").unwrap_or(p))
-        .collect::<Vec<_>>()
-        .join(", ");
-    if registry.accelerators().is_empty() {
-        return format!("accelerators: none (ONNX Runtime providers: {providers})");
-    }
-    let list = registry
-        .accelerators()
-        .iter()
-        .map(|a| format!("{} ({} {} via {})", a.name, a.vendor, a.kind, a.provider))
-        .collect::<Vec<_>>()
-        .join(", ");
-    format!("accelerators: {list} (ONNX Runtime providers: {providers})")
-}
-
-/// Apply `--variant ROLE=VARIANT` overrides and `--max-duration` to a workflow.
-pub fn apply_overrides(
-    workflow: &mut Workflow,
-    variants: &[String],
-    max_duration: Option<f64>,
-) -> Result<()> {
-    for v in variants {
-        let Some((role, variant)) = v.split_once('=') else {
-            bail!("--variant expects ROLE=VARIANT, got `{v}`");
-        };
-        let decl = workflow
-            .roles
-            .iter_mut()
-            .find(|r| r.name == role)
-            .with_context(|| format!("--variant: the workflow has no role `{role}`"))?;
-        decl.variant = variant.to_string();
-        if !decl.variants.iter().any(|x| x == variant) {
-            decl.variants.push(variant.to_string());
-        }
-        // a variant chosen by hand off the role's ladder: the role keeps it
-        if !decl.ladder.iter().any(|x| x == variant) {
-            decl.ladder.clear();
-        }
-    }
-    if let Some(s) = max_duration {
-        if !(s > 0.0 && s.is_finite()) {
-            bail!("--max-duration must be a positive number of seconds");
-        }
-        workflow.mission.max_duration_s = s;
-    }
-    workflow.validate().context("workflow")
-}
-
-/// When [`fly`] ends the flight (besides a failure or Ctrl-C).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum StopRule {
-    /// When the vehicle reached the goal (the main job).
-    Goal,
-    /// After this many semantic cycles (benchmarks: heartbeats, goal or not).
-    Cycles(u64),
-    /// When the vehicle is on the ground after having flown, wherever that is (VLN
-    /// episodes: the agent stopped).
-    Landed,
-    /// Only when the step hook says so (benchmarks that inject faults and then fly on).
-    Hook,
-}
-
-/// What a flight needs besides its workflow.
-#[derive(Debug, Clone)]
-pub struct FlightPlan {
-    /// Flight name (namespace prefix).
-    pub flight: String,
-    /// Specs and logs.
-    pub run_dir: PathBuf,
-    /// External autopilot URL.
-    pub autopilot: Option<String>,
-    /// When to end.
-    pub stop: StopRule,
-    /// Print progress to stderr every 2 s.
-    pub progress: bool,
-    /// Dynamic scheduling: `Some(false)` turns the workflow's `[scheduling] dynamic` off,
-    /// `Some(true)` on, `None` keeps it.
-    pub dynamic: Option<bool>,
-}
-
-/// How a flight went.
-pub struct FlightOutcome {
-    /// The summary.
-    pub summary: RunSummary,
-    /// Why it ended early, if it did.
-    pub failure: Option<String>,
-    /// Cycle times (s) of every committed cycle.
-    pub ct_samples_s: Vec<f64>,
-    /// The per-cycle trace (what `cycles.jsonl` holds).
-    pub trace: Vec<crate::flight::CycleTrace>,
-}
-
-/// Fly `workflow`: start the supervisor, wait for every role, then supervise until the
-/// stop rule, a failure, the mission's time limit or Ctrl-C; `each_step` sees the
-/// supervisor, the monitor and the step's events (benchmarks trigger swaps from it) and
-/// returns `true` to end the flight.
-pub fn fly(
-    workflow: Workflow,
-    plan: &FlightPlan,
-    mut each_step: impl FnMut(&mut Supervisor, &FlightMonitor, &[SupervisorEvent]) -> Result<bool>,
-) -> Result<FlightOutcome> {
-    let flight = plan.flight.clone();
-    let aeris_exe = std::env::current_exe().context("locating the aeris binary")?;
-    signals::install_termination_handlers().context("installing signal handlers")?;
-
-    let mission = workflow.mission.clone();
-    let max_duration = Duration::from_secs_f64(mission.max_duration_s);
-    let mut sup = Supervisor::start(SupervisorOptions {
-        workflow,
-        flight: flight.clone(),
-        aeris_exe,
-        run_dir: plan.run_dir.clone(),
-        autopilot: plan.autopilot.clone(),
-    })
-    .with_context(|| format!("starting flight `{flight}`"))?;
-    eprintln!(
-        "aeris: flight {flight}: {} roles started (logs in {})",
-        sup.roles().len(),
-        plan.run_dir.join("logs").display()
-    );
-    eprintln!("aeris: mission: {}", mission.instruction);
-    if let Some(on) = plan.dynamic {
-        sup.set_dynamic(on);
-    }
-    if let Some((providers, accelerators)) = onnx_accelerators() {
-        sup.set_accelerators(providers, accelerators);
-    }
-    eprintln!("aeris: {}", accelerator_line(sup.registry()));
-    sup.wait_ready(Duration::from_secs(60))
-        .context("waiting for every role's first heartbeat")?;
-
-    let mut monitor =
-        FlightMonitor::new(sup.bus(), &mission).context("subscribing to the flight")?;
-    let start = Instant::now();
-    let mut last_progress = Instant::now();
-    let mut failure: Option<String> = None;
-    let (mut swaps_done, mut swaps_failed) = (0u64, 0u64);
-    loop {
-        let events = sup.step().context("supervising")?;
-        for event in &events {
-            match event {
-                SupervisorEvent::SwapStarted { .. } | SupervisorEvent::SwapReady { .. } => {
-                    eprintln!("aeris: {event}");
-                }
-                SupervisorEvent::SwapDone { .. } => {
-                    swaps_done += 1;
-                    eprintln!("aeris: {event}");
-                }
-                SupervisorEvent::SwapFailed { .. } => {
-                    swaps_failed += 1;
-                    eprintln!("aeris: {event}");
-                }
-                SupervisorEvent::RoleGaveUp { name } => {
-                    failure = Some(format!("role `{name}` exhausted its restart budget"));
-                }
-                SupervisorEvent::RoleRestarted {
-                    name,
-                    pid,
-                    restarts,
-                } => {
-                    eprintln!("aeris: restarted {name} (pid {pid}, restart #{restarts})");
-                }
-                SupervisorEvent::RoleExited { name, status } => {
-                    eprintln!("aeris: role {name} exited: {status}");
-                }
-                SupervisorEvent::RoleMigrated(_)
-                | SupervisorEvent::MigrationFailed { .. }
-                | SupervisorEvent::RoleStalled { .. }
-                | SupervisorEvent::ServiceLost { .. }
-                | SupervisorEvent::VariantStepped { .. }
-                | SupervisorEvent::BindingProbed { .. }
-                | SupervisorEvent::InitialBinding { .. } => eprintln!("aeris: {event}"),
-                _ => {}
-            }
-        }
-        monitor.poll().context("reading flight telemetry")?;
-        let hook_done = each_step(&mut sup, &monitor, &events)?;
-        let (step, steps) = monitor.active_step();
-        let distance = monitor.distance_to_goal();
-        sup.set_progress(
-            step,
-            steps,
-            distance.unwrap_or(-1.0),
-            monitor.ct_mean_s() as f32,
-        );
-        let done = match plan.stop {
-            StopRule::Goal => monitor.reached_goal(),
-            StopRule::Cycles(n) => monitor.cycles() >= n,
-            StopRule::Landed => monitor.landed_after_flight(),
-            StopRule::Hook => false,
-        };
-        if done || hook_done || failure.is_some() {
-            break;
-        }
-        if start.elapsed() > max_duration {
-            failure = Some(match plan.stop {
-                StopRule::Goal => format!(
-                    "the goal was not reached within {:.0} s",
-                    max_duration.as_secs_f64()
-                ),
-                StopRule::Cycles(n) => format!(
-                    "{n} cycles did not complete within {:.0} s",
-                    max_duration.as_secs_f64()
-                ),
-                StopRule::Landed => format!(
-                    "the vehicle did not land within {:.0} s",
-                    max_duration.as_secs_f64()
-                ),
-                StopRule::Hook => format!(
-                    "the benchmark did not finish within {:.0} s",
-                    max_duration.as_secs_f64()
-                ),
-            });
-            break;
-        }
-        if signals::termination_requested() {
-            failure = Some("interrupted".into());
-            break;
-        }
-        if plan.progress && last_progress.elapsed() >= Duration::from_secs(2) {
-            last_progress = Instant::now();
-            let text = usize::from(step)
-                .checked_sub(1)
-                .and_then(|i| mission.subgoals.get(i))
-                .map(|s| s.text.as_str())
-                .unwrap_or("waiting for the first decision");
-            let pos = monitor.position().unwrap_or([f32::NAN; 3]);
-            eprintln!(
-                "[{:6.1} s] step {step}/{steps} \"{text}\"  distance to goal {}  alt {:.1} m  CT {:.3} s  EER {:.1}%  rejected {}  restarts {}",
-                start.elapsed().as_secs_f64(),
-                distance
-                    .map(|d| format!("{d:.1} m"))
-                    .unwrap_or_else(|| "?".into()),
-                pos[2],
-                monitor.ct_mean_s(),
-                monitor.eer() * 100.0,
-                monitor.rejected(),
-                sup.total_restarts(),
-            );
-            if monitor.invalid_reports() > 0 {
-                eprintln!(
-                    "aeris: {} hub reports failed validation and were not counted",
-                    monitor.invalid_reports()
-                );
-            }
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let duration = start.elapsed().as_secs_f64();
-    let _ = monitor.poll();
-    let restarts = sup.total_restarts();
-    let mut summary = monitor.summary(&flight, duration, restarts as u64);
-    summary.migrations = u64::from(sup.total_migrations());
-    summary.variant_steps = u64::from(sup.total_variant_steps());
-    summary.stalls = sup.roles().iter().map(|r| u64::from(r.stalls())).sum();
-    summary.swaps_done = swaps_done;
-    summary.swaps_failed = swaps_failed;
-    let report = sup.shutdown(Duration::from_secs(3));
-    eprintln!("aeris: shutdown: {report}");
-    let trace_path = plan.run_dir.join("cycles.jsonl");
-    write_trace(&trace_path, monitor.trace())
-        .with_context(|| format!("writing {}", trace_path.display()))?;
-    let ct_samples_s = monitor.ct_samples_s().to_vec();
-    Ok(FlightOutcome {
-        summary,
-        failure,
-        ct_samples_s,
-        trace: monitor.trace().to_vec(),
-    })
-}
-
-/// Write a flight's cycle trace, one JSON object per line.
-fn write_trace(path: &std::path::Path, trace: &[crate::flight::CycleTrace]) -> Result<()> {
-    use std::io::Write;
-    let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
-    for c in trace {
-        serde_json::to_writer(&mut out, c)?;
-        out.write_all(b"\n")?;
-    }
-    out.flush()?;
-    Ok(())
-}
-
 /// `aeris run`.
 pub fn run(args: RunArgs) -> Result<ExitCode> {
-    let mut workflow = load(args.workflow.as_deref())?;
-    apply_overrides(&mut workflow, &args.variant, args.max_duration)?;
-    if args.fixed_variants {
-        workflow.scheduling.adapt_variants = false;
-    }
-    let flight = args
-        .flight
-        .clone()
-        .unwrap_or_else(|| format!("flight-{}", std::process::id()));
-    let run_dir = args
-        .run_dir
-        .clone()
-        .unwrap_or_else(|| std::env::temp_dir().join("aeris").join(&flight));
-    let plan = FlightPlan {
-        flight: flight.clone(),
-        run_dir,
-        autopilot: args.autopilot.clone(),
-        stop: StopRule::Goal,
-        progress: true,
+    let workflow = load(args.workflow.as_deref())?;
+    let overrides = Overrides {
+        variants: variant_choices(&args.variant)?,
+        max_duration_s: args.max_duration,
         dynamic: args.no_ds.then_some(false),
+        fixed_variants: args.fixed_variants,
     };
-    let FlightOutcome {
-        summary, failure, ..
-    } = fly(workflow, &plan, |_, _, _| Ok(false))?;
+    let mut flight = Flight::builder(workflow)
+        .autopilot(args.autopilot.clone())
+        .overrides(overrides)
+        .stop_when(StopRule::Goal);
+    if let Some(name) = &args.flight {
+        flight = flight.name(name);
+    }
+    if let Some(dir) = &args.run_dir {
+        flight = flight.run_dir(dir);
+    }
+    let mut printer = FlightPrinter::new(true, "")?;
+    let flight = flight.start()?;
+    let name = flight.name().to_string();
+    let (outcome, _) = flight.watch(&mut printer)?;
+    let (summary, failure) = (outcome.summary, outcome.failure);
 
     println!(
-        "flight {flight}: {}",
+        "flight {name}: {}",
         if summary.reached_goal {
             "goal reached"
         } else {

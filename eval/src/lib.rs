@@ -8,7 +8,9 @@
 //!   and `test_unseen` splits whose scenes do not overlap;
 //! - [`metrics`]: NE, SR, OSR, nDTW, SPL and ASR, exactly as the paper defines them;
 //! - [`mission`]: the mission G an agent is given for an episode (oracle, random);
-//! - [`plot`]: top-down maps of a scene with trajectories, as PNG.
+//! - [`plot`]: top-down maps of a scene with trajectories, as PNG;
+//! - [`runner`]: episodes flown through the full multi-process pipeline (a supervised
+//!   flight of `aeris-flight` each) and scored, per airspace (`aeris eval`).
 
 #![deny(missing_docs)]
 
@@ -17,3 +19,4 @@ pub mod generate;
 pub mod metrics;
 pub mod mission;
 pub mod plot;
+pub mod runner;

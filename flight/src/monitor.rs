@@ -1,4 +1,5 @@
-//! Watching a flight from the outside: hub reports and telemetry -> progress and summary.
+//! Watching a flight from the outside: hub reports, setpoints and telemetry -> progress,
+//! the per-cycle trace and the summary.
 
 use aeris_runtime::MissionSpec;
 use aeris_runtime::bus::{BusError, FlightBus, TypedSubscriber};
@@ -8,7 +9,7 @@ use serde::Serialize;
 
 /// What a finished flight reports (`aeris run --json` prints this as one line).
 #[derive(Debug, Clone, Serialize)]
-pub struct RunSummary {
+pub struct FlightSummary {
     /// Flight name (namespace prefix).
     pub flight: String,
     /// The vehicle ended within the acceptance radius of the goal (and landed, for a land goal).
@@ -434,11 +435,11 @@ impl FlightMonitor {
     }
 
     /// The summary of the flight so far.
-    pub fn summary(&self, flight: &str, duration_s: f64, role_restarts: u64) -> RunSummary {
+    pub fn summary(&self, flight: &str, duration_s: f64, role_restarts: u64) -> FlightSummary {
         let (ct_mean, ct_std) = mean_std(&self.ct_s).unwrap_or((0.0, 0.0));
         let n = self.ct_s.len().max(1) as f64;
         let p = self.position().unwrap_or([f32::NAN; 3]);
-        RunSummary {
+        FlightSummary {
             flight: flight.to_string(),
             reached_goal: self.reached_goal(),
             final_distance_m: self.distance_to_goal().map(f64::from).unwrap_or(f64::NAN),

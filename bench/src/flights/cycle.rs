@@ -1,0 +1,121 @@
+//! `aeris bench cycle`: the model flight end to end over N heartbeats: cycle time per
+//! stage (mean, std, p95), EER, each role's heartbeat latency.
+
+use super::{
+    FlightBenchConfig, FlightBenchError, flight_name_and_dir, load_workflow, role_latencies,
+    with_variants,
+};
+use aeris_flight::{Flight, FlightWatcher, HookError, StageMeans, StepContext, StepHook, StopRule};
+use serde::Serialize;
+
+/// Settings of `aeris bench cycle`.
+#[derive(Debug, Clone)]
+pub struct CycleConfig {
+    /// Semantic heartbeats (committed or reused cycles) to measure.
+    pub heartbeats: u64,
+    /// The flight.
+    pub flight: FlightBenchConfig,
+}
+
+/// One role's latency over the flight, from its heartbeats.
+#[derive(Debug, Clone, Serialize)]
+pub struct RoleLatency {
+    /// Role name.
+    pub role: String,
+    /// Variant.
+    pub variant: String,
+    /// Cycle latency p50 (ms).
+    pub p50_ms: f64,
+    /// Cycle latency p95 (ms).
+    pub p95_ms: f64,
+}
+
+/// `aeris bench cycle --json`.
+#[derive(Debug, Serialize)]
+pub struct CycleReport {
+    /// Heartbeats measured (committed + reused cycles).
+    pub heartbeats: u64,
+    /// The reasoning variant flown.
+    pub reasoning: String,
+    /// Mean cycle time, frame capture -> committed decision (s).
+    pub ct_mean_s: f64,
+    /// Its standard deviation (s).
+    pub ct_std_s: f64,
+    /// Its 95th percentile (s).
+    pub ct_p95_s: f64,
+    /// Execution error rate: heartbeats that reused the last valid decision.
+    pub eer: f64,
+    /// Mean per stage (s): perception, reasoning, routing, binding.
+    pub stages: StageMeans,
+    /// Each role's cycle latency from its heartbeats.
+    pub roles: Vec<RoleLatency>,
+    /// Decisions that arrived after the deadline.
+    pub decisions_late: u64,
+    /// Controller ticks that missed their deadline.
+    pub controller_missed_ticks: u64,
+}
+
+/// Keeps the roles' latest heartbeat latencies.
+#[derive(Default)]
+struct LatencyWatch {
+    roles: Vec<RoleLatency>,
+}
+
+impl StepHook for LatencyWatch {
+    fn step(&mut self, ctx: &mut StepContext<'_>) -> Result<bool, HookError> {
+        self.roles = role_latencies(ctx.supervisor);
+        Ok(false)
+    }
+}
+
+/// Fly the benchmark; `watcher` gets every event of the flight.
+pub fn run(
+    config: &CycleConfig,
+    watcher: &mut dyn FlightWatcher,
+) -> Result<CycleReport, FlightBenchError> {
+    if config.heartbeats == 0 {
+        return Err(FlightBenchError::Settings(
+            "heartbeats must be at least 1".into(),
+        ));
+    }
+    let mut w = with_variants(load_workflow(&config.flight)?, &config.flight)?;
+    let reasoning = w
+        .roles
+        .iter()
+        .find(|r| r.kind == "reasoning")
+        .map(|r| r.variant.clone())
+        .unwrap_or_default();
+    // time for N heartbeats, whatever the mission does meanwhile (it lands and waits)
+    let period_s = w.timing.heartbeat_period_ms as f64 / 1000.0;
+    w.mission.max_duration_s = w
+        .mission
+        .max_duration_s
+        .max(config.heartbeats as f64 * period_s * 3.0 + 60.0);
+    let (name, run_dir) = flight_name_and_dir("cycle", config.flight.run_dir.clone());
+    let (outcome, watch) = Flight::builder(w)
+        .name(name)
+        .run_dir(run_dir)
+        .stop_when(StopRule::Cycles(config.heartbeats))
+        .step_hook(LatencyWatch::default())
+        .start()?
+        .watch(watcher)?;
+    if let Some(failure) = outcome.failure {
+        return Err(FlightBenchError::EndedEarly {
+            bench: "bench cycle".into(),
+            failure,
+        });
+    }
+    let s = outcome.summary;
+    Ok(CycleReport {
+        heartbeats: s.cycles,
+        reasoning,
+        ct_mean_s: s.ct_mean_s,
+        ct_std_s: s.ct_std_s,
+        ct_p95_s: s.ct_p95_s,
+        eer: s.eer,
+        stages: s.stages_mean_s,
+        roles: watch.roles,
+        decisions_late: s.decisions_late,
+        controller_missed_ticks: s.controller_missed_ticks,
+    })
+}

@@ -1,0 +1,723 @@
+//! Flying VLN episodes through the full multi-process pipeline (one supervised flight of
+//! [`aeris_flight`] per episode) and scoring them: `aeris eval`.
+
+use crate::episode::{Episode, EpisodeError, load_episodes};
+use crate::generate::{AirspaceFilter, GenerateError, Split, generate_split};
+use crate::metrics::{EpisodeMetrics, EpisodeRun, MetricsSummary};
+use crate::mission::{Agent, MissionError, episode_mission};
+use aeris_flight::{
+    Flight, FlightError, FlightWatcher, HookError, Overrides, StepContext, StepHook, StopRule,
+};
+use aeris_orchestrator::workflow::{Workflow, WorkflowError};
+use aeris_runtime::MissionSpec;
+use aeris_runtime::stats::{mean_std, percentile};
+use aeris_sim::world::World;
+use serde::Serialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Who flies and how, as asked (`aeris eval --baseline --reasoning --perception ...`).
+#[derive(Debug, Clone, Default)]
+pub struct AgentOptions {
+    /// A baseline instead of AERIS: `oracle` or `random`.
+    pub baseline: Option<String>,
+    /// Reasoning variant of the AERIS agent: `planner` (default), `smollm2` or `gemma3`.
+    pub reasoning: Option<String>,
+    /// Perception of the AERIS agent: `models` (default) or `geometric`.
+    pub perception: Option<String>,
+    /// Ablation: the hub's ATT off.
+    pub no_att: bool,
+    /// Ablation: the language model without the planner's plan in its prompt.
+    pub zero_shot: bool,
+    /// Ablation: the variant ladder off (one fixed model).
+    pub single_slm: bool,
+    /// Ablation: dynamic scheduling off.
+    pub no_ds: bool,
+}
+
+/// Who flies and how, resolved.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct AgentSetup {
+    /// The agent.
+    pub agent: Agent,
+    /// Reasoning variant of the flights.
+    pub reasoning: String,
+    /// The hub's ATT off.
+    pub no_att: bool,
+    /// The language model without the planner's plan.
+    pub zero_shot: bool,
+    /// Dynamic scheduling off in every flight.
+    pub no_ds: bool,
+    /// The variant ladder off in every flight (Single-SLM).
+    pub single_slm: bool,
+    /// Fly with the model perception roles (else the geometric one).
+    pub models: bool,
+    /// `aeris-planner`, `aeris-smollm2-zero-shot`, `oracle`, ...: the `agent` of
+    /// episodes.jsonl and the default output folder's suffix.
+    pub label: String,
+}
+
+/// Why the agent options do not make an agent.
+#[derive(Debug, thiserror::Error)]
+pub enum AgentError {
+    /// The baseline is not one this evaluation has.
+    #[error("unknown baseline `{0}`: use oracle or random")]
+    UnknownBaseline(String),
+    /// AERIS-only options given with a baseline.
+    #[error(
+        "--reasoning, --perception, --no-att, --no-ds, --single-slm and --zero-shot apply to the AERIS agent, not to a --baseline"
+    )]
+    BaselineWithAerisOptions,
+    /// The perception is not one this evaluation has.
+    #[error("unknown perception `{0}`: use models or geometric")]
+    UnknownPerception(String),
+    /// The reasoning variant is not one this evaluation has.
+    #[error("unknown reasoning variant `{0}`: use planner, smollm2 or gemma3")]
+    UnknownReasoning(String),
+    /// Zero-shot asked of a reasoner that is not a language model.
+    #[error("--zero-shot ablates the language model's plan: use --reasoning smollm2 or gemma3")]
+    ZeroShotWithoutLanguageModel,
+}
+
+impl AgentSetup {
+    /// Resolve `options` into an agent (defaults filled in, combinations checked).
+    pub fn resolve(options: &AgentOptions) -> Result<Self, AgentError> {
+        let agent = match &options.baseline {
+            None => Agent::Aeris,
+            Some(name) => match Agent::parse(name) {
+                Some(a @ (Agent::Oracle | Agent::Random)) => a,
+                _ => return Err(AgentError::UnknownBaseline(name.clone())),
+            },
+        };
+        if agent != Agent::Aeris
+            && (options.reasoning.is_some()
+                || options.no_att
+                || options.zero_shot
+                || options.no_ds
+                || options.single_slm
+                || options.perception.is_some())
+        {
+            return Err(AgentError::BaselineWithAerisOptions);
+        }
+        let models = match options.perception.as_deref() {
+            None => agent == Agent::Aeris,
+            Some("models") => true,
+            Some("geometric") => false,
+            Some(other) => return Err(AgentError::UnknownPerception(other.to_string())),
+        };
+        let reasoning = match (&options.reasoning, options.zero_shot) {
+            (Some(r), _) => r.clone(),
+            (None, true) => "smollm2".to_string(),
+            (None, false) => agent.reasoning_variant().to_string(),
+        };
+        let language = matches!(reasoning.as_str(), "smollm2" | "gemma3");
+        if agent == Agent::Aeris && !(language || reasoning == "planner") {
+            return Err(AgentError::UnknownReasoning(reasoning));
+        }
+        if options.zero_shot && !language {
+            return Err(AgentError::ZeroShotWithoutLanguageModel);
+        }
+        let label = match agent {
+            Agent::Aeris => {
+                let mut l = format!("aeris-{reasoning}");
+                if !models {
+                    l.push_str("-geometric");
+                }
+                if options.no_att {
+                    l.push_str("-no-att");
+                }
+                if options.zero_shot {
+                    l.push_str("-zero-shot");
+                }
+                if options.no_ds {
+                    l.push_str("-no-ds");
+                }
+                if options.single_slm {
+                    l.push_str("-single-slm");
+                }
+                l
+            }
+            a => a.as_str().to_string(),
+        };
+        Ok(Self {
+            agent,
+            reasoning,
+            no_att: options.no_att,
+            zero_shot: options.zero_shot,
+            no_ds: options.no_ds,
+            single_slm: options.single_slm,
+            models,
+            label,
+        })
+    }
+}
+
+/// Where the episodes come from.
+#[derive(Debug, Clone)]
+pub enum EpisodeSource {
+    /// Generate a split over these airspaces.
+    Generate {
+        /// The split.
+        split: Split,
+        /// Open, dense or both.
+        airspace: AirspaceFilter,
+    },
+    /// Load an episode file (ours or AerialVLN's; its scenes must be ones this simulator has).
+    File(PathBuf),
+}
+
+/// What `aeris eval` flies.
+#[derive(Debug, Clone)]
+pub struct EvalConfig {
+    /// The agent.
+    pub agent: AgentSetup,
+    /// The episodes.
+    pub source: EpisodeSource,
+    /// Episodes to fly (at least 1; a file is cut to this many).
+    pub episodes: usize,
+    /// Output folder for episodes.jsonl and the flights' run folders.
+    pub out: PathBuf,
+}
+
+/// One line of episodes.jsonl.
+#[derive(Debug, Serialize)]
+pub struct EpisodeLine<'a> {
+    /// Episode id.
+    pub episode_id: &'a str,
+    /// Scene id.
+    pub scene_id: &'a str,
+    /// `open`, `dense` or `unknown`.
+    pub airspace: &'a str,
+    /// The agent's label.
+    pub agent: &'a str,
+    /// The instruction.
+    pub instruction: &'a str,
+    /// Positions kept (one per AerialVLN action step, and the final one).
+    pub positions: &'a [[f64; 3]],
+    /// The reference path.
+    pub reference: &'a [[f64; 3]],
+    /// The goal.
+    pub goal: [f64; 3],
+    /// The agent stopped (no failure).
+    pub stopped: bool,
+    /// The vehicle touched an obstacle.
+    pub collided: bool,
+    /// Subgoals of the episode.
+    pub subgoals_total: usize,
+    /// Subgoals completed.
+    pub subgoals_completed: usize,
+    /// The attention trace (distinct active steps).
+    pub attention_steps: &'a [u16],
+    /// The paper's metrics (`ne`, `sr`, `osr`, `ndtw`, `spl`, `asr`, `path_length_m`).
+    #[serde(flatten)]
+    pub metrics: EpisodeMetrics,
+    /// Flight duration (s).
+    pub duration_s: f64,
+    /// Mean cycle time (s).
+    pub ct_mean_s: f64,
+    /// 95th percentile of the cycle time (s).
+    pub ct_p95_s: f64,
+    /// Execution error rate.
+    pub eer: f64,
+    /// Why the flight ended early, if it did.
+    pub failure: Option<&'a str>,
+    /// Automatic variant swaps (the role-adaptive stack's steps) during the flight.
+    pub variant_steps: u64,
+    /// The flight's run folder: cycles.jsonl, role specs and logs (`aeris plot`).
+    pub run_dir: &'a Path,
+}
+
+/// The summary of a group of episodes.
+#[derive(Debug, Clone, Serialize)]
+pub struct GroupSummary {
+    /// The paper's metrics, averaged.
+    #[serde(flatten)]
+    pub metrics: MetricsSummary,
+    /// Mean cycle time over every committed cycle of the group (s).
+    pub ct_mean_s: f64,
+    /// Its 95th percentile (s).
+    pub ct_p95_s: f64,
+    /// Reused cycles over all cycles of the group.
+    pub eer: f64,
+}
+
+#[derive(Default)]
+struct Group {
+    metrics: Vec<EpisodeMetrics>,
+    ct: Vec<f64>,
+    cycles: u64,
+    reused: u64,
+}
+
+impl Group {
+    fn summary(&self) -> GroupSummary {
+        GroupSummary {
+            metrics: MetricsSummary::of(&self.metrics),
+            ct_mean_s: mean_std(&self.ct).map_or(0.0, |(mean, _)| mean),
+            ct_p95_s: percentile(&self.ct, 95.0).unwrap_or(0.0),
+            eer: if self.cycles == 0 {
+                0.0
+            } else {
+                self.reused as f64 / self.cycles as f64
+            },
+        }
+    }
+}
+
+/// What an evaluation found.
+#[derive(Debug, Clone)]
+pub struct EvalReport {
+    /// The episodes' origin: the split's name, or the file's path.
+    pub label: String,
+    /// Where the episode lines are.
+    pub jsonl_path: PathBuf,
+    /// Every episode.
+    pub all: GroupSummary,
+    /// The open-airspace episodes.
+    pub open: GroupSummary,
+    /// The dense-airspace episodes.
+    pub dense: GroupSummary,
+}
+
+/// Who watches an evaluation: every flight's events, and each episode's start and score.
+pub trait EvalWatcher: FlightWatcher {
+    /// Episode `k` (0-based) of `total` is about to fly.
+    fn episode_started(&mut self, k: usize, total: usize, episode: &Episode);
+
+    /// Episode `k` of `total` flew and was scored (what episodes.jsonl got).
+    fn episode_scored(&mut self, k: usize, total: usize, line: &EpisodeLine<'_>);
+}
+
+/// Why an evaluation could not run to the end.
+#[derive(Debug, thiserror::Error)]
+pub enum EvalError {
+    /// No episodes asked for.
+    #[error("--episodes must be at least 1")]
+    NoEpisodes,
+    /// The episode file could not be loaded.
+    #[error(transparent)]
+    Episodes(#[from] EpisodeError),
+    /// The split could not be generated.
+    #[error(transparent)]
+    Generate(#[from] GenerateError),
+    /// A file or folder of the output could not be written.
+    #[error("writing {}", path.display())]
+    Output {
+        /// The file or folder.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// An episode could not be turned into a mission.
+    #[error(transparent)]
+    Mission(#[from] MissionError),
+    /// A built-in workflow is not valid (a build defect).
+    #[error("the built-in workflow")]
+    BuiltinWorkflow(#[source] WorkflowError),
+    /// A built-in workflow lacks a role the evaluation sets up.
+    #[error("the built-in workflow has no {0} role")]
+    MissingRole(&'static str),
+    /// The workflow with the episode's mission is not valid.
+    #[error("episode {episode}: mission")]
+    EpisodeMission {
+        /// The episode.
+        episode: String,
+        /// What is wrong.
+        #[source]
+        source: WorkflowError,
+    },
+    /// An episode's flight could not start or ended with an error.
+    #[error("episode {episode}")]
+    Flight {
+        /// The episode.
+        episode: String,
+        /// Why.
+        #[source]
+        source: FlightError,
+    },
+}
+
+/// Radius (m) of the sphere around the vehicle's position that must stay clear of
+/// obstacles.
+const COLLISION_RADIUS_M: f32 = 0.3;
+
+/// Positions are kept when the vehicle moved 5 m horizontally or 2 m vertically from the
+/// last kept one: AerialVLN's action steps, the reference's sampling.
+fn moved_a_step(last: [f64; 3], p: [f64; 3]) -> bool {
+    (p[0] - last[0]).hypot(p[1] - last[1]) >= 5.0 || (p[2] - last[2]).abs() >= 2.0
+}
+
+/// The step hook of an episode: keeps the positions and ends the flight on a collision.
+struct PathWatch {
+    world: World,
+    positions: Vec<[f64; 3]>,
+    collided: Option<[f32; 3]>,
+}
+
+impl StepHook for PathWatch {
+    fn step(&mut self, ctx: &mut StepContext<'_>) -> Result<bool, HookError> {
+        if let Some(p) = ctx.monitor.position() {
+            // touching an obstacle ends the episode, as in AerialVLN (the ground is not an
+            // obstacle: the vehicle lands on it)
+            if self
+                .world
+                .collides([p[0], p[1], p[2].max(0.0)], COLLISION_RADIUS_M)
+            {
+                self.collided = Some(p);
+            }
+            let p = [p[0] as f64, p[1] as f64, p[2] as f64];
+            if self
+                .positions
+                .last()
+                .is_none_or(|&last| moved_a_step(last, p))
+            {
+                self.positions.push(p);
+            }
+        }
+        Ok(self.collided.is_some())
+    }
+}
+
+/// The workflow episode `k` flies: the agent's roles with the episode's mission.
+fn episode_workflow(
+    setup: &AgentSetup,
+    mission: MissionSpec,
+    k: usize,
+    episode_id: &str,
+) -> Result<Workflow, EvalError> {
+    let mut workflow = if setup.models {
+        let mut w = Workflow::builtin_models().map_err(EvalError::BuiltinWorkflow)?;
+        // the roofs, bridges and signs the instructions name are the palette's classes;
+        // the COCO detector has none of them
+        w.roles
+            .iter_mut()
+            .find(|r| r.kind == "detector")
+            .ok_or(EvalError::MissingRole("detector"))?
+            .variant = "palette".into();
+        w
+    } else {
+        Workflow::builtin_default().map_err(EvalError::BuiltinWorkflow)?
+    };
+    workflow.mission = mission;
+    let reasoning = workflow
+        .roles
+        .iter_mut()
+        .find(|r| r.kind == "reasoning")
+        .ok_or(EvalError::MissingRole("reasoning"))?;
+    reasoning.variant = setup.reasoning.clone();
+    if !reasoning.variants.iter().any(|v| v == &reasoning.variant) {
+        reasoning.variants.push(reasoning.variant.clone());
+    }
+    reasoning
+        .params
+        .insert("seed".into(), serde_json::Value::from(k as u64 + 1));
+    // the ladder starts on the chosen variant; a zero-shot model stays generic (the planner
+    // below it on the ladder would bring the plan back)
+    if setup.zero_shot || !reasoning.ladder.contains(&reasoning.variant) {
+        reasoning.ladder.clear();
+    }
+    if setup.zero_shot {
+        reasoning
+            .params
+            .insert("plan".into(), serde_json::Value::from(false));
+    }
+    if setup.single_slm {
+        workflow.scheduling.adapt_variants = false;
+    }
+    if setup.no_att {
+        workflow
+            .roles
+            .iter_mut()
+            .find(|r| r.kind == "hub")
+            .ok_or(EvalError::MissingRole("hub"))?
+            .params
+            .insert("no_att".into(), serde_json::Value::from(true));
+    }
+    workflow
+        .validate()
+        .map_err(|source| EvalError::EpisodeMission {
+            episode: episode_id.to_string(),
+            source,
+        })?;
+    Ok(workflow)
+}
+
+/// Fly every episode, write OUT/episodes.jsonl, and summarise per airspace.
+pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalReport, EvalError> {
+    let setup = &config.agent;
+    if config.episodes == 0 {
+        return Err(EvalError::NoEpisodes);
+    }
+    let (label, episodes): (String, Vec<Episode>) = match &config.source {
+        EpisodeSource::File(file) => {
+            let mut list = load_episodes(file)?;
+            list.truncate(config.episodes);
+            (file.display().to_string(), list)
+        }
+        EpisodeSource::Generate { split, airspace } => {
+            let list = generate_split(*split, *airspace, config.episodes, &mut |_, _| {})?;
+            (split.as_str().to_string(), list)
+        }
+    };
+    let out = &config.out;
+    std::fs::create_dir_all(out).map_err(|source| EvalError::Output {
+        path: out.clone(),
+        source,
+    })?;
+    let jsonl_path = out.join("episodes.jsonl");
+    let write_error = |source| EvalError::Output {
+        path: jsonl_path.clone(),
+        source,
+    };
+    let mut jsonl = std::fs::File::create(&jsonl_path).map_err(write_error)?;
+    let total = episodes.len();
+    let mut all = Group::default();
+    let mut open = Group::default();
+    let mut dense = Group::default();
+    for (k, episode) in episodes.iter().enumerate() {
+        let em = episode_mission(episode, setup.agent)?;
+        let workflow = episode_workflow(setup, em.mission, k, &episode.episode_id)?;
+        let flight = format!("eval-{}-{k}", std::process::id());
+        let run_dir = out.join("runs").join(&flight);
+        watcher.episode_started(k, total, episode);
+        let watch = PathWatch {
+            world: em.world,
+            positions: vec![episode.start_position],
+            collided: None,
+        };
+        let flight_error = |source| EvalError::Flight {
+            episode: episode.episode_id.clone(),
+            source,
+        };
+        let (outcome, watch) = Flight::builder(workflow)
+            .name(flight)
+            .run_dir(&run_dir)
+            .stop_when(StopRule::Landed)
+            .overrides(Overrides {
+                dynamic: setup.no_ds.then_some(false),
+                ..Overrides::default()
+            })
+            .step_hook(watch)
+            .start()
+            .and_then(|f| f.watch(&mut *watcher))
+            .map_err(flight_error)?;
+        let summary = outcome.summary;
+        let PathWatch {
+            mut positions,
+            collided,
+            ..
+        } = watch;
+        // the final position always counts
+        let last = summary.final_position;
+        if positions.last() != Some(&last) && summary.controller_ticks > 0 {
+            positions.push(last);
+        }
+        let failure = match (outcome.failure, collided) {
+            (None, Some(p)) => Some(format!(
+                "collided with an obstacle at [{:.1}, {:.1}, {:.1}]",
+                p[0], p[1], p[2]
+            )),
+            (f, _) => f.map(|f| f.to_string()),
+        };
+        let stopped = failure.is_none();
+        // instruction steps completed: those whose mission steps the attention moved past,
+        // and the last one too when the agent stopped at the goal (within the acceptance
+        // radius of a mission that knows it, or the success radius of the episode's)
+        let at_goal = summary.reached_goal
+            || crate::metrics::distance(summary.final_position, episode.goal())
+                <= crate::metrics::SUCCESS_RADIUS_M;
+        let done_steps =
+            (summary.max_active_step as usize).saturating_sub(1) + usize::from(stopped && at_goal);
+        let subgoals_total = episode.subgoals.len().max(1);
+        let subgoals_completed = (0..subgoals_total)
+            .filter(|&j| {
+                em.step_subgoal
+                    .iter()
+                    .enumerate()
+                    .filter(|&(_, &s)| s == j)
+                    .all(|(i, _)| i < done_steps)
+            })
+            .count();
+        let reference = episode.reference_positions();
+        let run = EpisodeRun {
+            positions: &positions,
+            reference: &reference,
+            goal: episode.goal(),
+            stopped,
+            subgoals_completed,
+            subgoals_total: if episode.subgoals.is_empty() {
+                0
+            } else {
+                subgoals_total
+            },
+        };
+        let m = EpisodeMetrics::compute(&run);
+        let airspace = episode.airspace.as_deref().unwrap_or("unknown");
+        let line = EpisodeLine {
+            episode_id: &episode.episode_id,
+            scene_id: &episode.scene_id,
+            airspace,
+            agent: &setup.label,
+            instruction: &episode.instruction.instruction_text,
+            positions: &positions,
+            reference: &reference,
+            goal: episode.goal(),
+            stopped,
+            collided: collided.is_some(),
+            subgoals_total,
+            subgoals_completed,
+            attention_steps: &summary.attention_steps,
+            metrics: m,
+            duration_s: summary.duration_s,
+            ct_mean_s: summary.ct_mean_s,
+            ct_p95_s: summary.ct_p95_s,
+            eer: summary.eer,
+            failure: failure.as_deref(),
+            variant_steps: summary.variant_steps,
+            run_dir: &run_dir,
+        };
+        let text = serde_json::to_string(&line).map_err(|e| write_error(e.into()))?;
+        writeln!(jsonl, "{text}").map_err(write_error)?;
+        watcher.episode_scored(k, total, &line);
+        for group in [
+            Some(&mut all),
+            (airspace == "open").then_some(&mut open),
+            (airspace == "dense").then_some(&mut dense),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            group.metrics.push(m);
+            group.ct.extend_from_slice(&outcome.ct_samples_s);
+            group.cycles += summary.cycles;
+            group.reused += summary.decisions_reused;
+        }
+    }
+    Ok(EvalReport {
+        label,
+        jsonl_path,
+        all: all.summary(),
+        open: open.summary(),
+        dense: dense.summary(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn resolve(options: AgentOptions) -> Result<AgentSetup, AgentError> {
+        AgentSetup::resolve(&options)
+    }
+
+    #[test]
+    fn the_agent_label_names_the_reasoner_perception_and_ablations() {
+        let aeris = resolve(AgentOptions::default()).unwrap();
+        assert_eq!(
+            (aeris.agent, aeris.label.as_str(), aeris.models),
+            (Agent::Aeris, "aeris-planner", true)
+        );
+        let ablated = resolve(AgentOptions {
+            perception: Some("geometric".into()),
+            zero_shot: true,
+            no_att: true,
+            no_ds: true,
+            single_slm: true,
+            ..AgentOptions::default()
+        })
+        .unwrap();
+        assert_eq!(ablated.reasoning, "smollm2");
+        assert_eq!(
+            ablated.label,
+            "aeris-smollm2-geometric-no-att-zero-shot-no-ds-single-slm"
+        );
+        let oracle = resolve(AgentOptions {
+            baseline: Some("oracle".into()),
+            ..AgentOptions::default()
+        })
+        .unwrap();
+        assert_eq!((oracle.label.as_str(), oracle.models), ("oracle", false));
+    }
+
+    #[test]
+    fn an_episode_line_keeps_its_keys_in_order_with_the_metrics_inline() {
+        let line = EpisodeLine {
+            episode_id: "e1",
+            scene_id: "s",
+            airspace: "open",
+            agent: "oracle",
+            instruction: "fly",
+            positions: &[[0.0, 0.0, 0.0]],
+            reference: &[],
+            goal: [1.0, 2.0, 3.0],
+            stopped: true,
+            collided: false,
+            subgoals_total: 1,
+            subgoals_completed: 1,
+            attention_steps: &[1],
+            metrics: EpisodeMetrics {
+                ne: None,
+                sr: 1.0,
+                osr: 1.0,
+                ndtw: 0.5,
+                spl: 0.25,
+                asr: Some(1.0),
+                path_length_m: 10.0,
+            },
+            duration_s: 2.0,
+            ct_mean_s: 0.1,
+            ct_p95_s: 0.2,
+            eer: 0.0,
+            failure: None,
+            variant_steps: 0,
+            run_dir: Path::new("runs/x"),
+        };
+        assert_eq!(
+            serde_json::to_string(&line).unwrap(),
+            r#"{"episode_id":"e1","scene_id":"s","airspace":"open","agent":"oracle","instruction":"fly","positions":[[0.0,0.0,0.0]],"reference":[],"goal":[1.0,2.0,3.0],"stopped":true,"collided":false,"subgoals_total":1,"subgoals_completed":1,"attention_steps":[1],"ne":null,"sr":1.0,"osr":1.0,"ndtw":0.5,"spl":0.25,"asr":1.0,"path_length_m":10.0,"duration_s":2.0,"ct_mean_s":0.1,"ct_p95_s":0.2,"eer":0.0,"failure":null,"variant_steps":0,"run_dir":"runs/x"}"#
+        );
+    }
+
+    #[test]
+    fn agent_options_that_do_not_fit_are_refused() {
+        let with = |o: AgentOptions| resolve(o).unwrap_err();
+        assert!(matches!(
+            with(AgentOptions {
+                baseline: Some("psychic".into()),
+                ..AgentOptions::default()
+            }),
+            AgentError::UnknownBaseline(b) if b == "psychic"
+        ));
+        assert!(matches!(
+            with(AgentOptions {
+                baseline: Some("random".into()),
+                no_att: true,
+                ..AgentOptions::default()
+            }),
+            AgentError::BaselineWithAerisOptions
+        ));
+        assert!(matches!(
+            with(AgentOptions {
+                reasoning: Some("oracle".into()),
+                ..AgentOptions::default()
+            }),
+            AgentError::UnknownReasoning(r) if r == "oracle"
+        ));
+        assert!(matches!(
+            with(AgentOptions {
+                perception: Some("telepathy".into()),
+                ..AgentOptions::default()
+            }),
+            AgentError::UnknownPerception(_)
+        ));
+        assert!(matches!(
+            with(AgentOptions {
+                reasoning: Some("planner".into()),
+                zero_shot: true,
+                ..AgentOptions::default()
+            }),
+            AgentError::ZeroShotWithoutLanguageModel
+        ));
+    }
+}

@@ -1,0 +1,64 @@
+//! What a flight would run on: the executor registry resolved from a workflow, and the
+//! accelerators the provisioned ONNX Runtime offers (`aeris validate` shows both; a flight
+//! records the accelerators in its supervisor's registry).
+
+use aeris_orchestrator::executors::{AcceleratorInfo, ExecutorRegistry, accelerators_from};
+use aeris_orchestrator::launch::{PlanError, plan_launch};
+use aeris_orchestrator::workflow::Workflow;
+use aeris_runtime::affinity::CpuSet;
+
+/// What the provisioned ONNX Runtime reports: its execution providers and the accelerator
+/// devices they found; `None` when no runtime is provisioned (a flight needs none unless
+/// it runs model roles).
+pub fn onnx_accelerators() -> Option<(Vec<String>, Vec<AcceleratorInfo>)> {
+    let store = aeris_models::ModelStore::open(None).ok()?;
+    let report = aeris_models::execution_providers(&store).ok()?;
+    let devices: Vec<(String, String, String, u32)> = report
+        .devices
+        .iter()
+        .map(|d| {
+            (
+                d.provider.clone(),
+                d.kind.as_str().to_string(),
+                d.vendor.clone(),
+                d.device_id,
+            )
+        })
+        .collect();
+    Some((report.providers, accelerators_from(&devices)))
+}
+
+/// The executor registry a flight of `workflow` would start with (declared executors
+/// resolved against the CPUs this process may use, the rest discovered), with the
+/// accelerators ONNX Runtime offers.
+pub fn planned_registry(workflow: &Workflow) -> Result<ExecutorRegistry, PlanError> {
+    let online = CpuSet::of_task(0).unwrap_or_else(|_| CpuSet::available());
+    let plan = plan_launch(workflow, "validate", None, &online, || Ok(0))?;
+    let mut registry = ExecutorRegistry::discover(&plan.executors, &online);
+    if let Some((providers, accelerators)) = onnx_accelerators() {
+        registry.set_accelerators(providers, accelerators);
+    }
+    Ok(registry)
+}
+
+/// One line on the registry's accelerators, for logs.
+pub fn accelerator_line(registry: &ExecutorRegistry) -> String {
+    let Some(providers) = registry.providers() else {
+        return "accelerators: unknown (no provisioned ONNX Runtime to ask)".into();
+    };
+    let providers = providers
+        .iter()
+        .map(|p| p.strip_suffix("ExecutionProvider").unwrap_or(p))
+        .collect::<Vec<_>>()
+        .join(", ");
+    if registry.accelerators().is_empty() {
+        return format!("accelerators: none (ONNX Runtime providers: {providers})");
+    }
+    let list = registry
+        .accelerators()
+        .iter()
+        .map(|a| format!("{} ({} {} via {})", a.name, a.vendor, a.kind, a.provider))
+        .collect::<Vec<_>>()
+        .join(", ");
+    format!("accelerators: {list} (ONNX Runtime providers: {providers})")
+}

@@ -1,0 +1,313 @@
+//! [`Flight`]: the handle of a supervised flight running on its own thread, and
+//! [`FlightBuilder`], which starts one.
+
+use crate::FlightFailure;
+use crate::event::{FlightEvent, FlightPhase, FlightStatus, FlightWatcher, StopRule};
+use crate::hook::{FnHook, HookError, NoHook, StepContext, StepHook};
+use crate::monitor::{CycleTrace, FlightSummary};
+use crate::overrides::{OverrideError, Overrides};
+use crate::supervise::{FlightSetup, Shared, StopRequest, supervise};
+use aeris_orchestrator::supervisor::SupervisorError;
+use aeris_orchestrator::workflow::Workflow;
+use aeris_runtime::bus::BusError;
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
+use std::sync::{Arc, PoisonError};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+/// How often [`Flight::watch`] asks its watcher whether to interrupt the flight.
+const WATCH_POLL: Duration = Duration::from_millis(50);
+
+/// How a flight went.
+#[derive(Debug, Clone)]
+pub struct FlightOutcome {
+    /// The summary (`aeris run --json` prints it).
+    pub summary: FlightSummary,
+    /// Why it ended early, if it did.
+    pub failure: Option<FlightFailure>,
+    /// Cycle times (s) of every committed cycle.
+    pub ct_samples_s: Vec<f64>,
+    /// The per-cycle trace (what the run directory's `cycles.jsonl` holds).
+    pub trace: Vec<CycleTrace>,
+}
+
+/// Why a flight could not start or ended with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum FlightError {
+    /// The executable roles start from could not be found (by default this one).
+    #[error("locating the role executable")]
+    RoleExecutable(#[source] std::io::Error),
+    /// The overrides do not fit the workflow.
+    #[error("workflow overrides")]
+    Overrides(#[from] OverrideError),
+    /// The flight's thread could not be started.
+    #[error("starting the flight's thread")]
+    Thread(#[source] std::io::Error),
+    /// The supervisor could not start the roles.
+    #[error("starting the supervisor")]
+    Start(#[source] Box<SupervisorError>),
+    /// A role sent no first heartbeat in time, or stopped for good while starting.
+    #[error("waiting for every role's first heartbeat")]
+    NotReady(#[source] Box<SupervisorError>),
+    /// The flight's hub reports, setpoints or telemetry could not be subscribed to.
+    #[error("subscribing to the flight")]
+    Subscribe(#[source] BusError),
+    /// A supervisor step failed.
+    #[error("supervising")]
+    Supervise(#[source] Box<SupervisorError>),
+    /// Reading the flight's hub reports, setpoints or telemetry failed.
+    #[error("reading flight telemetry")]
+    Telemetry(#[source] BusError),
+    /// The step hook failed; its own error says how.
+    #[error(transparent)]
+    Hook(HookError),
+    /// The cycle trace could not be written into the run directory.
+    #[error("writing {}", path.display())]
+    WriteTrace {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The flight's thread panicked (in a step hook: the library's own code does not).
+    #[error("the flight's thread panicked")]
+    Panicked,
+}
+
+/// Sets up a flight; [`FlightBuilder::start`] starts it.
+#[must_use = "a builder does nothing until start()"]
+pub struct FlightBuilder<H: StepHook = NoHook> {
+    workflow: Workflow,
+    name: Option<String>,
+    run_dir: Option<PathBuf>,
+    autopilot: Option<String>,
+    overrides: Overrides,
+    stop: StopRule,
+    role_executable: Option<PathBuf>,
+    hook: H,
+}
+
+impl<H: StepHook> FlightBuilder<H> {
+    /// Flight name: the namespace prefix of every service (default `flight-PID`).
+    pub fn name(mut self, name: impl Into<String>) -> Self {
+        self.name = Some(name.into());
+        self
+    }
+
+    /// Where role specs, logs and `cycles.jsonl` go (default `$TMPDIR/aeris/NAME`).
+    pub fn run_dir(mut self, dir: impl Into<PathBuf>) -> Self {
+        self.run_dir = Some(dir.into());
+        self
+    }
+
+    /// Fly against this external MAVLink autopilot instead of the built-in vehicle.
+    pub fn autopilot(mut self, url: Option<String>) -> Self {
+        self.autopilot = url;
+        self
+    }
+
+    /// Change the workflow for this flight (applied and validated by `start`).
+    pub fn overrides(mut self, overrides: Overrides) -> Self {
+        self.overrides = overrides;
+        self
+    }
+
+    /// When the flight ends (default [`StopRule::Goal`]).
+    pub fn stop_when(mut self, rule: StopRule) -> Self {
+        self.stop = rule;
+        self
+    }
+
+    /// The executable roles start from, as `EXE role --spec FILE` (default: this one).
+    pub fn role_executable(mut self, path: impl Into<PathBuf>) -> Self {
+        self.role_executable = Some(path.into());
+        self
+    }
+
+    /// Run `step` once every supervisor step (see [`StepHook`]).
+    pub fn on_step<F>(self, step: F) -> FlightBuilder<FnHook<F>>
+    where
+        F: FnMut(&mut StepContext<'_>) -> Result<bool, HookError> + Send + 'static,
+    {
+        self.step_hook(FnHook(step))
+    }
+
+    /// Run `hook` once every supervisor step; [`Flight::wait_with_hook`] hands it back.
+    pub fn step_hook<H2: StepHook>(self, hook: H2) -> FlightBuilder<H2> {
+        FlightBuilder {
+            workflow: self.workflow,
+            name: self.name,
+            run_dir: self.run_dir,
+            autopilot: self.autopilot,
+            overrides: self.overrides,
+            stop: self.stop,
+            role_executable: self.role_executable,
+            hook,
+        }
+    }
+
+    /// Start the flight on its own thread (the supervisor's ports and its children's
+    /// parent-death signal belong to the thread that creates it). Returns once the roles'
+    /// processes are started; start-up failures come back here, later ones from
+    /// [`Flight::wait`].
+    pub fn start(self) -> Result<Flight<H>, FlightError> {
+        let mut workflow = self.workflow;
+        self.overrides.apply(&mut workflow)?;
+        let role_executable = match self.role_executable {
+            Some(p) => p,
+            None => std::env::current_exe().map_err(FlightError::RoleExecutable)?,
+        };
+        let name = self
+            .name
+            .unwrap_or_else(|| format!("flight-{}", std::process::id()));
+        let run_dir = self
+            .run_dir
+            .unwrap_or_else(|| std::env::temp_dir().join("aeris").join(&name));
+        let shared = Arc::new(Shared::new(&name));
+        let (events_tx, events) = mpsc::channel();
+        let (started_tx, started_rx) = mpsc::sync_channel(1);
+        let setup = FlightSetup {
+            workflow,
+            name: name.clone(),
+            run_dir: run_dir.clone(),
+            autopilot: self.autopilot,
+            dynamic: self.overrides.dynamic,
+            stop: self.stop,
+            role_executable,
+        };
+        let hook = self.hook;
+        let thread_shared = shared.clone();
+        let thread = std::thread::Builder::new()
+            .name(format!("flight {name}"))
+            .spawn(move || {
+                let result = supervise(setup, hook, &thread_shared, &events_tx, started_tx);
+                thread_shared.set_phase(FlightPhase::Finished);
+                result
+            })
+            .map_err(FlightError::Thread)?;
+        let mut flight = Flight {
+            name,
+            run_dir,
+            events,
+            shared,
+            thread: Some(thread),
+        };
+        if started_rx.recv().is_err() {
+            // the thread ended before the roles were started: its result says why
+            return Err(match flight.join() {
+                Err(e) => e,
+                Ok(_) => FlightError::Panicked,
+            });
+        }
+        Ok(flight)
+    }
+}
+
+/// A supervised flight running on its own thread: watch it ([`Flight::events`],
+/// [`Flight::status`]), end it ([`Flight::stop`]), collect it ([`Flight::wait`]).
+/// Dropping it stops it and waits for every role to be stopped.
+pub struct Flight<H: StepHook = NoHook> {
+    name: String,
+    run_dir: PathBuf,
+    events: Receiver<FlightEvent>,
+    shared: Arc<Shared>,
+    thread: Option<JoinHandle<Result<(FlightOutcome, H), FlightError>>>,
+}
+
+impl Flight {
+    /// Set up a flight of `workflow` (start it with [`FlightBuilder::start`]).
+    pub fn builder(workflow: Workflow) -> FlightBuilder {
+        FlightBuilder {
+            workflow,
+            name: None,
+            run_dir: None,
+            autopilot: None,
+            overrides: Overrides::default(),
+            stop: StopRule::Goal,
+            role_executable: None,
+            hook: NoHook,
+        }
+    }
+}
+
+impl<H: StepHook> Flight<H> {
+    /// Flight name (the namespace prefix of its services).
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Where its role specs, logs and `cycles.jsonl` are.
+    pub fn run_dir(&self) -> &Path {
+        &self.run_dir
+    }
+
+    /// Its events, in order; the channel closes when the flight's thread ends.
+    pub fn events(&self) -> &Receiver<FlightEvent> {
+        &self.events
+    }
+
+    /// Where the flight is now.
+    pub fn status(&self) -> FlightStatus {
+        self.shared
+            .status
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
+    }
+
+    /// Ask the flight to end (at its next step; it fails with [`FlightFailure::Stopped`]).
+    /// Idempotent: the first request's reason stays.
+    pub fn stop(&self) {
+        self.shared.request_stop(StopRequest::Stop);
+    }
+
+    /// [`Flight::stop`] because the process was asked to terminate (Ctrl-C): the flight
+    /// fails with [`FlightFailure::Interrupted`].
+    pub fn interrupt(&self) {
+        self.shared.request_stop(StopRequest::Interrupt);
+    }
+
+    /// Wait for the flight to end.
+    pub fn wait(self) -> Result<FlightOutcome, FlightError> {
+        self.wait_with_hook().map(|(outcome, _)| outcome)
+    }
+
+    /// Wait for the flight to end; also hands back the step hook with what it gathered.
+    pub fn wait_with_hook(mut self) -> Result<(FlightOutcome, H), FlightError> {
+        self.join()
+    }
+
+    /// Hand every event to `watcher` as it comes, and [`Flight::interrupt`] the flight
+    /// once the watcher says so, until the flight ends; then [`Flight::wait_with_hook`].
+    pub fn watch(self, watcher: &mut dyn FlightWatcher) -> Result<(FlightOutcome, H), FlightError> {
+        loop {
+            match self.events.recv_timeout(WATCH_POLL) {
+                Ok(event) => watcher.event(&event),
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => break,
+            }
+            if watcher.interrupted() {
+                self.interrupt();
+            }
+        }
+        self.wait_with_hook()
+    }
+
+    /// Join the flight's thread (once: `wait*` consume the handle, `Drop` joins only a
+    /// thread not joined yet).
+    fn join(&mut self) -> Result<(FlightOutcome, H), FlightError> {
+        let thread = self.thread.take().ok_or(FlightError::Panicked)?;
+        thread.join().map_err(|_| FlightError::Panicked)?
+    }
+}
+
+impl<H: StepHook> Drop for Flight<H> {
+    fn drop(&mut self) {
+        if self.thread.is_some() {
+            self.stop();
+            let _ = self.join();
+        }
+    }
+}

@@ -1,0 +1,59 @@
+//! # aeris-flight
+//!
+//! A supervised flight as a library: start one, watch it, stop it, collect its summary.
+//!
+//! ```no_run
+//! use aeris_flight::{Flight, FlightEvent, StopRule};
+//! use aeris_orchestrator::Workflow;
+//!
+//! let flight = Flight::builder(Workflow::builtin_default()?)
+//!     .name("flight-123")
+//!     .stop_when(StopRule::Goal)
+//!     .start()?;
+//! for event in flight.events().iter() {
+//!     if let FlightEvent::Progress(p) = event {
+//!         println!("step {}/{}", p.step, p.steps);
+//!     }
+//! }
+//! let outcome = flight.wait()?;
+//! println!("reached the goal: {}", outcome.summary.reached_goal);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! It is its own crate because it is the composition layer over the supervisor: the flight
+//! loop (supervisor steps, the [`FlightMonitor`] that turns hub reports and telemetry into
+//! progress and the [`FlightSummary`], the [`StopRule`]s, the time limit, the cycle trace)
+//! is what `aeris run`, the flight benchmarks, the VLN evaluation and the coming record /
+//! replay, remote-host agents and formations share. Keeping it here keeps
+//! `aeris-orchestrator` free of models (the accelerator query) and of flight-level policy
+//! (when a flight has succeeded or failed), and keeps the `aeris` binary to parsing and
+//! printing.
+//!
+//! - [`Flight`] / [`FlightBuilder`]: the handle of a flight running on its own thread
+//!   (iceoryx2 ports are not `Send`, and a role's parent-death signal belongs to the thread
+//!   that started it), its [`FlightEvent`]s, [`FlightStatus`], [`FlightOutcome`];
+//! - [`StepHook`]: code run in sync with every supervisor step (fault injection, hot swaps,
+//!   collision checks);
+//! - [`monitor`]: the [`FlightMonitor`], the [`FlightSummary`] and the [`CycleTrace`];
+//! - [`Overrides`]: a flight's changes to its workflow;
+//! - [`executors`]: the executor registry a workflow would start with, and the
+//!   accelerators ONNX Runtime offers.
+
+#![deny(missing_docs)]
+
+pub mod event;
+pub mod executors;
+mod handle;
+pub mod hook;
+pub mod monitor;
+pub mod overrides;
+mod supervise;
+
+pub use event::{
+    FlightEvent, FlightFailure, FlightPhase, FlightProgress, FlightStatus, FlightWatcher,
+    RoleSnapshot, StopRule,
+};
+pub use handle::{Flight, FlightBuilder, FlightError, FlightOutcome};
+pub use hook::{FnHook, HookError, NoHook, StepContext, StepHook};
+pub use monitor::{CycleTrace, FlightMonitor, FlightSummary, StageMeans};
+pub use overrides::{OverrideError, Overrides, VariantChoice};

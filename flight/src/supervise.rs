@@ -1,0 +1,296 @@
+//! The flight's thread: start the supervisor, wait for every role, then step it until the
+//! stop rule, a failure, the time limit or a stop request; stop every role; write the trace.
+
+use crate::event::{
+    FlightEvent, FlightFailure, FlightPhase, FlightProgress, FlightStatus, RoleSnapshot, StopRule,
+};
+use crate::executors::{accelerator_line, onnx_accelerators};
+use crate::handle::{FlightError, FlightOutcome};
+use crate::hook::{StepContext, StepHook};
+use crate::monitor::{CycleTrace, FlightMonitor};
+use aeris_orchestrator::supervisor::{RoleState, Supervisor, SupervisorEvent, SupervisorOptions};
+use aeris_orchestrator::workflow::Workflow;
+use aeris_runtime::MissionSpec;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::mpsc::{Sender, SyncSender};
+use std::sync::{Mutex, PoisonError};
+use std::time::{Duration, Instant};
+
+/// How long every role has to send its first heartbeat.
+const READY_TIMEOUT: Duration = Duration::from_secs(60);
+/// Pause between supervisor steps.
+const STEP_PERIOD: Duration = Duration::from_millis(20);
+/// Interval of [`FlightEvent::Progress`].
+const PROGRESS_PERIOD: Duration = Duration::from_secs(2);
+/// How long the roles have to stop on their own at the end before they are killed.
+const SHUTDOWN_GRACE: Duration = Duration::from_secs(3);
+
+/// Everything the thread needs, resolved by the builder.
+pub(crate) struct FlightSetup {
+    pub workflow: Workflow,
+    pub name: String,
+    pub run_dir: PathBuf,
+    pub autopilot: Option<String>,
+    pub dynamic: Option<bool>,
+    pub stop: StopRule,
+    pub role_executable: PathBuf,
+}
+
+/// Why the flight was asked to end.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub(crate) enum StopRequest {
+    Stop = 1,
+    Interrupt = 2,
+}
+
+/// What the handle and the thread share.
+pub(crate) struct Shared {
+    pub status: Mutex<FlightStatus>,
+    /// 0: go on; else a [`StopRequest`].
+    stop: AtomicU8,
+}
+
+impl Shared {
+    pub fn new(name: &str) -> Self {
+        Self {
+            status: Mutex::new(FlightStatus {
+                flight: name.to_string(),
+                phase: FlightPhase::Starting,
+                progress: None,
+                roles: Vec::new(),
+            }),
+            stop: AtomicU8::new(0),
+        }
+    }
+
+    pub fn request_stop(&self, why: StopRequest) {
+        let _ = self
+            .stop
+            .compare_exchange(0, why as u8, Ordering::SeqCst, Ordering::SeqCst);
+    }
+
+    fn stop_requested(&self) -> Option<FlightFailure> {
+        match self.stop.load(Ordering::SeqCst) {
+            0 => None,
+            r if r == StopRequest::Interrupt as u8 => Some(FlightFailure::Interrupted),
+            _ => Some(FlightFailure::Stopped),
+        }
+    }
+
+    fn update(&self, f: impl FnOnce(&mut FlightStatus)) {
+        f(&mut self.status.lock().unwrap_or_else(PoisonError::into_inner));
+    }
+
+    pub fn set_phase(&self, phase: FlightPhase) {
+        self.update(|s| s.phase = phase);
+    }
+
+    fn set_roles(&self, sup: &Supervisor) {
+        self.update(|s| {
+            s.roles.clear();
+            s.roles.extend(sup.roles().iter().map(|r| RoleSnapshot {
+                name: r.name().to_string(),
+                kind: r.kind().to_string(),
+                variant: r.variant().to_string(),
+                pid: r.pid(),
+                state: r.state(),
+                restarts: r.restarts(),
+                cpus: r.cpus().to_string(),
+            }));
+        });
+    }
+}
+
+/// The flight, from start to end. Sends `started` once the roles' processes run.
+pub(crate) fn supervise<H: StepHook>(
+    setup: FlightSetup,
+    mut hook: H,
+    shared: &Shared,
+    events: &Sender<FlightEvent>,
+    started: SyncSender<()>,
+) -> Result<(FlightOutcome, H), FlightError> {
+    let FlightSetup {
+        workflow,
+        name,
+        run_dir,
+        autopilot,
+        dynamic,
+        stop,
+        role_executable,
+    } = setup;
+    let send = |event| {
+        // nobody listening is no reason to stop flying
+        let _ = events.send(event);
+    };
+    let mission = workflow.mission.clone();
+    let max_duration = Duration::from_secs_f64(mission.max_duration_s);
+    let mut sup = Supervisor::start(SupervisorOptions {
+        workflow,
+        flight: name.clone(),
+        aeris_exe: role_executable,
+        run_dir: run_dir.clone(),
+        autopilot,
+    })
+    .map_err(|e| FlightError::Start(Box::new(e)))?;
+    if let Some(on) = dynamic {
+        sup.set_dynamic(on);
+    }
+    if let Some((providers, accelerators)) = onnx_accelerators() {
+        sup.set_accelerators(providers, accelerators);
+    }
+    send(FlightEvent::Started {
+        flight: name.clone(),
+        roles: sup.roles().len(),
+        logs: run_dir.join("logs"),
+        instruction: mission.instruction.clone(),
+        accelerators: accelerator_line(sup.registry()),
+    });
+    shared.set_roles(&sup);
+    shared.set_phase(FlightPhase::WaitingForRoles);
+    let _ = started.send(());
+
+    sup.wait_ready(READY_TIMEOUT)
+        .map_err(|e| FlightError::NotReady(Box::new(e)))?;
+    send(FlightEvent::Ready);
+    shared.set_phase(FlightPhase::Flying);
+    let mut monitor = FlightMonitor::new(sup.bus(), &mission).map_err(FlightError::Subscribe)?;
+    let start = Instant::now();
+    let mut last_progress = Instant::now();
+    let mut failure: Option<FlightFailure> = None;
+    let (mut swaps_done, mut swaps_failed) = (0u64, 0u64);
+    loop {
+        let step_events = sup
+            .step()
+            .map_err(|e| FlightError::Supervise(Box::new(e)))?;
+        for event in &step_events {
+            match event {
+                SupervisorEvent::SwapDone { .. } => swaps_done += 1,
+                SupervisorEvent::SwapFailed { .. } => swaps_failed += 1,
+                SupervisorEvent::RoleGaveUp { name } => {
+                    failure = Some(FlightFailure::RoleGaveUp { role: name.clone() });
+                }
+                _ => {}
+            }
+            send(FlightEvent::Supervisor(event.clone()));
+        }
+        monitor.poll().map_err(FlightError::Telemetry)?;
+        let hook_done = hook
+            .step(&mut StepContext {
+                supervisor: &mut sup,
+                monitor: &monitor,
+                events: &step_events,
+                events_out: events,
+            })
+            .map_err(FlightError::Hook)?;
+        let progress = progress(&monitor, &mission, start, sup.total_restarts());
+        sup.set_progress(
+            progress.step,
+            progress.steps,
+            progress.distance_to_goal_m.unwrap_or(-1.0),
+            progress.ct_mean_s as f32,
+        );
+        let done = match stop {
+            StopRule::Goal => monitor.reached_goal(),
+            StopRule::Cycles(n) => monitor.cycles() >= n,
+            StopRule::Landed => monitor.landed_after_flight(),
+            StopRule::Hook => false,
+        };
+        if done || hook_done || failure.is_some() {
+            break;
+        }
+        if start.elapsed() > max_duration {
+            failure = Some(FlightFailure::TimeLimit {
+                rule: stop,
+                limit_s: max_duration.as_secs_f64(),
+            });
+            break;
+        }
+        if let Some(request) = shared.stop_requested() {
+            failure = Some(request);
+            break;
+        }
+        if last_progress.elapsed() >= PROGRESS_PERIOD {
+            last_progress = Instant::now();
+            send(FlightEvent::Progress(progress.clone()));
+            if monitor.invalid_reports() > 0 {
+                send(FlightEvent::InvalidReports(monitor.invalid_reports()));
+            }
+        }
+        // a role's process, state, variant or CPUs change only with an event
+        if !step_events.is_empty() {
+            shared.set_roles(&sup);
+        }
+        shared.update(|s| s.progress = Some(progress));
+        std::thread::sleep(STEP_PERIOD);
+    }
+    let duration = start.elapsed().as_secs_f64();
+    let _ = monitor.poll();
+    let mut summary = monitor.summary(&name, duration, u64::from(sup.total_restarts()));
+    summary.migrations = u64::from(sup.total_migrations());
+    summary.variant_steps = u64::from(sup.total_variant_steps());
+    summary.stalls = sup.roles().iter().map(|r| u64::from(r.stalls())).sum();
+    summary.swaps_done = swaps_done;
+    summary.swaps_failed = swaps_failed;
+    shared.set_phase(FlightPhase::ShuttingDown);
+    let shutdown = sup.shutdown(SHUTDOWN_GRACE);
+    shared.update(|s| {
+        for r in &mut s.roles {
+            r.pid = None;
+            r.state = RoleState::Stopped;
+        }
+    });
+    send(FlightEvent::Finished {
+        failure: failure.clone(),
+        shutdown,
+    });
+    let trace_path = run_dir.join("cycles.jsonl");
+    write_trace(&trace_path, monitor.trace()).map_err(|source| FlightError::WriteTrace {
+        path: trace_path,
+        source,
+    })?;
+    let outcome = FlightOutcome {
+        summary,
+        failure,
+        ct_samples_s: monitor.ct_samples_s().to_vec(),
+        trace: monitor.trace().to_vec(),
+    };
+    Ok((outcome, hook))
+}
+
+/// Where the flight is now.
+fn progress(
+    monitor: &FlightMonitor,
+    mission: &MissionSpec,
+    start: Instant,
+    restarts: u32,
+) -> FlightProgress {
+    let (step, steps) = monitor.active_step();
+    FlightProgress {
+        elapsed_s: start.elapsed().as_secs_f64(),
+        step,
+        steps,
+        step_text: usize::from(step)
+            .checked_sub(1)
+            .and_then(|i| mission.subgoals.get(i))
+            .map(|s| s.text.clone()),
+        distance_to_goal_m: monitor.distance_to_goal(),
+        position: monitor.position(),
+        ct_mean_s: monitor.ct_mean_s(),
+        eer: monitor.eer(),
+        rejected: monitor.rejected(),
+        restarts,
+    }
+}
+
+/// Write a flight's cycle trace, one JSON object per line.
+fn write_trace(path: &Path, trace: &[CycleTrace]) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
+    for c in trace {
+        serde_json::to_writer(&mut out, c)?;
+        out.write_all(b"\n")?;
+    }
+    out.flush()
+}
