@@ -35,7 +35,7 @@ pub struct RunArgs {
     pub variant: Vec<String>,
     /// Give up after this many seconds of flight, counted once every role is up
     /// (default: the mission's max_duration_s).
-    #[arg(long, value_name = "SECONDS")]
+    #[arg(long, value_name = "SECONDS", value_parser = positive_seconds)]
     pub max_duration: Option<f64>,
     /// Dynamic scheduling off: roles stay on their declared executors whatever their
     /// latency (stall detection and restarts stay on).
@@ -45,6 +45,14 @@ pub struct RunArgs {
     /// (the workflow's `[scheduling] adapt_variants = false`).
     #[arg(long)]
     pub fixed_variants: bool,
+}
+
+/// A positive, finite number of seconds (clap names the flag when it is not).
+fn positive_seconds(text: &str) -> std::result::Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(s) if s > 0.0 && s.is_finite() => Ok(s),
+        _ => Err("expected a positive number of seconds".into()),
+    }
 }
 
 fn load(path: Option<&Path>) -> Result<Workflow> {
