@@ -24,6 +24,8 @@ echo "test: 1/4 formatting (cargo fmt --check)" >&2
 cargo fmt --all -- --check
 echo "test: 2/4 lints (cargo clippy -D warnings)" >&2
 cargo clippy --workspace --all-targets -- -D warnings
+# the vehicle build (no simulator, no renderer) must keep compiling
+cargo clippy -p aeris --no-default-features -- -D warnings
 echo "test: 3/4 building the workspace and the aeris binary the end-to-end tests spawn" >&2
 cargo build --workspace --all-targets
 echo "test: 4/4 every test of the workspace" >&2

@@ -299,6 +299,8 @@ fn load_rgb(store: &ModelStore, file: &str) -> Result<(Vec<u8>, usize, usize), B
     Ok((img.into_raw(), w, h))
 }
 
+/// The frame the OCR probe reads: the LAKE VIEW sign of the built-in village, rendered.
+#[cfg(feature = "sim")]
 fn sign_frame() -> Result<(Vec<u8>, usize, usize), BenchError> {
     // the flight camera's geometry (CameraSpec's default: 320 x 240, 90 degrees)
     let (w, h) = (320u32, 240u32);
@@ -319,6 +321,16 @@ fn sign_frame() -> Result<(Vec<u8>, usize, usize), BenchError> {
         )
         .map_err(|e| BenchError::Config(format!("render: {e}")))?;
     Ok((rgb, w as usize, h as usize))
+}
+
+/// Without the simulator there is no sign to render for the OCR probe.
+#[cfg(not(feature = "sim"))]
+fn sign_frame() -> Result<(Vec<u8>, usize, usize), BenchError> {
+    Err(BenchError::Config(
+        "the OCR probe reads a sign rendered by the built-in simulator, and this build has none \
+         (build with the `sim` feature)"
+            .into(),
+    ))
 }
 
 fn load_probe(

@@ -5,11 +5,14 @@ mod bench_ds;
 mod bench_faults;
 mod bench_flight;
 mod bench_models;
+#[cfg(feature = "sim")]
 mod eval_cmd;
 mod flight_print;
 mod inspect;
+#[cfg(feature = "sim")]
 mod plot_cmd;
 mod run_cmd;
+#[cfg(feature = "sim")]
 mod scene_cmd;
 
 use anyhow::Context;
@@ -87,13 +90,17 @@ enum Command {
     Roles,
     /// Run benchmarks (IPC, gate, control, models, cycle, swap, ds) and print their figures.
     Bench(bench_cmd::BenchArgs),
+    #[cfg(feature = "sim")]
     /// Fly VLN episodes through the full pipeline and score them (NE, SR, OSR, nDTW, SPL,
     /// ASR, CT, EER), per airspace; writes OUT/episodes.jsonl.
     Eval(eval_cmd::EvalArgs),
+    #[cfg(feature = "sim")]
     /// Generate and check VLN episodes (AerialVLN JSON format, train/val_unseen/test_unseen).
     Episodes(scene_cmd::EpisodesArgs),
+    #[cfg(feature = "sim")]
     /// Look at a scene: its landmarks, an FPV frame from a pose, a top-down map.
     Scene(scene_cmd::SceneArgs),
+    #[cfg(feature = "sim")]
     /// Pictures of a flight or an evaluated episode: heartbeat timing trace, FPV strip
     /// with the active step, top-down map.
     Plot(plot_cmd::PlotArgs),
@@ -156,13 +163,26 @@ fn run_role(spec: PathBuf, instance: Option<u32>) -> anyhow::Result<ExitCode> {
     let name = spec.name.clone();
     let result = if spec.kind == "hub" {
         aeris_hub::run(spec)
-    } else if let Some(run) = aeris_sim_roles::runner(&spec.kind, &spec.variant) {
+    } else if let Some(run) = sim_runner(&spec.kind, &spec.variant) {
         run(spec)
     } else {
         aeris_roles::run(spec)
     };
     result.with_context(|| format!("role `{name}` failed"))?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// The simulator's runner of `kind`/`variant`, in a build with the simulator.
+#[cfg(feature = "sim")]
+fn sim_runner(kind: &str, variant: &str) -> Option<aeris_roles::RoleRunner> {
+    aeris_sim_roles::runner(kind, variant)
+}
+
+/// A build without the simulator runs none of its roles ([`aeris_roles::run`] then refuses
+/// the variant).
+#[cfg(not(feature = "sim"))]
+fn sim_runner(_kind: &str, _variant: &str) -> Option<aeris_roles::RoleRunner> {
+    None
 }
 
 fn roles() -> anyhow::Result<ExitCode> {
@@ -219,9 +239,13 @@ fn main() -> ExitCode {
         Command::Validate { workflow } => run_cmd::validate(&workflow),
         Command::Roles => roles(),
         Command::Bench(args) => bench_cmd::run(args).map(|_| ExitCode::SUCCESS),
+        #[cfg(feature = "sim")]
         Command::Eval(args) => eval_cmd::run(args).map(|_| ExitCode::SUCCESS),
+        #[cfg(feature = "sim")]
         Command::Episodes(args) => scene_cmd::episodes(args).map(|_| ExitCode::SUCCESS),
+        #[cfg(feature = "sim")]
         Command::Scene(args) => scene_cmd::scene(args).map(|_| ExitCode::SUCCESS),
+        #[cfg(feature = "sim")]
         Command::Plot(args) => plot_cmd::run(args).map(|_| ExitCode::SUCCESS),
         Command::Role { spec, instance } => run_role(spec, instance),
     };

@@ -95,11 +95,44 @@ pub fn validate(path: &Path) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// A build without the simulator cannot run its roles: say so before anything starts,
+/// instead of letting the role fail in its log.
+#[cfg(not(feature = "sim"))]
+fn refuse_simulator_roles(
+    workflow: &Workflow,
+    variants: &[aeris_flight::VariantChoice],
+    external_autopilot: bool,
+) -> Result<()> {
+    for role in &workflow.roles {
+        if role.kind == "hub" || (role.kind == "vehicle" && external_autopilot) {
+            continue;
+        }
+        let variant = variants
+            .iter()
+            .rev()
+            .find(|v| v.role == role.name)
+            .map_or(role.variant.as_str(), |v| v.variant.as_str());
+        if aeris_roles::runner(&role.kind, variant).is_none() {
+            anyhow::bail!(
+                "role `{}` is the simulator's `{}/{variant}`, and this aeris was built without \
+                 the simulator (`--no-default-features`); rebuild with the `sim` feature or fly \
+                 a workflow for real hardware with --autopilot",
+                role.name,
+                role.kind
+            );
+        }
+    }
+    Ok(())
+}
+
 /// `aeris run`.
 pub fn run(args: RunArgs) -> Result<ExitCode> {
     let workflow = load(args.workflow.as_deref())?;
+    let variants = variant_choices(&args.variant)?;
+    #[cfg(not(feature = "sim"))]
+    refuse_simulator_roles(&workflow, &variants, args.autopilot.is_some())?;
     let overrides = Overrides {
-        variants: variant_choices(&args.variant)?,
+        variants,
         max_duration_s: args.max_duration,
         dynamic: args.no_ds.then_some(false),
         fixed_variants: args.fixed_variants,

@@ -2,7 +2,8 @@
 //! and the MAVLink crate build without `aeris-sim`, and the geometry leaf needs no crate of
 //! ours. Asked of cargo itself (`cargo tree -e normal`: what a build of the crate compiles,
 //! dev-dependencies left out), so a dependency that comes back through any path, a new
-//! crate in between included, fails here.
+//! crate in between included, fails here. A vehicle build of the `aeris` binary (without its
+//! default `sim` feature) compiles no simulator either.
 
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -10,6 +11,11 @@ use std::process::Command;
 
 /// Every package `package` compiles in a normal build (itself included), by name.
 fn normal_dependencies(package: &str) -> BTreeSet<String> {
+    dependencies_with(package, &[])
+}
+
+/// As [`normal_dependencies`], with extra `cargo tree` arguments (features).
+fn dependencies_with(package: &str, extra: &[&str]) -> BTreeSet<String> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_string());
     let workspace = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let out = Command::new(&cargo)
@@ -23,6 +29,7 @@ fn normal_dependencies(package: &str) -> BTreeSet<String> {
             "-p",
             package,
         ])
+        .args(extra)
         .args(["--prefix", "none", "--format", "{p}"])
         .output()
         .unwrap_or_else(|e| panic!("cannot run `{cargo} tree`: {e}"));
@@ -81,5 +88,22 @@ fn geometry_and_the_mavlink_link_depend_on_no_crate_of_ours() {
     for package in ["aeris-geometry", "aeris-mavlink"] {
         let deps = normal_dependencies(package);
         assert_eq!(ours(&deps, package), BTreeSet::new(), "{package}");
+    }
+}
+
+#[test]
+fn a_vehicle_build_of_the_binary_compiles_no_simulator() {
+    let vehicle = dependencies_with("aeris", &["--no-default-features"]);
+    for sim in ["aeris-sim", "aeris-sim-roles", "aeris-eval"] {
+        assert!(
+            !vehicle.contains(sim),
+            "aeris --no-default-features compiles {sim}: {:?}",
+            ours(&vehicle, "aeris")
+        );
+    }
+    // not vacuous: the default build has the simulator, the vehicle build the flight roles
+    assert!(normal_dependencies("aeris").contains("aeris-sim"));
+    for dep in ["aeris-roles", "aeris-hub", "aeris-flight", "aeris-mavlink"] {
+        assert!(vehicle.contains(dep), "the vehicle build lacks {dep}");
     }
 }
