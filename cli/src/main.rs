@@ -185,12 +185,27 @@ fn sim_runner(_kind: &str, _variant: &str) -> Option<aeris_roles::RoleRunner> {
     None
 }
 
+/// The catalog's kinds with the variants this build runs (a build without the simulator
+/// runs none of the simulator's).
 fn roles() -> anyhow::Result<ExitCode> {
     for k in aeris_runtime::catalog::ROLE_KINDS {
+        let variants: Vec<&str> = k
+            .variants
+            .iter()
+            .copied()
+            .filter(|v| {
+                k.kind == "hub"
+                    || aeris_roles::runner(k.kind, v).is_some()
+                    || sim_runner(k.kind, v).is_some()
+            })
+            .collect();
+        if variants.is_empty() {
+            continue;
+        }
         println!(
             "{:<11} variants: {:<24} {}",
             k.kind,
-            k.variants.join(", "),
+            variants.join(", "),
             k.summary
         );
     }
