@@ -3,7 +3,7 @@
 //! ours. Asked of cargo itself (`cargo tree -e normal`: what a build of the crate compiles,
 //! dev-dependencies left out), so a dependency that comes back through any path, a new
 //! crate in between included, fails here. A vehicle build of the `aeris` binary (without its
-//! default `sim` feature) compiles no simulator either.
+//! default `sim` feature) compiles no simulator either, and the binary holds no flight loop.
 
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -106,4 +106,49 @@ fn a_vehicle_build_of_the_binary_compiles_no_simulator() {
     for dep in ["aeris-roles", "aeris-hub", "aeris-flight", "aeris-mavlink"] {
         assert!(vehicle.contains(dep), "the vehicle build lacks {dep}");
     }
+}
+
+/// Words of `text` (identifier characters), in order.
+fn identifiers(text: &str) -> impl Iterator<Item = &str> {
+    text.split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+        .filter(|w| !w.is_empty())
+}
+
+/// The binary parses, calls libraries and prints: the flight loop (the `Supervisor` it steps
+/// and the `FlightMonitor` that reads hub reports) lives in `aeris-flight`, so no file of
+/// `cli/src` names either type.
+#[test]
+fn the_binary_holds_no_supervisor_and_no_flight_monitor() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cli/src");
+    let mut files = 0;
+    let mut found = Vec::new();
+    for entry in std::fs::read_dir(&dir).expect("cli/src") {
+        let path = entry.expect("dir entry").path();
+        if path.extension().is_none_or(|e| e != "rs") {
+            continue;
+        }
+        files += 1;
+        let text = std::fs::read_to_string(&path).expect("read a cli source file");
+        // the flight's event that carries a supervisor event is printing, not the loop
+        let text = text.replace("FlightEvent::Supervisor", "FlightEvent::");
+        for word in identifiers(&text) {
+            if matches!(word, "Supervisor" | "FlightMonitor" | "SupervisorOptions") {
+                found.push(format!("{}: {word}", path.display()));
+            }
+        }
+    }
+    assert!(
+        files >= 5,
+        "cli/src has only {files} Rust files: wrong folder?"
+    );
+    assert!(
+        found.is_empty(),
+        "flight loop types in the binary: {found:?}"
+    );
+    // not vacuous: the words are found where the loop is
+    let flight = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../flight/src/supervise.rs"),
+    )
+    .expect("flight/src/supervise.rs");
+    assert!(identifiers(&flight).any(|w| w == "Supervisor"));
 }
