@@ -30,13 +30,35 @@ use iceoryx2::service::builder::request_response::{
 /// The iceoryx2 service flavour AERIS uses between processes.
 pub type Ipc = ipc::Service;
 
-/// The iceoryx2 configuration of every AERIS process: iceoryx2's built-in defaults, set
-/// explicitly instead of looked up. Every process of a flight then agrees on it whatever its
-/// working directory (iceoryx2's lookup starts with a file relative to the current
-/// directory), and no process logs iceoryx2's "No config file was loaded" warning.
+/// The iceoryx2 configuration of every AERIS process: iceoryx2's global configuration (an
+/// `iceoryx2.toml` where iceoryx2 looks for one, else its built-in defaults), set up once and
+/// quietly. Every node of ours is built with it, and iceoryx2's own paths that take the global
+/// configuration (the clean-up of a dead node whose details are gone) find it set up: no
+/// process logs iceoryx2's "No config file was loaded" warning, which said nothing
+/// actionable in every role and test log.
 pub fn iceoryx_config() -> &'static Config {
-    static CONFIG: std::sync::OnceLock<Config> = std::sync::OnceLock::new();
-    CONFIG.get_or_init(Config::default)
+    static QUIET_SETUP: std::sync::Once = std::sync::Once::new();
+    QUIET_SETUP.call_once(|| {
+        let level = iceoryx2_log::get_log_level();
+        if level < LogLevel::Error as u8 {
+            set_log_level(LogLevel::Error);
+        }
+        let _ = Config::global_config();
+        set_log_level(log_level_from(level));
+    });
+    Config::global_config()
+}
+
+/// The [`LogLevel`] whose number is `level` (iceoryx2 reports its level as a number).
+fn log_level_from(level: u8) -> LogLevel {
+    match level {
+        0 => LogLevel::Trace,
+        1 => LogLevel::Debug,
+        2 => LogLevel::Info,
+        3 => LogLevel::Warn,
+        4 => LogLevel::Error,
+        _ => LogLevel::Fatal,
+    }
 }
 
 /// Why a bus operation failed. Every variant names the service involved.
