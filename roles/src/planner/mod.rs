@@ -50,6 +50,13 @@ pub const DEFAULT_CRUISE_HEIGHT_M: f32 = 20.0;
 pub const STANDOFF_M: f32 = 12.0;
 /// Slack (m) on the stand-off point and on "fly over X" when X's position is an estimate.
 pub const GROUNDED_REACH_M: f32 = 8.0;
+/// A take-off, climb or descent step is done within this height of its target (m).
+pub const ALTITUDE_REACH_M: f32 = 1.0;
+/// How far short of its setpoint the vehicle may settle (m): the tracker approaches a
+/// setpoint from one side and stops a fraction of a millimetre before it, so a setpoint
+/// exactly [`ALTITUDE_REACH_M`] off the step's target (a language model's take-off to 11 m
+/// for a 12 m step) left the vehicle 1.00005 m away and the step never done.
+const SETTLE_MARGIN_M: f32 = 0.01;
 /// Yaw offsets (rad) from the search heading, one heartbeat each, while the landmark of a
 /// step is not in view: ahead, then ever wider left/right, then behind.
 const SCAN_OFFSETS: [f32; 6] = [0.0, -1.05, 1.05, -2.09, 2.09, core::f32::consts::PI];
@@ -277,7 +284,7 @@ impl Planner {
         };
         match step.action {
             ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend => {
-                (position[2] - w[2]).abs() <= 1.0
+                (position[2] - w[2]).abs() <= ALTITUDE_REACH_M + SETTLE_MARGIN_M
             }
             ActionMode::Land => landed && horizontal(position, w) <= radius.max(1.0) + 1.0,
             ActionMode::Hover => issued >= 1,

@@ -65,6 +65,21 @@ fn advances_through_subgoals_and_every_decision_is_valid() {
     assert_eq!(d.step, 3);
 }
 
+/// A language model that takes off to 11 m for a 12 m step: the vehicle settles a hair
+/// under 11 m, one metre and a few hundredths of a millimetre short; the step is done.
+#[test]
+fn a_take_off_settled_just_inside_a_metre_of_its_target_is_done() {
+    let m = mission();
+    let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
+    assert_eq!(p.decide([0.0, 0.0, 0.0], 0.0, true, None).step, 1);
+    // the target is 10 m: the tracker stopped 1.00005 m short of it
+    assert_eq!(p.decide([0.0, 0.0, 8.99995], 0.0, false, None).step, 2);
+    // well short is not done
+    let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
+    p.decide([0.0, 0.0, 0.0], 0.0, true, None);
+    assert_eq!(p.decide([0.0, 0.0, 8.9], 0.0, false, None).step, 1);
+}
+
 #[test]
 fn a_huge_or_odd_yaw_never_hangs_and_stays_in_range() {
     let mut p = Planner::new(&mission(), &CameraSpec::default()).unwrap();
