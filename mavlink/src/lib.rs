@@ -27,5 +27,7 @@ pub use mavlink::dialects::common as dialect;
 
 pub use autopilot::Autopilot;
 pub use frame::{ned_to_neu, neu_to_ned};
-pub use link::{LINK_POLL, LinkError, MavLink, PendingLink, open_link, prepare_link};
+pub use link::{LINK_POLL, LinkError, MavLink, PendingLink, Received, open_link, prepare_link};
+/// MAVLink's framing versions.
+pub use mavlink::MavlinkVersion;
 pub use receiver::LinkReceiver;

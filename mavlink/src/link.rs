@@ -1,15 +1,20 @@
 //! One MAVLink link on any supported URL: `udpin:`, `udpout:`, `udpbcast:`, `tcpin:`,
 //! `tcpout:` (`udp:`/`tcp:` as aliases) and `serial:DEVICE:BAUD`. Receives time out after
 //! the read timeout the link was prepared with, so a receive thread can stop cleanly;
-//! sending works from any thread and does not allocate. The link speaks MAVLink 2 in the
-//! [`crate::dialect`].
+//! sending works from any thread and does not allocate. The link receives MAVLink 1 and 2
+//! frames of the [`crate::dialect`] and sends in the version set with
+//! [`MavLink::set_send_version`] (MAVLink 2 until then), so it talks to autopilots and tools
+//! that speak only MAVLink 1.
 
 use crate::MavHeader;
 use crate::dialect::MavMessage;
 use mavlink::error::{MessageReadError, MessageWriteError};
-use mavlink::{Connectable, MavConnection, SerialConfig, TcpConfig, UdpConfig, UdpMode};
+use mavlink::{
+    Connectable, MAVLinkMessageRaw, MAVLinkV1MessageRaw, MAVLinkV2MessageRaw, MavConnection,
+    MavlinkVersion, Message, SerialConfig, TcpConfig, UdpConfig, UdpMode,
+};
 use std::net::{TcpListener, TcpStream};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::time::Duration;
 
 /// How long a receive call waits before giving the receive loop a chance to stop.
@@ -44,15 +49,37 @@ pub enum LinkError {
     /// The peer closed the stream (TCP) or the device went away.
     #[error("the MAVLink peer closed the link")]
     Closed,
-    /// Bytes arrived that do not decode as a common-dialect MAVLink 2 message.
+    /// Bytes arrived that do not decode as a common-dialect MAVLink 1 or 2 message.
     #[error("undecodable MAVLink data")]
     Decode,
+    /// The message has no MAVLink 1 encoding (its id is above 255) and the link sends
+    /// MAVLink 1.
+    #[error("message {message_id} cannot be sent as MAVLink 1 (its id is above 255)")]
+    NotInMavlink1 {
+        /// The message id.
+        message_id: u32,
+    },
+}
+
+/// One message as it arrived.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Received {
+    /// Its sender and sequence number.
+    pub header: MavHeader,
+    /// The message.
+    pub message: MavMessage,
+    /// The framing it arrived in; `None` on links that do not report it (serial).
+    pub version: Option<MavlinkVersion>,
 }
 
 /// An open MAVLink link: send from any thread, receive with a timeout.
 pub struct MavLink {
     conn: Connection,
     poll_with_try_recv: bool,
+    /// 1 or 2: the framing [`MavLink::send`] writes.
+    send_version: AtomicU8,
+    /// The next outgoing sequence number.
+    sequence: AtomicU8,
 }
 
 impl core::fmt::Debug for MavLink {
@@ -62,21 +89,88 @@ impl core::fmt::Debug for MavLink {
 }
 
 impl MavLink {
-    /// Send `msg` with `header` (the sequence number is filled in). `Ok(0)` means there is
-    /// no peer yet (a `udpin:` link before anything arrived). Does not allocate.
+    /// A link over `conn` that receives either MAVLink version and sends MAVLink 2.
+    fn new(mut conn: Connection, poll_with_try_recv: bool) -> Self {
+        conn.set_allow_recv_any_version(true);
+        Self {
+            conn,
+            poll_with_try_recv,
+            send_version: AtomicU8::new(2),
+            sequence: AtomicU8::new(0),
+        }
+    }
+
+    /// Send in `version` from now on (MAVLink 1 for a peer that speaks only MAVLink 1).
+    pub fn set_send_version(&self, version: MavlinkVersion) {
+        let v = match version {
+            MavlinkVersion::V1 => 1,
+            MavlinkVersion::V2 => 2,
+        };
+        self.send_version.store(v, Ordering::Relaxed);
+    }
+
+    /// The version [`MavLink::send`] writes.
+    pub fn send_version(&self) -> MavlinkVersion {
+        match self.send_version.load(Ordering::Relaxed) {
+            1 => MavlinkVersion::V1,
+            _ => MavlinkVersion::V2,
+        }
+    }
+
+    /// Send `msg` from the sender in `header` (the sequence number is the link's own) in the
+    /// link's send version. `Ok(0)` means there is no peer yet (a `udpin:` link before
+    /// anything arrived). Does not allocate: the frame is built on the stack.
     pub fn send(&self, header: &MavHeader, msg: &MavMessage) -> Result<usize, LinkError> {
-        self.conn.send(header, msg).map_err(|e| match e {
+        let header = MavHeader {
+            sequence: self.sequence.fetch_add(1, Ordering::Relaxed),
+            ..*header
+        };
+        let raw = match self.send_version() {
+            MavlinkVersion::V1 => {
+                let message_id = msg.message_id();
+                if message_id > u32::from(u8::MAX) || header.system_id > u32::from(u8::MAX) {
+                    return Err(LinkError::NotInMavlink1 { message_id });
+                }
+                let mut raw = MAVLinkV1MessageRaw::new();
+                raw.serialize_message(header, msg);
+                MAVLinkMessageRaw::V1(raw)
+            }
+            MavlinkVersion::V2 => {
+                let mut raw = MAVLinkV2MessageRaw::new();
+                raw.serialize_message(header, msg);
+                MAVLinkMessageRaw::V2(raw)
+            }
+        };
+        self.conn.send_raw(&raw).map_err(|e| match e {
             MessageWriteError::Io(io) => LinkError::Send(io.to_string()),
             other => LinkError::Send(format!("{other:?}")),
         })
     }
 
-    /// Receive one message; `Ok(None)` when nothing arrived within the link's poll timeout.
-    pub fn recv(&self) -> Result<Option<(MavHeader, MavMessage)>, LinkError> {
+    /// Receive one message of either MAVLink version; `Ok(None)` when nothing arrived
+    /// within the link's poll timeout.
+    pub fn recv(&self) -> Result<Option<Received>, LinkError> {
         let r = if self.poll_with_try_recv {
-            self.conn.try_recv()
+            // a serial port is polled (its blocking read retries timeouts for ever); the
+            // crate reports no framing version there
+            self.conn.try_recv().map(|(header, message)| Received {
+                header,
+                message,
+                version: None,
+            })
         } else {
-            self.conn.recv()
+            self.conn.recv_raw().and_then(|raw| {
+                let message = MavMessage::parse(raw.version(), raw.message_id(), raw.payload())?;
+                Ok(Received {
+                    header: MavHeader {
+                        system_id: raw.system_id(),
+                        component_id: raw.component_id(),
+                        sequence: raw.sequence(),
+                    },
+                    message,
+                    version: Some(raw.version()),
+                })
+            })
         };
         match r {
             Ok(m) => Ok(Some(m)),
@@ -123,10 +217,7 @@ fn tcp_link(stream: TcpStream, timeout: Duration, url: &str) -> Result<MavLink, 
         .map_err(open_err(url))?
         .connect::<MavMessage>()
         .map_err(open_err(url))?;
-    Ok(MavLink {
-        conn,
-        poll_with_try_recv: false,
-    })
+    Ok(MavLink::new(conn, false))
 }
 
 /// Parse `url` and open its transport (binding, connecting, opening the device), except
@@ -145,10 +236,7 @@ pub fn prepare_link(url: &str, read_timeout: Duration) -> Result<PendingLink, Li
             .read_timeout(timeout)
             .connect::<MavMessage>()
             .map_err(open_err(url))?;
-        Ok(PendingLink::Ready(MavLink {
-            conn,
-            poll_with_try_recv: false,
-        }))
+        Ok(PendingLink::Ready(MavLink::new(conn, false)))
     };
     match proto {
         "udpin" | "udp" => udp(UdpMode::Udpin),
@@ -173,10 +261,7 @@ pub fn prepare_link(url: &str, read_timeout: Duration) -> Result<PendingLink, Li
                 .timeout(timeout)
                 .connect::<MavMessage>()
                 .map_err(open_err(url))?;
-            Ok(PendingLink::Ready(MavLink {
-                conn,
-                poll_with_try_recv: true,
-            }))
+            Ok(PendingLink::Ready(MavLink::new(conn, true)))
         }
         _ => Err(LinkError::Address(url.to_string())),
     }

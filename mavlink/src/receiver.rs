@@ -3,9 +3,7 @@
 //! handler until stopped. Both ends use it: the controller feeds the autopilot's state, the
 //! simulated vehicle its inbox.
 
-use crate::MavHeader;
-use crate::dialect::MavMessage;
-use crate::link::{LINK_POLL, LinkError, MavLink, PendingLink};
+use crate::link::{LINK_POLL, LinkError, MavLink, PendingLink, Received};
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
@@ -21,7 +19,7 @@ pub struct LinkReceiver {
 
 impl LinkReceiver {
     /// Spawn the thread `name`: it establishes `pending`, then calls `on_message` with
-    /// every message received until [`LinkReceiver::stop`] or until `on_message` returns
+    /// every message received (MAVLink 1 or 2) until [`LinkReceiver::stop`] or until `on_message` returns
     /// [`ControlFlow::Break`]. Undecodable bytes are skipped; after a transport error the
     /// thread waits [`LINK_POLL`] before it reads again (a closed TCP peer does not make it
     /// spin). When the link cannot be established the thread writes
@@ -34,7 +32,7 @@ impl LinkReceiver {
         on_message: F,
     ) -> std::io::Result<Self>
     where
-        F: FnMut(&MavHeader, MavMessage) -> ControlFlow<()> + Send + 'static,
+        F: FnMut(Received) -> ControlFlow<()> + Send + 'static,
     {
         let link = Arc::new(OnceLock::new());
         let stop = Arc::new(AtomicBool::new(false));
@@ -93,7 +91,7 @@ fn receive_loop<F>(
     mut on_message: F,
 ) -> Result<(), LinkError>
 where
-    F: FnMut(&MavHeader, MavMessage) -> ControlFlow<()>,
+    F: FnMut(Received) -> ControlFlow<()>,
 {
     let Some(link) = pending.establish(stop)? else {
         return Ok(());
@@ -104,8 +102,8 @@ where
     };
     while !stop.load(Ordering::Relaxed) {
         match link.recv() {
-            Ok(Some((header, msg))) => {
-                if on_message(&header, msg).is_break() {
+            Ok(Some(received)) => {
+                if on_message(received).is_break() {
                     return Ok(());
                 }
             }
@@ -120,8 +118,12 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dialect::{HEARTBEAT_DATA, MavAutopilot, MavModeFlag, MavState, MavType};
+    use crate::dialect::{
+        HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType,
+    };
     use crate::link::{open_link, prepare_link};
+    use crate::{MavHeader, MavlinkVersion};
+    use mavlink::Message;
     use std::sync::mpsc::sync_channel;
 
     fn heartbeat(custom_mode: u32) -> MavMessage {
@@ -136,7 +138,8 @@ mod tests {
     }
 
     /// A `tcpin:` server: the thread accepts the peer, delivers what it sends in order with
-    /// its header, the link then sends back, and a `Break` ends the thread.
+    /// its header and framing (MAVLink 2, then MAVLink 1 from a peer switched to it), the
+    /// link then sends back in MAVLink 1, and a `Break` ends the thread.
     #[test]
     fn a_tcp_server_accepts_its_peer_and_hands_over_every_message() {
         let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
@@ -144,9 +147,9 @@ mod tests {
         drop(listener);
         let pending = prepare_link(&format!("tcpin:{addr}"), LINK_POLL).unwrap();
         let (tx, rx) = sync_channel(16);
-        let mut receiver = LinkReceiver::spawn("test-rx", pending, "test link", move |h, m| {
-            let done = matches!(&m, MavMessage::HEARTBEAT(hb) if hb.custom_mode == 3);
-            tx.send((h.system_id, m)).unwrap();
+        let mut receiver = LinkReceiver::spawn("test-rx", pending, "test link", move |r| {
+            let done = matches!(&r.message, MavMessage::HEARTBEAT(hb) if hb.custom_mode == 3);
+            tx.send(r).unwrap();
             if done {
                 ControlFlow::Break(())
             } else {
@@ -161,29 +164,46 @@ mod tests {
             sequence: 0,
         };
         for mode in 1..=3 {
+            if mode == 3 {
+                peer.set_send_version(MavlinkVersion::V1);
+            }
             peer.send(&header, &heartbeat(mode)).unwrap();
         }
         for mode in 1..=3 {
-            let (sys, msg) = rx.recv().unwrap();
-            assert_eq!(sys, 42);
-            assert!(matches!(msg, MavMessage::HEARTBEAT(hb) if hb.custom_mode == mode));
+            let r = rx.recv().unwrap();
+            assert_eq!(r.header.system_id, 42);
+            assert!(matches!(r.message, MavMessage::HEARTBEAT(hb) if hb.custom_mode == mode));
+            let framing = if mode == 3 {
+                MavlinkVersion::V1
+            } else {
+                MavlinkVersion::V2
+            };
+            assert_eq!(r.version, Some(framing), "heartbeat {mode}");
         }
-        // the thread ended on the Break; the established link still sends
+        // the thread ended on the Break; the established link still sends, as MAVLink 1
         receiver.stop();
         let link = receiver.link().expect("established");
+        link.set_send_version(MavlinkVersion::V1);
         assert!(link.send(&header, &heartbeat(9)).unwrap() > 0);
         // (a bound on the polls, not on time: a lost message fails instead of hanging)
         let back = (0..200).find_map(|_| peer.recv().unwrap());
         assert!(
-            matches!(&back, Some((_, MavMessage::HEARTBEAT(hb))) if hb.custom_mode == 9),
+            matches!(&back, Some(r) if r.version == Some(MavlinkVersion::V1)
+                && matches!(&r.message, MavMessage::HEARTBEAT(hb) if hb.custom_mode == 9)),
             "{back:?}"
         );
+        // a message with no MAVLink 1 encoding is refused, not mangled
+        let long_id = MavMessage::default_message_from_id(385).expect("TUNNEL exists");
+        assert!(matches!(
+            link.send(&header, &long_id),
+            Err(LinkError::NotInMavlink1 { message_id: 385 })
+        ));
     }
 
     #[test]
     fn a_receiver_stops_while_its_server_still_waits_for_a_peer() {
         let pending = prepare_link("tcpin:127.0.0.1:0", LINK_POLL).unwrap();
-        let mut receiver = LinkReceiver::spawn("test-rx", pending, "test link", |_, _| {
+        let mut receiver = LinkReceiver::spawn("test-rx", pending, "test link", |_| {
             ControlFlow::Continue(())
         })
         .unwrap();

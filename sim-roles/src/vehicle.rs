@@ -7,6 +7,8 @@
 //! - `state_file`: where the vehicle checkpoints its pose every 100 ms; a restarted vehicle
 //!   resumes from a checkpoint younger than [`CHECKPOINT_MAX_AGE`] instead of teleporting
 //!   back to the start (the supervisor sets it to `<run dir>/<role>.state`).
+//! - `mavlink`: the framing the vehicle sends, `1` or `2` (default); it receives both, so
+//!   it can play an autopilot that speaks only MAVLink 1.
 //!
 //! Every received position setpoint is checked against the mission's geofence and altitude
 //! band at the MAVLink boundary (an independent check of the controller and the hub); the
@@ -24,6 +26,7 @@
 //! control periods counts `round(interval / period) - 1` (see
 //! [`aeris_sim::mav_vehicle::SimVehicleStats::setpoint_ticks_missed`]).
 
+use aeris_mavlink::MavlinkVersion;
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_sim::mav_vehicle::{SimVehicle, SimVehicleConfig};
@@ -136,7 +139,18 @@ impl Role for VehicleRole {
         let limits = &spec.mission.limits;
         let mut fence_max = limits.geofence_max;
         fence_max[2] = fence_max[2].min(limits.h_max);
+        let mavlink_version = match spec.params.get("mavlink") {
+            None => MavlinkVersion::V2,
+            Some(v) if v.as_u64() == Some(2) => MavlinkVersion::V2,
+            Some(v) if v.as_u64() == Some(1) => MavlinkVersion::V1,
+            Some(v) => {
+                return Err(RoleError::Config(format!(
+                    "param `mavlink` = {v}: the vehicle speaks MAVLink 1 or 2"
+                )));
+            }
+        };
         let mut config = SimVehicleConfig {
+            mavlink_version,
             start: spec.mission.start,
             fence: Some((limits.geofence_min, fence_max)),
             setpoint_period_s: (spec.timing.control_rate_hz > 0.0)

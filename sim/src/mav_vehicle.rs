@@ -40,7 +40,8 @@ use aeris_mavlink::px4::{
     PX4_MAIN_MODE_OFFBOARD, PX4_MAIN_MODE_POSCTL, px4_custom_mode,
 };
 use aeris_mavlink::{
-    LINK_POLL, LinkError, LinkReceiver, MavHeader, ned_to_neu, neu_to_ned, prepare_link,
+    LINK_POLL, LinkError, LinkReceiver, MavHeader, MavlinkVersion, Received, ned_to_neu,
+    neu_to_ned, prepare_link,
 };
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -112,6 +113,9 @@ pub struct SimVehicleConfig {
     /// missed ticks in [`SimVehicleStats::setpoint_ticks_missed`] (the autopilot's view of
     /// the controller: jitter within two periods is not a miss).
     pub setpoint_period_s: Option<f32>,
+    /// The framing the vehicle sends (it receives both): an autopilot that speaks only
+    /// MAVLink 1 is `V1`.
+    pub mavlink_version: MavlinkVersion,
 }
 
 impl Default for SimVehicleConfig {
@@ -127,6 +131,7 @@ impl Default for SimVehicleConfig {
             auto_disarm_s: 2.0,
             fence: None,
             setpoint_period_s: None,
+            mavlink_version: MavlinkVersion::V2,
         }
     }
 }
@@ -248,9 +253,9 @@ fn inbox_handler(
     dropped: Arc<AtomicU64>,
     sys: u8,
     comp: u8,
-) -> impl FnMut(&MavHeader, MavMessage) -> ControlFlow<()> + Send + 'static {
-    move |_, msg| {
-        let item = match msg {
+) -> impl FnMut(Received) -> ControlFlow<()> + Send + 'static {
+    move |r: Received| {
+        let item = match r.message {
             MavMessage::COMMAND_LONG(c)
                 if targets_me(c.target_system, Some(c.target_component), sys, comp) =>
             {
@@ -646,6 +651,9 @@ impl SimVehicle {
         let Some(link) = self.receiver.link() else {
             return;
         };
+        if link.send_version() != self.config.mavlink_version {
+            link.set_send_version(self.config.mavlink_version);
+        }
         let header = MavHeader {
             system_id: self.config.system_id.into(),
             component_id: self.config.component_id,

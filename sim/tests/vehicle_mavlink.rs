@@ -153,9 +153,10 @@ impl Client {
                 last_each = Instant::now();
             }
             match self.link.recv() {
-                Ok(Some((h, msg))) => {
+                Ok(Some(received)) => {
+                    let h = received.header;
                     assert_eq!((h.system_id, h.component_id), (1, 1));
-                    match msg {
+                    match received.message {
                         MavMessage::HEARTBEAT(hb) => {
                             self.seen.heartbeat = Some((hb.base_mode.bits(), hb.custom_mode));
                             self.seen.heartbeat_type =

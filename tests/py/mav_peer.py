@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
-"""Independent MAVLink decoder for the controller role (pymavlink, MAVLink 2, common dialect).
+"""Independent MAVLink decoder for the controller role (pymavlink, common dialect).
 
-Plays a minimal PX4 autopilot (system 1, component 1) on a pymavlink connection: sends
+Plays a minimal PX4 autopilot (system 1, component 1) on a pymavlink connection, speaking
+MAVLink 2 or, with --mavlink 1, only MAVLink 1 (it decodes both): sends
 HEARTBEAT at 1 Hz (armed / offboard as commanded), LOCAL_POSITION_NED and ATTITUDE at 50 Hz
 (a crude vehicle that moves towards the last position setpoint while armed in offboard),
 and answers every COMMAND_LONG with COMMAND_ACK (accepted).
@@ -20,6 +21,8 @@ north arrived), or after --max-count setpoints, or when --timeout seconds passed
   setpoints    one [x, y, z, vx, vy, vz, type_mask, coordinate_frame] per setpoint
                (non-finite numbers become null)
   mavlink1     messages that arrived as MAVLink 1
+  setpoints_v1 setpoints that arrived as MAVLink 1
+  last_setpoint_v1  whether the last setpoint arrived as MAVLink 1
   bad_data     undecodable chunks
   timed_out    true when --timeout ended the run
 """
@@ -62,7 +65,15 @@ def main():
         default=None,
         help="stop after this many setpoints whatever else is missing (default 10 x --count)",
     )
+    ap.add_argument(
+        "--mavlink",
+        type=int,
+        choices=[1, 2],
+        default=2,
+        help="the framing this autopilot sends (it decodes both)",
+    )
     args = ap.parse_args()
+    v1 = args.mavlink == 1
     max_count = args.max_count if args.max_count is not None else 10 * args.count
 
     conn = mavutil.mavlink_connection(
@@ -80,6 +91,8 @@ def main():
     setpoints = []
     bad_data = 0
     mavlink1 = 0
+    setpoints_v1 = 0
+    last_setpoint_v1 = False
 
     armed = False
     offboard = False
@@ -116,6 +129,7 @@ def main():
                 base,
                 custom,
                 m.MAV_STATE_ACTIVE if armed else m.MAV_STATE_STANDBY,
+                force_mavlink1=v1,
             )
         if now >= next_tel:
             dt = 0.02
@@ -128,8 +142,10 @@ def main():
                     step = min(n, 5.0 * dt)
                     vel = [d[i] / n * step / dt for i in range(3)]
                     pos = [pos[i] + d[i] / n * step for i in range(3)]
-            mav.local_position_ned_send(ms, pos[0], pos[1], pos[2], vel[0], vel[1], vel[2])
-            mav.attitude_send(ms, 0.0, 0.0, yaw, 0.0, 0.0, 0.0)
+            mav.local_position_ned_send(
+                ms, pos[0], pos[1], pos[2], vel[0], vel[1], vel[2], force_mavlink1=v1
+            )
+            mav.attitude_send(ms, 0.0, 0.0, yaw, 0.0, 0.0, 0.0, force_mavlink1=v1)
 
         msg = conn.recv_match(blocking=True, timeout=0.005)
         if msg is None:
@@ -141,7 +157,8 @@ def main():
         counts[kind] = counts.get(kind, 0) + 1
         sources.add((msg.get_srcSystem(), msg.get_srcComponent()))
         buf = msg.get_msgbuf()
-        if buf and buf[0] != 0xFD:
+        is_v1 = bool(buf) and buf[0] != 0xFD
+        if is_v1:
             mavlink1 += 1
         if kind == "HEARTBEAT":
             heartbeats.add((msg.type, msg.autopilot, msg.get_srcSystem(), msg.get_srcComponent()))
@@ -153,8 +170,10 @@ def main():
             elif msg.command == DO_SET_MODE:
                 mode_params.append([finite_or_none(msg.param1), finite_or_none(msg.param2)])
                 offboard = int(round(msg.param2)) == PX4_OFFBOARD
-            mav.command_ack_send(msg.command, m.MAV_RESULT_ACCEPTED)
+            mav.command_ack_send(msg.command, m.MAV_RESULT_ACCEPTED, force_mavlink1=v1)
         elif kind == "SET_POSITION_TARGET_LOCAL_NED":
+            setpoints_v1 += int(is_v1)
+            last_setpoint_v1 = is_v1
             row = [msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz]
             setpoints.append([finite_or_none(v) for v in row] + [msg.type_mask, msg.coordinate_frame])
             if all(finite_or_none(v) is not None for v in row[:3]):
@@ -171,6 +190,8 @@ def main():
         "sources": sorted(list(s) for s in sources),
         "setpoints": setpoints,
         "mavlink1": mavlink1,
+        "setpoints_v1": setpoints_v1,
+        "last_setpoint_v1": last_setpoint_v1,
         "bad_data": bad_data,
         "timed_out": timed_out,
     }

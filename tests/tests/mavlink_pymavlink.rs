@@ -1,7 +1,8 @@
 //! The independent-decoder test: the real controller process talks MAVLink to a pymavlink
-//! peer that plays a PX4 autopilot and decodes everything the controller sends. The test
-//! plays the hub, publishing valid and hostile bound setpoints over iceoryx2; none of the
-//! hostile ones may reach the wire.
+//! peer that plays a PX4 autopilot, answers its commands and decodes everything the
+//! controller sends, once speaking MAVLink 2 and once only MAVLink 1 (pymavlink's default
+//! framing, which the controller once never heard). The test plays the hub, publishing valid
+//! and hostile bound setpoints over iceoryx2; none of the hostile ones may reach the wire.
 
 use aeris_runtime::FlightBus;
 use aeris_runtime::clock::monotonic_ns;
@@ -57,9 +58,36 @@ fn num(v: &Value) -> f64 {
 
 #[test]
 fn controller_output_decodes_in_pymavlink_and_hostile_setpoints_never_reach_the_wire() {
+    let report = fly_against_pymavlink_peer(2);
+    assert_eq!(
+        report["mavlink1"],
+        json!(0),
+        "everything is MAVLink 2: {report}"
+    );
+}
+
+/// An autopilot that speaks only MAVLink 1: the controller hears it (it arms it and asks
+/// for offboard, which it only does on the autopilot's heartbeat) and answers in MAVLink 1.
+#[test]
+fn a_mavlink_1_autopilot_is_heard_and_answered_in_mavlink_1() {
+    let report = fly_against_pymavlink_peer(1);
+    assert!(
+        report["setpoints_v1"].as_u64().unwrap_or(0) > 0,
+        "no setpoint in MAVLink 1: {report}"
+    );
+    assert_eq!(
+        report["last_setpoint_v1"],
+        json!(true),
+        "the controller went back to MAVLink 2: {report}"
+    );
+}
+
+/// Fly the controller process against the pymavlink peer speaking MAVLink `mavlink`, check
+/// everything both framings share, and return the peer's report.
+fn fly_against_pymavlink_peer(mavlink: u8) -> Value {
     let port = free_udp_port();
-    let flight = unique_flight("mavpy");
-    let dir = TempDir::new("mavpy");
+    let flight = unique_flight(&format!("mavpy{mavlink}"));
+    let dir = TempDir::new(&format!("mavpy{mavlink}"));
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("py/mav_peer.py");
 
     let mut peer = ChildGuard::spawn(
@@ -70,6 +98,7 @@ fn controller_output_decodes_in_pymavlink_and_hostile_setpoints_never_reach_the_
             .args(["--timeout", "120"])
             .args(["--until-north", "3.0"])
             .args(["--max-count", "3000"])
+            .args(["--mavlink", &mavlink.to_string()])
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit()),
     )
@@ -177,11 +206,6 @@ fn controller_output_decodes_in_pymavlink_and_hostile_setpoints_never_reach_the_
         .unwrap_or_else(|e| panic!("peer output is not one JSON line ({e}): {out}"));
     assert_eq!(report["timed_out"], json!(false), "{report}");
     assert_eq!(report["bad_data"], json!(0), "{report}");
-    assert_eq!(
-        report["mavlink1"],
-        json!(0),
-        "everything is MAVLink 2: {report}"
-    );
 
     // Identity: every message from system 1, component 191.
     assert_eq!(
@@ -287,4 +311,5 @@ fn controller_output_decodes_in_pymavlink_and_hostile_setpoints_never_reach_the_
         std::thread::sleep(Duration::from_millis(20));
     };
     assert!(status.success(), "controller exit: {status}");
+    report
 }

@@ -6,7 +6,7 @@
 use super::tracker::VehicleView;
 use aeris_geometry::wrap_pi;
 use aeris_mavlink::dialect::{MavLandedState, MavMessage, MavModeFlag};
-use aeris_mavlink::{Autopilot, ned_to_neu, neu_to_ned};
+use aeris_mavlink::{Autopilot, MavlinkVersion, ned_to_neu, neu_to_ned};
 use aeris_schemas::VehicleTelemetry;
 
 /// The link counts as up while the autopilot's heartbeat is younger than this.
@@ -36,6 +36,9 @@ pub(super) struct AutopilotState {
     pub(super) time_boot_ms: u32,
     /// COMMAND_ACKs received.
     pub(super) acks: u64,
+    /// The framing of the autopilot's last HEARTBEAT (`None`: not heard yet, or a link that
+    /// does not report framing).
+    pub(super) heartbeat_version: Option<MavlinkVersion>,
 }
 
 impl AutopilotState {
@@ -92,6 +95,8 @@ impl AutopilotState {
             attitude: Some(t.attitude),
             time_boot_ms: t.autopilot_time_ms,
             acks: 0,
+            // a standby's own link tells the framing
+            heartbeat_version: None,
         }
     }
 
@@ -121,6 +126,7 @@ impl AutopilotState {
                 standby.time_boot_ms
             },
             acks: self.acks,
+            heartbeat_version: self.heartbeat_version,
         }
     }
 

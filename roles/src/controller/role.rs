@@ -10,7 +10,10 @@ use super::messages::{
 use super::sequencer::{AutopilotSequencer, AutopilotStatus};
 use super::tracker::{Tracker, TrackerConfig};
 use aeris_mavlink::dialect::{MavCmd, MavMessage};
-use aeris_mavlink::{Autopilot, LINK_POLL, LinkReceiver, MavHeader, ned_to_neu, prepare_link};
+use aeris_mavlink::{
+    Autopilot, LINK_POLL, LinkReceiver, MavHeader, MavlinkVersion, Received, ned_to_neu,
+    prepare_link,
+};
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::role::try_sched_fifo;
@@ -24,6 +27,40 @@ use std::time::Duration;
 pub const DEFAULT_AUTOPILOT: &str = "udpout:127.0.0.1:14600";
 /// Polls of the autopilot lease per control period.
 pub const POLLS_PER_TICK: u32 = 4;
+
+/// Which MAVLink framing the controller sends (`params.mavlink`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MavlinkFraming {
+    /// MAVLink 2, unless the autopilot's heartbeats arrive in MAVLink 1 (the default).
+    Auto,
+    /// Always MAVLink 1.
+    V1,
+    /// Always MAVLink 2.
+    V2,
+}
+
+impl MavlinkFraming {
+    /// The framing of `spec`'s `params.mavlink`: `1`, `2` or `"auto"` (the default).
+    pub fn from_spec(spec: &RoleSpec) -> Result<Self, RoleError> {
+        match spec.params.get("mavlink") {
+            None => Ok(Self::Auto),
+            Some(v) if v.as_u64() == Some(1) => Ok(Self::V1),
+            Some(v) if v.as_u64() == Some(2) => Ok(Self::V2),
+            Some(v) if v.as_str() == Some("auto") => Ok(Self::Auto),
+            Some(v) => Err(RoleError::Config(format!(
+                "param `mavlink` = {v}: use 1, 2 or \"auto\""
+            ))),
+        }
+    }
+
+    /// The version to send once the autopilot's heartbeat framing is `heard`.
+    pub fn send_version(self, heard: Option<MavlinkVersion>) -> MavlinkVersion {
+        match (self, heard) {
+            (Self::V1, _) | (Self::Auto, Some(MavlinkVersion::V1)) => MavlinkVersion::V1,
+            _ => MavlinkVersion::V2,
+        }
+    }
+}
 
 /// The 50 Hz MAVLink controller role.
 pub struct ControllerRole {
@@ -59,6 +96,7 @@ pub struct ControllerRole {
     commands_sent: u64,
     telemetry_seq: u64,
     header: MavHeader,
+    framing: MavlinkFraming,
 }
 
 impl core::fmt::Debug for ControllerRole {
@@ -113,6 +151,12 @@ impl ControllerRole {
         let Some(link) = self.receiver.link() else {
             return false;
         };
+        // the framing follows the autopilot's (an atomic load, a store when it changes)
+        let version = self.framing.send_version(self.ap_cache.heartbeat_version);
+        if link.send_version() != version {
+            link.set_send_version(version);
+            eprintln!("aeris controller: sending MAVLink {version:?} to the autopilot");
+        }
         match link.send(&self.header, msg) {
             Ok(n) => n > 0,
             Err(_) => {
@@ -147,6 +191,7 @@ impl Role for ControllerRole {
         };
         let realtime = param_bool(spec, "realtime", true)?;
         let standby = param_bool(spec, "standby", false)?;
+        let framing = MavlinkFraming::from_spec(spec)?;
         let tracker = Tracker::new(TrackerConfig::from_spec(spec));
         let setpoints = ctx.bus.subscriber::<BoundSetpoint>(topics::HUB_SETPOINT)?;
         let telemetry = ctx
@@ -172,11 +217,14 @@ impl Role for ControllerRole {
                 "controller-rx",
                 pending,
                 "aeris controller: autopilot link failed",
-                move |header, msg| {
-                    if from_autopilot(header) {
+                move |r: Received| {
+                    if from_autopilot(&r.header) {
                         let now = monotonic_ns();
                         if let Ok(mut s) = shared.lock() {
-                            s.apply(&msg, now, autopilot);
+                            s.apply(&r.message, now, autopilot);
+                            if matches!(r.message, MavMessage::HEARTBEAT(_)) {
+                                s.heartbeat_version = r.version;
+                            }
                         }
                     }
                     ControlFlow::Continue(())
@@ -227,6 +275,7 @@ impl Role for ControllerRole {
             commands_sent: 0,
             telemetry_seq: 0,
             header: companion_header(),
+            framing,
         })
     }
 
