@@ -3,11 +3,34 @@
 # - python3 with venv (Debian packages, only if missing);
 # - a virtual environment at .venv with pymavlink, the independent MAVLink decoder the
 #   tests check the controller's stream against (from PyPI, pinned).
+# - GStreamer's plugins the video tests run real pipelines with (Debian packages, only if
+#   missing): H.264 encode (x264enc, plugins-ugly) and decode (avdec_h264, libav), MP4 and
+#   RTP (plugins-good), and gst-launch-1.0 (tools) for the second-process RTP sender.
 # Nothing is downloaded from anywhere but the Debian archive and PyPI.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 PYMAVLINK_VERSION=2.4.50
+
+gst_missing=()
+gst_has() { gst-inspect-1.0 --exists "$1" 2>/dev/null; }
+command -v gst-launch-1.0 >/dev/null 2>&1 || gst_missing+=(gstreamer1.0-tools)
+if command -v gst-inspect-1.0 >/dev/null 2>&1; then
+    gst_has x264enc || gst_missing+=(gstreamer1.0-plugins-ugly)
+    gst_has avdec_h264 || gst_missing+=(gstreamer1.0-libav)
+    gst_has mp4mux || gst_missing+=(gstreamer1.0-plugins-good)
+    gst_has h264parse || gst_missing+=(gstreamer1.0-plugins-bad)
+else
+    gst_missing+=(gstreamer1.0-plugins-ugly gstreamer1.0-libav gstreamer1.0-plugins-good gstreamer1.0-plugins-bad)
+fi
+if [ ${#gst_missing[@]} -gt 0 ]; then
+    echo "setup: installing ${gst_missing[*]} (Debian packages)" >&2
+    SUDO=""
+    [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+    export DEBIAN_FRONTEND=noninteractive
+    $SUDO apt-get update -qq
+    $SUDO apt-get install -y -qq "${gst_missing[@]}" >/dev/null
+fi
 
 . scripts/python-env.sh
 

@@ -68,6 +68,7 @@ impl FlightWatcher for FlightPrinter {
                 eprintln!("aeris: {n} hub reports failed validation and were not counted");
             }
             FlightEvent::Note(line) => eprintln!("{}{line}", self.note_prefix),
+            FlightEvent::Autopilot(e) => eprintln!("aeris: {e}"),
             FlightEvent::Finished { shutdown, .. } => eprintln!("aeris: shutdown: {shutdown}"),
             FlightEvent::Ready | FlightEvent::Progress(_) | FlightEvent::InvalidReports(_) => {}
         }

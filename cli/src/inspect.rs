@@ -3,8 +3,8 @@
 use aeris_runtime::bus::{self, FlightBus};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_schemas::{
-    BoundSetpoint, ControllerLease, Decision, HubReport, PerceptionState, RoleHeartbeat,
-    RoleStatus, VehicleTelemetry, ZeroCopySend, topics,
+    AutopilotLinkStatus, BoundSetpoint, ControllerLease, Decision, HubReport, PerceptionState,
+    RoleHeartbeat, RoleStatus, VehicleTelemetry, ZeroCopySend, topics,
 };
 use anyhow::{Context, Result, bail};
 use core::fmt::Debug;
@@ -157,6 +157,7 @@ fn type_of(topic: &str) -> &'static str {
         topics::HUB_REPORT => "HubReport",
         topics::VEHICLE_TELEMETRY => "VehicleTelemetry",
         topics::CONTROLLER_LEASE => "ControllerLease",
+        topics::CONTROLLER_LINK => "AutopilotLinkStatus",
         topics::HEARTBEAT => "RoleHeartbeat",
         "supervisor" => "SupervisorStatus (blackboard)",
         _ => "?",
@@ -213,6 +214,7 @@ fn each_sample(
         topics::HUB_REPORT => typed::<HubReport>(bus, topic)?,
         topics::VEHICLE_TELEMETRY => typed::<VehicleTelemetry>(bus, topic)?,
         topics::CONTROLLER_LEASE => typed::<ControllerLease>(bus, topic)?,
+        topics::CONTROLLER_LINK => typed::<AutopilotLinkStatus>(bus, topic)?,
         topics::HEARTBEAT => typed::<RoleHeartbeat>(bus, topic)?,
         other => bail!(
             "unknown topic `{other}`; known topics: {}",

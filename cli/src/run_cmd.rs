@@ -202,6 +202,12 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
         summary.stalls,
         summary.migrations
     );
+    println!(
+        "  autopilot {}; link losses {}, commands refused {}",
+        summary.autopilot.as_deref().unwrap_or("never heard"),
+        summary.autopilot_link_losses,
+        summary.autopilot_commands_refused
+    );
     if args.json {
         println!(
             "{}",

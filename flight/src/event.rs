@@ -37,6 +37,11 @@ pub enum FlightFailure {
     Stopped,
     /// [`crate::Flight::interrupt`] ended it (a termination signal reached the process).
     Interrupted,
+    /// The controller heard no autopilot HEARTBEAT within its link timeout.
+    AutopilotSilent {
+        /// The URL, the timeout and what was heard instead.
+        diagnosis: String,
+    },
 }
 
 impl core::fmt::Display for FlightFailure {
@@ -57,6 +62,7 @@ impl core::fmt::Display for FlightFailure {
             },
             FlightFailure::Stopped => f.write_str("stopped"),
             FlightFailure::Interrupted => f.write_str("interrupted"),
+            FlightFailure::AutopilotSilent { diagnosis } => f.write_str(diagnosis),
         }
     }
 }
@@ -111,6 +117,8 @@ pub enum FlightEvent {
     /// Hub reports failed validation and were not counted (total so far; sent after a
     /// progress event while there are any).
     InvalidReports(u64),
+    /// Something happened on the autopilot link (bound, lost, back, a refused command).
+    Autopilot(crate::AutopilotEvent),
     /// A line from the step hook (a benchmark's fault injected, a swap measured).
     Note(String),
     /// The flight ended and every role was stopped.

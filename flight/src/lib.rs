@@ -41,6 +41,7 @@
 
 #![deny(missing_docs)]
 
+pub mod autopilot_link;
 pub mod event;
 pub mod executors;
 mod handle;
@@ -49,6 +50,7 @@ pub mod monitor;
 pub mod overrides;
 mod supervise;
 
+pub use autopilot_link::{AutopilotEvent, silent_diagnosis};
 pub use event::{
     FlightEvent, FlightFailure, FlightPhase, FlightProgress, FlightStatus, FlightWatcher,
     RoleSnapshot, StopRule,

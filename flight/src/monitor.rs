@@ -1,10 +1,13 @@
 //! Watching a flight from the outside: hub reports, setpoints and telemetry -> progress,
 //! the per-cycle trace and the summary.
 
+use crate::autopilot_link::{AutopilotEvent, LinkFollower};
 use aeris_runtime::MissionSpec;
 use aeris_runtime::bus::{BusError, FlightBus, TypedSubscriber};
 use aeris_runtime::stats::{mean_std, percentile};
-use aeris_schemas::{ActionMode, BoundSetpoint, HubReport, VehicleTelemetry, topics};
+use aeris_schemas::{
+    ActionMode, AutopilotLinkStatus, BoundSetpoint, HubReport, VehicleTelemetry, topics,
+};
 use serde::Serialize;
 
 /// What a finished flight reports (`aeris run --json` prints this as one line).
@@ -83,6 +86,13 @@ pub struct FlightSummary {
     pub max_active_step: u64,
     /// The attention trace, compressed to the sequence of distinct active steps.
     pub attention_steps: Vec<u16>,
+    /// The autopilot flown (firmware, ids, MAVLink version sent), once its HEARTBEAT
+    /// was heard.
+    pub autopilot: Option<String>,
+    /// Times the autopilot link was lost in flight (no HEARTBEAT for the link timeout).
+    pub autopilot_link_losses: u64,
+    /// Commands the autopilot refused (COMMAND_ACK other than accepted / in progress).
+    pub autopilot_commands_refused: u64,
 }
 
 /// Mean stage durations.
@@ -191,6 +201,9 @@ pub struct FlightMonitor {
     reports: TypedSubscriber<HubReport>,
     telemetry: TypedSubscriber<VehicleTelemetry>,
     setpoints: TypedSubscriber<BoundSetpoint>,
+    link: TypedSubscriber<AutopilotLinkStatus>,
+    link_follower: LinkFollower,
+    autopilot_events: Vec<AutopilotEvent>,
     last_setpoint: Option<(u64, u64)>,
     last_bound: Option<([f32; 3], u8)>,
     setpoint_gaps_ms: Vec<f64>,
@@ -225,6 +238,9 @@ impl FlightMonitor {
             reports: bus.subscriber(topics::HUB_REPORT)?,
             telemetry: bus.subscriber(topics::VEHICLE_TELEMETRY)?,
             setpoints: bus.subscriber(topics::HUB_SETPOINT)?,
+            link: bus.subscriber(topics::CONTROLLER_LINK)?,
+            link_follower: LinkFollower::default(),
+            autopilot_events: Vec::new(),
             last_setpoint: None,
             last_bound: None,
             setpoint_gaps_ms: Vec::new(),
@@ -313,6 +329,8 @@ impl FlightMonitor {
             self.airborne |= t.position[2] > 1.0 && t.landed == 0;
             self.last_telemetry = Some(t);
         }
+        let (follower, news) = (&mut self.link_follower, &mut self.autopilot_events);
+        self.link.drain(|s| follower.update(s, news))?;
         let (last, gaps, ends, bound) = (
             &mut self.last_setpoint,
             &mut self.setpoint_gaps_ms,
@@ -333,6 +351,17 @@ impl FlightMonitor {
             *last = Some((sp.seq, sp.publish_ns));
         })?;
         Ok(())
+    }
+
+    /// What happened on the autopilot link since the last call.
+    pub fn take_autopilot_events(&mut self) -> Vec<AutopilotEvent> {
+        std::mem::take(&mut self.autopilot_events)
+    }
+
+    /// When the controller heard no autopilot within its link timeout: what it heard
+    /// instead, naming the URL (the flight ends on it).
+    pub fn silent_autopilot(&self) -> Option<String> {
+        self.link_follower.silent()
     }
 
     /// Hub reports that failed validation (and were not counted).
@@ -480,6 +509,9 @@ impl FlightMonitor {
             subgoals_total: self.subgoals as u64,
             max_active_step: self.attention_steps.iter().copied().max().unwrap_or(0) as u64,
             attention_steps: self.attention_steps.clone(),
+            autopilot: self.link_follower.autopilot(),
+            autopilot_link_losses: self.link_follower.losses(),
+            autopilot_commands_refused: self.link_follower.commands_refused(),
         }
     }
 }

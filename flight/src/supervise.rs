@@ -176,6 +176,12 @@ pub(crate) fn supervise<H: StepHook>(
             send(FlightEvent::Supervisor(event.clone()));
         }
         monitor.poll().map_err(FlightError::Telemetry)?;
+        for event in monitor.take_autopilot_events() {
+            send(FlightEvent::Autopilot(event));
+        }
+        if let Some(diagnosis) = monitor.silent_autopilot() {
+            failure = Some(FlightFailure::AutopilotSilent { diagnosis });
+        }
         let hook_done = hook
             .step(&mut StepContext {
                 supervisor: &mut sup,

@@ -10,10 +10,12 @@
 //! - [`dialect`]: the message set every link speaks (MAVLink's `common`);
 //! - [`frame`]: NED, MAVLink's local frame, to and from our `[N, E, U]`;
 //! - [`autopilot`]: what differs between autopilot firmwares ([`Autopilot`]): how a flight
-//!   mode is commanded and reported; [`px4`] holds PX4's mode numbers.
+//!   mode is commanded and reported; [`px4`] and [`ardupilot`] hold the firmwares' mode
+//!   numbers.
 
 #![deny(missing_docs)]
 
+pub mod ardupilot;
 pub mod autopilot;
 pub mod frame;
 pub mod link;

@@ -168,6 +168,8 @@ pub fn qos(topic: &str) -> Qos {
         topics::VEHICLE_TELEMETRY => q(1, 64, 4, 12),
         // no history: a lease is only evidence while it is fresh
         topics::CONTROLLER_LEASE => q(0, 16, 4, 8),
+        // history 1: a watcher that joins late sees where the link is
+        topics::CONTROLLER_LINK => q(1, 16, 4, 8),
         topics::HEARTBEAT => q(0, 1024, 32, 8),
         _ => q(1, 16, 4, 8),
     }

@@ -122,8 +122,12 @@ pub const ROLE_KINDS: &[RoleKind] = &[
             topics::VEHICLE_TELEMETRY,
             topics::CONTROLLER_LEASE,
         ],
-        publishes: &[topics::VEHICLE_TELEMETRY, topics::CONTROLLER_LEASE],
-        summary: "tracks setpoints at the control rate and talks MAVLink v2 to the autopilot; a hot standby takes the autopilot lease when the holder goes silent",
+        publishes: &[
+            topics::VEHICLE_TELEMETRY,
+            topics::CONTROLLER_LEASE,
+            topics::CONTROLLER_LINK,
+        ],
+        summary: "tracks setpoints at the control rate and talks MAVLink 1 or 2 to a PX4 or ArduPilot autopilot; a hot standby takes the autopilot lease when the holder goes silent",
         swap_refusal: Some(
             "a controller is replaced by its hot standby (a second controller role), not swapped",
         ),

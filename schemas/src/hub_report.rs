@@ -6,7 +6,7 @@ use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
 /// Hub report (`hub/report`), published once per committed or reused cycle.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("aeris::HubReport@s5")]
+#[type_name("aeris::HubReport@s6")]
 #[repr(C)]
 pub struct HubReport {
     /// Publisher sequence number.

@@ -15,6 +15,7 @@
 
 #![deny(missing_docs)]
 
+pub mod autopilot_link;
 pub mod control;
 pub mod decision;
 pub mod frame;
@@ -29,6 +30,9 @@ pub mod text;
 pub mod topics;
 pub mod version;
 
+pub use autopilot_link::{
+    AutopilotKind, AutopilotLinkStatus, LINK_NOTE_MAX, LINK_URL_MAX, LinkState,
+};
 pub use control::{CommandKind, ReplyStage, SupervisorCommand, SupervisorReply};
 pub use decision::{ActionMode, Decision, DecisionError, DecisionLimits};
 pub use frame::{FrameError, FrameFormat, FrameHeader};

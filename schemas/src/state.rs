@@ -138,7 +138,7 @@ impl OccupancyGrid {
 
 /// The typed state S_t (`perception/state`).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("aeris::PerceptionState@s5")]
+#[type_name("aeris::PerceptionState@s6")]
 #[repr(C)]
 pub struct PerceptionState {
     /// Publisher sequence number.

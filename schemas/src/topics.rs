@@ -28,6 +28,9 @@ pub const HUB_REPORT: &str = "hub/report";
 pub const VEHICLE_TELEMETRY: &str = "vehicle/telemetry";
 /// The autopilot lease of the flight's controllers: [`crate::ControllerLease`].
 pub const CONTROLLER_LEASE: &str = "controller/lease";
+/// The autopilot link as the lease-holding controller sees it:
+/// [`crate::AutopilotLinkStatus`].
+pub const CONTROLLER_LINK: &str = "controller/link";
 /// Role heartbeats: [`crate::RoleHeartbeat`].
 pub const HEARTBEAT: &str = "heartbeat";
 
@@ -36,7 +39,7 @@ pub const HEARTBEAT: &str = "heartbeat";
 pub const SUPERVISOR_CONTROL: &str = "supervisor/control";
 
 /// Every versioned topic, for listing and validation.
-pub const ALL: [&str; 13] = [
+pub const ALL: [&str; 14] = [
     CAMERA_RGB,
     CAMERA_DEPTH,
     PERCEPTION_STATE,
@@ -49,6 +52,7 @@ pub const ALL: [&str; 13] = [
     HUB_REPORT,
     VEHICLE_TELEMETRY,
     CONTROLLER_LEASE,
+    CONTROLLER_LINK,
     HEARTBEAT,
 ];
 

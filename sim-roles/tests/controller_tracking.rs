@@ -4,7 +4,7 @@
 use aeris_mavlink::dialect::{MavFrame, MavMessage};
 use aeris_mavlink::neu_to_ned;
 use aeris_roles::controller::{
-    TrackCommand, Tracker, TrackerConfig, VehicleView, position_target_message,
+    Target, TrackCommand, Tracker, TrackerConfig, VehicleView, position_target_message,
     position_velocity_yaw_mask,
 };
 use aeris_schemas::{ActionMode, BoundSetpoint, DecisionLimits, SetpointError};
@@ -342,7 +342,14 @@ fn the_wire_message_is_ned_in_local_ned_frame() {
         mode: Some(ActionMode::Goto),
     };
     assert_eq!(neu_to_ned([1.0, 2.0, 3.0]), [1.0, 2.0, -3.0]);
-    let MavMessage::SET_POSITION_TARGET_LOCAL_NED(m) = position_target_message(&cmd, 42) else {
+    let MavMessage::SET_POSITION_TARGET_LOCAL_NED(m) = position_target_message(
+        &cmd,
+        42,
+        Target {
+            system_id: 1,
+            component_id: 1,
+        },
+    ) else {
         panic!("wrong message");
     };
     assert_eq!([m.x, m.y, m.z], [1.0, 2.0, -3.0]);

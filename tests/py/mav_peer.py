@@ -1,11 +1,20 @@
 #!/usr/bin/env python3
 """Independent MAVLink decoder for the controller role (pymavlink, common dialect).
 
-Plays a minimal PX4 autopilot (system 1, component 1) on a pymavlink connection, speaking
-MAVLink 2 or, with --mavlink 1, only MAVLink 1 (it decodes both): sends
+Plays a minimal autopilot (system --system-id, component 1) on a pymavlink connection,
+speaking MAVLink 2 or, with --mavlink 1, only MAVLink 1 (it decodes both): sends
 HEARTBEAT at 1 Hz (armed / offboard as commanded), LOCAL_POSITION_NED and ATTITUDE at 50 Hz
 (a crude vehicle that moves towards the last position setpoint while armed in offboard),
-and answers every COMMAND_LONG with COMMAND_ACK (accepted).
+and answers every COMMAND_LONG with COMMAND_ACK (accepted, or denied for arming with
+--refuse-arm).
+
+--flavour px4 (the default): offboard is PX4 main mode 6 and the vehicle climbs on position
+setpoints. --flavour ardupilot: an ArduPilot Copter (MAV_AUTOPILOT_ARDUPILOTMEGA), guided is
+custom mode 4; armed in guided on the ground it ignores position targets until
+MAV_CMD_NAV_TAKEOFF (param7 = height), and in land mode (9) it descends and disarms.
+
+--gcs-noise: a ground station shares the link (HEARTBEATs of MAV_TYPE_GCS from system 255,
+component 190, and a COMMAND_ACK of its own), which the controller must ignore.
 
 Everything the controller sends is decoded with pymavlink. When --count
 SET_POSITION_TARGET_LOCAL_NED messages arrived and both MAV_CMD_COMPONENT_ARM_DISARM and
@@ -25,6 +34,10 @@ north arrived), or after --max-count setpoints, or when --timeout seconds passed
   last_setpoint_v1  whether the last setpoint arrived as MAVLink 1
   bad_data     undecodable chunks
   timed_out    true when --timeout ended the run
+  command_targets  distinct [target_system, target_component] of every COMMAND_LONG
+  takeoffs     param7 of every MAV_CMD_NAV_TAKEOFF
+  max_up       the highest the vehicle climbed (m)
+  landed_mode  whether land mode was commanded
 """
 
 import argparse
@@ -40,8 +53,11 @@ from pymavlink import mavutil  # noqa: E402
 
 ARM_DISARM = 400
 DO_SET_MODE = 176
+NAV_TAKEOFF = 22
 PX4_OFFBOARD = 6
 PX4_POSCTL = 3
+COPTER_GUIDED = 4
+COPTER_LAND = 9
 
 
 def finite_or_none(v):
@@ -72,12 +88,17 @@ def main():
         default=2,
         help="the framing this autopilot sends (it decodes both)",
     )
+    ap.add_argument("--system-id", type=int, default=1, help="this autopilot's system id")
+    ap.add_argument("--flavour", choices=["px4", "ardupilot"], default="px4")
+    ap.add_argument("--refuse-arm", action="store_true", help="deny every arm command")
+    ap.add_argument("--gcs-noise", action="store_true", help="a GCS shares the link")
     args = ap.parse_args()
     v1 = args.mavlink == 1
+    ardu = args.flavour == "ardupilot"
     max_count = args.max_count if args.max_count is not None else 10 * args.count
 
     conn = mavutil.mavlink_connection(
-        args.listen, source_system=1, source_component=1, dialect="common"
+        args.listen, source_system=args.system_id, source_component=1, dialect="common"
     )
     mav = conn.mav
     m = mavutil.mavlink
@@ -94,6 +115,11 @@ def main():
     setpoints_v1 = 0
     last_setpoint_v1 = False
 
+    command_targets = set()
+    takeoffs = []
+    landed_mode = False
+    took_off = False
+    max_up = 0.0
     armed = False
     offboard = False
     pos = [0.0, 0.0, 0.0]  # NED
@@ -122,26 +148,47 @@ def main():
             base = m.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
             if armed:
                 base |= m.MAV_MODE_FLAG_SAFETY_ARMED
-            custom = (PX4_OFFBOARD if offboard else PX4_POSCTL) << 16
+            if ardu:
+                custom = COPTER_LAND if landed_mode else (COPTER_GUIDED if offboard else 0)
+            else:
+                custom = (PX4_OFFBOARD if offboard else PX4_POSCTL) << 16
             mav.heartbeat_send(
                 m.MAV_TYPE_QUADROTOR,
-                m.MAV_AUTOPILOT_PX4,
+                m.MAV_AUTOPILOT_ARDUPILOTMEGA if ardu else m.MAV_AUTOPILOT_PX4,
                 base,
                 custom,
                 m.MAV_STATE_ACTIVE if armed else m.MAV_STATE_STANDBY,
                 force_mavlink1=v1,
             )
+            if args.gcs_noise:
+                mav.srcSystem, mav.srcComponent = 255, 190
+                mav.heartbeat_send(
+                    m.MAV_TYPE_GCS, m.MAV_AUTOPILOT_INVALID, 0, 0, m.MAV_STATE_ACTIVE,
+                    force_mavlink1=v1,
+                )
+                # an ACK that is not the autopilot's: must not count as a refusal
+                mav.command_ack_send(ARM_DISARM, m.MAV_RESULT_DENIED, force_mavlink1=v1)
+                mav.srcSystem, mav.srcComponent = args.system_id, 1
         if now >= next_tel:
             dt = 0.02
             next_tel = max(next_tel + dt, now)
             vel = [0.0, 0.0, 0.0]
-            if armed and offboard and target is not None:
+            if ardu and landed_mode:
+                # land mode: descend, disarm on the ground
+                pos[2] = min(0.0, pos[2] + 1.0 * dt)
+                vel = [0.0, 0.0, 1.0]
+                if pos[2] >= 0.0:
+                    armed, took_off = False, False
+            elif ardu and armed and offboard and not took_off:
+                pass  # guided on the ground: position targets wait for a take-off
+            elif armed and offboard and target is not None:
                 d = [target[i] - pos[i] for i in range(3)]
                 n = math.sqrt(sum(x * x for x in d))
                 if n > 1e-6:
                     step = min(n, 5.0 * dt)
                     vel = [d[i] / n * step / dt for i in range(3)]
                     pos = [pos[i] + d[i] / n * step for i in range(3)]
+            max_up = max(max_up, -pos[2])
             mav.local_position_ned_send(
                 ms, pos[0], pos[1], pos[2], vel[0], vel[1], vel[2], force_mavlink1=v1
             )
@@ -164,19 +211,36 @@ def main():
             heartbeats.add((msg.type, msg.autopilot, msg.get_srcSystem(), msg.get_srcComponent()))
         elif kind == "COMMAND_LONG":
             commands.add(msg.command)
+            command_targets.add((msg.target_system, msg.target_component))
+            result = m.MAV_RESULT_ACCEPTED
             if msg.command == ARM_DISARM:
                 arm_params.append(finite_or_none(msg.param1))
-                armed = msg.param1 > 0.5
+                if args.refuse_arm:
+                    result = m.MAV_RESULT_DENIED
+                else:
+                    armed = msg.param1 > 0.5
             elif msg.command == DO_SET_MODE:
                 mode_params.append([finite_or_none(msg.param1), finite_or_none(msg.param2)])
-                offboard = int(round(msg.param2)) == PX4_OFFBOARD
-            mav.command_ack_send(msg.command, m.MAV_RESULT_ACCEPTED, force_mavlink1=v1)
+                mode = int(round(msg.param2))
+                if ardu:
+                    offboard = mode == COPTER_GUIDED
+                    landed_mode = mode == COPTER_LAND
+                else:
+                    offboard = mode == PX4_OFFBOARD
+            elif msg.command == NAV_TAKEOFF:
+                takeoffs.append(finite_or_none(msg.param7))
+                if ardu and armed and offboard and math.isfinite(msg.param7):
+                    took_off = True
+                    target = [pos[0], pos[1], -msg.param7]
+                else:
+                    result = m.MAV_RESULT_TEMPORARILY_REJECTED
+            mav.command_ack_send(msg.command, result, force_mavlink1=v1)
         elif kind == "SET_POSITION_TARGET_LOCAL_NED":
             setpoints_v1 += int(is_v1)
             last_setpoint_v1 = is_v1
             row = [msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz]
             setpoints.append([finite_or_none(v) for v in row] + [msg.type_mask, msg.coordinate_frame])
-            if all(finite_or_none(v) is not None for v in row[:3]):
+            if all(finite_or_none(v) is not None for v in row[:3]) and (took_off or not ardu):
                 target = row[:3]
                 max_north = max(max_north, msg.x)
                 yaw = msg.yaw if math.isfinite(msg.yaw) else yaw
@@ -194,6 +258,10 @@ def main():
         "last_setpoint_v1": last_setpoint_v1,
         "bad_data": bad_data,
         "timed_out": timed_out,
+        "command_targets": sorted(list(t) for t in command_targets),
+        "takeoffs": takeoffs,
+        "max_up": max_up,
+        "landed_mode": landed_mode,
     }
     sys.stdout.write(json.dumps(out) + "\n")
     sys.stdout.flush()

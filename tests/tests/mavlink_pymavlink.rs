@@ -1,12 +1,14 @@
 //! The independent-decoder test: the real controller process talks MAVLink to a pymavlink
-//! peer that plays a PX4 autopilot, answers its commands and decodes everything the
-//! controller sends, once speaking MAVLink 2 and once only MAVLink 1 (pymavlink's default
-//! framing, which the controller once never heard). The test plays the hub, publishing valid
-//! and hostile bound setpoints over iceoryx2; none of the hostile ones may reach the wire.
+//! peer that plays an autopilot, answers its commands and decodes everything the controller
+//! sends: PX4 speaking MAVLink 2 at system 7 with a ground station on the same link, PX4
+//! speaking only MAVLink 1 (pymavlink's default framing, which the controller once never
+//! heard), ArduPilot Copter (guided, take-off command), and a PX4 that refuses to arm. The
+//! test plays the hub, publishing valid and hostile bound setpoints over iceoryx2; none of
+//! the hostile ones may reach the wire.
 
 use aeris_runtime::FlightBus;
 use aeris_runtime::clock::monotonic_ns;
-use aeris_schemas::{ActionMode, BoundSetpoint, VehicleTelemetry, topics};
+use aeris_schemas::{ActionMode, AutopilotLinkStatus, BoundSetpoint, VehicleTelemetry, topics};
 use aeris_tests::{ChildGuard, TempDir, aeris_bin, python, unique_flight};
 use serde_json::{Value, json};
 use std::io::Read;
@@ -56,13 +58,78 @@ fn num(v: &Value) -> f64 {
         .unwrap_or_else(|| panic!("not a finite number on the wire: {v}"))
 }
 
+/// The autopilot's ids come from its HEARTBEAT (system 7 here), and a ground station on
+/// the same link (its heartbeats, a denied ACK of its own) is ignored.
 #[test]
 fn controller_output_decodes_in_pymavlink_and_hostile_setpoints_never_reach_the_wire() {
-    let report = fly_against_pymavlink_peer(2);
+    let (report, link) =
+        fly_against_pymavlink_peer("mavpy-sys7", 2, &["--system-id", "7", "--gcs-noise"], true);
     assert_eq!(
         report["mavlink1"],
         json!(0),
         "everything is MAVLink 2: {report}"
+    );
+    assert_eq!(
+        report["command_targets"],
+        json!([[7, 1]]),
+        "commands go to the autopilot its heartbeat named: {report}"
+    );
+    assert_eq!((link.system_id, link.component_id), (7, 1), "{link:?}");
+    assert!(
+        link.other_frames > 0 && link.foreign_heartbeats > 0,
+        "{link:?}"
+    );
+    assert_eq!(
+        link.commands_refused, 0,
+        "the ground station's denied ACK is not the autopilot's: {link:?}"
+    );
+}
+
+/// ArduPilot Copter: guided (custom mode 4), armed, then MAV_CMD_NAV_TAKEOFF to the
+/// setpoint's height before its position targets are flown.
+#[test]
+fn an_ardupilot_copter_is_flown_in_guided_after_a_takeoff_command() {
+    let (report, link) =
+        fly_against_pymavlink_peer("mavpy-ardu", 2, &["--flavour", "ardupilot"], true);
+    let takeoffs = report["takeoffs"].as_array().unwrap();
+    assert!(!takeoffs.is_empty(), "no take-off command: {report}");
+    for t in takeoffs {
+        let h = num(t);
+        assert!(
+            (h - 10.0).abs() < 0.5,
+            "take-off to the setpoint's 10 m: {h}"
+        );
+    }
+    assert!(
+        num(&report["max_up"]) > 2.0,
+        "the copter never left the ground: {report}"
+    );
+    assert_eq!(
+        link.autopilot,
+        aeris_schemas::AutopilotKind::ArduPilot as u8
+    );
+}
+
+/// An autopilot that refuses to arm: the refusal is reported with its MAV_RESULT.
+#[test]
+fn a_refused_arm_is_reported_with_its_result() {
+    let (report, link) = fly_against_pymavlink_peer(
+        "mavpy-refuse",
+        2,
+        &["--refuse-arm", "--max-count", "200"],
+        false,
+    );
+    assert!(
+        report["arm_params"]
+            .as_array()
+            .is_some_and(|a| !a.is_empty()),
+        "{report}"
+    );
+    assert!(link.commands_refused > 0, "{link:?}");
+    assert_eq!(
+        link.last_refusal.as_str(),
+        Some("MAV_CMD_COMPONENT_ARM_DISARM: MAV_RESULT_DENIED"),
+        "{link:?}"
     );
 }
 
@@ -70,7 +137,7 @@ fn controller_output_decodes_in_pymavlink_and_hostile_setpoints_never_reach_the_
 /// for offboard, which it only does on the autopilot's heartbeat) and answers in MAVLink 1.
 #[test]
 fn a_mavlink_1_autopilot_is_heard_and_answered_in_mavlink_1() {
-    let report = fly_against_pymavlink_peer(1);
+    let (report, _) = fly_against_pymavlink_peer("mavpy-v1", 1, &[], true);
     assert!(
         report["setpoints_v1"].as_u64().unwrap_or(0) > 0,
         "no setpoint in MAVLink 1: {report}"
@@ -82,12 +149,19 @@ fn a_mavlink_1_autopilot_is_heard_and_answered_in_mavlink_1() {
     );
 }
 
-/// Fly the controller process against the pymavlink peer speaking MAVLink `mavlink`, check
-/// everything both framings share, and return the peer's report.
-fn fly_against_pymavlink_peer(mavlink: u8) -> Value {
+/// Fly the controller process against the pymavlink peer speaking MAVLink `mavlink` (with
+/// the peer's `extra` arguments), check everything every peer shares (and, when
+/// `expect_flight`, that the vehicle flew the valid setpoints), and return the peer's
+/// report and the controller's last `controller/link` status.
+fn fly_against_pymavlink_peer(
+    tag: &str,
+    mavlink: u8,
+    extra: &[&str],
+    expect_flight: bool,
+) -> (Value, AutopilotLinkStatus) {
     let port = free_udp_port();
-    let flight = unique_flight(&format!("mavpy{mavlink}"));
-    let dir = TempDir::new(&format!("mavpy{mavlink}"));
+    let flight = unique_flight(tag);
+    let dir = TempDir::new(tag);
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("py/mav_peer.py");
 
     let mut peer = ChildGuard::spawn(
@@ -99,6 +173,7 @@ fn fly_against_pymavlink_peer(mavlink: u8) -> Value {
             .args(["--until-north", "3.0"])
             .args(["--max-count", "3000"])
             .args(["--mavlink", &mavlink.to_string()])
+            .args(extra)
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit()),
     )
@@ -151,6 +226,10 @@ fn fly_against_pymavlink_peer(mavlink: u8) -> Value {
     let telemetry = bus
         .subscriber::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)
         .unwrap();
+    let link_status = bus
+        .subscriber::<AutopilotLinkStatus>(topics::CONTROLLER_LINK)
+        .unwrap();
+    let mut last_link: Option<AutopilotLinkStatus> = None;
 
     let start = Instant::now();
     let mut seq = 0;
@@ -198,6 +277,7 @@ fn fly_against_pymavlink_peer(mavlink: u8) -> Value {
                 last_tel = Some(*t);
             })
             .unwrap();
+        link_status.drain(|l| last_link = Some(*l)).unwrap();
         std::thread::sleep(Duration::from_millis(20)); // pacing of the fake hub
     }
 
@@ -239,9 +319,14 @@ fn fly_against_pymavlink_peer(mavlink: u8) -> Value {
             .all(|p| p.as_f64() == Some(1.0)),
         "only arm, never disarm: {report}"
     );
+    let ardupilot = extra.contains(&"ardupilot");
     for mp in report["mode_params"].as_array().unwrap() {
         assert_eq!(mp[0].as_f64(), Some(1.0), "custom mode enabled: {mp}");
-        assert_eq!(mp[1].as_f64(), Some(6.0), "PX4 offboard: {mp}");
+        if ardupilot {
+            assert_eq!(mp[1].as_f64(), Some(4.0), "ArduPilot guided: {mp}");
+        } else {
+            assert_eq!(mp[1].as_f64(), Some(6.0), "PX4 offboard: {mp}");
+        }
     }
 
     // Every setpoint: local NED, finite, inside the fence and the altitude band, speed
@@ -279,12 +364,14 @@ fn fly_against_pymavlink_peer(mavlink: u8) -> Value {
         max_north = max_north.max(neu[0]);
         max_up = max_up.max(neu[2]);
     }
-    // The valid setpoints were flown: it climbed and headed north-east.
-    assert!(max_up > 1.0, "never climbed: max up {max_up}");
-    assert!(
-        max_north >= 3.0,
-        "never headed to the goto target: {max_north}"
-    );
+    if expect_flight {
+        // The valid setpoints were flown: it climbed and headed north-east.
+        assert!(max_up > 1.0, "never climbed: max up {max_up}");
+        assert!(
+            max_north >= 3.0,
+            "never headed to the goto target: {max_north}"
+        );
+    }
 
     // The controller's own account, over iceoryx2.
     assert!(link_seen, "telemetry never reported the link up");
@@ -311,5 +398,6 @@ fn fly_against_pymavlink_peer(mavlink: u8) -> Value {
         std::thread::sleep(Duration::from_millis(20));
     };
     assert!(status.success(), "controller exit: {status}");
-    report
+    let link = last_link.expect("the controller never published its link status");
+    (report, link)
 }

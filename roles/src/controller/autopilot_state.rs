@@ -24,6 +24,8 @@ pub(super) struct AutopilotState {
     pub(super) armed: bool,
     /// The heartbeat reports the mode that flies our setpoints.
     pub(super) offboard: bool,
+    /// The heartbeat reports the firmware's own landing mode.
+    pub(super) landing_mode: bool,
     /// The last EXTENDED_SYS_STATE's landed state.
     pub(super) landed_state: Option<MavLandedState>,
     /// The last finite LOCAL_POSITION_NED position.
@@ -51,6 +53,7 @@ impl AutopilotState {
                     .base_mode
                     .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED);
                 self.offboard = autopilot.reports_offboard(hb);
+                self.landing_mode = autopilot.reports_landing_mode(hb);
             }
             MavMessage::LOCAL_POSITION_NED(p)
                 if [p.x, p.y, p.z, p.vx, p.vy, p.vz]
@@ -85,6 +88,7 @@ impl AutopilotState {
             last_heartbeat_ns: (t.link_up == 1).then_some(t.stamp_ns),
             armed: t.armed == 1,
             offboard: t.offboard == 1,
+            landing_mode: false,
             landed_state: Some(if t.landed == 1 {
                 MavLandedState::MAV_LANDED_STATE_ON_GROUND
             } else {
@@ -112,6 +116,7 @@ impl AutopilotState {
             } else {
                 standby.offboard
             },
+            landing_mode: heard && self.landing_mode,
             landed_state: self.landed_state.or(standby.landed_state),
             velocity_ned: if self.position_ned.is_some() {
                 self.velocity_ned

@@ -1,7 +1,8 @@
-//! What the controller writes to the autopilot, and whom it believes: its MAVLink
-//! identity (system 1, component `MAV_COMP_ID_ONBOARD_COMPUTER`), the autopilot's (system 1,
-//! component 1), and the messages: SET_POSITION_TARGET_LOCAL_NED (the only place the
-//! controller's `[N, E, U]` becomes NED), its HEARTBEAT and COMMAND_LONG.
+//! What the controller writes to the autopilot: its MAVLink identity (system 1, component
+//! `MAV_COMP_ID_ONBOARD_COMPUTER`) and the messages: SET_POSITION_TARGET_LOCAL_NED (the
+//! only place the controller's `[N, E, U]` becomes NED), its HEARTBEAT and COMMAND_LONG,
+//! each addressed to the [`Target`] the autopilot's HEARTBEAT named
+//! ([`super::link_watch`]).
 
 use super::tracker::TrackCommand;
 use aeris_mavlink::MavHeader;
@@ -15,10 +16,24 @@ use aeris_mavlink::neu_to_ned;
 pub const COMPANION_SYSTEM_ID: u8 = 1;
 /// Our MAVLink component id (`MAV_COMP_ID_ONBOARD_COMPUTER`).
 pub const COMPANION_COMPONENT_ID: u8 = MavComponent::MAV_COMP_ID_ONBOARD_COMPUTER as u8;
-/// The autopilot's system id.
-pub const AUTOPILOT_SYSTEM_ID: u8 = 1;
-/// The autopilot's component id.
-pub const AUTOPILOT_COMPONENT_ID: u8 = 1;
+
+/// Whom a message is for: the autopilot's system and component id.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Target {
+    /// MAVLink system id (0: every system).
+    pub system_id: u8,
+    /// MAVLink component id (0: every component).
+    pub component_id: u8,
+}
+
+impl Target {
+    /// Every system and component: what is addressed before the autopilot's HEARTBEAT
+    /// named it (setpoints stream from the start; commands wait for the heartbeat).
+    pub const BROADCAST: Target = Target {
+        system_id: 0,
+        component_id: 0,
+    };
+}
 
 /// The header of everything the controller sends (the link fills in the sequence).
 pub fn companion_header() -> MavHeader {
@@ -27,11 +42,6 @@ pub fn companion_header() -> MavHeader {
         component_id: COMPANION_COMPONENT_ID,
         sequence: 0,
     }
-}
-
-/// Whether a message comes from the autopilot we command (the only one we believe).
-pub fn from_autopilot(h: &MavHeader) -> bool {
-    h.system_id == u32::from(AUTOPILOT_SYSTEM_ID) && h.component_id == AUTOPILOT_COMPONENT_ID
 }
 
 /// The `type_mask` the controller sends: position, velocity and yaw used; acceleration and
@@ -44,7 +54,7 @@ pub fn position_velocity_yaw_mask() -> PositionTargetTypemask {
 }
 
 /// The SET_POSITION_TARGET_LOCAL_NED for `cmd` (the only place `[N, E, U]` becomes NED).
-pub fn position_target_message(cmd: &TrackCommand, time_boot_ms: u32) -> MavMessage {
+pub fn position_target_message(cmd: &TrackCommand, time_boot_ms: u32, to: Target) -> MavMessage {
     let p = neu_to_ned(cmd.position);
     let v = neu_to_ned(cmd.velocity);
     MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
@@ -61,8 +71,8 @@ pub fn position_target_message(cmd: &TrackCommand, time_boot_ms: u32) -> MavMess
         yaw: cmd.yaw,
         yaw_rate: 0.0,
         type_mask: position_velocity_yaw_mask(),
-        target_system: AUTOPILOT_SYSTEM_ID,
-        target_component: AUTOPILOT_COMPONENT_ID,
+        target_system: to.system_id,
+        target_component: to.component_id,
         coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
     })
 }
@@ -79,19 +89,30 @@ pub fn companion_heartbeat() -> MavMessage {
     })
 }
 
-/// A COMMAND_LONG to the autopilot with `params` as `param1..=param3` (the rest 0).
-pub fn command_long(command: MavCmd, params: [f32; 3], confirmation: u8) -> MavMessage {
+/// A COMMAND_LONG to `to` with `params` as `param1..=param7`.
+pub fn command_long(command: MavCmd, params: [f32; 7], confirmation: u8, to: Target) -> MavMessage {
     MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
         param1: params[0],
         param2: params[1],
         param3: params[2],
-        param4: 0.0,
-        param5: 0.0,
-        param6: 0.0,
-        param7: 0.0,
+        param4: params[3],
+        param5: params[4],
+        param6: params[5],
+        param7: params[6],
         command,
-        target_system: AUTOPILOT_SYSTEM_ID,
-        target_component: AUTOPILOT_COMPONENT_ID,
+        target_system: to.system_id,
+        target_component: to.component_id,
         confirmation,
     })
+}
+
+/// `param1..=param7` of a command that takes three (the rest 0).
+pub fn three_params(p: [f32; 3]) -> [f32; 7] {
+    [p[0], p[1], p[2], 0.0, 0.0, 0.0, 0.0]
+}
+
+/// `param1..=param7` of `MAV_CMD_NAV_TAKEOFF` to `height_m` above home (`param7`); the
+/// yaw (`param4`) NaN: keep the current heading.
+pub fn takeoff_params(height_m: f32) -> [f32; 7] {
+    [0.0, 0.0, 0.0, f32::NAN, 0.0, 0.0, height_m]
 }

@@ -1,12 +1,27 @@
 //! The controller role (kind `controller`, variant `mavlink`): tracks the hub's bound
-//! setpoints at the control rate and talks MAVLink v2 to a PX4-style autopilot.
+//! setpoints at the control rate and talks MAVLink 1 or 2 to a PX4 or ArduPilot Copter
+//! autopilot.
 //!
-//! Identity: system 1, component `MAV_COMP_ID_ONBOARD_COMPUTER` (191); it commands system 1,
-//! component 1 (the autopilot) and only believes messages from that system/component.
+//! Identity: system 1, component `MAV_COMP_ID_ONBOARD_COMPUTER` (191). It binds to the
+//! first system whose HEARTBEAT announces a PX4 or ArduPilot vehicle ([`link_watch`]):
+//! that system and component id are the target of every command and setpoint (broadcast
+//! before that; no command goes out before it), that firmware chooses the flight-mode
+//! sequence ([`sequencer`]), and only its messages are believed. Everyone else on the link
+//! (a ground station, MAVProxy, a camera) is counted and ignored.
+//!
+//! The link is watched: every tick the lease holder publishes an [`AutopilotLinkStatus`]
+//! on `controller/link` (waiting, up, silent, lost; frames heard by kind; MAVLink 1 frames
+//! refused; the last command the autopilot refused and its MAV_RESULT). No autopilot
+//! HEARTBEAT within `link_timeout_ms` of the start is a silent link (the flight ends on
+//! it, naming the URL and what was heard); none for `link_timeout_ms` after the last is a
+//! lost one (an event; the flight goes on and the autopilot's own failsafe acts).
 //!
 //! Parameters (`params` of the [`RoleSpec`]):
 //! - `autopilot`: MAVLink URL of the autopilot (`udpin:`, `udpout:`, `tcpout:`, `tcpin:`,
 //!   `serial:PORT:BAUD`), default [`DEFAULT_AUTOPILOT`];
+//! - `mavlink`: `"auto"` (default: MAVLink 2, or 1 when the autopilot's heartbeat comes in
+//!   MAVLink 1), `1` (always send MAVLink 1) or `2` (send and accept MAVLink 2 only);
+//! - `link_timeout_ms`: the link timeout, default [`DEFAULT_LINK_TIMEOUT_MS`] (5000);
 //! - `realtime`: bool, default `true`: try SCHED_FIFO priority 50 for the cycle thread, and
 //!   fall back to the normal scheduler with one line on stderr when not permitted.
 //! - `standby`: bool, default `false`: this controller is the hot standby of another (it
@@ -26,10 +41,11 @@
 //!    the autopilot sequencer ([`AutopilotSequencer`], [`sequencer`]) asks for: HEARTBEAT
 //!    (`MAV_TYPE_ONBOARD_CONTROLLER`, `MAV_AUTOPILOT_INVALID`) at 1 Hz; once the autopilot's
 //!    heartbeat is seen and setpoints have streamed for 0.5 s, while a valid setpoint wants
-//!    the vehicle flying, `MAV_CMD_DO_SET_MODE` (offboard, as the [`Autopilot`] flavour says:
-//!    PX4's for now) and `MAV_CMD_COMPONENT_ARM_DISARM` (arm) every 0.5 s until the heartbeat
-//!    reports armed and offboard; and `vehicle/telemetry` ([`VehicleTelemetry`] in
-//!    `[N, E, U]`).
+//!    the vehicle flying, `MAV_CMD_DO_SET_MODE` (offboard or guided, as the [`Autopilot`]
+//!    flavour says) and `MAV_CMD_COMPONENT_ARM_DISARM` (arm) every 0.5 s until the heartbeat
+//!    reports armed and in that mode; for ArduPilot then `MAV_CMD_NAV_TAKEOFF` to the
+//!    setpoint's height until off the ground, and its land mode for a land setpoint; and
+//!    `vehicle/telemetry` ([`VehicleTelemetry`] in `[N, E, U]`).
 //!
 //! **Hot standby** (the autopilot lease, [`LeaseArbiter`], [`lease`]): a flight may run two
 //! controllers on one autopilot link (the second with `params.standby = true`). Only the
@@ -63,20 +79,23 @@
 //! `new`; the mavlink crate serialises into a stack buffer and writes it with one syscall.
 //!
 //! Files, pure cores apart from I/O: [`lease`] (who may write), [`tracker`] (setpoints to
-//! position targets), [`sequencer`] (heartbeat, mode and arm commands; where an autopilot
-//! flavour plugs in), `autopilot_state` (what the autopilot reported), [`messages`] (the
-//! wire format and identities), `role` ([`ControllerRole`]: ports, receive thread, cycle),
+//! position targets), [`sequencer`] (heartbeat, mode, arm and take-off commands; where an
+//! autopilot flavour plugs in), [`link_watch`] (whom to believe, what was heard, the link's
+//! state), `autopilot_state` (what the autopilot reported), [`messages`] (the wire format
+//! and identities), `role` ([`ControllerRole`]: ports, receive thread, cycle),
 //! and [`testing`] (the fuzz checks, not API).
 //!
 //! [`RoleSpec`]: aeris_runtime::RoleSpec
 //! [`BoundSetpoint`]: aeris_schemas::BoundSetpoint
 //! [`Autopilot`]: aeris_mavlink::Autopilot
 //! [`VehicleTelemetry`]: aeris_schemas::VehicleTelemetry
+//! [`AutopilotLinkStatus`]: aeris_schemas::AutopilotLinkStatus
 //! [`ControllerLease`]: aeris_schemas::ControllerLease
 //! [`CycleReport`]: aeris_runtime::CycleReport
 
 mod autopilot_state;
 pub mod lease;
+pub mod link_watch;
 pub mod messages;
 mod role;
 pub mod sequencer;
@@ -85,10 +104,15 @@ pub mod tracker;
 
 pub use autopilot_state::LINK_TIMEOUT_NS;
 pub use lease::{LEASE_LISTEN_PERIODS, LeaseArbiter, LeaseChange};
+pub use link_watch::{AutopilotIdentity, LinkLedger, link_state};
 pub use messages::{
-    AUTOPILOT_COMPONENT_ID, AUTOPILOT_SYSTEM_ID, COMPANION_COMPONENT_ID, COMPANION_SYSTEM_ID,
-    position_target_message, position_velocity_yaw_mask,
+    COMPANION_COMPONENT_ID, COMPANION_SYSTEM_ID, Target, position_target_message,
+    position_velocity_yaw_mask,
 };
-pub use role::{ControllerRole, DEFAULT_AUTOPILOT, POLLS_PER_TICK};
-pub use sequencer::{AutopilotSequencer, COMMAND_RETRY_NS, STREAM_BEFORE_OFFBOARD_NS};
+pub use role::{
+    ControllerRole, DEFAULT_AUTOPILOT, DEFAULT_LINK_TIMEOUT_MS, MavlinkFraming, POLLS_PER_TICK,
+};
+pub use sequencer::{
+    AutopilotSequencer, COMMAND_RETRY_NS, FlightIntent, STREAM_BEFORE_OFFBOARD_NS,
+};
 pub use tracker::{TrackCommand, Tracker, TrackerConfig, VehicleView};

@@ -4,10 +4,12 @@
 
 use super::autopilot_state::AutopilotState;
 use super::lease::{LEASE_LISTEN_PERIODS, LeaseArbiter, LeaseChange};
+use super::link_watch::{LinkLedger, link_state};
 use super::messages::{
-    command_long, companion_header, companion_heartbeat, from_autopilot, position_target_message,
+    Target, command_long, companion_header, companion_heartbeat, position_target_message,
+    takeoff_params, three_params,
 };
-use super::sequencer::{AutopilotSequencer, AutopilotStatus};
+use super::sequencer::{AutopilotSequencer, AutopilotStatus, FlightIntent};
 use super::tracker::{Tracker, TrackerConfig};
 use aeris_mavlink::dialect::{MavCmd, MavMessage};
 use aeris_mavlink::{
@@ -18,7 +20,10 @@ use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::role::try_sched_fifo;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
-use aeris_schemas::{BoundSetpoint, ControllerLease, VehicleTelemetry, topics};
+use aeris_schemas::{
+    ActionMode, AutopilotLinkStatus, BoundSetpoint, ControllerLease, FixedText, LinkState,
+    VehicleTelemetry, topics,
+};
 use std::ops::ControlFlow;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -27,6 +32,17 @@ use std::time::Duration;
 pub const DEFAULT_AUTOPILOT: &str = "udpout:127.0.0.1:14600";
 /// Polls of the autopilot lease per control period.
 pub const POLLS_PER_TICK: u32 = 4;
+/// `params.link_timeout_ms` when the spec gives none: no autopilot HEARTBEAT this long
+/// after the start is a silent link; none this long after the last is a lost one.
+pub const DEFAULT_LINK_TIMEOUT_MS: u64 = 5_000;
+
+/// What the receive thread keeps for the cycle: the autopilot's state and the ledger of
+/// everything heard.
+#[derive(Debug, Clone, Copy, Default)]
+struct Heard {
+    state: AutopilotState,
+    ledger: LinkLedger,
+}
 
 /// Which MAVLink framing the controller sends (`params.mavlink`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -53,6 +69,11 @@ impl MavlinkFraming {
         }
     }
 
+    /// MAVLink 1 frames are refused (the workflow said `mavlink = 2`).
+    pub fn v2_only(self) -> bool {
+        self == Self::V2
+    }
+
     /// The version to send once the autopilot's heartbeat framing is `heard`.
     pub fn send_version(self, heard: Option<MavlinkVersion>) -> MavlinkVersion {
         match (self, heard) {
@@ -66,9 +87,20 @@ impl MavlinkFraming {
 pub struct ControllerRole {
     /// The autopilot link and its receive thread (which applies what arrives to `shared`).
     receiver: LinkReceiver,
-    shared: Arc<Mutex<AutopilotState>>,
+    shared: Arc<Mutex<Heard>>,
     /// The last autopilot state copied out of `shared` (used when the lock is busy).
     ap_cache: AutopilotState,
+    /// The last ledger copied out of `shared`.
+    ledger: LinkLedger,
+    /// Whom commands and setpoints are addressed to (broadcast until the autopilot's
+    /// heartbeat named it).
+    target: Target,
+    link_out: TypedPublisher<AutopilotLinkStatus>,
+    link_seq: u64,
+    link_timeout_ns: u64,
+    link_state: LinkState,
+    link_losses: u64,
+    url: FixedText<{ aeris_schemas::LINK_URL_MAX }>,
     setpoints: TypedSubscriber<BoundSetpoint>,
     telemetry: TypedPublisher<VehicleTelemetry>,
     /// The holder's telemetry, read while standing by.
@@ -166,10 +198,67 @@ impl ControllerRole {
         }
     }
 
-    fn command(&mut self, command: MavCmd, params: [f32; 3], confirmation: u8) {
-        if self.send(&command_long(command, params, confirmation)) {
+    fn command(&mut self, command: MavCmd, params: [f32; 7], confirmation: u8) {
+        if self.send(&command_long(command, params, confirmation, self.target)) {
             self.commands_sent += 1;
         }
+    }
+
+    /// Take in what the receive thread heard: the autopilot it bound to names the target
+    /// and the firmware; the link's state is published (by the lease holder).
+    fn watch_link(&mut self, now_ns: u64, name: &str) -> Result<(), RoleError> {
+        if let Some(id) = self.ledger.bound {
+            let target = Target {
+                system_id: id.system_id,
+                component_id: id.component_id,
+            };
+            if target != self.target {
+                self.target = target;
+                self.sequencer.set_autopilot(id.autopilot);
+                eprintln!(
+                    "aeris controller `{name}`: flying {} at system {} component {}",
+                    id.autopilot.name(),
+                    id.system_id,
+                    id.component_id
+                );
+            }
+        }
+        let state = link_state(
+            now_ns,
+            self.start_ns,
+            self.ap_cache.last_heartbeat_ns,
+            self.link_timeout_ns,
+        );
+        if state != self.link_state {
+            if state == LinkState::Lost {
+                self.link_losses += 1;
+            }
+            eprintln!(
+                "aeris controller `{name}`: autopilot link {} ({})",
+                state.name(),
+                self.url.as_str_lossy()
+            );
+            self.link_state = state;
+        }
+        if !self.arbiter.is_active() {
+            return Ok(());
+        }
+        self.link_seq += 1;
+        let status = AutopilotLinkStatus {
+            seq: self.link_seq,
+            stamp_ns: now_ns,
+            losses: self.link_losses,
+            timeout_ms: (self.link_timeout_ns / 1_000_000).min(u64::from(u32::MAX)) as u32,
+            state: state as u8,
+            send_version: match self.receiver.link().map(|l| l.send_version()) {
+                Some(MavlinkVersion::V1) => 1,
+                _ => 2,
+            },
+            url: self.url,
+            ..self.ledger.status
+        };
+        self.link_out.publish(&status)?;
+        Ok(())
     }
 }
 
@@ -192,6 +281,14 @@ impl Role for ControllerRole {
         let realtime = param_bool(spec, "realtime", true)?;
         let standby = param_bool(spec, "standby", false)?;
         let framing = MavlinkFraming::from_spec(spec)?;
+        let link_timeout_ms = match spec.params.get("link_timeout_ms") {
+            None => DEFAULT_LINK_TIMEOUT_MS,
+            Some(v) => v.as_u64().filter(|&ms| ms > 0).ok_or_else(|| {
+                RoleError::Config(format!(
+                    "param `link_timeout_ms` = {v}: use a whole number of milliseconds above 0"
+                ))
+            })?,
+        };
         let tracker = Tracker::new(TrackerConfig::from_spec(spec));
         let setpoints = ctx.bus.subscriber::<BoundSetpoint>(topics::HUB_SETPOINT)?;
         let telemetry = ctx
@@ -206,10 +303,13 @@ impl Role for ControllerRole {
         let lease_in = ctx
             .bus
             .subscriber::<ControllerLease>(topics::CONTROLLER_LEASE)?;
+        let link_out = ctx
+            .bus
+            .publisher::<AutopilotLinkStatus>(topics::CONTROLLER_LINK)?;
         let pending = prepare_link(&url, LINK_POLL)
             .map_err(|e| RoleError::step("preparing the autopilot link", e))?;
-        let autopilot = Autopilot::Px4;
-        let shared = Arc::new(Mutex::new(AutopilotState::default()));
+        let shared = Arc::new(Mutex::new(Heard::default()));
+        let v2_only = framing.v2_only();
         // Spawned before switching to SCHED_FIFO so the receive thread keeps the normal policy.
         let receiver = {
             let shared = shared.clone();
@@ -218,12 +318,14 @@ impl Role for ControllerRole {
                 pending,
                 "aeris controller: autopilot link failed",
                 move |r: Received| {
-                    if from_autopilot(&r.header) {
-                        let now = monotonic_ns();
-                        if let Ok(mut s) = shared.lock() {
-                            s.apply(&r.message, now, autopilot);
+                    let now = monotonic_ns();
+                    if let Ok(mut heard) = shared.lock() {
+                        let Heard { state, ledger } = &mut *heard;
+                        // only the autopilot the ledger bound to is believed
+                        if let Some(autopilot) = ledger.accept(&r, v2_only) {
+                            state.apply(&r.message, now, autopilot);
                             if matches!(r.message, MavMessage::HEARTBEAT(_)) {
-                                s.heartbeat_version = r.version;
+                                state.heartbeat_version = r.version;
                             }
                         }
                     }
@@ -245,6 +347,14 @@ impl Role for ControllerRole {
             receiver,
             shared,
             ap_cache: AutopilotState::default(),
+            ledger: LinkLedger::default(),
+            target: Target::BROADCAST,
+            link_out,
+            link_seq: 0,
+            link_timeout_ns: link_timeout_ms.saturating_mul(1_000_000),
+            link_state: LinkState::Waiting,
+            link_losses: 0,
+            url: FixedText::from_str_truncated(&url),
             setpoints,
             telemetry,
             telemetry_in,
@@ -261,7 +371,8 @@ impl Role for ControllerRole {
             ),
             standby_ap: AutopilotState::default(),
             tracker,
-            sequencer: AutopilotSequencer::new(autopilot, now),
+            // PX4 until the autopilot's heartbeat says otherwise
+            sequencer: AutopilotSequencer::new(Autopilot::Px4, now),
             period,
             period_ns,
             next_tick_ns: now,
@@ -350,9 +461,11 @@ impl Role for ControllerRole {
         })?;
         // Never block the real-time tick on the receive thread (std mutexes have no
         // priority inheritance): when the lock is busy, fly on the previous copy.
-        if let Ok(s) = self.shared.try_lock() {
-            self.ap_cache = *s;
+        if let Ok(heard) = self.shared.try_lock() {
+            self.ap_cache = heard.state;
+            self.ledger = heard.ledger;
         }
+        self.watch_link(t0, &ctx.spec.name)?;
         let t1 = monotonic_ns();
         if !active {
             // a standby keeps the setpoints and the holder's view, and writes nothing; its
@@ -372,7 +485,7 @@ impl Role for ControllerRole {
 
         // send
         let time_boot_ms = ((t2.saturating_sub(self.start_ns)) / 1_000_000) as u32;
-        if self.send(&position_target_message(&cmd, time_boot_ms)) {
+        if self.send(&position_target_message(&cmd, time_boot_ms, self.target)) {
             self.sent += 1;
             self.term_sent += 1;
             self.sequencer.setpoint_sent(t2);
@@ -382,19 +495,53 @@ impl Role for ControllerRole {
             link_up,
             armed: ap.armed,
             offboard: ap.offboard,
+            landing_mode: ap.landing_mode,
+            landed,
         };
-        let wants_flight = self.tracker.wants_flight(t2, landed);
-        let requests = self.sequencer.step(t2, status, wants_flight);
+        let active = self
+            .tracker
+            .active(t2)
+            .map(|(sp, mode)| (sp.position[2], mode));
+        let intent = FlightIntent {
+            wants_flight: self.tracker.wants_flight(t2, landed),
+            landing: cmd.mode == Some(ActionMode::Land),
+            // a take-off climbs from where the vehicle stands to the setpoint's height
+            takeoff_height_m: active.map_or(0.0, |(u, _)| {
+                u - view
+                    .position
+                    .map_or(self.tracker.config().floor(), |p| p[2])
+            }),
+        };
+        // no command goes out before the autopilot's heartbeat named its ids and firmware
+        let requests = self.sequencer.step(
+            t2,
+            AutopilotStatus {
+                link_up: link_up && self.ledger.bound.is_some(),
+                ..status
+            },
+            intent,
+        );
         if requests.heartbeat {
             self.send(&companion_heartbeat());
         }
         if let Some(params) = requests.set_mode {
-            self.command(MavCmd::MAV_CMD_DO_SET_MODE, params, requests.confirmation);
+            self.command(
+                MavCmd::MAV_CMD_DO_SET_MODE,
+                three_params(params),
+                requests.confirmation,
+            );
         }
         if requests.arm {
             self.command(
                 MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
-                [1.0, 0.0, 0.0],
+                three_params([1.0, 0.0, 0.0]),
+                requests.confirmation,
+            );
+        }
+        if let Some(height) = requests.takeoff_m {
+            self.command(
+                MavCmd::MAV_CMD_NAV_TAKEOFF,
+                takeoff_params(height),
                 requests.confirmation,
             );
         }

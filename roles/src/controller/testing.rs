@@ -5,7 +5,7 @@
 
 use super::autopilot_state::AutopilotState;
 use super::messages::{
-    COMPANION_COMPONENT_ID, COMPANION_SYSTEM_ID, from_autopilot, position_target_message,
+    COMPANION_COMPONENT_ID, COMPANION_SYSTEM_ID, Target, position_target_message,
 };
 use super::tracker::{TrackCommand, Tracker, TrackerConfig, VehicleView, norm};
 use aeris_mavlink::dialect::MavMessage;
@@ -82,7 +82,9 @@ pub fn fuzz_check_mavlink(cfg: TrackerConfig, data: &[u8]) {
             reader.read_message::<MavMessage>(MavlinkVersion::V2)
         };
         match read {
-            Ok((h, msg)) if from_autopilot(&h) => ap.apply(&msg, now, Autopilot::Px4),
+            Ok((h, msg)) if (h.system_id, h.component_id) == (1, 1) => {
+                ap.apply(&msg, now, Autopilot::Px4)
+            }
             Ok(_) | Err(MessageReadError::Parse(_)) => {}
             Err(MessageReadError::Io(_)) => break,
         }
@@ -112,7 +114,14 @@ fn fuzz_check_command(cfg: &TrackerConfig, cmd: &TrackCommand, view: &VehicleVie
         speed <= l.v_max * (1.0 + 1e-5),
         "{speed} m/s > v_max: {cmd:?}"
     );
-    let msg = position_target_message(cmd, 1234);
+    let msg = position_target_message(
+        cmd,
+        1234,
+        Target {
+            system_id: 1,
+            component_id: 1,
+        },
+    );
     let MavMessage::SET_POSITION_TARGET_LOCAL_NED(m) = &msg else {
         panic!("not a position target: {msg:?}");
     };
