@@ -30,7 +30,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         variants: &["sim-multirotor"],
         subscribes: &[],
         publishes: &[],
-        summary: "built-in simulated multirotor behind a MAVLink endpoint (PX4-like offboard)",
+        summary: "built-in simulated multirotor behind a MAVLink 1/2 endpoint, playing PX4 (offboard) or ArduPilot Copter (guided)",
         swap_refusal: Some("two vehicles would share one MAVLink endpoint"),
     },
     RoleKind {

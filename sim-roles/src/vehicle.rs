@@ -1,5 +1,5 @@
 //! The vehicle role (kind `vehicle`, variant `sim-multirotor`): the built-in simulated
-//! multirotor behind a PX4-like MAVLink endpoint ([`aeris_sim::mav_vehicle::SimVehicle`]).
+//! multirotor behind a PX4- or ArduPilot-like MAVLink endpoint ([`aeris_sim::mav_vehicle::SimVehicle`]).
 //!
 //! Parameters (`params` of the [`aeris_runtime::RoleSpec`]):
 //! - `listen`: MAVLink URL the vehicle serves (e.g. `udpin:127.0.0.1:14600`), default
@@ -9,6 +9,11 @@
 //!   back to the start (the supervisor sets it to `<run dir>/<role>.state`).
 //! - `mavlink`: the framing the vehicle sends, `1` or `2` (default); it receives both, so
 //!   it can play an autopilot that speaks only MAVLink 1.
+//! - `autopilot`: the firmware it plays, `"px4"` (default: offboard) or `"ardupilot"`
+//!   (Copter: guided, take-off command, land mode); see
+//!   [`aeris_sim::mav_vehicle::SimFirmware`].
+//! - `system_id`: its MAVLink system id, 1..=255 (default 1); the controller learns it
+//!   from the heartbeat.
 //!
 //! Every received position setpoint is checked against the mission's geofence and altitude
 //! band at the MAVLink boundary (an independent check of the controller and the hub); the
@@ -29,7 +34,7 @@
 use aeris_mavlink::MavlinkVersion;
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
-use aeris_sim::mav_vehicle::{SimVehicle, SimVehicleConfig};
+use aeris_sim::mav_vehicle::{SimFirmware, SimVehicle, SimVehicleConfig};
 use std::fs::File;
 use std::os::unix::fs::FileExt;
 use std::time::Duration;
@@ -149,8 +154,28 @@ impl Role for VehicleRole {
                 )));
             }
         };
+        let firmware = match spec.params.get("autopilot") {
+            None => SimFirmware::Px4,
+            Some(v) => v.as_str().and_then(SimFirmware::from_name).ok_or_else(|| {
+                RoleError::Config(format!(
+                    "param `autopilot` = {v}: the vehicle plays \"px4\" or \"ardupilot\""
+                ))
+            })?,
+        };
+        let system_id = match spec.params.get("system_id") {
+            None => 1,
+            Some(v) => v
+                .as_u64()
+                .and_then(|id| u8::try_from(id).ok())
+                .filter(|&id| id > 0)
+                .ok_or_else(|| {
+                    RoleError::Config(format!("param `system_id` = {v}: use 1..=255"))
+                })?,
+        };
         let mut config = SimVehicleConfig {
             mavlink_version,
+            firmware,
+            system_id,
             start: spec.mission.start,
             fence: Some((limits.geofence_min, fence_max)),
             setpoint_period_s: (spec.timing.control_rate_hz > 0.0)

@@ -498,18 +498,22 @@ impl Role for ControllerRole {
             landing_mode: ap.landing_mode,
             landed,
         };
-        let active = self
-            .tracker
-            .active(t2)
-            .map(|(sp, mode)| (sp.position[2], mode));
+        let active = self.tracker.active(t2).map(|(sp, _)| *sp);
+        // a firmware that lands by itself is handed the landing once over the landing point
+        // (its land mode descends where the vehicle is)
+        let over_landing_point = active.zip(view.position).is_some_and(|(sp, p)| {
+            let (dn, de) = (sp.position[0] - p[0], sp.position[1] - p[1]);
+            (dn * dn + de * de).sqrt() <= sp.acceptance_radius.clamp(0.5, 2.0)
+        });
         let intent = FlightIntent {
             wants_flight: self.tracker.wants_flight(t2, landed),
-            landing: cmd.mode == Some(ActionMode::Land),
+            landing: cmd.mode == Some(ActionMode::Land) && over_landing_point,
             // a take-off climbs from where the vehicle stands to the setpoint's height
-            takeoff_height_m: active.map_or(0.0, |(u, _)| {
-                u - view
-                    .position
-                    .map_or(self.tracker.config().floor(), |p| p[2])
+            takeoff_height_m: active.map_or(0.0, |sp| {
+                sp.position[2]
+                    - view
+                        .position
+                        .map_or(self.tracker.config().floor(), |p| p[2])
             }),
         };
         // no command goes out before the autopilot's heartbeat named its ids and firmware

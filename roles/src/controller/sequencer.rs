@@ -17,7 +17,8 @@
 //!   `MAV_CMD_NAV_TAKEOFF` to the setpoint's height, repeated every [`COMMAND_RETRY_NS`]
 //!   until the vehicle is off the ground;
 //! - for a firmware that lands in a mode of its own ([`Autopilot::land_set_mode_params`],
-//!   ArduPilot): while a land setpoint is flown in the air, that mode instead of guided.
+//!   ArduPilot): once a land setpoint has brought the vehicle over its landing point, that
+//!   mode instead of guided (it descends where the vehicle is).
 //!
 //! The firmware's flavour ([`Autopilot`]) says how each of these is commanded; it is
 //! known once the autopilot's HEARTBEAT has been heard ([`AutopilotSequencer::set_autopilot`]).
@@ -53,7 +54,7 @@ pub struct AutopilotStatus {
 pub struct FlightIntent {
     /// A fresh valid setpoint of a flying mode, or any while airborne.
     pub wants_flight: bool,
-    /// The active setpoint is a landing.
+    /// The active setpoint is a landing and the vehicle is over its landing point.
     pub landing: bool,
     /// Height above the vehicle to take off to (m), for a take-off command.
     pub takeoff_height_m: f32,

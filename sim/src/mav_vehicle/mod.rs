@@ -1,4 +1,7 @@
-//! A MAVLink v2 endpoint that behaves like a PX4 multirotor in offboard mode.
+//! A MAVLink endpoint that behaves like a PX4 multirotor in offboard mode or, with
+//! [`SimFirmware::ArduPilotCopter`] ([`firmware`]), like an ArduPilot Copter in guided mode
+//! (its heartbeat, mode numbers, `MAV_CMD_NAV_TAKEOFF` before position targets from the
+//! ground, no offboard-loss failsafe).
 //!
 //! [`SimVehicle`] is system 1, component 1 (configurable) on any MAVLink connection URL
 //! (`udpin:`, `udpout:`, `udpbcast:`, `tcpin:`, `tcpout:`, `serial:DEVICE:BAUD`). Around a
@@ -11,7 +14,8 @@
 //!   `MAV_CMD_COMPONENT_ARM_DISARM` (disarming in the air only when forced with 21196),
 //!   `MAV_CMD_DO_SET_MODE` (custom main mode 6 = offboard, refused unless setpoints streamed
 //!   within the last 0.5 s; 3 = position; 4 with sub mode 3 = hold, 6 = land) and
-//!   `MAV_CMD_NAV_LAND`; everything else is `MAV_RESULT_UNSUPPORTED`;
+//!   `MAV_CMD_NAV_LAND`; ArduPilot also `MAV_CMD_NAV_TAKEOFF` (armed in guided on the
+//!   ground, to `param7` m); everything else is `MAV_RESULT_UNSUPPORTED`;
 //! - flies SET_POSITION_TARGET_LOCAL_NED in `MAV_FRAME_LOCAL_NED` while in offboard,
 //!   honouring `type_mask` for position, velocity, yaw and yaw rate (setpoints in other
 //!   frames, with nothing usable, or with non-finite numbers are rejected and counted);
@@ -31,14 +35,10 @@ use crate::multirotor::{
 };
 use aeris_mavlink::dialect::{
     ATTITUDE_DATA, COMMAND_ACK_DATA, COMMAND_LONG_DATA, EXTENDED_SYS_STATE_DATA, HEARTBEAT_DATA,
-    LOCAL_POSITION_NED_DATA, MavAutopilot, MavCmd, MavFrame, MavLandedState, MavMessage,
-    MavModeFlag, MavResult, MavState, MavType, MavVtolState, PositionTargetTypemask,
-    SET_POSITION_TARGET_LOCAL_NED_DATA,
+    LOCAL_POSITION_NED_DATA, MavCmd, MavFrame, MavLandedState, MavMessage, MavModeFlag, MavResult,
+    MavState, MavType, MavVtolState, PositionTargetTypemask, SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
-use aeris_mavlink::px4::{
-    FORCE_ARM_DISARM_MAGIC, PX4_AUTO_SUB_MODE_LAND, PX4_AUTO_SUB_MODE_LOITER, PX4_MAIN_MODE_AUTO,
-    PX4_MAIN_MODE_OFFBOARD, PX4_MAIN_MODE_POSCTL, px4_custom_mode,
-};
+use aeris_mavlink::px4::FORCE_ARM_DISARM_MAGIC;
 use aeris_mavlink::{
     LINK_POLL, LinkError, LinkReceiver, MavHeader, MavlinkVersion, Received, ned_to_neu,
     neu_to_ned, prepare_link,
@@ -49,6 +49,10 @@ use std::sync::mpsc::{Receiver, SyncSender, TryRecvError, TrySendError, sync_cha
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
+
+pub mod firmware;
+
+pub use firmware::{ModeRequest, SimFirmware};
 
 /// Flight mode of the simulated autopilot (a subset of PX4's).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -64,14 +68,9 @@ pub enum FlightMode {
 }
 
 impl FlightMode {
-    /// PX4 `custom_mode` of this mode.
+    /// PX4 `custom_mode` of this mode (see [`SimFirmware::custom_mode`] for the others).
     pub fn custom_mode(self) -> u32 {
-        match self {
-            FlightMode::Position => px4_custom_mode(PX4_MAIN_MODE_POSCTL, 0),
-            FlightMode::Hold => px4_custom_mode(PX4_MAIN_MODE_AUTO, PX4_AUTO_SUB_MODE_LOITER),
-            FlightMode::Offboard => px4_custom_mode(PX4_MAIN_MODE_OFFBOARD, 0),
-            FlightMode::Land => px4_custom_mode(PX4_MAIN_MODE_AUTO, PX4_AUTO_SUB_MODE_LAND),
-        }
+        SimFirmware::Px4.custom_mode(self)
     }
 
     /// Small integer for counters: 1 position, 2 hold, 3 offboard, 4 land.
@@ -116,6 +115,8 @@ pub struct SimVehicleConfig {
     /// The framing the vehicle sends (it receives both): an autopilot that speaks only
     /// MAVLink 1 is `V1`.
     pub mavlink_version: MavlinkVersion,
+    /// The autopilot it plays.
+    pub firmware: SimFirmware,
 }
 
 impl Default for SimVehicleConfig {
@@ -132,6 +133,7 @@ impl Default for SimVehicleConfig {
             fence: None,
             setpoint_period_s: None,
             mavlink_version: MavlinkVersion::V2,
+            firmware: SimFirmware::Px4,
         }
     }
 }
@@ -220,6 +222,8 @@ pub struct SimVehicle {
     offboard_cmd: Option<Command>,
     hold_position: [f32; 3],
     hold_yaw: f32,
+    /// ArduPilot: a take-off was commanded since the vehicle last stood on the ground.
+    took_off: bool,
     airborne_seen: bool,
     landed_since_s: Option<f64>,
     next_heartbeat_s: f64,
@@ -338,6 +342,7 @@ impl SimVehicle {
             offboard_cmd: None,
             hold_position: state.position,
             hold_yaw: state.yaw,
+            took_off: airborne,
             airborne_seen: airborne,
             landed_since_s: None,
             next_heartbeat_s: 0.0,
@@ -438,7 +443,10 @@ impl SimVehicle {
                 Err(TryRecvError::Empty) | Err(TryRecvError::Disconnected) => break,
             }
         }
-        if self.mode == FlightMode::Offboard && !self.setpoints_fresh() {
+        if self.mode == FlightMode::Offboard
+            && self.config.firmware.offboard_needs_stream()
+            && !self.setpoints_fresh()
+        {
             self.stats.failsafes += 1;
             self.set_mode(FlightMode::Hold);
         }
@@ -479,6 +487,12 @@ impl SimVehicle {
         let hold = Command::hold(self.hold_position, self.hold_yaw);
         match self.mode {
             FlightMode::Position | FlightMode::Hold => hold,
+            // ArduPilot: armed in guided on the ground, targets wait for a take-off
+            FlightMode::Offboard
+                if self.config.firmware.needs_takeoff_command() && !self.took_off =>
+            {
+                hold
+            }
             FlightMode::Offboard => self.offboard_cmd.unwrap_or(hold),
             FlightMode::Land => Command::Position {
                 position: [self.hold_position[0], self.hold_position[1], GROUND_U - 1.0],
@@ -494,6 +508,7 @@ impl SimVehicle {
         if !s.armed {
             self.airborne_seen = false;
             self.landed_since_s = None;
+            self.took_off = false;
             return;
         }
         if !s.landed {
@@ -534,32 +549,39 @@ impl SimVehicle {
             MavCmd::MAV_CMD_DO_SET_MODE => {
                 let custom_bit = u32::from(MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED.bits());
                 let custom = (c.param1 as u32 & custom_bit) != 0;
-                let main = c.param2.round();
-                let sub = c.param3.round();
-                if !custom {
-                    MavResult::MAV_RESULT_UNSUPPORTED
-                } else if main == f32::from(PX4_MAIN_MODE_OFFBOARD) {
-                    if self.setpoints_fresh() {
-                        self.set_mode(FlightMode::Offboard);
-                        MavResult::MAV_RESULT_ACCEPTED
-                    } else {
+                let firmware = self.config.firmware;
+                match firmware.mode_request(c.param2, c.param3) {
+                    _ if !custom => MavResult::MAV_RESULT_UNSUPPORTED,
+                    ModeRequest::Mode(FlightMode::Offboard)
+                        if firmware.offboard_needs_stream() && !self.setpoints_fresh() =>
+                    {
                         MavResult::MAV_RESULT_TEMPORARILY_REJECTED
                     }
-                } else if main == f32::from(PX4_MAIN_MODE_POSCTL) {
-                    self.set_mode(FlightMode::Position);
-                    MavResult::MAV_RESULT_ACCEPTED
-                } else if main == f32::from(PX4_MAIN_MODE_AUTO)
-                    && sub == f32::from(PX4_AUTO_SUB_MODE_LOITER)
-                {
-                    self.set_mode(FlightMode::Hold);
-                    MavResult::MAV_RESULT_ACCEPTED
-                } else if main == f32::from(PX4_MAIN_MODE_AUTO)
-                    && sub == f32::from(PX4_AUTO_SUB_MODE_LAND)
-                {
-                    self.set_mode(FlightMode::Land);
-                    MavResult::MAV_RESULT_ACCEPTED
+                    ModeRequest::Mode(mode) => {
+                        self.set_mode(mode);
+                        MavResult::MAV_RESULT_ACCEPTED
+                    }
+                    ModeRequest::Unsupported => MavResult::MAV_RESULT_UNSUPPORTED,
+                }
+            }
+            MavCmd::MAV_CMD_NAV_TAKEOFF if self.config.firmware.needs_takeoff_command() => {
+                let s = *self.model.state();
+                let height = c.param7;
+                if !(s.armed && self.mode == FlightMode::Offboard) {
+                    MavResult::MAV_RESULT_TEMPORARILY_REJECTED
+                } else if !(height.is_finite() && height > 0.0) {
+                    MavResult::MAV_RESULT_DENIED
                 } else {
-                    MavResult::MAV_RESULT_UNSUPPORTED
+                    // climb where it stands to the height above the ground; targets after
+                    // this are flown
+                    self.took_off = true;
+                    self.offboard_cmd = Some(Command::Position {
+                        position: [s.position[0], s.position[1], GROUND_U + height],
+                        velocity_ff: None,
+                        yaw: Some(s.yaw),
+                        yaw_rate: None,
+                    });
+                    MavResult::MAV_RESULT_ACCEPTED
                 }
             }
             MavCmd::MAV_CMD_NAV_LAND => {
@@ -611,6 +633,14 @@ impl SimVehicle {
             if !inside {
                 self.stats.setpoints_outside_fence += 1;
             }
+        }
+        if self.config.firmware.needs_takeoff_command() && !self.took_off {
+            // guided on the ground ignores targets until a take-off (counted as usable: the
+            // stream is alive)
+            self.last_setpoint_s = Some(self.time_s);
+            self.last_arrival = Some(at);
+            self.stats.setpoints += 1;
+            return;
         }
         let cmd = if pos_used {
             Command::Position {
@@ -686,9 +716,9 @@ impl SimVehicle {
                 base |= MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED;
             }
             self.send(&MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-                custom_mode: self.mode.custom_mode(),
+                custom_mode: self.config.firmware.custom_mode(self.mode),
                 mavtype: MavType::MAV_TYPE_QUADROTOR,
-                autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+                autopilot: self.config.firmware.mav_autopilot(),
                 base_mode: base,
                 system_status: if s.armed {
                     MavState::MAV_STATE_ACTIVE
