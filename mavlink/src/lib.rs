@@ -5,6 +5,7 @@
 //! autopilots' links. No other crate of ours.
 //! - [`link`]: one MAVLink link on any supported URL ([`prepare_link`], [`PendingLink`],
 //!   [`MavLink`]), receives that time out after [`LINK_POLL`] so threads can stop;
+//! - [`signing`]: MAVLink 2 signing ([`LinkSigning`]: the key from a file, the link id);
 //! - [`receiver`]: the receive thread ([`LinkReceiver`]) that establishes a link and hands
 //!   every message to its owner;
 //! - [`dialect`]: the message set every link speaks (MAVLink's `common`);
@@ -21,6 +22,7 @@ pub mod frame;
 pub mod link;
 pub mod px4;
 pub mod receiver;
+pub mod signing;
 
 /// A message's sender and sequence number.
 pub use mavlink::MavHeader;
@@ -33,3 +35,4 @@ pub use link::{LINK_POLL, LinkError, MavLink, PendingLink, Received, open_link, 
 /// MAVLink's framing versions.
 pub use mavlink::MavlinkVersion;
 pub use receiver::LinkReceiver;
+pub use signing::{LinkSigning, SignatureVerdict, SigningKeyError};

@@ -8,6 +8,7 @@
 
 use crate::MavHeader;
 use crate::dialect::MavMessage;
+use crate::signing::{LinkSigner, LinkSigning, SignatureVerdict};
 use mavlink::error::{MessageReadError, MessageWriteError};
 use mavlink::{
     Connectable, MAVLinkMessageRaw, MAVLinkV1MessageRaw, MAVLinkV2MessageRaw, MavConnection,
@@ -52,6 +53,9 @@ pub enum LinkError {
     /// Bytes arrived that do not decode as a common-dialect MAVLink 1 or 2 message.
     #[error("undecodable MAVLink data")]
     Decode,
+    /// The link signs, and MAVLink 1 has no signature.
+    #[error("a signed link sends MAVLink 2 only")]
+    SigningNeedsMavlink2,
     /// The message has no MAVLink 1 encoding (its id is above 255) and the link sends
     /// MAVLink 1.
     #[error("message {message_id} cannot be sent as MAVLink 1 (its id is above 255)")]
@@ -80,6 +84,8 @@ pub struct MavLink {
     send_version: AtomicU8,
     /// The next outgoing sequence number.
     sequence: AtomicU8,
+    /// MAVLink 2 signing, when on.
+    signer: Option<LinkSigner>,
 }
 
 impl core::fmt::Debug for MavLink {
@@ -97,7 +103,34 @@ impl MavLink {
             poll_with_try_recv,
             send_version: AtomicU8::new(2),
             sequence: AtomicU8::new(0),
+            signer: None,
         }
+    }
+
+    /// Sign everything sent from now on, and refuse every received frame that is not
+    /// signed with `signing`'s key (counted: [`MavLink::signing_refused`]).
+    /// On a serial link the `mavlink` crate checks the signatures itself: refusals are
+    /// enforced there but not counted.
+    pub fn set_signing(&mut self, signing: LinkSigning) {
+        if self.poll_with_try_recv {
+            self.conn.setup_signing(Some(mavlink::SigningConfig::new(
+                signing.key,
+                signing.link_id,
+                true,
+                false,
+            )));
+        }
+        self.signer = Some(LinkSigner::new(signing));
+    }
+
+    /// Whether the link signs and checks signatures.
+    pub fn is_signed(&self) -> bool {
+        self.signer.is_some()
+    }
+
+    /// Received frames refused by signing so far: `(unsigned, badly signed)`.
+    pub fn signing_refused(&self) -> (u64, u64) {
+        self.signer.as_ref().map_or((0, 0), LinkSigner::refused)
     }
 
     /// Send in `version` from now on (MAVLink 1 for a peer that speaks only MAVLink 1).
@@ -126,6 +159,9 @@ impl MavLink {
             ..*header
         };
         let raw = match self.send_version() {
+            MavlinkVersion::V1 if self.signer.is_some() => {
+                return Err(LinkError::SigningNeedsMavlink2);
+            }
             MavlinkVersion::V1 => {
                 let message_id = msg.message_id();
                 if message_id > u32::from(u8::MAX) || header.system_id > u32::from(u8::MAX) {
@@ -137,7 +173,13 @@ impl MavLink {
             }
             MavlinkVersion::V2 => {
                 let mut raw = MAVLinkV2MessageRaw::new();
-                raw.serialize_message(header, msg);
+                match &self.signer {
+                    Some(signer) => {
+                        raw.serialize_message_for_signing(header, msg);
+                        signer.sign(&mut raw);
+                    }
+                    None => raw.serialize_message(header, msg),
+                }
                 MAVLinkMessageRaw::V2(raw)
             }
         };
@@ -160,6 +202,12 @@ impl MavLink {
             })
         } else {
             self.conn.recv_raw().and_then(|raw| {
+                if let Some(signer) = &self.signer
+                    && signer.check(&raw) != SignatureVerdict::Valid
+                {
+                    // refused and counted; the caller polls again
+                    return Err(MessageReadError::Io(std::io::ErrorKind::WouldBlock.into()));
+                }
                 let message = MavMessage::parse(raw.version(), raw.message_id(), raw.payload())?;
                 Ok(Received {
                     header: MavHeader {
@@ -198,6 +246,8 @@ pub enum PendingLink {
         listener: TcpListener,
         /// Read timeout of the accepted stream.
         timeout: Duration,
+        /// Signing for the accepted link.
+        signing: Option<LinkSigning>,
     },
 }
 
@@ -248,7 +298,11 @@ pub fn prepare_link(url: &str, read_timeout: Duration) -> Result<PendingLink, Li
         }
         "tcpin" => {
             let listener = TcpListener::bind(addr).map_err(open_err(url))?;
-            Ok(PendingLink::Listening { listener, timeout })
+            Ok(PendingLink::Listening {
+                listener,
+                timeout,
+                signing: None,
+            })
         }
         "serial" => {
             let (port, baud) = addr
@@ -268,12 +322,36 @@ pub fn prepare_link(url: &str, read_timeout: Duration) -> Result<PendingLink, Li
 }
 
 impl PendingLink {
+    /// Sign and check signatures on the link with `signing` (nothing changes for `None`).
+    pub fn with_signing(self, signing: Option<LinkSigning>) -> Self {
+        let Some(s) = signing else {
+            return self;
+        };
+        match self {
+            PendingLink::Ready(mut link) => {
+                link.set_signing(s);
+                PendingLink::Ready(link)
+            }
+            PendingLink::Listening {
+                listener, timeout, ..
+            } => PendingLink::Listening {
+                listener,
+                timeout,
+                signing: Some(s),
+            },
+        }
+    }
+
     /// The open link; for a `tcpin:` server, wait for the peer to connect. Returns
     /// `Ok(None)` when `stop` became true while waiting.
     pub fn establish(self, stop: &AtomicBool) -> Result<Option<MavLink>, LinkError> {
         match self {
             PendingLink::Ready(link) => Ok(Some(link)),
-            PendingLink::Listening { listener, timeout } => {
+            PendingLink::Listening {
+                listener,
+                timeout,
+                signing,
+            } => {
                 let url = listener
                     .local_addr()
                     .map(|a| format!("tcpin:{a}"))
@@ -283,7 +361,11 @@ impl PendingLink {
                     match listener.accept() {
                         Ok((stream, _)) => {
                             stream.set_nonblocking(false).map_err(open_err(&url))?;
-                            return tcp_link(stream, timeout, &url).map(Some);
+                            let mut link = tcp_link(stream, timeout, &url)?;
+                            if let Some(s) = signing {
+                                link.set_signing(s);
+                            }
+                            return Ok(Some(link));
                         }
                         Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
                             std::thread::sleep(Duration::from_millis(20));

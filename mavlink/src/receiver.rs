@@ -210,4 +210,65 @@ mod tests {
         receiver.stop();
         assert!(receiver.link().is_none());
     }
+
+    /// A signed link over TCP: frames signed with the key pass; unsigned ones (MAVLink 2 or
+    /// 1) and ones signed with another key are refused and counted; what it sends is signed
+    /// (a peer with the key accepts it) and never MAVLink 1.
+    #[test]
+    fn a_signed_link_accepts_only_frames_signed_with_its_key() {
+        use crate::signing::LinkSigning;
+        let key = LinkSigning::from_text("the secret", 1).unwrap();
+        let other = LinkSigning::from_text("another secret", 2).unwrap();
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let addr = listener.local_addr().unwrap();
+        drop(listener);
+        let pending = prepare_link(&format!("tcpin:{addr}"), LINK_POLL)
+            .unwrap()
+            .with_signing(Some(key));
+        let (tx, rx) = sync_channel(16);
+        let mut receiver = LinkReceiver::spawn("test-rx", pending, "test link", move |r| {
+            let done = matches!(&r.message, MavMessage::HEARTBEAT(hb) if hb.custom_mode == 9);
+            tx.send(r).unwrap();
+            if done {
+                ControlFlow::Break(())
+            } else {
+                ControlFlow::Continue(())
+            }
+        })
+        .unwrap();
+        let mut peer = open_link(&format!("tcpout:{addr}"), LINK_POLL).unwrap();
+        let header = MavHeader {
+            system_id: 42,
+            component_id: 1,
+            sequence: 0,
+        };
+        // unsigned MAVLink 2, unsigned MAVLink 1, then another key: all refused
+        peer.send(&header, &heartbeat(1)).unwrap();
+        peer.set_send_version(MavlinkVersion::V1);
+        peer.send(&header, &heartbeat(2)).unwrap();
+        peer.set_send_version(MavlinkVersion::V2);
+        peer.set_signing(other);
+        peer.send(&header, &heartbeat(3)).unwrap();
+        peer.set_signing(key);
+        peer.send(&header, &heartbeat(9)).unwrap();
+        let r = rx.recv().unwrap();
+        assert!(
+            matches!(&r.message, MavMessage::HEARTBEAT(hb) if hb.custom_mode == 9),
+            "only the signed heartbeat arrives: {r:?}"
+        );
+        receiver.stop();
+        let link = receiver.link().expect("established");
+        assert_eq!(link.signing_refused(), (2, 1));
+        assert!(link.send(&header, &heartbeat(5)).unwrap() > 0);
+        let back = (0..200).find_map(|_| peer.recv().unwrap());
+        assert!(
+            matches!(&back, Some(r) if matches!(&r.message, MavMessage::HEARTBEAT(hb) if hb.custom_mode == 5)),
+            "a peer with the key accepts what the link signs: {back:?}"
+        );
+        link.set_send_version(MavlinkVersion::V1);
+        assert!(matches!(
+            link.send(&header, &heartbeat(6)),
+            Err(LinkError::SigningNeedsMavlink2)
+        ));
+    }
 }
