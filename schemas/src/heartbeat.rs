@@ -58,7 +58,7 @@ pub struct StageTiming {
 
 /// A role's heartbeat (`heartbeat`).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("aeris::RoleHeartbeat@s5")]
+#[type_name("aeris::RoleHeartbeat@s6")]
 #[repr(C)]
 pub struct RoleHeartbeat {
     /// Role instance name (unique in the flight).

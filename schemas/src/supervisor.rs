@@ -53,7 +53,7 @@ pub const BINDING_TEXT_MAX: usize = 96;
 
 /// The whole board (`aeris/{flight}/supervisor`, a blackboard entry).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("aeris::SupervisorStatus@s5")]
+#[type_name("aeris::SupervisorStatus@s6")]
 #[repr(C)]
 pub struct SupervisorStatus {
     /// Board update counter.

@@ -360,8 +360,7 @@ fn the_transit_height_clears_obstacles_seen_ahead_and_never_drops() {
     let at = [0.0, 0.0, 15.0];
     // the red roof 60 m north, a 30 m wall 20 m ahead on the way
     let mut s = seen("red roof", [0.45, 0.3, 0.1, 0.1], 60.0, at, 0.0);
-    s.occupancy.resolution_m = 2.0;
-    s.occupancy.origin = [0.0, 0.0];
+    s.occupancy = aeris_schemas::OccupancyGrid::observed([0.0, 0.0], 2.0);
     s.occupancy.cells = [0; aeris_schemas::OCCUPANCY_CELLS];
     let wall = s.occupancy.cell_of([20.0, 0.0]).unwrap();
     s.occupancy.cells[wall] = 30;
@@ -471,11 +470,7 @@ fn a_sign_read_close_up_with_another_text_is_rejected() {
 /// An occupancy grid around N, E = 0 showing free ground but for a board 8 m high and
 /// 12 m long north-south (facing east and west) at N 40..52, E 0.
 fn north_south_board() -> aeris_schemas::OccupancyGrid {
-    let mut board = aeris_schemas::OccupancyGrid {
-        origin: [0.0, 0.0],
-        resolution_m: 2.0,
-        ..Default::default()
-    };
+    let mut board = aeris_schemas::OccupancyGrid::observed([0.0, 0.0], 2.0);
     let half = (aeris_schemas::OCCUPANCY_SIDE / 2) as f32;
     for (i, cell) in board.cells.iter_mut().enumerate() {
         let n = ((i / aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
@@ -600,11 +595,7 @@ fn a_landing_next_to_a_building_comes_down_beside_it_never_on_its_roof() {
     });
     // a 40 m building of 25 m at N, E in [100, 140] (cells of 2 m, as perception's)
     let grid = |origin: [f32; 2], under_unknown: bool| {
-        let mut g = aeris_schemas::OccupancyGrid {
-            origin,
-            resolution_m: 2.0,
-            ..Default::default()
-        };
+        let mut g = aeris_schemas::OccupancyGrid::observed(origin, 2.0);
         for (i, cell) in g.cells.iter_mut().enumerate() {
             let half = (aeris_schemas::OCCUPANCY_SIDE / 2) as f32;
             let n = origin[0] + ((i / aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
