@@ -83,6 +83,11 @@ pub struct FlightSummary {
     pub max_active_step: u64,
     /// The attention trace, compressed to the sequence of distinct active steps.
     pub attention_steps: Vec<u16>,
+    /// Committed cycles the hub gated without present occupancy (absent or stale: no depth
+    /// source), keeping to the geofence and the conservative altitude (of the reports seen).
+    pub commits_without_occupancy: u64,
+    /// Committed decisions the gate clamped for want of occupancy (of the reports seen).
+    pub no_occupancy_clamps: u64,
 }
 
 /// Mean stage durations.
@@ -211,6 +216,8 @@ pub struct FlightMonitor {
     last_telemetry: Option<VehicleTelemetry>,
     attention_steps: Vec<u16>,
     airborne: bool,
+    commits_without_occupancy: u64,
+    no_occupancy_clamps: u64,
 }
 
 impl FlightMonitor {
@@ -241,6 +248,8 @@ impl FlightMonitor {
             last_telemetry: None,
             attention_steps: Vec::new(),
             airborne: false,
+            commits_without_occupancy: 0,
+            no_occupancy_clamps: 0,
             trace: Vec::new(),
             started_ns: aeris_runtime::clock::monotonic_ns(),
             invalid_reports: 0,
@@ -255,6 +264,12 @@ impl FlightMonitor {
                 continue;
             }
             if r.committed == 1 {
+                if r.occupancy_status() != Some(aeris_schemas::OccupancyStatus::Present) {
+                    self.commits_without_occupancy += 1;
+                }
+                if r.clamp_reasons & aeris_schemas::clamp::NO_OCCUPANCY != 0 {
+                    self.no_occupancy_clamps += 1;
+                }
                 self.ct_s.push(r.ct_ns as f64 * 1e-9);
                 for (sum, ns) in self.stage_sums.iter_mut().zip(r.stage_ns) {
                     *sum += ns as f64 * 1e-9;
@@ -480,6 +495,8 @@ impl FlightMonitor {
             subgoals_total: self.subgoals as u64,
             max_active_step: self.attention_steps.iter().copied().max().unwrap_or(0) as u64,
             attention_steps: self.attention_steps.clone(),
+            commits_without_occupancy: self.commits_without_occupancy,
+            no_occupancy_clamps: self.no_occupancy_clamps,
         }
     }
 }

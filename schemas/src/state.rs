@@ -428,8 +428,10 @@ mod tests {
         assert_eq!(absent.occupancy.status(), Some(OccupancyStatus::Absent));
         assert!(!absent.occupancy.is_present());
         // a present grid in which nothing was seen yet (every cell unknown), or all free
-        let mut empty = PerceptionState::default();
-        empty.occupancy = OccupancyGrid::observed([0.0, 0.0], 2.0);
+        let mut empty = PerceptionState {
+            occupancy: OccupancyGrid::observed([0.0, 0.0], 2.0),
+            ..PerceptionState::default()
+        };
         assert_eq!(empty.validate(), Ok(()));
         assert!(empty.occupancy.is_present());
         assert_eq!(empty.occupancy.height_at([1.0, 1.0]), None);

@@ -722,8 +722,10 @@ fn without_occupancy_moves_keep_to_the_conservative_altitude() {
     let limits = m.decision_limits();
     assert_eq!(limits.blind_altitude(), 60.0);
     let state = |status: OccupancyStatus| {
-        let mut s = PerceptionState::default();
-        s.occupancy = aeris_schemas::OccupancyGrid::observed([0.0, 0.0], 2.0);
+        let mut s = PerceptionState {
+            occupancy: aeris_schemas::OccupancyGrid::observed([0.0, 0.0], 2.0),
+            ..PerceptionState::default()
+        };
         s.occupancy.status = status as u8;
         s
     };
