@@ -80,9 +80,8 @@ fn corrupt(mut d: Decision, i: usize) -> Decision {
 
 fn wall_grid() -> OccupancyGrid {
     let mut g = OccupancyGrid {
-        origin: [0.0, 0.0],
-        resolution_m: 2.0,
         cells: [0; aeris_schemas::OCCUPANCY_CELLS],
+        ..OccupancyGrid::observed([0.0, 0.0], 2.0)
     };
     // a 30 m tall wall 16 m north of the vehicle, across the whole grid
     let row = OCCUPANCY_SIDE / 2 + 8;

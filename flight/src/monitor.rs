@@ -93,6 +93,11 @@ pub struct FlightSummary {
     pub autopilot_link_losses: u64,
     /// Commands the autopilot refused (COMMAND_ACK other than accepted / in progress).
     pub autopilot_commands_refused: u64,
+    /// Committed cycles the hub gated without present occupancy (absent or stale: no depth
+    /// source), keeping to the geofence and the conservative altitude (of the reports seen).
+    pub commits_without_occupancy: u64,
+    /// Committed decisions the gate clamped for want of occupancy (of the reports seen).
+    pub no_occupancy_clamps: u64,
 }
 
 /// Mean stage durations.
@@ -224,6 +229,8 @@ pub struct FlightMonitor {
     last_telemetry: Option<VehicleTelemetry>,
     attention_steps: Vec<u16>,
     airborne: bool,
+    commits_without_occupancy: u64,
+    no_occupancy_clamps: u64,
 }
 
 impl FlightMonitor {
@@ -257,6 +264,8 @@ impl FlightMonitor {
             last_telemetry: None,
             attention_steps: Vec::new(),
             airborne: false,
+            commits_without_occupancy: 0,
+            no_occupancy_clamps: 0,
             trace: Vec::new(),
             started_ns: aeris_runtime::clock::monotonic_ns(),
             invalid_reports: 0,
@@ -271,6 +280,12 @@ impl FlightMonitor {
                 continue;
             }
             if r.committed == 1 {
+                if r.occupancy_status() != Some(aeris_schemas::OccupancyStatus::Present) {
+                    self.commits_without_occupancy += 1;
+                }
+                if r.clamp_reasons & aeris_schemas::clamp::NO_OCCUPANCY != 0 {
+                    self.no_occupancy_clamps += 1;
+                }
                 self.ct_s.push(r.ct_ns as f64 * 1e-9);
                 for (sum, ns) in self.stage_sums.iter_mut().zip(r.stage_ns) {
                     *sum += ns as f64 * 1e-9;
@@ -512,6 +527,8 @@ impl FlightMonitor {
             autopilot: self.link_follower.autopilot(),
             autopilot_link_losses: self.link_follower.losses(),
             autopilot_commands_refused: self.link_follower.commands_refused(),
+            commits_without_occupancy: self.commits_without_occupancy,
+            no_occupancy_clamps: self.no_occupancy_clamps,
         }
     }
 }

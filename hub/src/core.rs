@@ -17,7 +17,11 @@
 //! - **Deadline**: a decision received more than `decision_deadline` after its
 //!   `cycle_start_ns` is late: rejected (counted as late and rejected). A `cycle_start_ns` in
 //!   the future is rejected too (it would defeat the deadline).
-//! - **Gate**: [`DecisionGate::admit`] against the latest vehicle position and occupancy.
+//! - **Gate**: [`DecisionGate::admit`] against the latest vehicle position and the
+//!   occupancy of the latest valid S_t, whatever its status: absent (also before the first
+//!   S_t) or stale, the gate keeps to the geofence and the conservative altitude. Every
+//!   report carries that status (`occupancy`), and a committed cycle's the gate's clamp
+//!   reasons (`clamp_reasons`).
 //! - **Reuse (EER accounting)**: after a commit of cycle k (started at `s`), the next
 //!   semantic cycle is due by `s + heartbeat_period + decision_deadline`; each later
 //!   heartbeat period is one more slot. A slot that closes without a fresh commit counts one
@@ -187,8 +191,8 @@ pub struct HubCore {
     counters: HubCounters,
     position: [f32; 3],
     telemetry_seen: bool,
+    /// The occupancy of the latest valid S_t (absent before the first).
     grid: OccupancyGrid,
-    grid_present: bool,
     att: AttentionResult,
     last: Option<LastValid>,
     hold: Option<[f32; 3]>,
@@ -241,7 +245,6 @@ impl HubCore {
             position: start,
             telemetry_seen: false,
             grid: OccupancyGrid::default(),
-            grid_present: false,
             att: AttentionResult::one_hot(0, subgoals),
             last: None,
             hold: None,
@@ -257,7 +260,8 @@ impl HubCore {
     }
 
     /// A new state S_t received at `now_ns`: validate (count a reject), keep its occupancy
-    /// grid and (until telemetry arrives) its position, and run ATT.
+    /// grid (present, absent or stale: it replaces the last one) and (until telemetry
+    /// arrives) its position, and run ATT.
     pub fn on_state(&mut self, state: &PerceptionState, now_ns: u64) -> Result<(), StateError> {
         self.counters.states_received += 1;
         if let Err(e) = state.validate() {
@@ -266,10 +270,7 @@ impl HubCore {
         }
         self.last_state_ns = Some(now_ns);
         self.way_check_due = true;
-        self.grid_present = state.occupancy.is_present();
-        if self.grid_present {
-            self.grid = state.occupancy;
-        }
+        self.grid = state.occupancy;
         if !self.telemetry_seen {
             self.position = state.position;
         }
@@ -359,7 +360,13 @@ impl HubCore {
             };
             return DecisionVerdict::Late { age_ns, report };
         }
-        let mut setpoint = match self.gate.admit(d, self.position, self.grid()) {
+        // admit, keeping the clamp reasons for the report
+        let admitted = self
+            .gate
+            .validate(d)
+            .and_then(|mode| self.gate.feasible(d, mode, self.position, self.grid()))
+            .and_then(|f| Ok((self.gate.bind(d, &f)?, f.reasons)));
+        let (mut setpoint, reasons) = match admitted {
             Ok(s) => s,
             Err(e) => return self.reject_from(candidate, RejectReason::Gate(e), receive_ns),
         };
@@ -393,6 +400,7 @@ impl HubCore {
         report.cycle = d.cycle;
         report.committed = 1;
         report.clamped = setpoint.clamped;
+        report.clamp_reasons = reasons;
         report.ct_ns = commit_ns.saturating_sub(d.cycle_start_ns);
         report.stage_ns = [
             d.state_stamp_ns.saturating_sub(d.cycle_start_ns),
@@ -491,7 +499,7 @@ impl HubCore {
             committed: 0,
             reused: 0,
             clamped: 0,
-            reserved: 0,
+            occupancy: self.grid.status,
             active_step: self.active_step(),
             subgoals: l as u16,
             attention,
@@ -507,7 +515,7 @@ impl HubCore {
             decisions_superseded: c.decisions_superseded,
             source_switches: c.source_switches,
             decision_source: self.sources.active().unwrap_or(0),
-            reserved2: 0,
+            clamp_reasons: 0,
         }
     }
 
@@ -536,7 +544,12 @@ impl HubCore {
     }
 
     fn grid(&self) -> Option<&OccupancyGrid> {
-        self.grid_present.then_some(&self.grid)
+        Some(&self.grid)
+    }
+
+    /// The occupancy the hub gates against: the latest valid S_t's (absent before one).
+    pub fn occupancy(&self) -> &OccupancyGrid {
+        &self.grid
     }
 
     /// The attention now: ATT's last result, or all on the declared step with `no_att`.

@@ -32,14 +32,27 @@
 //!   obstacle with top `>= h_t - clearance`, h_t is raised to `top + clearance` (`clamped`),
 //!   or the decision is rejected when that is above the band.
 //! - Speed is clamped to `[0, v_max]` (validation already guarantees it).
+//! - **No occupancy** (no grid given, or its status absent or stale: no depth source, or
+//!   an old one): unknown space is not free, so the gate keeps to the geofence and the
+//!   conservative altitude `b` = [`DecisionLimits::blind_altitude`] (the band's top). A
+//!   goto, hover or stop whose target lies more than [`BLIND_MOVE_M`] from the vehicle
+//!   flies at `h_t >= b`, and while the vehicle is more than [`BLIND_CLIMB_SLACK_M`] below
+//!   `b` it is held where the vehicle is (climbing there) instead; a land that far away
+//!   from a vehicle that low is rejected ([`GateError::NoOccupancy`]: the touchdown is
+//!   reached at the vehicle's altitude); anything else stays in place and is never bound
+//!   below `min(b, vehicle altitude)`. The touchdown cell cannot be checked.
+//!
+//! Every clamp is flagged `clamped`, its reasons in [`Feasible::reasons`]
+//! ([`aeris_schemas::clamp`] bits, which the hub reports).
 //!
 //! The bound setpoint is finally checked with [`BoundSetpoint::validate`], so the gate and the
 //! controller agree: a land setpoint is at U = 0, which `validate` accepts below h_min for
 //! land (and takeoff, hover, stop) by design.
 
 use aeris_schemas::{
-    ActionMode, BoundSetpoint, Decision, DecisionError, DecisionLimits, OCCUPANCY_SIDE,
-    OCCUPANCY_UNKNOWN, OccupancyGrid, SetpointError, all_finite,
+    ActionMode, BLIND_CLIMB_SLACK_M, BLIND_MOVE_M, BoundSetpoint, Decision, DecisionError,
+    DecisionLimits, OCCUPANCY_SIDE, OCCUPANCY_UNKNOWN, OccupancyGrid, OccupancyStatus,
+    SetpointError, all_finite, clamp,
 };
 
 /// Why a decision was not admitted.
@@ -51,9 +64,26 @@ pub enum GateError {
     /// The vehicle position given to the gate is NaN or infinite.
     #[error("vehicle position {0:?} is not finite")]
     BadPosition([f32; 3]),
-    /// The occupancy grid is malformed (NaN/inf origin or resolution, negative resolution).
-    #[error("occupancy grid is malformed (origin or resolution not finite / negative)")]
+    /// The occupancy grid is malformed (unknown status byte; present with a NaN/inf
+    /// origin or resolution, or a resolution <= 0).
+    #[error(
+        "occupancy grid is malformed (unknown status, or origin or resolution not finite / positive)"
+    )]
     BadGrid,
+    /// No occupancy is present and the decision would cross unknown space below the
+    /// conservative altitude (a land far from a vehicle flying lower than that).
+    #[error(
+        "no occupancy: a land {distance_m} m away would cross unknown space at {altitude_m} m, \
+         below the conservative altitude {needed_m} m"
+    )]
+    NoOccupancy {
+        /// Horizontal distance from the vehicle to the touchdown (m).
+        distance_m: f32,
+        /// The vehicle's altitude (m).
+        altitude_m: f32,
+        /// The conservative altitude (m).
+        needed_m: f32,
+    },
     /// An obstacle blocks the way and pulling back leaves less than one cell of motion.
     #[error(
         "blocked by an obstacle {top_m} m high at [N, E] = {at:?}: only {free_m} m of motion left"
@@ -102,6 +132,8 @@ pub struct Feasible {
     pub speed: f32,
     /// `true` when anything was changed to make it feasible.
     pub clamped: bool,
+    /// Why: [`aeris_schemas::clamp`] bits (0 when not clamped).
+    pub reasons: u32,
 }
 
 /// Where the segment walk first met a blocking cell.
@@ -147,11 +179,7 @@ impl DecisionGate {
 
     /// The altitude band `[max(h_min, fence_min.U), min(h_max, fence_max.U)]` (may be empty).
     pub fn altitude_band(&self) -> (f32, f32) {
-        let l = &self.limits;
-        (
-            l.h_min.max(l.geofence_min[2]),
-            l.h_max.min(l.geofence_max[2]),
-        )
+        self.limits.altitude_band()
     }
 
     /// Valid(D_t): [`Decision::validate`] against the flight's limits.
@@ -170,6 +198,8 @@ impl DecisionGate {
 
     /// Occupancy-aware feasibility of a validated decision (`mode` from
     /// [`DecisionGate::validate`]) for a vehicle at `position` `[N, E, U]`: clamp or reject.
+    /// `grid` is what perception sees; `None`, or a grid that is not present, is no
+    /// occupancy (see the module documentation).
     pub fn feasible(
         &self,
         d: &Decision,
@@ -186,24 +216,24 @@ impl DecisionGate {
             return Err(GateError::NoAltitude { min: lo, max: hi });
         }
         let here = self.project([position[0], position[1]]);
-        let mut clamped = here != [position[0], position[1]]
+        let mut reasons = 0;
+        if here != [position[0], position[1]]
             && matches!(
                 mode,
                 ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend | ActionMode::Turn
-            );
-        let mut h = d.altitude;
-        if h < lo {
-            h = lo;
-            clamped = true;
+            )
+        {
+            reasons |= clamp::GEOFENCE;
         }
-        if h > hi {
-            h = hi;
-            clamped = true;
+        let mut h = d.altitude;
+        if h < lo || h > hi {
+            h = h.clamp(lo, hi);
+            reasons |= clamp::ALTITUDE;
         }
         let speed = if d.speed >= 0.0 && d.speed <= self.limits.v_max {
             d.speed
         } else {
-            clamped = true;
+            reasons |= clamp::SPEED;
             if d.speed > self.limits.v_max {
                 self.limits.v_max
             } else {
@@ -211,9 +241,17 @@ impl DecisionGate {
             }
         };
         let c = self.clearance_m();
-        let position = match mode {
-            ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend | ActionMode::Turn => {
-                if let Some(top) = grid.and_then(|g| obstacle_top(g, here))
+        let target = [d.target[0], d.target[1]];
+        let position = match (mode, grid) {
+            (_, None) => {
+                let (p, h) = self.blind(mode, here, target, position, h, &mut reasons)?;
+                [p[0], p[1], h]
+            }
+            (
+                ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend | ActionMode::Turn,
+                Some(g),
+            ) => {
+                if let Some(top) = obstacle_top(g, here)
                     && top >= h - c
                 {
                     let need = top + c;
@@ -221,21 +259,24 @@ impl DecisionGate {
                         return Err(GateError::NoAltitude { min: need, max: hi });
                     }
                     h = need;
-                    clamped = true;
+                    reasons |= clamp::OBSTACLE;
                 }
                 [here[0], here[1], h]
             }
-            ActionMode::Goto | ActionMode::Hover | ActionMode::Stop => {
-                let (p, c) = self.walk(here, [d.target[0], d.target[1]], h, grid)?;
-                clamped |= c;
+            (ActionMode::Goto | ActionMode::Hover | ActionMode::Stop, Some(g)) => {
+                let (p, pulled) = self.walk(here, target, h, g)?;
+                if pulled {
+                    reasons |= clamp::OBSTACLE;
+                }
                 [p[0], p[1], h]
             }
-            ActionMode::Land => {
+            (ActionMode::Land, Some(g)) => {
                 let cross = h.min(position[2]);
-                let (p, c) = self.walk(here, [d.target[0], d.target[1]], cross, grid)?;
-                clamped |= c;
-                if let Some(g) = grid
-                    && let Some(cell) = g.cell_of(p)
+                let (p, pulled) = self.walk(here, target, cross, g)?;
+                if pulled {
+                    reasons |= clamp::OBSTACLE;
+                }
+                if let Some(cell) = g.cell_of(p)
                     && let Some(top) = obstacle(g.cells[cell])
                 {
                     return Err(GateError::Blocked {
@@ -251,8 +292,54 @@ impl DecisionGate {
             mode,
             position,
             speed,
-            clamped,
+            clamped: reasons != 0,
+            reasons,
         })
+    }
+
+    /// Feasibility without occupancy (module documentation): the horizontal target and
+    /// h_t (0 for a land), adding [`clamp::NO_OCCUPANCY`] to `reasons` when either moved.
+    fn blind(
+        &self,
+        mode: ActionMode,
+        here: [f32; 2],
+        target: [f32; 2],
+        position: [f32; 3],
+        h: f32,
+        reasons: &mut u32,
+    ) -> Result<([f32; 2], f32), GateError> {
+        let b = self.limits.blind_altitude();
+        let low = position[2] < b - BLIND_CLIMB_SLACK_M;
+        let away = horizontal_distance(here, target);
+        let moves = away > BLIND_MOVE_M;
+        let (to, floor) = match mode {
+            ActionMode::Land if moves && low => {
+                return Err(GateError::NoOccupancy {
+                    distance_m: away,
+                    altitude_m: position[2],
+                    needed_m: b,
+                });
+            }
+            ActionMode::Land => return Ok((target, 0.0)),
+            ActionMode::Goto | ActionMode::Hover | ActionMode::Stop if moves => {
+                if low {
+                    // climb where the vehicle is first; the way is flown once up there
+                    *reasons |= clamp::NO_OCCUPANCY;
+                    (here, b)
+                } else {
+                    (target, b)
+                }
+            }
+            ActionMode::Goto | ActionMode::Hover | ActionMode::Stop => (target, b.min(position[2])),
+            ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend | ActionMode::Turn => {
+                (here, b.min(position[2]))
+            }
+        };
+        if h < floor {
+            *reasons |= clamp::NO_OCCUPANCY;
+            return Ok((to, floor));
+        }
+        Ok((to, h))
     }
 
     /// Walk the segment `from -> to` at altitude `h`; the (possibly pulled back) target and
@@ -262,11 +349,8 @@ impl DecisionGate {
         from: [f32; 2],
         to: [f32; 2],
         h: f32,
-        grid: Option<&OccupancyGrid>,
+        g: &OccupancyGrid,
     ) -> Result<([f32; 2], bool), GateError> {
-        let Some(g) = grid else {
-            return Ok((to, false));
-        };
         let clearance = self.clearance_m();
         let Some(hit) = first_blocking(g, from, to, h - clearance) else {
             return Ok((to, false));
@@ -330,8 +414,10 @@ impl DecisionGate {
     /// the way is walked as [`DecisionGate::feasible`] walks a decision's, and any obstacle
     /// it meets is an error. A goto, hover or stop crosses at the setpoint's altitude, a land
     /// at the vehicle's and onto a free cell; an in-place setpoint must still clear the cell
-    /// under it by the clearance. A setpoint the gate just bound for the same `position` and
-    /// `grid` passes.
+    /// under it by the clearance. Without occupancy, a setpoint more than [`BLIND_MOVE_M`]
+    /// away (other than an in-place action's) fails while the vehicle is more than
+    /// [`BLIND_CLIMB_SLACK_M`] below the conservative altitude. A setpoint the gate just bound
+    /// for the same `position` and `grid` passes.
     pub fn check_way(
         &self,
         sp: &BoundSetpoint,
@@ -341,12 +427,30 @@ impl DecisionGate {
         if !all_finite(&position) {
             return Err(GateError::BadPosition(position));
         }
+        let here = self.project([position[0], position[1]]);
+        let to = [sp.position[0], sp.position[1]];
         let Some(g) = usable_grid(grid)? else {
+            let b = self.limits.blind_altitude();
+            let away = horizontal_distance(here, to);
+            let in_place = matches!(
+                ActionMode::from_u8(sp.mode),
+                Some(
+                    ActionMode::Takeoff
+                        | ActionMode::Ascend
+                        | ActionMode::Descend
+                        | ActionMode::Turn
+                )
+            );
+            if !in_place && away > BLIND_MOVE_M && position[2] < b - BLIND_CLIMB_SLACK_M {
+                return Err(GateError::NoOccupancy {
+                    distance_m: away,
+                    altitude_m: position[2],
+                    needed_m: b,
+                });
+            }
             return Ok(());
         };
         let c = self.clearance_m();
-        let here = self.project([position[0], position[1]]);
-        let to = [sp.position[0], sp.position[1]];
         let blocked = |cell: usize, top_m: f32, free_m: f32| GateError::Blocked {
             at: cell_centre(g, cell),
             top_m,
@@ -413,19 +517,29 @@ impl DecisionGate {
     }
 }
 
-/// The grid if it is present and well-formed; `Ok(None)` when absent.
+/// The grid if it is present and well-formed; `Ok(None)` when there is no occupancy (no
+/// grid, or its status absent or stale).
 fn usable_grid(grid: Option<&OccupancyGrid>) -> Result<Option<&OccupancyGrid>, GateError> {
     let Some(g) = grid else {
         return Ok(None);
     };
-    let r = g.resolution_m;
-    if r == 0.0 {
-        return Ok(None);
+    match g.status() {
+        None => Err(GateError::BadGrid),
+        Some(OccupancyStatus::Absent | OccupancyStatus::Stale) => Ok(None),
+        Some(OccupancyStatus::Present) => {
+            let r = g.resolution_m;
+            if !r.is_finite() || r <= 0.0 || !all_finite(&g.origin) {
+                return Err(GateError::BadGrid);
+            }
+            Ok(Some(g))
+        }
     }
-    if !r.is_finite() || r <= 0.0 || !all_finite(&g.origin) {
-        return Err(GateError::BadGrid);
-    }
-    Ok(Some(g))
+}
+
+/// Horizontal distance (m) between two points `[N, E]` (in f64: no overflow to inf for
+/// finite inputs far apart).
+fn horizontal_distance(a: [f32; 2], b: [f32; 2]) -> f32 {
+    (f64::from(a[0]) - f64::from(b[0])).hypot(f64::from(a[1]) - f64::from(b[1])) as f32
 }
 
 /// Obstacle top of a cell value: observed and above the ground.

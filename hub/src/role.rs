@@ -13,7 +13,8 @@
 //!
 //! Heartbeat stages: `route` (transport: draining and publishing), `gate` (decisions, and the
 //! tick: reuse slots, the committed setpoint's way check after a new S_t), `att` (states and
-//! ATT). Heartbeat counters: `[decisions received,
+//! ATT). A change of the occupancy status the gate works with (present, absent, stale) is
+//! one line in the role's log; every report carries it. Heartbeat counters: `[decisions received,
 //! rejected, late, reused cycles, sequence gaps, reorders, states received, decisions
 //! superseded]`.
 
@@ -26,8 +27,8 @@ use aeris_runtime::role::try_sched_fifo;
 use aeris_runtime::spec::TimingSpec;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
 use aeris_schemas::{
-    BoundSetpoint, Decision, HubReport, MAX_SUBGOALS, PerceptionState, RoleStatus,
-    VehicleTelemetry, topics,
+    BLIND_MOVE_M, BoundSetpoint, Decision, HubReport, MAX_SUBGOALS, OccupancyStatus,
+    PerceptionState, RoleStatus, VehicleTelemetry, topics,
 };
 use std::time::Duration;
 
@@ -103,6 +104,8 @@ pub struct HubRole {
     decisions: TypedSubscriber<Decision>,
     setpoints: TypedPublisher<BoundSetpoint>,
     reports: TypedPublisher<HubReport>,
+    /// The occupancy status last logged.
+    occupancy: Option<OccupancyStatus>,
 }
 
 impl HubRole {
@@ -129,6 +132,7 @@ impl Role for HubRole {
             decisions: ctx.bus.subscriber(topics::REASONING_DECISION)?,
             setpoints: ctx.bus.publisher(topics::HUB_SETPOINT)?,
             reports: ctx.bus.publisher(topics::HUB_REPORT)?,
+            occupancy: None,
         })
     }
 
@@ -163,6 +167,21 @@ impl Role for HubRole {
             att_ns += monotonic_ns().saturating_sub(t);
         })?;
 
+        let status = self.core.occupancy().status();
+        if states > 0 && status != self.occupancy {
+            self.occupancy = status;
+            if status == Some(OccupancyStatus::Present) {
+                eprintln!("hub: occupancy present: the gate clamps against the grid");
+            } else {
+                let b = self.core.gate().limits().blind_altitude();
+                eprintln!(
+                    "hub: occupancy {}: unknown space is not free; moves over {BLIND_MOVE_M} m \
+                     are flown at the conservative altitude {b} m, inside the geofence",
+                    status.map_or("unknown", OccupancyStatus::name)
+                );
+            }
+        }
+        let core = &mut self.core;
         let reports = &self.reports;
         let decisions = self.decisions.drain(|d| {
             let receive = monotonic_ns();

@@ -8,12 +8,13 @@
 //! decision that passes Valid(D_t) is admitted, in its own mode; what comes out is flyable,
 //! inside the geofence and the altitude band, bound as the binding table says, flagged
 //! `clamped` whenever anything differs from that table, and clear of every obstacle by the
-//! clearance; and any finite position can be held.
+//! clearance, or, without occupancy, moving only at the conservative altitude; and any
+//! finite position can be held.
 
 use crate::gate::{DecisionGate, GateError, obstacle, obstacle_top};
 use aeris_schemas::{
-    ActionMode, BoundSetpoint, Decision, DecisionLimits, OCCUPANCY_CELLS, OCCUPANCY_SIDE,
-    OCCUPANCY_UNKNOWN, OccupancyGrid, all_finite,
+    ActionMode, BLIND_CLIMB_SLACK_M, BLIND_MOVE_M, BoundSetpoint, Decision, DecisionLimits,
+    OCCUPANCY_CELLS, OCCUPANCY_SIDE, OCCUPANCY_UNKNOWN, OccupancyGrid, OccupancyStatus, all_finite,
 };
 
 /// Size of a [`Decision`] in shared memory: every byte belongs to a field (no padding), so
@@ -146,9 +147,10 @@ pub fn fuzz_check_bytes(gate: &DecisionGate, data: &[u8]) -> Option<BoundSetpoin
 ///
 /// `aux`: a flags byte (bit 0: a grid is present; bit 1: its cells start unknown instead of
 /// free; bit 2: raw f32 bit patterns for the position and grid geometry instead of whole
-/// centimetres; bit 3: the grid's resolution is raw too), the position `[N, E, U]`, the
-/// grid's origin `[N, E]`, its resolution byte (`(b + 1) / 16` m), then `(index lo, index hi,
-/// top)` triples that set cells. Missing bytes read as zero.
+/// centimetres; bit 3: the grid's resolution is raw too; bit 4: the grid's status is a raw
+/// byte instead of present), the position `[N, E, U]`, the grid's origin `[N, E]`, its
+/// resolution byte (`(b + 1) / 16` m), its status byte (with bit 4), then `(index lo, index
+/// hi, top)` triples that set cells. Missing bytes read as zero.
 pub fn fuzz_check_decision(gate: &DecisionGate, d: &Decision, aux: &[u8]) -> Option<BoundSetpoint> {
     let mut r = FuzzBytes(aux);
     let flags = r.u8();
@@ -162,11 +164,11 @@ pub fn fuzz_check_decision(gate: &DecisionGate, d: &Decision, aux: &[u8]) -> Opt
             (r.u8() as f32 + 1.0) / 16.0
         };
         let fill = if flags & 2 != 0 { OCCUPANCY_UNKNOWN } else { 0 };
-        let mut g = OccupancyGrid {
-            origin,
-            resolution_m,
-            cells: [fill; OCCUPANCY_CELLS],
-        };
+        let mut g = OccupancyGrid::observed(origin, resolution_m);
+        g.cells.fill(fill);
+        if flags & 16 != 0 {
+            g.status = r.u8();
+        }
         while r.0.len() >= 3 {
             let i = u16::from_le_bytes([r.u8(), r.u8()]) as usize % OCCUPANCY_CELLS;
             g.cells[i] = r.u8();
@@ -177,22 +179,22 @@ pub fn fuzz_check_decision(gate: &DecisionGate, d: &Decision, aux: &[u8]) -> Opt
 }
 
 /// [`fuzz_check_decision`] for a decision parsed from a language model's text: the vehicle
-/// on the ground at the origin with no grid, then in the air with a grid holding a wall
-/// across its way north. The first admitted setpoint, if any.
+/// on the ground at the origin with no occupancy, then in the air with a grid holding a
+/// wall across its way north, then there again with that grid stale. The first admitted
+/// setpoint, if any.
 pub fn fuzz_check_model_decision(gate: &DecisionGate, d: &Decision) -> Option<BoundSetpoint> {
     let on_ground = fuzz_check_admission(gate, d, [0.0; 3], None);
-    let mut g = OccupancyGrid {
-        origin: [20.0, 0.0],
-        resolution_m: 1.0,
-        cells: [0; OCCUPANCY_CELLS],
-    };
+    let mut g = OccupancyGrid::observed([20.0, 0.0], 1.0);
+    g.cells.fill(0);
     // a wall 20 m high at N in [30, 31), and an unobserved strip beside it
     for c in 0..OCCUPANCY_SIDE {
         g.cells[(OCCUPANCY_SIDE / 2 + 10) * OCCUPANCY_SIDE + c] = 20;
         g.cells[(OCCUPANCY_SIDE / 2 + 12) * OCCUPANCY_SIDE + c] = OCCUPANCY_UNKNOWN;
     }
     let airborne = fuzz_check_admission(gate, d, [10.0, 5.0, 12.0], Some(&g));
-    on_ground.or(airborne)
+    g.status = OccupancyStatus::Stale as u8;
+    let stale = fuzz_check_admission(gate, d, [10.0, 5.0, 12.0], Some(&g));
+    on_ground.or(airborne).or(stale)
 }
 
 /// The checks behind [`fuzz_check_decision`].
@@ -309,8 +311,38 @@ fn fuzz_check_admission(
     } else {
         assert_eq!(sp.clamped, 1);
     }
+    // without occupancy: horizontal moves only at the conservative altitude, in place
+    // never below it (or the vehicle's altitude, when lower)
+    let present = grid.filter(|g| g.is_present());
+    if present.is_none() {
+        let b = l.blind_altitude();
+        let p = sp.position;
+        let away = (f64::from(p[0]) - f64::from(here[0]))
+            .hypot(f64::from(p[1]) - f64::from(here[1])) as f32;
+        let in_place = matches!(
+            mode,
+            ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend | ActionMode::Turn
+        );
+        if !in_place && away > BLIND_MOVE_M {
+            assert!(
+                position[2] >= b - BLIND_CLIMB_SLACK_M,
+                "a move of {away} m from {position:?} below the conservative altitude {b}: {sp:?}"
+            );
+            if mode != ActionMode::Land {
+                assert!(
+                    p[2] >= b,
+                    "a move below the conservative altitude {b}: {sp:?}"
+                );
+            }
+        } else if mode != ActionMode::Land {
+            assert!(
+                p[2] >= b.min(position[2]),
+                "blind descent below {b}: {sp:?}"
+            );
+        }
+    }
     // obstacles, as the module documentation states them
-    if let Some(g) = grid.filter(|g| g.resolution_m > 0.0) {
+    if let Some(g) = present {
         let p = sp.position;
         match mode {
             ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend | ActionMode::Turn => {

@@ -119,9 +119,8 @@ fn grid_near(p: [f32; 3]) -> impl Strategy<Value = Option<OccupancyGrid>> {
         .prop_map(|(origin, resolution_m, cells, unknown)| {
             let fill = if unknown { OCCUPANCY_UNKNOWN } else { 0 };
             let mut g = OccupancyGrid {
-                origin: [origin.0, origin.1],
-                resolution_m,
                 cells: [fill; OCCUPANCY_CELLS],
+                ..OccupancyGrid::observed([origin.0, origin.1], resolution_m)
             };
             for (i, v) in cells {
                 g.cells[i] = v;
@@ -130,9 +129,8 @@ fn grid_near(p: [f32; 3]) -> impl Strategy<Value = Option<OccupancyGrid>> {
         });
     let malformed = (wild_f32(-1e3, 1e3), wild_f32(-1.0, 200.0)).prop_map(|(o, r)| {
         Some(OccupancyGrid {
-            origin: [o, 0.0],
-            resolution_m: r,
             cells: [7; OCCUPANCY_CELLS],
+            ..OccupancyGrid::observed([o, 0.0], r)
         })
     });
     prop_oneof![1 => Just(None), 4 => sparse, 1 => malformed]
@@ -290,10 +288,9 @@ proptest! {
         };
         let gate = DecisionGate::new(limits).unwrap();
         let mut g = OccupancyGrid {
-            origin: [0.0, 0.0],
-            resolution_m: resolution,
-            cells: [if unknown { OCCUPANCY_UNKNOWN } else { 0 }; OCCUPANCY_CELLS],
-        };
+ cells: [if unknown { OCCUPANCY_UNKNOWN } else { 0 }; OCCUPANCY_CELLS],
+ ..OccupancyGrid::observed([0.0, 0.0], resolution)
+ };
         for c in 0..OCCUPANCY_SIDE {
             g.cells[wall_row * OCCUPANCY_SIDE + c] = wall_top;
         }

@@ -97,9 +97,8 @@ fn hub_core_hot_path_does_not_allocate() {
     state.detections[0].label.set("roofs");
     state.detections[0].score = 0.5;
     state.occupancy = OccupancyGrid {
-        origin: [0.0, 0.0],
-        resolution_m: 1.0,
         cells: [0; OCCUPANCY_CELLS],
+        ..OccupancyGrid::observed([0.0, 0.0], 1.0)
     };
     for c in 0..64 {
         state.occupancy.cells[50 * 64 + c] = 30;

@@ -120,6 +120,8 @@ fn decisions_in_setpoints_and_reports_out() {
         .unwrap();
     let mut s = PerceptionState::default();
     s.summary.set("a red tower ahead");
+    // a present grid, nothing observed in it: the way is not blocked
+    s.occupancy = aeris_schemas::OccupancyGrid::observed([0.0, 0.0], 2.0);
     states.publish(&s).unwrap();
     let first = goto(1, monotonic_ns());
     decisions.publish(&first).unwrap();
@@ -141,6 +143,10 @@ fn decisions_in_setpoints_and_reports_out() {
     assert_eq!(
         (r.committed, r.reused, r.cycle, r.active_step),
         (1, 0, 1, 2)
+    );
+    assert_eq!(
+        r.occupancy_status(),
+        Some(aeris_schemas::OccupancyStatus::Present)
     );
     assert_eq!(r.validate(), Ok(()));
 

@@ -238,8 +238,8 @@ impl MavLink {
 /// A link that is open, or a TCP server still waiting for its peer.
 #[derive(Debug)]
 pub enum PendingLink {
-    /// Ready to use.
-    Ready(MavLink),
+    /// Ready to use (boxed: a link is far larger than a listener).
+    Ready(Box<MavLink>),
     /// A bound `tcpin:` listener; [`PendingLink::establish`] accepts the peer.
     Listening {
         /// The bound listener.
@@ -286,7 +286,7 @@ pub fn prepare_link(url: &str, read_timeout: Duration) -> Result<PendingLink, Li
             .read_timeout(timeout)
             .connect::<MavMessage>()
             .map_err(open_err(url))?;
-        Ok(PendingLink::Ready(MavLink::new(conn, false)))
+        Ok(PendingLink::Ready(Box::new(MavLink::new(conn, false))))
     };
     match proto {
         "udpin" | "udp" => udp(UdpMode::Udpin),
@@ -294,7 +294,9 @@ pub fn prepare_link(url: &str, read_timeout: Duration) -> Result<PendingLink, Li
         "udpbcast" => udp(UdpMode::UdpBroadcast),
         "tcpout" | "tcp" => {
             let stream = TcpStream::connect(addr).map_err(open_err(url))?;
-            Ok(PendingLink::Ready(tcp_link(stream, timeout, url)?))
+            Ok(PendingLink::Ready(Box::new(tcp_link(
+                stream, timeout, url,
+            )?)))
         }
         "tcpin" => {
             let listener = TcpListener::bind(addr).map_err(open_err(url))?;
@@ -315,7 +317,7 @@ pub fn prepare_link(url: &str, read_timeout: Duration) -> Result<PendingLink, Li
                 .timeout(timeout)
                 .connect::<MavMessage>()
                 .map_err(open_err(url))?;
-            Ok(PendingLink::Ready(MavLink::new(conn, true)))
+            Ok(PendingLink::Ready(Box::new(MavLink::new(conn, true))))
         }
         _ => Err(LinkError::Address(url.to_string())),
     }
@@ -346,7 +348,7 @@ impl PendingLink {
     /// `Ok(None)` when `stop` became true while waiting.
     pub fn establish(self, stop: &AtomicBool) -> Result<Option<MavLink>, LinkError> {
         match self {
-            PendingLink::Ready(link) => Ok(Some(link)),
+            PendingLink::Ready(link) => Ok(Some(*link)),
             PendingLink::Listening {
                 listener,
                 timeout,

@@ -211,9 +211,9 @@ mod tests {
         assert!(receiver.link().is_none());
     }
 
-    /// A signed link over TCP: frames signed with the key pass; unsigned ones (MAVLink 2 or
-    /// 1) and ones signed with another key are refused and counted; what it sends is signed
-    /// (a peer with the key accepts it) and never MAVLink 1.
+    /// A signed link over TCP: frames signed with the key pass; unsigned ones (in either
+    /// MAVLink version) and ones signed with another key are refused and counted; what it
+    /// sends is signed (a peer with the key accepts it) and never MAVLink 1.
     #[test]
     fn a_signed_link_accepts_only_frames_signed_with_its_key() {
         use crate::signing::LinkSigning;

@@ -5,17 +5,24 @@
 //!   the bounded scene summary from them, e.g. `reads "LAKE VIEW"; bus ahead 21 m; person
 //!   left 8 m`. It publishes when the cue block of a frame arrives (the last stage of the
 //!   pipeline) or, if it does not, `join_ms` (default 1500) after the first block of that
-//!   frame, with whatever blocks are there;
+//!   frame, with whatever blocks are there. The occupancy block may come from an earlier
+//!   frame than the others (the newest the occupancy role published); its status in S_t
+//!   says what it is worth: **absent** when no occupancy block ever came (no depth source:
+//!   a camera without depth, or no occupancy role), **stale** when the newest one's frame
+//!   was captured more than [`STALE_AFTER_TENTHS`] tenths of a heartbeat (1.5 heartbeats,
+//!   the rule by which a reasoner stops deciding on an old S_t) before this S_t's frame
+//!   (the depth source stopped), **present** otherwise;
 //! - `vlm`: the slot for a captioning model (the paper's image-to-text VLMs). No captioning
 //!   weights are published on the package registries, so this variant refuses to start with
 //!   an error that says so; it never makes up a caption.
 //!
 //! Heartbeat counters: `[states published, blocks in the last state (bit count), 0..]`.
 
+use crate::heartbeat_clock::STALE_AFTER_TENTHS;
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
-use aeris_schemas::{FixedText, PerceptionState, SUMMARY_MAX, block, topics};
+use aeris_schemas::{FixedText, OccupancyStatus, PerceptionState, SUMMARY_MAX, block, topics};
 use core::fmt::Write;
 use core::time::Duration;
 
@@ -52,14 +59,23 @@ pub fn read_text(state: &PerceptionState) -> Option<&str> {
     Some(rest.split('"').next().unwrap_or(""))
 }
 
+/// The oldest an occupancy block may be, relative to the frame of the S_t it joins, and
+/// still count as present: [`STALE_AFTER_TENTHS`] tenths of the heartbeat `period_ns`.
+pub fn occupancy_max_age_ns(period_ns: u64) -> u64 {
+    period_ns.saturating_mul(STALE_AFTER_TENTHS) / 10
+}
+
 /// Compose S_t from the blocks at hand (each `None` when missing): copy every block and
 /// write the summary (text read first, then the detections with side and range, then the
-/// best cue). `state`'s frame fields come from the first block present.
+/// best cue). `state`'s frame fields come from the first block present. The occupancy
+/// grid is marked absent without an occupancy block, stale when its frame was captured
+/// more than `occupancy_max_age_ns` before `state`'s, and keeps its own status otherwise.
 pub fn compose(
     text: Option<&PerceptionState>,
     dets: Option<&PerceptionState>,
     cues: Option<&PerceptionState>,
     occupancy: Option<&PerceptionState>,
+    occupancy_max_age_ns: u64,
     state: &mut PerceptionState,
 ) {
     *state = PerceptionState::default();
@@ -114,6 +130,11 @@ pub fn compose(
     if let Some(o) = occupancy {
         state.blocks |= block::OCCUPANCY;
         state.occupancy = o.occupancy;
+        if state.capture_ns.saturating_sub(o.capture_ns) > occupancy_max_age_ns
+            && o.occupancy.is_present()
+        {
+            state.occupancy.status = OccupancyStatus::Stale as u8;
+        }
     }
     if summary.is_empty() {
         summary.push_str("nothing recognised");
@@ -130,6 +151,7 @@ pub struct ComposeRole {
     pending: Option<(u64, u64)>,
     done_frame: u64,
     join_ns: u64,
+    occupancy_max_age_ns: u64,
     state: Box<PerceptionState>,
     seq: u64,
 }
@@ -156,6 +178,12 @@ impl Role for ComposeRole {
             pending: None,
             done_frame: 0,
             join_ns: (ctx.spec.param_f64("join_ms").unwrap_or(1500.0).max(0.0) * 1e6) as u64,
+            occupancy_max_age_ns: occupancy_max_age_ns(
+                ctx.spec
+                    .timing
+                    .heartbeat_period_ms
+                    .saturating_mul(1_000_000),
+            ),
             state: Box::default(),
             seq: 0,
         })
@@ -203,6 +231,7 @@ impl Role for ComposeRole {
             of_frame(DETS),
             of_frame(CUES),
             occupancy,
+            self.occupancy_max_age_ns,
             &mut self.state,
         );
         report.stage("compose", monotonic_ns() - t0);
@@ -248,11 +277,22 @@ mod tests {
         cues.cues[0].text = FixedText::from_str_truncated("a sign that says LAKE VIEW");
         cues.cues[0].score = 0.61;
         cues.subgoal_relevance[2] = 0.61;
-        let mut occ = PerceptionState::default();
-        occ.occupancy.resolution_m = 2.0;
+        let mut occ = PerceptionState {
+            frame_seq: 7,
+            ..PerceptionState::default()
+        };
+        occ.occupancy = aeris_schemas::OccupancyGrid::observed([0.0, 0.0], 2.0);
         occ.occupancy.cells[5] = 12;
         let mut s = PerceptionState::default();
-        compose(Some(&text), Some(&dets), Some(&cues), Some(&occ), &mut s);
+        let age = occupancy_max_age_ns(2_000_000_000);
+        compose(
+            Some(&text),
+            Some(&dets),
+            Some(&cues),
+            Some(&occ),
+            age,
+            &mut s,
+        );
         assert_eq!(
             s.summary.as_str(),
             Some("reads \"LAKE VIEW\"; bus ahead 21 m; cue: a sign that says LAKE VIEW (0.61)")
@@ -262,18 +302,79 @@ mod tests {
         assert_eq!(s.frame_seq, 7);
         assert_eq!(s.subgoal_relevance(), &[0.0, 0.0, 0.61]);
         assert_eq!(s.occupancy.cells[5], 12);
+        assert_eq!(s.occupancy.status(), Some(OccupancyStatus::Present));
         assert!(s.validate().is_ok());
         // a missing block is simply absent
-        compose(None, Some(&dets), None, None, &mut s);
+        compose(None, Some(&dets), None, None, age, &mut s);
         assert_eq!(s.blocks, block::DETECTIONS | block::SUMMARY);
         assert_eq!(s.occupancy.cells[5], OCCUPANCY_UNKNOWN);
+        assert_eq!(s.occupancy.status(), Some(OccupancyStatus::Absent));
         // a huge text stays inside the summary's bound
         text.cues[0].text = FixedText::from_str_truncated(&"W".repeat(500));
         for c in text.cues.iter_mut() {
             c.text = FixedText::from_str_truncated(&"X".repeat(60));
         }
         text.cue_count = 8;
-        compose(Some(&text), Some(&dets), None, None, &mut s);
+        compose(Some(&text), Some(&dets), None, None, age, &mut s);
         assert!(s.validate().is_ok());
+    }
+
+    #[test]
+    fn occupancy_is_absent_without_a_block_and_stale_when_old() {
+        let period = 2_000_000_000u64;
+        let age = occupancy_max_age_ns(period);
+        assert_eq!(age, 3_000_000_000, "1.5 heartbeats");
+        let dets = |capture_ns| PerceptionState {
+            frame_seq: 40,
+            capture_ns,
+            detection_count: 0,
+            ..PerceptionState::default()
+        };
+        let mut occ = PerceptionState {
+            frame_seq: 20,
+            capture_ns: 10_000_000_000,
+            blocks: block::OCCUPANCY,
+            ..PerceptionState::default()
+        };
+        occ.occupancy = aeris_schemas::OccupancyGrid::observed([1.0, 2.0], 2.0);
+        occ.occupancy.cells.fill(0);
+        let mut s = PerceptionState::default();
+        // no depth source: no occupancy block ever came -> absent, not an empty grid
+        compose(None, Some(&dets(12_000_000_000)), None, None, age, &mut s);
+        assert_eq!(s.occupancy.status(), Some(OccupancyStatus::Absent));
+        assert!(!s.has(block::OCCUPANCY));
+        // a block one heartbeat older than the frame (the occupancy role's last interval)
+        compose(
+            None,
+            Some(&dets(12_000_000_000)),
+            None,
+            Some(&occ),
+            age,
+            &mut s,
+        );
+        assert_eq!(s.occupancy.status(), Some(OccupancyStatus::Present));
+        assert!(s.occupancy.is_present() && s.has(block::OCCUPANCY));
+        // exactly 1.5 heartbeats old: still present; older: stale, kept for diagnostics
+        compose(
+            None,
+            Some(&dets(13_000_000_000)),
+            None,
+            Some(&occ),
+            age,
+            &mut s,
+        );
+        assert!(s.occupancy.is_present());
+        compose(
+            None,
+            Some(&dets(13_000_000_001)),
+            None,
+            Some(&occ),
+            age,
+            &mut s,
+        );
+        assert_eq!(s.occupancy.status(), Some(OccupancyStatus::Stale));
+        assert!(!s.occupancy.is_present());
+        assert_eq!(s.occupancy.origin, [1.0, 2.0]);
+        assert_eq!(s.validate(), Ok(()));
     }
 }

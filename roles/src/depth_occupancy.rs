@@ -6,7 +6,9 @@
 //! perception fills it beside its other blocks.
 
 use aeris_geometry::{CAMERA_MOUNT_HEIGHT_M, CAMERA_PITCH_RAD, CameraModel, CameraModelError};
-use aeris_schemas::{FrameFormat, FrameHeader, OCCUPANCY_UNKNOWN, PerceptionState, block};
+use aeris_schemas::{
+    FrameFormat, FrameHeader, OCCUPANCY_UNKNOWN, OccupancyStatus, PerceptionState, block,
+};
 
 /// Back-projected points lower than this (m) are ground.
 pub const GROUND_EPS_M: f32 = 0.5;
@@ -50,8 +52,9 @@ pub fn occupancy_from_depth(
 /// Back-project every return of `depth` (u16 LE mm z-depth, described by `header`, seen
 /// through `camera`) into `state`'s occupancy grid: a [`OCCUPANCY_RESOLUTION_M`] grid
 /// centred on the camera, each cell the highest obstacle top seen (ground returns, below
-/// [`GROUND_EPS_M`], give 0; cells without returns stay [`OCCUPANCY_UNKNOWN`]). Touches
-/// nothing else of `state`. Never allocates.
+/// [`GROUND_EPS_M`], give 0; cells without returns stay [`OCCUPANCY_UNKNOWN`]), marked
+/// [`OccupancyStatus::Present`]: it comes from this depth frame. Touches nothing else of
+/// `state`. Never allocates.
 pub fn fill_occupancy(
     depth: &[u8],
     header: &FrameHeader,
@@ -62,6 +65,8 @@ pub fn fill_occupancy(
     let grid = &mut state.occupancy;
     grid.origin = [cam[0], cam[1]];
     grid.resolution_m = OCCUPANCY_RESOLUTION_M;
+    grid.status = OccupancyStatus::Present as u8;
+    grid.reserved = [0; 3];
     grid.cells.fill(OCCUPANCY_UNKNOWN);
     let w = camera.width as usize;
     let f = camera.focal_px();

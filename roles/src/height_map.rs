@@ -379,11 +379,7 @@ mod tests {
 
     /// An ego grid at `origin` where `f(N, E)` gives each cell's height (`None` unknown).
     fn grid(origin: [f32; 2], f: impl Fn([f32; 2]) -> Option<u8>) -> OccupancyGrid {
-        let mut g = OccupancyGrid {
-            origin,
-            resolution_m: 2.0,
-            ..OccupancyGrid::default()
-        };
+        let mut g = OccupancyGrid::observed(origin, 2.0);
         let half = (OCCUPANCY_SIDE / 2) as f32;
         for (i, cell) in g.cells.iter_mut().enumerate() {
             let (r, c) = (i / OCCUPANCY_SIDE, i % OCCUPANCY_SIDE);

@@ -22,7 +22,8 @@ use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::error_chain::chain;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{
-    FrameFormat, FrameHeader, OCCUPANCY_CELLS, OCCUPANCY_UNKNOWN, PerceptionState, block, topics,
+    FrameFormat, FrameHeader, OCCUPANCY_CELLS, OCCUPANCY_UNKNOWN, OccupancyStatus, PerceptionState,
+    block, topics,
 };
 use core::time::Duration;
 
@@ -73,6 +74,7 @@ impl LearnedGrid {
         let p = header.camera_position;
         state.occupancy.origin = [p[0], p[1]];
         state.occupancy.resolution_m = OCCUPANCY_RESOLUTION_M;
+        state.occupancy.status = OccupancyStatus::Present as u8;
         Ok(())
     }
 }

@@ -131,6 +131,14 @@ impl Default for Decision {
     }
 }
 
+/// A decision moves the vehicle horizontally when its target lies farther than this (m)
+/// from the vehicle: without occupancy, such a move is flown at the conservative altitude
+/// only ([`DecisionLimits::blind_altitude`]).
+pub const BLIND_MOVE_M: f32 = 2.0;
+/// Without occupancy, the vehicle may move horizontally once within this (m) below the
+/// conservative altitude (a tracker settles a hair short of its setpoint).
+pub const BLIND_CLIMB_SLACK_M: f32 = 1.0;
+
 /// The hard limits of a flight (MISSION §3 ranges): the bounds Valid(D_t) checks decisions
 /// against, and what the hub's gate keeps them inside.
 ///
@@ -190,6 +198,25 @@ impl DecisionLimits {
             && (0..3).all(|i| self.geofence_min[i] <= self.geofence_max[i])
             && self.subgoals >= 1
             && self.subgoals as usize <= MAX_SUBGOALS
+    }
+
+    /// The altitude band `[max(h_min, fence_min.U), min(h_max, fence_max.U)]` (may be
+    /// empty).
+    pub fn altitude_band(&self) -> (f32, f32) {
+        (
+            self.h_min.max(self.geofence_min[2]),
+            self.h_max.min(self.geofence_max[2]),
+        )
+    }
+
+    /// The conservative altitude flown where no occupancy is present (no depth source, or
+    /// a stale one): the top of the altitude band. With no obstacle seen, the only height
+    /// the mission vouches for is the highest it allows; a workflow for a camera without
+    /// depth lowers it with `h_max` (or the geofence's top). The hub's gate and the planner
+    /// both keep to it: horizontal moves at or above it, no descent below it in place
+    /// (unless the vehicle is lower already).
+    pub fn blind_altitude(&self) -> f32 {
+        self.altitude_band().1
     }
 
     /// `true` when `p` (`[N, E, U]`) lies inside the geofence (bounds inclusive).

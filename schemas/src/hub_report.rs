@@ -1,8 +1,26 @@
 //! What the hub reports per semantic cycle: the gate's verdict, counters and ATT.
 
-use crate::MAX_SUBGOALS;
+use crate::{MAX_SUBGOALS, OccupancyStatus};
 use iceoryx2_bb_derive_macros::ZeroCopySend;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
+
+/// Why the gate clamped a committed decision (bits of [`HubReport::clamp_reasons`]).
+pub mod clamp {
+    /// h_t was moved into the altitude band.
+    pub const ALTITUDE: u32 = 1 << 0;
+    /// The vehicle's position was projected into the geofence (in-place actions).
+    pub const GEOFENCE: u32 = 1 << 1;
+    /// The speed was moved into `[0, v_max]`.
+    pub const SPEED: u32 = 1 << 2;
+    /// An obstacle of the occupancy grid pulled the target back or raised h_t.
+    pub const OBSTACLE: u32 = 1 << 3;
+    /// No occupancy was present (absent or stale): h_t was kept at or raised to the
+    /// conservative altitude ([`crate::DecisionLimits::blind_altitude`]), or a horizontal
+    /// move was held in place until the vehicle climbs there.
+    pub const NO_OCCUPANCY: u32 = 1 << 4;
+    /// Every reason.
+    pub const ALL: u32 = ALTITUDE | GEOFENCE | SPEED | OBSTACLE | NO_OCCUPANCY;
+}
 
 /// Hub report (`hub/report`), published once per committed or reused cycle.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
@@ -23,10 +41,12 @@ pub struct HubReport {
     pub committed: u8,
     /// 1 when this cycle reused the last valid decision (late, invalid or missing).
     pub reused: u8,
-    /// 1 when the committed decision was clamped.
+    /// 1 when the committed decision was clamped (why: `clamp_reasons`).
     pub clamped: u8,
-    /// Reserved, zero.
-    pub reserved: u8,
+    /// [`OccupancyStatus`] wire byte of the occupancy the hub gates against when it
+    /// reports (the latest valid S_t's; absent before the first): anything but present
+    /// means the gate kept to the geofence and the conservative altitude.
+    pub occupancy: u8,
     /// Active step i* (1-based).
     pub active_step: u16,
     /// Number of subgoals L.
@@ -59,8 +79,9 @@ pub struct HubReport {
     /// Instance number of the reasoner whose decisions the hub takes now (0 = none yet or
     /// unsupervised).
     pub decision_source: u32,
-    /// Reserved, zero.
-    pub reserved2: u32,
+    /// Why the committed decision was clamped: [`clamp`] bits (0 when it was not, and in
+    /// reuse reports).
+    pub clamp_reasons: u32,
 }
 
 /// Why a hub report is unusable.
@@ -77,6 +98,12 @@ pub enum HubReportError {
     /// An attention weight is not finite or outside [0, 1].
     #[error("attention weight is not a probability")]
     BadAttention,
+    /// The occupancy byte is no [`OccupancyStatus`].
+    #[error("occupancy status byte {0} is unknown")]
+    BadOccupancy(u8),
+    /// A clamp reason bit outside [`clamp::ALL`].
+    #[error("clamp reasons {0:#x} hold unknown bits")]
+    BadClampReasons(u32),
 }
 
 impl HubReport {
@@ -92,11 +119,47 @@ impl HubReport {
         if !self.attention[..l].iter().all(|a| (0.0..=1.0).contains(a)) {
             return Err(HubReportError::BadAttention);
         }
+        if OccupancyStatus::from_u8(self.occupancy).is_none() {
+            return Err(HubReportError::BadOccupancy(self.occupancy));
+        }
+        if self.clamp_reasons & !clamp::ALL != 0 {
+            return Err(HubReportError::BadClampReasons(self.clamp_reasons));
+        }
         Ok(())
+    }
+
+    /// The occupancy status the hub gated against (`None` for an unknown byte).
+    pub fn occupancy_status(&self) -> Option<OccupancyStatus> {
+        OccupancyStatus::from_u8(self.occupancy)
     }
 
     /// The valid attention weights.
     pub fn alpha(&self) -> &[f32] {
         &self.attention[..(self.subgoals as usize).min(MAX_SUBGOALS)]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validates_occupancy_and_clamp_reasons() {
+        let mut r = HubReport {
+            subgoals: 2,
+            active_step: 1,
+            ..HubReport::default()
+        };
+        assert_eq!(r.validate(), Ok(()));
+        // the default report says: no occupancy
+        assert_eq!(r.occupancy_status(), Some(OccupancyStatus::Absent));
+        r.occupancy = OccupancyStatus::Stale as u8;
+        r.clamp_reasons = clamp::NO_OCCUPANCY | clamp::ALTITUDE;
+        assert_eq!(r.validate(), Ok(()));
+        r.occupancy = 9;
+        assert_eq!(r.validate(), Err(HubReportError::BadOccupancy(9)));
+        r.occupancy = OccupancyStatus::Present as u8;
+        r.clamp_reasons = 1 << 7;
+        assert_eq!(r.validate(), Err(HubReportError::BadClampReasons(1 << 7)));
     }
 }

@@ -34,15 +34,17 @@ pub use autopilot_link::{
     AutopilotKind, AutopilotLinkStatus, LINK_NOTE_MAX, LINK_URL_MAX, LinkState,
 };
 pub use control::{CommandKind, ReplyStage, SupervisorCommand, SupervisorReply};
-pub use decision::{ActionMode, Decision, DecisionError, DecisionLimits};
+pub use decision::{
+    ActionMode, BLIND_CLIMB_SLACK_M, BLIND_MOVE_M, Decision, DecisionError, DecisionLimits,
+};
 pub use frame::{FrameError, FrameFormat, FrameHeader};
 pub use heartbeat::{HeartbeatError, MAX_STAGES, RoleHeartbeat, RoleStatus, StageTiming};
-pub use hub_report::{HubReport, HubReportError};
+pub use hub_report::{HubReport, HubReportError, clamp};
 pub use lease::{ControllerLease, LEASE_HAS_HOLD, LEASE_HAS_REFERENCE};
 pub use setpoint::{BoundSetpoint, SetpointError};
 pub use state::{
     Cue, Detection, MAX_CUES, MAX_DETECTIONS, OCCUPANCY_CELLS, OCCUPANCY_SIDE, OCCUPANCY_UNKNOWN,
-    OccupancyGrid, PerceptionState, SUMMARY_MAX, StateError, block,
+    OccupancyGrid, OccupancyStatus, PerceptionState, SUMMARY_MAX, StateError, block,
 };
 pub use supervisor::{BINDING_TEXT_MAX, MAX_ROLES, RoleStatusEntry, SupervisorStatus};
 pub use telemetry::{TelemetryError, VehicleTelemetry};

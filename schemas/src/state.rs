@@ -80,40 +80,108 @@ pub struct Cue {
     pub score: f32,
 }
 
+/// Whether the occupancy block of S_t holds observations a consumer may use
+/// ([`OccupancyGrid::status`] is the wire byte).
+///
+/// "Absent" is not "empty": a present grid whose cells are all free or all unknown is what a
+/// depth sensor saw; an absent or stale one says nothing about the space around the vehicle,
+/// and the hub's gate and the planner treat that space as unknown, not as free (they keep to
+/// the geofence and [`crate::DecisionLimits::blind_altitude`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u8)]
+pub enum OccupancyStatus {
+    /// No grid: no depth source, or none received yet. The cells mean nothing.
+    Absent = 0,
+    /// Built from a recent depth frame: the cells are observations.
+    Present = 1,
+    /// The last grid, built from a depth frame older than its producer's freshness rule
+    /// allows (the depth source stopped): kept for diagnostics only, used as absent.
+    Stale = 2,
+}
+
+impl OccupancyStatus {
+    /// Every status, in wire order.
+    pub const ALL: [OccupancyStatus; 3] = [
+        OccupancyStatus::Absent,
+        OccupancyStatus::Present,
+        OccupancyStatus::Stale,
+    ];
+
+    /// Decode a wire byte.
+    pub fn from_u8(v: u8) -> Option<Self> {
+        Self::ALL.iter().copied().find(|s| *s as u8 == v)
+    }
+
+    /// Lower-case name, as logs and reports print it.
+    pub fn name(self) -> &'static str {
+        match self {
+            OccupancyStatus::Absent => "absent",
+            OccupancyStatus::Present => "present",
+            OccupancyStatus::Stale => "stale",
+        }
+    }
+}
+
 /// Ego-centred, north-aligned 2.5-D occupancy grid O_t.
 ///
 /// Cell `(row, col)` covers north offset `(row - SIDE/2) * resolution` and east offset
 /// `(col - SIDE/2) * resolution` from `origin` (the vehicle position when it was built).
 /// A cell holds the height in metres of the highest obstacle top seen there, 0 for free
-/// ground, [`OCCUPANCY_UNKNOWN`] for not observed.
+/// ground, [`OCCUPANCY_UNKNOWN`] for not observed. Only a grid whose `status` is
+/// [`OccupancyStatus::Present`] carries observations ([`OccupancyGrid::is_present`]).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[repr(C)]
 pub struct OccupancyGrid {
     /// Grid centre `[N, E]` in metres.
     pub origin: [f32; 2],
-    /// Metres per cell (> 0), 0 = grid absent.
+    /// Metres per cell (> 0 when present).
     pub resolution_m: f32,
+    /// [`OccupancyStatus`] wire byte (a raw byte: a sample from another process is decoded
+    /// with [`OccupancyStatus::from_u8`], never transmuted).
+    pub status: u8,
+    /// Reserved, zero.
+    pub reserved: [u8; 3],
     /// Cell heights, row-major (row = north index).
     pub cells: [u8; OCCUPANCY_CELLS],
 }
 
 impl Default for OccupancyGrid {
+    /// An absent grid: no observations, every cell unknown.
     fn default() -> Self {
         Self {
             origin: [0.0; 2],
             resolution_m: 0.0,
+            status: OccupancyStatus::Absent as u8,
+            reserved: [0; 3],
             cells: [OCCUPANCY_UNKNOWN; OCCUPANCY_CELLS],
         }
     }
 }
 
 impl OccupancyGrid {
-    /// `true` when the grid carries observations.
-    pub fn is_present(&self) -> bool {
-        self.resolution_m > 0.0
+    /// A present grid centred on `origin` with cells of `resolution_m`, nothing observed
+    /// yet (every cell unknown): what a producer fills from a depth frame.
+    pub fn observed(origin: [f32; 2], resolution_m: f32) -> Self {
+        Self {
+            origin,
+            resolution_m,
+            status: OccupancyStatus::Present as u8,
+            ..Self::default()
+        }
     }
 
-    /// Cell index of the point `[N, E]`, if inside the grid.
+    /// The grid's status; `None` for a byte that is no [`OccupancyStatus`].
+    pub fn status(&self) -> Option<OccupancyStatus> {
+        OccupancyStatus::from_u8(self.status)
+    }
+
+    /// `true` when the grid carries usable observations: status
+    /// [`OccupancyStatus::Present`] and a positive resolution.
+    pub fn is_present(&self) -> bool {
+        self.status == OccupancyStatus::Present as u8 && self.resolution_m > 0.0
+    }
+
+    /// Cell index of the point `[N, E]`, if the grid is present and the point inside it.
     pub fn cell_of(&self, p: [f32; 2]) -> Option<usize> {
         if !self.is_present() {
             return None;
@@ -128,8 +196,8 @@ impl OccupancyGrid {
         }
     }
 
-    /// Obstacle top height at `[N, E]`: `Some(h)` when observed, `None` when unknown or
-    /// outside the grid.
+    /// Obstacle top height at `[N, E]`: `Some(h)` when observed, `None` when unknown,
+    /// outside the grid, or the grid is not present.
     pub fn height_at(&self, p: [f32; 2]) -> Option<f32> {
         let v = self.cells[self.cell_of(p)?];
         (v != OCCUPANCY_UNKNOWN).then_some(v as f32)
@@ -163,7 +231,7 @@ pub struct PerceptionState {
     pub detections: [Detection; MAX_DETECTIONS],
     /// Top-k instruction cues C_t, best first.
     pub cues: [Cue; MAX_CUES],
-    /// Ego occupancy O_t.
+    /// Ego occupancy O_t (its `status` says whether it is present, absent or stale).
     pub occupancy: OccupancyGrid,
     /// Which blocks this state carries ([`block`] bits).
     pub blocks: u32,
@@ -288,6 +356,14 @@ impl PerceptionState {
         if !grid_ok {
             return Err(StateError::BadNumber("occupancy"));
         }
+        match o.status() {
+            None => return Err(StateError::BadNumber("occupancy.status")),
+            // a present grid must be usable: cells of some size
+            Some(OccupancyStatus::Present) if o.resolution_m <= 0.0 => {
+                return Err(StateError::BadNumber("occupancy.resolution_m"));
+            }
+            Some(_) => {}
+        }
         Ok(())
     }
 }
@@ -316,6 +392,9 @@ mod tests {
         s.occupancy.resolution_m = f32::INFINITY;
         assert_eq!(s.validate(), Err(StateError::BadNumber("occupancy")));
         s.occupancy.resolution_m = 2.0;
+        s.occupancy.status = 7;
+        assert_eq!(s.validate(), Err(StateError::BadNumber("occupancy.status")));
+        s.occupancy.status = OccupancyStatus::Present as u8;
         s.relevance_count = 2;
         s.subgoal_relevance[1] = 1.5;
         assert_eq!(
@@ -332,16 +411,53 @@ mod tests {
 
     #[test]
     fn occupancy_cells_map_to_points() {
-        let mut g = OccupancyGrid {
-            origin: [10.0, 20.0],
-            resolution_m: 2.0,
-            ..OccupancyGrid::default()
-        };
+        let mut g = OccupancyGrid::observed([10.0, 20.0], 2.0);
         let i = g.cell_of([10.0, 20.0]).unwrap();
         assert_eq!(i, 32 * OCCUPANCY_SIDE + 32);
         g.cells[i] = 12;
         assert_eq!(g.height_at([10.5, 21.9]), Some(12.0));
         assert_eq!(g.height_at([10.0, 18.0]), None); // unknown cell
         assert_eq!(g.cell_of([10.0 + 65.0, 20.0]), None);
+    }
+
+    #[test]
+    fn absent_is_not_present_and_empty() {
+        // the default S_t carries no occupancy: absent, valid, and nothing reads its cells
+        let absent = PerceptionState::default();
+        assert_eq!(absent.validate(), Ok(()));
+        assert_eq!(absent.occupancy.status(), Some(OccupancyStatus::Absent));
+        assert!(!absent.occupancy.is_present());
+        // a present grid in which nothing was seen yet (every cell unknown), or all free
+        let mut empty = PerceptionState {
+            occupancy: OccupancyGrid::observed([0.0, 0.0], 2.0),
+            ..PerceptionState::default()
+        };
+        assert_eq!(empty.validate(), Ok(()));
+        assert!(empty.occupancy.is_present());
+        assert_eq!(empty.occupancy.height_at([1.0, 1.0]), None);
+        empty.occupancy.cells.fill(0);
+        assert_eq!(empty.occupancy.height_at([1.0, 1.0]), Some(0.0));
+        // the same cells, absent or stale, are not observations
+        for status in [OccupancyStatus::Absent, OccupancyStatus::Stale] {
+            let mut g = empty.occupancy;
+            g.status = status as u8;
+            assert!(!g.is_present(), "{status:?}");
+            assert_eq!(g.height_at([1.0, 1.0]), None, "{status:?}");
+        }
+        // present needs cells of some size
+        empty.occupancy.resolution_m = 0.0;
+        assert_eq!(
+            empty.validate(),
+            Err(StateError::BadNumber("occupancy.resolution_m"))
+        );
+    }
+
+    #[test]
+    fn occupancy_status_bytes_round_trip() {
+        for s in OccupancyStatus::ALL {
+            assert_eq!(OccupancyStatus::from_u8(s as u8), Some(s));
+        }
+        assert_eq!(OccupancyStatus::from_u8(3), None);
+        assert_eq!(OccupancyStatus::Absent.name(), "absent");
     }
 }

@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::att::{AttentionPrior, LexicalScorer};
-use aeris_schemas::{ActionMode, DecisionLimits, OCCUPANCY_CELLS};
+use aeris_schemas::{ActionMode, DecisionLimits, OCCUPANCY_CELLS, OccupancyStatus, clamp};
 
 const S: u64 = 1_000_000_000;
 const TEXTS: [&str; 3] = [
@@ -83,13 +83,19 @@ fn state(summary: &str) -> PerceptionState {
 /// it at N in `[north, north + 1)`.
 fn wall_north(north: i32, top: u8) -> OccupancyGrid {
     let mut g = OccupancyGrid {
-        origin: [0.0, 0.0],
-        resolution_m: 1.0,
         cells: [0; OCCUPANCY_CELLS],
+        ..OccupancyGrid::observed([0.0, 0.0], 1.0)
     };
     let row = (north + 32) as usize;
     g.cells[row * 64..(row + 1) * 64].fill(top);
     g
+}
+
+/// Feed `h` an S_t whose present grid shows all free ground (the hub is blind before).
+fn sees_free_ground(h: &mut HubCore, now_ns: u64) {
+    let mut s = state("open ground");
+    s.occupancy = wall_north(0, 0);
+    h.on_state(&s, now_ns).unwrap();
 }
 
 fn committed(v: DecisionVerdict) -> (BoundSetpoint, HubReport) {
@@ -221,6 +227,7 @@ fn a_garbage_decision_leaves_the_last_valid_one_in_force() {
 #[test]
 fn late_and_future_decisions_are_rejected() {
     let mut h = hub();
+    sees_free_ground(&mut h, 0);
     let (first, _) = committed(h.on_decision(&goto(1, 1, 10 * S, [20.0, 0.0, 10.0]), 11 * S));
     // 2.5 s after its cycle start: late
     let late = goto(2, 2, 12 * S, [-20.0, 0.0, 10.0]);
@@ -347,6 +354,7 @@ fn gaps_and_reorders_are_counted_and_reorders_rejected() {
 fn an_infeasible_decision_becomes_a_latched_hold() {
     let mut h = hub();
     h.on_telemetry([0.0, 0.0, 10.0]);
+    sees_free_ground(&mut h, 0);
     committed(h.on_decision(&goto(1, 1, S, [30.0, 0.0, 10.0]), S));
     assert_eq!(h.on_tick(S).setpoint.unwrap().position, [30.0, 0.0, 10.0]);
     // a wall appears 2 m ahead: pulling back leaves no motion
@@ -414,6 +422,80 @@ fn a_decision_is_gated_once_and_its_setpoint_kept_while_the_vehicle_moves() {
     assert_eq!(
         (sp.position, sp.mode),
         (committed.position, ActionMode::Goto as u8)
+    );
+}
+
+/// Without occupancy (none yet, absent, stale) unknown space is not free: a move is held
+/// until the vehicle is at the conservative altitude (the band's top, 60 m here), and the
+/// reports say so; a present grid in which nothing was seen is flown as before.
+#[test]
+fn without_occupancy_moves_wait_for_the_conservative_altitude_and_reports_say_so() {
+    let d = |seq| goto(seq, seq, seq * S, [30.0, 0.0, 10.0]);
+    for status in [
+        None,
+        Some(OccupancyStatus::Absent),
+        Some(OccupancyStatus::Stale),
+    ] {
+        let mut h = hub();
+        h.on_telemetry([0.0, 0.0, 10.0]);
+        if let Some(status) = status {
+            let mut s = state("no depth");
+            s.occupancy = wall_north(0, 0);
+            s.occupancy.status = status as u8;
+            h.on_state(&s, 0).unwrap();
+        }
+        let (sp, r) = committed(h.on_decision(&d(1), S));
+        // climb where it is first
+        assert_eq!(
+            (sp.position, sp.clamped),
+            ([0.0, 0.0, 60.0], 1),
+            "{status:?}"
+        );
+        assert_eq!(r.clamp_reasons, clamp::NO_OCCUPANCY, "{status:?}");
+        let want = status.unwrap_or(OccupancyStatus::Absent);
+        assert_eq!(r.occupancy_status(), Some(want));
+        assert_eq!(r.validate(), Ok(()));
+        // up there: the move is flown, at that altitude
+        h.on_telemetry([0.0, 0.0, 59.5]);
+        let (sp, r) = committed(h.on_decision(&d(2), 2 * S));
+        assert_eq!(sp.position, [30.0, 0.0, 60.0], "{status:?}");
+        assert_eq!(r.clamp_reasons, clamp::NO_OCCUPANCY);
+    }
+    // present and empty (nothing observed yet): as before, unknown cells do not block
+    let mut h = hub();
+    h.on_telemetry([0.0, 0.0, 10.0]);
+    let mut s = state("nothing seen");
+    s.occupancy = aeris_schemas::OccupancyGrid::observed([0.0, 0.0], 2.0);
+    h.on_state(&s, 0).unwrap();
+    let (sp, r) = committed(h.on_decision(&d(1), S));
+    assert_eq!((sp.position, sp.clamped), ([30.0, 0.0, 10.0], 0));
+    assert_eq!(
+        (r.clamp_reasons, r.occupancy_status()),
+        (0, Some(OccupancyStatus::Present))
+    );
+}
+
+/// A committed move below the conservative altitude becomes a hold when an S_t without
+/// occupancy arrives, and is flown again once occupancy is back.
+#[test]
+fn losing_occupancy_holds_a_low_move_until_it_is_back() {
+    let mut h = hub();
+    h.on_telemetry([0.0, 0.0, 10.0]);
+    sees_free_ground(&mut h, 0);
+    let (_, r) = committed(h.on_decision(&goto(1, 1, S, [30.0, 0.0, 10.0]), S));
+    assert_eq!(r.occupancy_status(), Some(OccupancyStatus::Present));
+    h.on_telemetry([2.0, 0.0, 10.0]);
+    h.on_state(&state("depth lost"), S + 1).unwrap();
+    let sp = h.on_tick(S + 2).setpoint.unwrap();
+    assert_eq!(
+        (sp.mode, sp.position),
+        (ActionMode::Hover as u8, [2.0, 0.0, 10.0])
+    );
+    sees_free_ground(&mut h, S + 3);
+    let sp = h.on_tick(S + 4).setpoint.unwrap();
+    assert_eq!(
+        (sp.mode, sp.position),
+        (ActionMode::Goto as u8, [30.0, 0.0, 10.0])
     );
 }
 

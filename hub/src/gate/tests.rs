@@ -39,9 +39,8 @@ fn decision(action: ActionMode, target: [f32; 3], altitude: f32) -> Decision {
 /// 1 m cells centred on the origin, all free ground.
 fn free_grid() -> OccupancyGrid {
     OccupancyGrid {
-        origin: [0.0, 0.0],
-        resolution_m: 1.0,
         cells: [0; OCCUPANCY_CELLS],
+        ..OccupancyGrid::observed([0.0, 0.0], 1.0)
     }
 }
 
@@ -66,7 +65,9 @@ fn binds_each_action() {
         (ActionMode::Land, [30.0, -10.0, 0.0]),
     ];
     for (mode, want) in cases {
-        let sp = g.admit(&decision(mode, t, 12.0), v, None).unwrap();
+        let sp = g
+            .admit(&decision(mode, t, 12.0), v, Some(&free_grid()))
+            .unwrap();
         assert_eq!(sp.position, want, "{mode:?}");
         assert_eq!(sp.mode, mode as u8);
         assert_eq!((sp.yaw, sp.speed, sp.acceptance_radius), (0.25, 5.0, 2.0));
@@ -121,11 +122,7 @@ fn clamps_before_a_wall_with_clearance() {
 #[test]
 fn unknown_cells_are_free_and_corners_are_not_skipped() {
     let g = gate();
-    let mut grid = OccupancyGrid {
-        origin: [0.0, 0.0],
-        resolution_m: 1.0,
-        ..OccupancyGrid::default()
-    };
+    let mut grid = OccupancyGrid::observed([0.0, 0.0], 1.0);
     let d = decision(ActionMode::Goto, [20.0, 20.0, 10.0], 10.0);
     assert_eq!(
         g.admit(&d, [0.0; 3], Some(&grid)).unwrap().position,
@@ -194,7 +191,16 @@ fn a_bound_setpoint_passes_the_way_check_until_an_obstacle_shows_up() {
             Ok(()),
             "{mode:?}: {sp:?}"
         );
-        assert_eq!(g.check_way(&sp, at, None), Ok(()), "{mode:?}");
+        // without occupancy, only the climb in place may go on below 60 m
+        let blind = g.check_way(&sp, at, None);
+        if mode == ActionMode::Ascend {
+            assert_eq!(blind, Ok(()));
+        } else {
+            assert!(
+                matches!(blind, Err(GateError::NoOccupancy { needed_m: 60.0, .. })),
+                "{mode:?}: {blind:?}"
+            );
+        }
     }
     // the climb was raised to 18 m over the 15 m roof: a taller one under it blocks it
     let climb = g
@@ -327,5 +333,80 @@ fn config_is_checked() {
             ..l
         }),
         Err(GateConfigError::IncoherentLimits)
+    );
+}
+
+/// Absent (no grid, or its status absent or stale) is not "present and empty": without
+/// occupancy a move flies at the conservative altitude (the band's top, 60 m), waits in
+/// place while the vehicle is lower, and nothing in place descends below it; a present
+/// grid with nothing observed (all unknown) or all free is gated as before.
+#[test]
+fn without_occupancy_moves_keep_to_the_conservative_altitude() {
+    let g = gate();
+    assert_eq!(g.limits().blind_altitude(), 60.0);
+    let mut empty = free_grid();
+    empty.cells.fill(OCCUPANCY_UNKNOWN);
+    let mut stale = free_grid();
+    stale.status = OccupancyStatus::Stale as u8;
+    let mut absent = free_grid();
+    absent.status = OccupancyStatus::Absent as u8;
+    let low = [1.0, 2.0, 10.0];
+    let high = [1.0, 2.0, 59.5];
+    let t = [30.0, -10.0, 12.0];
+    for grid in [None, Some(&absent), Some(&stale)] {
+        let admit = |mode, at| g.feasible(&decision(mode, t, 12.0), mode, at, grid);
+        // a move from low down: climb where the vehicle is first
+        for mode in [ActionMode::Goto, ActionMode::Hover, ActionMode::Stop] {
+            let f = admit(mode, low).unwrap();
+            assert_eq!((f.position, f.mode), ([1.0, 2.0, 60.0], mode), "{grid:?}");
+            assert_eq!((f.clamped, f.reasons), (true, clamp::NO_OCCUPANCY));
+            // from up there: to the target, at that altitude
+            let f = admit(mode, high).unwrap();
+            assert_eq!(f.position, [30.0, -10.0, 60.0]);
+            assert_eq!(f.reasons, clamp::NO_OCCUPANCY);
+        }
+        // a land far away from low down is refused; from up there it goes
+        assert!(matches!(
+            admit(ActionMode::Land, low),
+            Err(GateError::NoOccupancy { needed_m: 60.0, .. })
+        ));
+        let f = admit(ActionMode::Land, high).unwrap();
+        assert_eq!((f.position, f.clamped), ([30.0, -10.0, 0.0], false));
+        // in place: a take-off from the ground climbs as asked, nothing descends
+        let f = admit(ActionMode::Takeoff, [1.0, 2.0, 0.0]).unwrap();
+        assert_eq!((f.position, f.clamped), ([1.0, 2.0, 12.0], false));
+        let f = admit(ActionMode::Descend, [1.0, 2.0, 30.0]).unwrap();
+        assert_eq!(
+            (f.position, f.reasons),
+            ([1.0, 2.0, 30.0], clamp::NO_OCCUPANCY)
+        );
+        let f = admit(ActionMode::Turn, high).unwrap();
+        assert_eq!(f.position, [1.0, 2.0, 59.5]);
+        // a hover where the vehicle is stays there, not lower
+        let here = decision(ActionMode::Hover, [1.5, 2.0, 5.0], 5.0);
+        let f = g.feasible(&here, ActionMode::Hover, low, grid).unwrap();
+        assert_eq!(f.position, [1.5, 2.0, 10.0]);
+        // what was admitted passes its way check
+        let sp = g
+            .admit(&decision(ActionMode::Goto, t, 12.0), low, grid)
+            .unwrap();
+        assert_eq!(g.check_way(&sp, low, grid), Ok(()));
+    }
+    // present: empty (nothing observed) and all free are flown as asked
+    for grid in [&empty, &free_grid()] {
+        for mode in [ActionMode::Goto, ActionMode::Land, ActionMode::Descend] {
+            let f = g
+                .feasible(&decision(mode, t, 12.0), mode, [1.0, 2.0, 30.0], Some(grid))
+                .unwrap();
+            assert!(!f.clamped, "{mode:?}: {f:?}");
+            assert_eq!(f.reasons, 0);
+        }
+    }
+    // a status byte that is none is a malformed grid
+    let mut bad = free_grid();
+    bad.status = 9;
+    assert_eq!(
+        g.admit(&decision(ActionMode::Goto, t, 12.0), low, Some(&bad)),
+        Err(GateError::BadGrid)
     );
 }

@@ -14,11 +14,14 @@
 //!   board from low down, scanning, search legs, landing);
 //! - `geometry`: ground distances, bearings and the transit height over
 //!   the occupancy grid;
+//! - `blind`: planning without occupancy (no depth source, or a stale one): the geofence
+//!   and the conservative altitude, as the hub's gate enforces them;
 //! - [`role`]: [`PlannerRole`], the planner as a reasoning process (over the shared
 //!   [`crate::reasoner_io::ReasonerIo`]);
 //! - [`garbage_and_random`]: [`GarbageRole`] (fault injection) and [`RandomRole`] (the
 //!   VLN random baseline), both built on the planner's decisions.
 
+mod blind;
 mod geometry;
 mod grounded;
 mod search;
@@ -38,7 +41,9 @@ use aeris_geometry::CameraModel;
 use aeris_geometry::wrap_pi;
 use aeris_runtime::spec::CameraSpec;
 use aeris_schemas::state::CUE_MAX;
-use aeris_schemas::{ActionMode, Decision, FixedText, MAX_SUBGOALS, PerceptionState};
+use aeris_schemas::{
+    ActionMode, Decision, FixedText, MAX_SUBGOALS, OccupancyStatus, PerceptionState,
+};
 use geometry::{distance, ground_distance, heading, horizontal};
 use search::Search;
 
@@ -134,6 +139,11 @@ struct Step {
 /// the turn its text asks for, then scanning around, then flying search legs), located
 /// from the detection's bearing and range, and approached at a height that clears the
 /// obstacle tops the occupancy grid shows ahead.
+///
+/// From the first S_t without present occupancy (absent or stale) until one brings it
+/// back, every decision keeps to the geofence and the conservative altitude instead of
+/// taking unknown space for free (`blind`); before any S_t it has no evidence either way
+/// (the hub's gate, blind until its first S_t, holds any move made low).
 #[derive(Debug, Clone)]
 pub struct Planner {
     steps: [Option<Step>; MAX_SUBGOALS],
@@ -160,6 +170,12 @@ pub struct Planner {
     /// Every occupancy grid of the flight, in the world frame: where a landing may come
     /// down (the ego grid does not see under the vehicle).
     map: HeightMap,
+    /// The occupancy status of the latest S_t decided on (`None` before the first).
+    occupancy: Option<OccupancyStatus>,
+    /// The altitude flown without occupancy (the mission's band top).
+    blind_altitude: f32,
+    /// Decisions made without occupancy.
+    blind_decisions: u64,
 }
 
 impl Planner {
@@ -215,6 +231,9 @@ impl Planner {
                 [l.geofence_min[0], l.geofence_min[1]],
                 [l.geofence_max[0], l.geofence_max[1]],
             ),
+            occupancy: None,
+            blind_altitude: mission.decision_limits().blind_altitude(),
+            blind_decisions: 0,
         })
     }
 
@@ -227,6 +246,24 @@ impl Planner {
                 .as_ref()
                 .map(|(p, t)| (*p, t.as_str_lossy())),
         )
+    }
+
+    /// The occupancy status of the latest S_t decided on (`None` before the first; a
+    /// status byte that is none reads as absent).
+    pub fn occupancy(&self) -> Option<OccupancyStatus> {
+        self.occupancy
+    }
+
+    /// `true` while the planner decides without occupancy (the latest S_t had none
+    /// present): moves keep to the conservative altitude.
+    pub fn blind(&self) -> bool {
+        self.occupancy
+            .is_some_and(|s| s != OccupancyStatus::Present)
+    }
+
+    /// Decisions made without occupancy so far.
+    pub fn blind_decisions(&self) -> u64 {
+        self.blind_decisions
     }
 
     /// Index (0-based) of the subgoal in progress.
@@ -282,6 +319,16 @@ impl Planner {
                 };
             }
         };
+        // without occupancy the waypoint's height is the one the decision flies at
+        let w = if self.blind() {
+            [
+                w[0],
+                w[1],
+                self.blind_height(step.action, position, w, w[2]),
+            ]
+        } else {
+            w
+        };
         match step.action {
             ActionMode::Takeoff | ActionMode::Ascend | ActionMode::Descend => {
                 (position[2] - w[2]).abs() <= ALTITUDE_REACH_M + SETTLE_MARGIN_M
@@ -308,6 +355,7 @@ impl Planner {
     ) -> Decision {
         if let Some(s) = state {
             self.map.absorb(&s.occupancy);
+            self.occupancy = Some(s.occupancy.status().unwrap_or(OccupancyStatus::Absent));
         }
         while let Some(step) = self.steps[self.current] {
             if let StepTarget::Find(phrase) = step.target {
@@ -361,6 +409,12 @@ impl Planner {
                     self.grounded(&step, &phrase, position, yaw);
                 self.over_known_tops(position, action, target, altitude, facing)
             }
+        };
+        let (action, target, altitude) = if self.blind() {
+            self.blind_decisions = self.blind_decisions.saturating_add(1);
+            self.keep_blind(action, target, altitude, position)
+        } else {
+            (action, target, altitude)
         };
         let target = self.inside_fence(target);
         let dn = target[0] - position[0];

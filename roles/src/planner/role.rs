@@ -6,7 +6,9 @@
 //! came for a heartbeat and a half, polling every 50 ms ([`ReasonerIo`]).
 //!
 //! Heartbeat stages: `read`, `plan`, `publish`. Heartbeat counters: `[decisions,
-//! subgoal_index (0-based), corrupted (the garbage variant), 0, 0, 0, 0, 0]`.
+//! subgoal_index (0-based), corrupted (the garbage variant), decisions made without
+//! occupancy, 0, 0, 0, 0]`. The role's log says when the planner loses occupancy (and
+//! keeps to the geofence and the conservative altitude) and when it gets it back.
 
 use super::Planner;
 use crate::reasoner_io::{POLL, ReasonerIo};
@@ -48,10 +50,26 @@ impl PlannerReasoner {
         };
         let reasoning_start = monotonic_ns();
         let before = self.planner.rejections().0;
+        let was_blind = self.planner.blind();
         let state = self.io.state(&due);
         let mut d = self
             .planner
             .decide(due.position, due.yaw, due.landed, state);
+        if self.planner.blind() != was_blind {
+            // rare (when the depth source goes or comes back): a line in the role's log
+            match self.planner.occupancy() {
+                Some(s) if self.planner.blind() => eprintln!(
+                    "reasoning: step {}: occupancy {}: unknown space is not free; planning \
+                     inside the geofence at the conservative altitude",
+                    d.step,
+                    s.name()
+                ),
+                _ => eprintln!(
+                    "reasoning: step {}: occupancy present again: planning over the grid",
+                    d.step
+                ),
+            }
+        }
         if let (n, Some((p, read))) = self.planner.rejections()
             && n > before
         {
@@ -76,6 +94,7 @@ impl PlannerReasoner {
     ) -> Result<(), RoleError> {
         self.io.publish(d, report)?;
         report.counters[1] = self.planner.current() as u64;
+        report.counters[3] = self.planner.blind_decisions();
         Ok(())
     }
 }

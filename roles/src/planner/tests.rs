@@ -186,6 +186,8 @@ fn seen(
         detection_count: 1,
         ..PerceptionState::default()
     };
+    // a depth source, which saw nothing near (present, every cell unknown)
+    s.occupancy = aeris_schemas::OccupancyGrid::observed([position[0], position[1]], 2.0);
     s.detections[0].label.set(label);
     s.detections[0].score = 0.8;
     s.detections[0].bbox = bbox;
@@ -253,6 +255,11 @@ fn a_grounded_step_turns_as_told_scans_and_flies_to_what_it_sees() {
     for _ in 0..READ_WAIT {
         d = p.decide(there, east, false, Some(&s));
     }
+    // with a depth source it also waited there for clear ground to show, as long
+    // with a depth source, the landing also waits there for clear ground to show
+    for _ in READ_WAIT..TOUCHDOWN_WAIT + 1 {
+        d = p.decide(there, east, false, Some(&s));
+    }
     assert_eq!(
         (d.step, ActionMode::from_u8(d.action)),
         (3, Some(ActionMode::Land))
@@ -262,6 +269,19 @@ fn a_grounded_step_turns_as_told_scans_and_flies_to_what_it_sees() {
 }
 
 /// `s` with the reader's text `read` in its summary.
+/// Decide on `s` at `at` until the planner lands, for at most the heartbeats a landing
+/// waits for clear ground to show (a depth source saw no touchdown): the last decision.
+fn landing(p: &mut Planner, at: [f32; 3], yaw: f32, s: &PerceptionState) -> Decision {
+    let mut d = p.decide(at, yaw, false, Some(s));
+    for _ in 0..TOUCHDOWN_WAIT {
+        if ActionMode::from_u8(d.action) == Some(ActionMode::Land) {
+            break;
+        }
+        d = p.decide(at, yaw, false, Some(s));
+    }
+    d
+}
+
 fn reading(mut s: PerceptionState, read: &str) -> PerceptionState {
     s.blocks |= aeris_schemas::block::TEXT;
     s.summary = aeris_schemas::FixedText::from_str_truncated(&format!("reads \"{read}\""));
@@ -360,8 +380,7 @@ fn the_transit_height_clears_obstacles_seen_ahead_and_never_drops() {
     let at = [0.0, 0.0, 15.0];
     // the red roof 60 m north, a 30 m wall 20 m ahead on the way
     let mut s = seen("red roof", [0.45, 0.3, 0.1, 0.1], 60.0, at, 0.0);
-    s.occupancy.resolution_m = 2.0;
-    s.occupancy.origin = [0.0, 0.0];
+    s.occupancy = aeris_schemas::OccupancyGrid::observed([0.0, 0.0], 2.0);
     s.occupancy.cells = [0; aeris_schemas::OCCUPANCY_CELLS];
     let wall = s.occupancy.cell_of([20.0, 0.0]).unwrap();
     s.occupancy.cells[wall] = 30;
@@ -419,7 +438,7 @@ fn a_sign_with_another_text_is_not_taken_for_the_next_one() {
         ),
         "HOTEL",
     );
-    let d = p.decide(there, core::f32::consts::PI, false, Some(&hotel));
+    let d = landing(&mut p, there, core::f32::consts::PI, &hotel);
     assert_eq!(ActionMode::from_u8(d.action), Some(ActionMode::Land));
 }
 
@@ -463,7 +482,7 @@ fn a_sign_read_close_up_with_another_text_is_rejected() {
     );
     s.blocks |= aeris_schemas::block::TEXT;
     s.summary = aeris_schemas::FixedText::from_str_truncated("reads \"H0TEL\"");
-    let d = p.decide(at, core::f32::consts::PI, false, Some(&s));
+    let d = landing(&mut p, at, core::f32::consts::PI, &s);
     assert!(p.search.found.is_some());
     assert_eq!(ActionMode::from_u8(d.action), Some(ActionMode::Land));
 }
@@ -471,11 +490,7 @@ fn a_sign_read_close_up_with_another_text_is_rejected() {
 /// An occupancy grid around N, E = 0 showing free ground but for a board 8 m high and
 /// 12 m long north-south (facing east and west) at N 40..52, E 0.
 fn north_south_board() -> aeris_schemas::OccupancyGrid {
-    let mut board = aeris_schemas::OccupancyGrid {
-        origin: [0.0, 0.0],
-        resolution_m: 2.0,
-        ..Default::default()
-    };
+    let mut board = aeris_schemas::OccupancyGrid::observed([0.0, 0.0], 2.0);
     let half = (aeris_schemas::OCCUPANCY_SIDE / 2) as f32;
     for (i, cell) in board.cells.iter_mut().enumerate() {
         let n = ((i / aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
@@ -600,11 +615,7 @@ fn a_landing_next_to_a_building_comes_down_beside_it_never_on_its_roof() {
     });
     // a 40 m building of 25 m at N, E in [100, 140] (cells of 2 m, as perception's)
     let grid = |origin: [f32; 2], under_unknown: bool| {
-        let mut g = aeris_schemas::OccupancyGrid {
-            origin,
-            resolution_m: 2.0,
-            ..Default::default()
-        };
+        let mut g = aeris_schemas::OccupancyGrid::observed(origin, 2.0);
         for (i, cell) in g.cells.iter_mut().enumerate() {
             let half = (aeris_schemas::OCCUPANCY_SIDE / 2) as f32;
             let n = origin[0] + ((i / aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
@@ -699,4 +710,63 @@ fn a_landing_next_to_a_building_comes_down_beside_it_never_on_its_roof() {
         );
     }
     assert_eq!(q.search.touchdown, None);
+}
+
+/// A waypoint mission decided on S_t without occupancy (absent or stale) keeps to the
+/// conservative altitude (the band's top, 60 m here): it climbs where it is before a
+/// move, flies the move up there, counts the step done over its waypoint, and lands from
+/// there; on a present grid with nothing observed it flies as it always did.
+#[test]
+fn without_occupancy_moves_keep_to_the_conservative_altitude() {
+    let m = mission();
+    let limits = m.decision_limits();
+    assert_eq!(limits.blind_altitude(), 60.0);
+    let state = |status: OccupancyStatus| {
+        let mut s = PerceptionState {
+            occupancy: aeris_schemas::OccupancyGrid::observed([0.0, 0.0], 2.0),
+            ..PerceptionState::default()
+        };
+        s.occupancy.status = status as u8;
+        s
+    };
+    for status in [OccupancyStatus::Absent, OccupancyStatus::Stale] {
+        let s = state(status);
+        let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
+        assert!(!p.blind(), "no evidence before the first S_t");
+        // the take-off from the ground climbs as asked
+        let d = p.decide([0.0; 3], 0.0, true, Some(&s));
+        assert!(p.blind());
+        assert_eq!(p.occupancy(), Some(status));
+        assert_eq!((d.step, d.altitude), (1, 10.0));
+        // at 10 m the step is done; the way north is climbed to first, in place
+        let d = p.decide([0.0, 0.0, 10.0], 0.0, false, Some(&s));
+        assert_eq!(d.step, 2);
+        assert_eq!(ActionMode::from_u8(d.action), Some(ActionMode::Goto));
+        assert_eq!((d.target[0], d.target[1], d.altitude), (0.0, 0.0, 60.0));
+        // a decision on telemetry alone stays blind
+        let d = p.decide([0.0, 0.0, 30.0], 0.0, false, None);
+        assert_eq!((d.target[0], d.target[1], d.altitude), (0.0, 0.0, 60.0));
+        // up there: to the waypoint at that altitude
+        let d = p.decide([0.0, 0.0, 59.5], 0.0, false, Some(&s));
+        assert_eq!((d.target[0], d.target[1], d.altitude), (30.0, 0.0, 60.0));
+        assert_eq!(d.validate(&limits), Ok(ActionMode::Goto));
+        // over the waypoint, 50 m above it: done; the landing 10 m east goes from there
+        let d = p.decide([30.0, 0.0, 59.8], 0.0, false, Some(&s));
+        assert_eq!(d.step, 3);
+        assert_eq!(ActionMode::from_u8(d.action), Some(ActionMode::Land));
+        assert_eq!((d.target[0], d.target[1]), (30.0, 10.0));
+        // the same landing asked from low down climbs first
+        let d = p.decide([30.0, 0.0, 20.0], 0.0, false, Some(&s));
+        assert_eq!(ActionMode::from_u8(d.action), Some(ActionMode::Goto));
+        assert_eq!((d.target[0], d.target[1], d.altitude), (30.0, 0.0, 60.0));
+        assert_eq!(p.blind_decisions(), 6);
+    }
+    // present and empty (nothing observed): the waypoints as given
+    let s = state(OccupancyStatus::Present);
+    let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
+    let _ = p.decide([0.0; 3], 0.0, true, Some(&s));
+    let d = p.decide([0.0, 0.0, 10.0], 0.0, false, Some(&s));
+    assert!(!p.blind());
+    assert_eq!((d.step, d.target, d.altitude), (2, [30.0, 0.0, 10.0], 10.0));
+    assert_eq!(p.blind_decisions(), 0);
 }
