@@ -12,6 +12,8 @@
 //! - `autopilot`: the firmware it plays, `"px4"` (default: offboard) or `"ardupilot"`
 //!   (Copter: guided, take-off command, land mode); see
 //!   [`aeris_sim::mav_vehicle::SimFirmware`].
+//! - `signing_key_file`, `signing_link_id`: MAVLink 2 signing, as the controller's
+//!   ([`aeris_roles::controller::signing_params`]);
 //! - `system_id`: its MAVLink system id, 1..=255 (default 1); the controller learns it
 //!   from the heartbeat.
 //!
@@ -172,9 +174,11 @@ impl Role for VehicleRole {
                     RoleError::Config(format!("param `system_id` = {v}: use 1..=255"))
                 })?,
         };
+        let signing = aeris_roles::controller::signing_from_spec(spec)?;
         let mut config = SimVehicleConfig {
             mavlink_version,
             firmware,
+            signing,
             system_id,
             start: spec.mission.start,
             fence: Some((limits.geofence_min, fence_max)),

@@ -13,6 +13,9 @@ setpoints. --flavour ardupilot: an ArduPilot Copter (MAV_AUTOPILOT_ARDUPILOTMEGA
 custom mode 4; armed in guided on the ground it ignores position targets until
 MAV_CMD_NAV_TAKEOFF (param7 = height), and in land mode (9) it descends and disarms.
 
+--signing-key-file F: MAVLink 2 signing with the key in F (64 hex digits, or a passphrase
+whose SHA-256 is the key): everything sent is signed, unsigned frames are refused.
+
 --gcs-noise: a ground station shares the link (HEARTBEATs of MAV_TYPE_GCS from system 255,
 component 190, and a COMMAND_ACK of its own), which the controller must ignore.
 
@@ -38,9 +41,12 @@ north arrived), or after --max-count setpoints, or when --timeout seconds passed
   takeoffs     param7 of every MAV_CMD_NAV_TAKEOFF
   max_up       the highest the vehicle climbed (m)
   landed_mode  whether land mode was commanded
+  signed_in    messages received that were signed (and checked)
+  unsigned_in  messages received unsigned (only counted without signing)
 """
 
 import argparse
+import hashlib
 import json
 import math
 import os
@@ -92,6 +98,7 @@ def main():
     ap.add_argument("--flavour", choices=["px4", "ardupilot"], default="px4")
     ap.add_argument("--refuse-arm", action="store_true", help="deny every arm command")
     ap.add_argument("--gcs-noise", action="store_true", help="a GCS shares the link")
+    ap.add_argument("--signing-key-file", default=None, help="sign, and refuse unsigned")
     args = ap.parse_args()
     v1 = args.mavlink == 1
     ardu = args.flavour == "ardupilot"
@@ -102,6 +109,18 @@ def main():
     )
     mav = conn.mav
     m = mavutil.mavlink
+    if args.signing_key_file:
+        text = open(args.signing_key_file).read().strip()
+        try:
+            key = bytes.fromhex(text) if len(text) == 64 else None
+        except ValueError:
+            key = None
+        if key is None:
+            key = hashlib.sha256(text.encode()).digest()
+        conn.setup_signing(key, sign_outgoing=True, allow_unsigned_callback=None,
+                           initial_timestamp=None, link_id=0)
+    signed_in = 0
+    unsigned_in = 0
 
     counts = {}
     commands = set()
@@ -202,6 +221,10 @@ def main():
             bad_data += 1
             continue
         counts[kind] = counts.get(kind, 0) + 1
+        if getattr(msg, "_signed", False):
+            signed_in += 1
+        else:
+            unsigned_in += 1
         sources.add((msg.get_srcSystem(), msg.get_srcComponent()))
         buf = msg.get_msgbuf()
         is_v1 = bool(buf) and buf[0] != 0xFD
@@ -262,6 +285,8 @@ def main():
         "takeoffs": takeoffs,
         "max_up": max_up,
         "landed_mode": landed_mode,
+        "signed_in": signed_in,
+        "unsigned_in": unsigned_in,
     }
     sys.stdout.write(json.dumps(out) + "\n")
     sys.stdout.flush()

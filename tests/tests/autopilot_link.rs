@@ -78,6 +78,34 @@ fn a_link_with_only_a_ground_station_says_whom_it_heard() {
     assert!(out.contains("MAV_TYPE_GCS"), "{out}");
 }
 
+/// Signing on, an autopilot that does not sign: its frames are refused, and the run says so.
+#[test]
+fn an_unsigned_autopilot_on_a_signed_link_is_named() {
+    let port = free_udp_port();
+    let _autopilot = peer(port, &["--as-autopilot"]);
+    let dir = TempDir::new("signed-wf");
+    let key = dir.0.join("key");
+    std::fs::write(&key, "a passphrase\n").unwrap();
+    let mut wf = default_workflow();
+    for role in wf["roles"].as_array_mut().unwrap() {
+        let t = role.as_table_mut().unwrap();
+        if t["kind"].as_str() == Some("controller") {
+            t["params"].as_table_mut().unwrap().insert(
+                "signing_key_file".into(),
+                toml::Value::String(key.to_string_lossy().into_owned()),
+            );
+        }
+    }
+    let path = write_workflow(&dir.0, "signed", &wf);
+    let url = format!("udpout:127.0.0.1:{port}");
+    let (code, out) = run_against("signed", &url, Some(&path));
+    assert!(code.is_some_and(|c| c != 0), "exit {code:?}: {out}");
+    assert!(
+        out.contains("unsigned frames, refused because signing is on"),
+        "{out}"
+    );
+}
+
 #[test]
 fn mavlink_1_to_a_controller_set_to_mavlink_2_only_is_named() {
     let port = free_udp_port();

@@ -1,6 +1,9 @@
 //! `aeris run --autopilot URL` flies an autopilot that is not the built-in vehicle of the
 //! flight: here a simulated vehicle started by hand in another namespace, reached only over
-//! MAVLink/UDP. The flight's own vehicle role is not started.
+//! MAVLink/UDP, with MAVLink 2 signing on both ends (one key file). The flight's own vehicle
+//! role is not started. In flight the autopilot falls silent (its process stopped) for
+//! longer than the link timeout: the loss and the return are events, the summary counts the
+//! loss, and the flight goes on to its goal.
 
 use aeris_runtime::bus::FlightBus;
 use aeris_tests::*;
@@ -11,6 +14,24 @@ use std::time::Duration;
 fn run_flies_an_external_autopilot_over_mavlink() {
     let dir = TempDir::new("external");
     let port = free_udp_port();
+    let key_path = dir.0.join("signing.key");
+    std::fs::write(
+        &key_path,
+        "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff\n",
+    )
+    .unwrap();
+    let key = key_path.to_str().unwrap();
+    let mut wf = default_workflow();
+    for role in wf["roles"].as_array_mut().unwrap() {
+        let t = role.as_table_mut().unwrap();
+        if t["kind"].as_str() == Some("controller") {
+            t["params"]
+                .as_table_mut()
+                .unwrap()
+                .insert("signing_key_file".into(), toml::Value::String(key.into()));
+        }
+    }
+    let workflow = write_workflow(&dir.0, "signed", &wf);
     // The "external autopilot": a vehicle process in a flight of its own.
     let autopilot_flight = unique_flight("ext-autopilot");
     let spec = role_spec(
@@ -18,10 +39,14 @@ fn run_flies_an_external_autopilot_over_mavlink() {
         "px4",
         "vehicle",
         "sim-multirotor",
-        serde_json::json!({ "listen": format!("udpin:127.0.0.1:{port}") }),
+        serde_json::json!({
+            "listen": format!("udpin:127.0.0.1:{port}"),
+            "signing_key_file": key,
+            "signing_link_id": 1,
+        }),
     );
     let spec_path = write_spec(&dir.0, &spec);
-    let _autopilot = ChildGuard::spawn(
+    let autopilot = ChildGuard::spawn(
         Command::new(aeris_bin())
             .args(["role", "--spec"])
             .arg(&spec_path),
@@ -30,7 +55,11 @@ fn run_flies_an_external_autopilot_over_mavlink() {
 
     let flight = unique_flight("external");
     let url = format!("udpout:127.0.0.1:{port}");
-    let mut run = spawn_run(&dir.0, &flight, &["--autopilot", &url]);
+    let mut run = spawn_run(
+        &dir.0,
+        &flight,
+        &[workflow.to_str().unwrap(), "--autopilot", &url],
+    );
 
     let observer = FlightBus::builder(&flight)
         .node_name("test-observer")
@@ -54,9 +83,39 @@ fn run_flies_an_external_autopilot_over_mavlink() {
     );
     assert!(names.contains(&"controller"));
 
+    // airborne: silence the autopilot until the flight reports the link lost, then resume it
+    let telemetry = observer
+        .subscriber::<aeris_schemas::VehicleTelemetry>(aeris_schemas::topics::VEHICLE_TELEMETRY)
+        .unwrap();
+    poll_until(Duration::from_secs(300), || {
+        telemetry
+            .latest()
+            .ok()
+            .flatten()
+            .filter(|t| t.position[2] > 3.0)
+    })
+    .unwrap_or_else(|| panic!("never took off: {:?}", run_output(&dir.0)));
+    // SAFETY: plain kill(2) on our own child's pid.
+    unsafe { libc::kill(autopilot.pid() as libc::pid_t, libc::SIGSTOP) };
+    let lost = poll_until(Duration::from_secs(120), || {
+        run_output(&dir.0)
+            .1
+            .contains("autopilot link lost")
+            .then_some(())
+    });
+    // SAFETY: as above.
+    unsafe { libc::kill(autopilot.pid() as libc::pid_t, libc::SIGCONT) };
+    assert!(
+        lost.is_some(),
+        "no link-lost event: {:?}",
+        run_output(&dir.0)
+    );
+
     let status = wait_bounded(&mut run.0, Duration::from_secs(900)).expect("flight finished");
     let (stdout, stderr) = run_output(&dir.0);
     assert!(status.success(), "aeris run failed: {status}\n{stderr}");
     let summary = last_json_line(&stdout);
     assert_eq!(summary["reached_goal"], true, "{summary}\n{stderr}");
+    assert_eq!(summary["autopilot_link_losses"], 1, "{summary}");
+    assert!(stderr.contains("autopilot link back"), "{stderr}");
 }

@@ -110,6 +110,32 @@ fn an_ardupilot_copter_is_flown_in_guided_after_a_takeoff_command() {
     );
 }
 
+/// MAVLink 2 signing on both ends (the key a passphrase, hashed the same way by both):
+/// every frame the autopilot decodes was signed, none of its frames was refused, and it
+/// flew.
+#[test]
+fn a_signed_link_flies_with_signed_frames_both_ways() {
+    let dir = TempDir::new("mavpy-signed-key");
+    let key = dir.0.join("key");
+    std::fs::write(&key, "correct horse battery staple\n").unwrap();
+    let key = key.to_str().unwrap();
+    let (report, link) = fly_against_pymavlink_peer_with(
+        "mavpy-signed",
+        2,
+        &["--signing-key-file", key],
+        true,
+        json!({ "signing_key_file": key }),
+    );
+    assert!(num(&report["signed_in"]) > 100.0, "{report}");
+    assert_eq!(report["unsigned_in"], json!(0), "{report}");
+    assert_eq!(link.signing, 1, "{link:?}");
+    assert_eq!(
+        (link.unsigned_refused, link.bad_signature_refused),
+        (0, 0),
+        "{link:?}"
+    );
+}
+
 /// An autopilot that refuses to arm: the refusal is reported with its MAV_RESULT.
 #[test]
 fn a_refused_arm_is_reported_with_its_result() {
@@ -159,6 +185,17 @@ fn fly_against_pymavlink_peer(
     extra: &[&str],
     expect_flight: bool,
 ) -> (Value, AutopilotLinkStatus) {
+    fly_against_pymavlink_peer_with(tag, mavlink, extra, expect_flight, json!({}))
+}
+
+/// [`fly_against_pymavlink_peer`] with `params` added to the controller's.
+fn fly_against_pymavlink_peer_with(
+    tag: &str,
+    mavlink: u8,
+    extra: &[&str],
+    expect_flight: bool,
+    params: Value,
+) -> (Value, AutopilotLinkStatus) {
     let port = free_udp_port();
     let flight = unique_flight(tag);
     let dir = TempDir::new(tag);
@@ -205,6 +242,10 @@ fn fly_against_pymavlink_peer(
         },
         "params": {"autopilot": format!("udpout:127.0.0.1:{port}")}
     });
+    let mut spec = spec;
+    for (k, v) in params.as_object().unwrap() {
+        spec["params"][k] = v.clone();
+    }
     let spec_path = dir.0.join("controller.json");
     std::fs::write(&spec_path, serde_json::to_vec_pretty(&spec).unwrap()).unwrap();
     let mut controller = ChildGuard::spawn(

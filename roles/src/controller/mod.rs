@@ -21,6 +21,9 @@
 //!   `serial:PORT:BAUD`), default [`DEFAULT_AUTOPILOT`];
 //! - `mavlink`: `"auto"` (default: MAVLink 2, or 1 when the autopilot's heartbeat comes in
 //!   MAVLink 1), `1` (always send MAVLink 1) or `2` (send and accept MAVLink 2 only);
+//! - `signing_key_file`, `signing_link_id`: MAVLink 2 signing ([`signing_params`]): what
+//!   the controller sends is signed, and unsigned or badly signed frames are refused and
+//!   counted (needs `mavlink` = 2 or `"auto"`);
 //! - `link_timeout_ms`: the link timeout, default [`DEFAULT_LINK_TIMEOUT_MS`] (5000);
 //! - `realtime`: bool, default `true`: try SCHED_FIFO priority 50 for the cycle thread, and
 //!   fall back to the normal scheduler with one line on stderr when not permitted.
@@ -99,6 +102,7 @@ pub mod link_watch;
 pub mod messages;
 mod role;
 pub mod sequencer;
+pub mod signing_params;
 pub mod testing;
 pub mod tracker;
 
@@ -115,4 +119,5 @@ pub use role::{
 pub use sequencer::{
     AutopilotSequencer, COMMAND_RETRY_NS, FlightIntent, STREAM_BEFORE_OFFBOARD_NS,
 };
+pub use signing_params::signing_from_spec;
 pub use tracker::{TrackCommand, Tracker, TrackerConfig, VehicleView};

@@ -10,6 +10,7 @@ use super::messages::{
     takeoff_params, three_params,
 };
 use super::sequencer::{AutopilotSequencer, AutopilotStatus, FlightIntent};
+use super::signing_params::signing_from_spec;
 use super::tracker::{Tracker, TrackerConfig};
 use aeris_mavlink::dialect::{MavCmd, MavMessage};
 use aeris_mavlink::{
@@ -244,13 +245,19 @@ impl ControllerRole {
             return Ok(());
         }
         self.link_seq += 1;
+        let link = self.receiver.link();
+        let (unsigned_refused, bad_signature_refused) =
+            link.map_or((0, 0), |l| l.signing_refused());
         let status = AutopilotLinkStatus {
             seq: self.link_seq,
+            unsigned_refused,
+            bad_signature_refused,
+            signing: u8::from(link.is_some_and(|l| l.is_signed())),
             stamp_ns: now_ns,
             losses: self.link_losses,
             timeout_ms: (self.link_timeout_ns / 1_000_000).min(u64::from(u32::MAX)) as u32,
             state: state as u8,
-            send_version: match self.receiver.link().map(|l| l.send_version()) {
+            send_version: match link.map(|l| l.send_version()) {
                 Some(MavlinkVersion::V1) => 1,
                 _ => 2,
             },
@@ -306,8 +313,15 @@ impl Role for ControllerRole {
         let link_out = ctx
             .bus
             .publisher::<AutopilotLinkStatus>(topics::CONTROLLER_LINK)?;
+        let signing = signing_from_spec(spec)?;
+        if signing.is_some() && framing == MavlinkFraming::V1 {
+            return Err(RoleError::Config(
+                "params `signing_key_file` and `mavlink` = 1: MAVLink 1 cannot be signed".into(),
+            ));
+        }
         let pending = prepare_link(&url, LINK_POLL)
-            .map_err(|e| RoleError::step("preparing the autopilot link", e))?;
+            .map_err(|e| RoleError::step("preparing the autopilot link", e))?
+            .with_signing(signing);
         let shared = Arc::new(Mutex::new(Heard::default()));
         let v2_only = framing.v2_only();
         // Spawned before switching to SCHED_FIFO so the receive thread keeps the normal policy.

@@ -40,8 +40,8 @@ use aeris_mavlink::dialect::{
 };
 use aeris_mavlink::px4::FORCE_ARM_DISARM_MAGIC;
 use aeris_mavlink::{
-    LINK_POLL, LinkError, LinkReceiver, MavHeader, MavlinkVersion, Received, ned_to_neu,
-    neu_to_ned, prepare_link,
+    LINK_POLL, LinkError, LinkReceiver, LinkSigning, MavHeader, MavlinkVersion, Received,
+    ned_to_neu, neu_to_ned, prepare_link,
 };
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -117,6 +117,8 @@ pub struct SimVehicleConfig {
     pub mavlink_version: MavlinkVersion,
     /// The autopilot it plays.
     pub firmware: SimFirmware,
+    /// MAVLink 2 signing: signs what it sends, refuses unsigned or badly signed frames.
+    pub signing: Option<LinkSigning>,
 }
 
 impl Default for SimVehicleConfig {
@@ -134,6 +136,7 @@ impl Default for SimVehicleConfig {
             setpoint_period_s: None,
             mavlink_version: MavlinkVersion::V2,
             firmware: SimFirmware::Px4,
+            signing: None,
         }
     }
 }
@@ -310,7 +313,10 @@ impl SimVehicle {
                 "limits, gains and timeouts must be finite and positive",
             ));
         }
-        let pending = prepare_link(url, LINK_POLL)?;
+        if config.signing.is_some() && config.mavlink_version == MavlinkVersion::V1 {
+            return Err(SimVehicleError::Config("MAVLink 1 cannot be signed"));
+        }
+        let pending = prepare_link(url, LINK_POLL)?.with_signing(config.signing);
         let dropped = Arc::new(AtomicU64::new(0));
         let (tx, inbox) = sync_channel(INBOX_CAPACITY);
         let receiver = LinkReceiver::spawn(
