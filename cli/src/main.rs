@@ -14,6 +14,8 @@ mod plot_cmd;
 mod run_cmd;
 #[cfg(feature = "sim")]
 mod scene_cmd;
+#[cfg(feature = "sim")]
+mod scene_video_cmd;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
@@ -98,7 +100,8 @@ enum Command {
     /// Generate and check VLN episodes (AerialVLN JSON format, train/val_unseen/test_unseen).
     Episodes(scene_cmd::EpisodesArgs),
     #[cfg(feature = "sim")]
-    /// Look at a scene: its landmarks, an FPV frame from a pose, a top-down map.
+    /// Look at a scene: its landmarks, an FPV frame from a pose, a video along a path or of a
+    /// flight, a top-down map.
     Scene(scene_cmd::SceneArgs),
     #[cfg(feature = "sim")]
     /// Pictures of a flight or an evaluated episode: heartbeat timing trace, FPV strip
