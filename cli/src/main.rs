@@ -1,5 +1,6 @@
 //! The `aeris` command line.
 
+mod bench_camera;
 mod bench_cmd;
 mod bench_ds;
 mod bench_faults;
@@ -90,7 +91,7 @@ enum Command {
     },
     /// List the role kinds and variants this build can run.
     Roles,
-    /// Run benchmarks (IPC, gate, control, models, cycle, swap, ds) and print their figures.
+    /// Run benchmarks (IPC, camera, gate, control, models, cycle, swap, ds) and print their figures.
     Bench(bench_cmd::BenchArgs),
     #[cfg(feature = "sim")]
     /// Fly VLN episodes through the full pipeline and score them (NE, SR, OSR, nDTW, SPL,
