@@ -19,7 +19,7 @@ use crate::Encoder;
 use crate::encode::{EncoderConfig, EncoderStartError, FinishError, PushError, VideoSink};
 use aeris_geometry::CAMERA_MOUNT_HEIGHT_M;
 use aeris_runtime::FlightBus;
-use aeris_runtime::bus::{BusError, list_flights};
+use aeris_runtime::bus::{BusError, flight_node_alive, list_flights};
 use aeris_runtime::clock::{monotonic_ns, sleep_until_ns};
 use aeris_schemas::{VehicleTelemetry, topics};
 use aeris_sim::render::{RenderError, Renderer};
@@ -347,7 +347,9 @@ pub fn follow(
     let t0 = monotonic_ns();
     let wait_ns = u64::try_from(config.wait.as_nanos()).unwrap_or(u64::MAX);
     // join only a flight its supervisor created: never publish its manifest first
-    while !list_flights().iter().any(|f| f == flight) {
+    let running =
+        || flight_node_alive(flight, "supervisor") && list_flights().iter().any(|f| f == flight);
+    while !running() {
         if stop() {
             return Err(FollowError::NoFlight {
                 flight: flight.clone(),
@@ -395,8 +397,8 @@ pub fn follow(
             break;
         }
         if now >= next_check {
-            // the flight's manifest goes when its supervisor ends
-            if !list_flights().iter().any(|f| f == flight) {
+            // the flight ends with its supervisor (its manifest stays while we hold it)
+            if !flight_node_alive(flight, "supervisor") {
                 break;
             }
             next_check = now + 1_000_000_000;
