@@ -102,7 +102,8 @@ fn io(what: impl Into<String>) -> impl FnOnce(std::io::Error) -> BenchError {
 
 /// Run every row.
 pub fn run(config: &CameraConfig) -> Result<CameraReport, BenchError> {
-    if config.fps == 0 || !(config.seconds > 0.0) || config.sizes.is_empty() {
+    let seconds_ok = config.seconds.is_finite() && config.seconds > 0.0;
+    if config.fps == 0 || !seconds_ok || config.sizes.is_empty() {
         return Err(BenchError::Config(
             "the camera bench needs a rate, a duration and at least one size".into(),
         ));
