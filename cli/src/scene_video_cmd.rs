@@ -163,7 +163,8 @@ pub fn run(args: VideoArgs) -> anyhow::Result<()> {
                 );
             },
         )
-        .with_context(|| format!("following flight `{flight}`"))?;
+        // the error names the flight, or the stream's host, itself
+        .context("following a flight")?;
         println!(
             "sent {} frames ({} at the vehicle's pose, {} late) to {target} with {}",
             report.frames, report.posed_frames, report.late_frames, report.encoder
@@ -189,7 +190,8 @@ pub fn run(args: VideoArgs) -> anyhow::Result<()> {
             }
         }
     })
-    .with_context(|| format!("rendering the video to {target}"))?;
+    // GStreamer's own message names the file or host that failed
+    .context("rendering the video")?;
     println!(
         "wrote {} frames ({}x{} at {} fps, {}) to {target}",
         report.frames, args.width, args.height, args.fps, report.encoder
