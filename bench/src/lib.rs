@@ -2,6 +2,8 @@
 //!
 //! - [`ipc`]: two-process round trips of 64 B to 6 MB payloads over iceoryx2 zero-copy
 //!   publish-subscribe (busy-poll and event wake-up) and over a Unix domain socket that copies.
+//! - [`camera`]: glass-to-shared-memory latency and dropped frames of the `gstreamer` camera
+//!   role on live `videotestsrc` streams.
 //! - [`gate`]: cost per decision of the hub's validate + clamp + bind.
 //! - [`control`]: wake-up lateness of a loop on absolute CLOCK_MONOTONIC deadlines at the
 //!   control rate, alone and with a CPU hog on every core, under SCHED_FIFO where permitted.
@@ -15,6 +17,7 @@
 
 #![deny(missing_docs)]
 
+pub mod camera;
 pub mod control;
 pub mod error;
 pub mod flights;

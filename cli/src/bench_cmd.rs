@@ -17,6 +17,10 @@ pub struct BenchArgs {
 pub enum BenchCommand {
     /// Two-process round trips: iceoryx2 zero copy (busy-poll, event) against a Unix socket.
     Ipc(IpcArgs),
+    /// Glass-to-shared-memory latency of the `gstreamer` camera role (buffer capture time to
+    /// frame readable on `camera/rgb`), p50/p99, and dropped frames, on live videotestsrc
+    /// streams (640x480 and 1280x720).
+    Camera(crate::bench_camera::CameraArgs),
     /// Cost per decision of the hub's gate: validate + clamp + bind (median, p99).
     Gate(GateArgs),
     /// Controller period jitter on absolute deadlines, alone and with a CPU hog on every core.
@@ -142,6 +146,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     match args.command {
         BenchCommand::Ipc(a) => run_ipc(a),
         BenchCommand::Gate(a) => run_gate(a),
+        BenchCommand::Camera(a) => crate::bench_camera::run(a),
         BenchCommand::Control(a) => run_control(a),
         BenchCommand::Models(a) => crate::bench_models::run(a),
         BenchCommand::Cycle(a) => crate::bench_flight::cycle(a),

@@ -1,5 +1,6 @@
 //! The `aeris` command line.
 
+mod bench_camera;
 mod bench_cmd;
 mod bench_ds;
 mod bench_faults;
@@ -14,6 +15,8 @@ mod plot_cmd;
 mod run_cmd;
 #[cfg(feature = "sim")]
 mod scene_cmd;
+#[cfg(feature = "sim")]
+mod scene_video_cmd;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
@@ -88,7 +91,7 @@ enum Command {
     },
     /// List the role kinds and variants this build can run.
     Roles,
-    /// Run benchmarks (IPC, gate, control, models, cycle, swap, ds) and print their figures.
+    /// Run benchmarks (IPC, camera, gate, control, models, cycle, swap, ds) and print their figures.
     Bench(bench_cmd::BenchArgs),
     #[cfg(feature = "sim")]
     /// Fly VLN episodes through the full pipeline and score them (NE, SR, OSR, nDTW, SPL,
@@ -98,7 +101,8 @@ enum Command {
     /// Generate and check VLN episodes (AerialVLN JSON format, train/val_unseen/test_unseen).
     Episodes(scene_cmd::EpisodesArgs),
     #[cfg(feature = "sim")]
-    /// Look at a scene: its landmarks, an FPV frame from a pose, a top-down map.
+    /// Look at a scene: its landmarks, an FPV frame from a pose, a video along a path or of a
+    /// flight, a top-down map.
     Scene(scene_cmd::SceneArgs),
     #[cfg(feature = "sim")]
     /// Pictures of a flight or an evaluated episode: heartbeat timing trace, FPV strip

@@ -94,6 +94,10 @@ pub enum SceneCommand {
         #[arg(long)]
         depth_out: Option<PathBuf>,
     },
+    /// Render the scene as H.264 video: along a path into an MP4 file or an RTP/UDP stream,
+    /// or following a running flight's vehicle (a simulated FPV transmitter for a flight
+    /// whose camera is the `gstreamer` variant).
+    Video(crate::scene_video_cmd::VideoArgs),
     /// Draw the scene from above, with an episode's reference path, or an evaluated
     /// episode's executed trajectory over its reference.
     Map {
@@ -236,6 +240,7 @@ fn world(name: &str) -> anyhow::Result<World> {
 /// Run `aeris scene`.
 pub fn scene(args: SceneArgs) -> anyhow::Result<()> {
     match args.command {
+        SceneCommand::Video(args) => crate::scene_video_cmd::run(args),
         SceneCommand::Show { scene } => {
             let w = world(&scene)?;
             println!("{}: {} landmarks", w.name, w.landmarks.len());

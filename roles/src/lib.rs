@@ -10,7 +10,8 @@
 //! - [`language`]: the language-model reasoning variants (llama.cpp, grammar-constrained);
 //! - [`reasoner_io`]: what every reasoning variant does around its decision (inputs, when to
 //!   decide, stamping and publishing);
-//! - [`controller`]: tracks bound setpoints at the control rate over MAVLink.
+//! - [`controller`]: tracks bound setpoints at the control rate over MAVLink;
+//! - [`gstreamer_camera`]: a real camera (any GStreamer pipeline ending in an appsink).
 
 #![deny(missing_docs)]
 
@@ -20,6 +21,7 @@ pub mod cues;
 pub mod depth_occupancy;
 pub mod detector;
 pub mod grounding;
+pub mod gstreamer_camera;
 pub mod heartbeat_clock;
 pub mod height_map;
 pub mod language;
@@ -48,6 +50,7 @@ pub fn runner(kind: &str, variant: &str) -> Option<RoleRunner> {
         ("occupancy", "depth" | "onnx") => RoleHost::run::<occupancy::OccupancyRole>,
         ("image-to-text", "compose" | "vlm") => RoleHost::run::<compose::ComposeRole>,
         ("controller", "mavlink") => RoleHost::run::<controller::ControllerRole>,
+        ("camera", "gstreamer") => RoleHost::run::<gstreamer_camera::GstreamerCameraRole>,
         _ => return None,
     };
     Some(run)

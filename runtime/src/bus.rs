@@ -1051,6 +1051,26 @@ pub fn list_flights() -> Vec<String> {
     out
 }
 
+/// Whether a live process of `flight` has the node `node` (relative to the flight: a role
+/// name, `supervisor`). A tool that follows a flight asks it of `supervisor` to learn that
+/// the flight ended (the manifest outlives it while any process still holds it).
+pub fn flight_node_alive(flight: &str, node: &str) -> bool {
+    let full = format!("{flight}/{node}");
+    let mut alive = false;
+    let _ = Node::<Ipc>::list(iceoryx_config(), |state| {
+        if let NodeState::Alive(v) = &state
+            && v.details()
+                .as_ref()
+                .is_some_and(|d| d.name().as_str() == full)
+        {
+            alive = true;
+            return CallbackProgression::Stop;
+        }
+        CallbackProgression::Continue
+    });
+    alive
+}
+
 /// iceoryx2 nodes of `flight`: (alive, dead) counts. A dead node is one whose process died
 /// without cleaning up.
 pub fn flight_node_census(flight: &str) -> (usize, usize) {

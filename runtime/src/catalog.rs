@@ -35,10 +35,10 @@ pub const ROLE_KINDS: &[RoleKind] = &[
     },
     RoleKind {
         kind: "camera",
-        variants: &["sim-render"],
+        variants: &["sim-render", "gstreamer"],
         subscribes: &[topics::VEHICLE_TELEMETRY],
         publishes: &[topics::CAMERA_RGB, topics::CAMERA_DEPTH],
-        summary: "renders the FPV camera of the built-in world at the vehicle's pose",
+        summary: "FPV frames: `sim-render` renders the built-in world at the vehicle's pose; `gstreamer` captures any GStreamer pipeline (params.pipeline, depth_pipeline)",
         swap_refusal: Some("two cameras would number the same frames twice"),
     },
     RoleKind {

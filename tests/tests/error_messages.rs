@@ -143,6 +143,41 @@ fn every_kind_of_bad_input_names_its_offender_once() {
         &["run", "--run-dir", "/proc/aeris-no-such-dir"],
         "/proc/aeris-no-such-dir",
     ));
+    cases.push(case(
+        "unwritable video file",
+        &[
+            "scene",
+            "video",
+            "village",
+            "--path",
+            "0,0,12",
+            "--hold",
+            "1",
+            "--out",
+            "/proc/aeris-no-such-dir/v.mp4",
+        ],
+        "/proc/aeris-no-such-dir/v.mp4",
+    ));
+    cases.push(case(
+        "--udp argument",
+        &[
+            "scene",
+            "video",
+            "village",
+            "--path",
+            "0,0,12",
+            "--udp",
+            "localhost:99999",
+        ],
+        "localhost:99999",
+    ));
+    cases.push(case(
+        "--path argument",
+        &[
+            "scene", "video", "village", "--path", "0,x,12", "--out", "v.mp4",
+        ],
+        "0,x,12",
+    ));
     for cache in [&no_cache, &hollow_cache] {
         cases.push(Case {
             what: "missing model",

@@ -1,0 +1,157 @@
+//! The default mission flown with its eyes on decoded video: the camera role is the
+//! `gstreamer` variant on an RTP/H.264 stream, and the stream comes from a second process,
+//! `aeris scene video --follow`, that renders the scene at the flying vehicle's telemetry pose
+//! every frame (a simulated FPV transmitter). The loop closes through telemetry → renderer →
+//! x264 → UDP → avdec_h264 → `camera/rgb`. Mid-flight the video is cut (the transmitter is
+//! killed): the camera reports the stall (`degraded`) and the flight goes on; a new
+//! transmitter restores the video and the camera publishes again without a restart. The
+//! flight must reach its goal with no setpoint refused and no role restarted, and the
+//! transmitter must have rendered at the vehicle's pose.
+
+use aeris_runtime::FlightBus;
+use aeris_schemas::{RoleHeartbeat, RoleStatus, topics};
+use aeris_tests::*;
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+const FLIGHT_BOUND: Duration = Duration::from_secs(900);
+
+#[test]
+fn the_default_mission_flies_on_decoded_video_from_a_following_transmitter() {
+    let dir = TempDir::new("flight-video");
+    let flight = unique_flight("flight-video");
+    let port = free_udp_port();
+    let mut workflow = default_workflow();
+    set_variant(&mut workflow, "camera", "gstreamer");
+    let pipeline = format!(
+        "udpsrc port={port} caps=\"application/x-rtp,media=video,clock-rate=90000,\
+         encoding-name=H264,payload=96\" ! rtph264depay ! avdec_h264 ! appsink sync=false"
+    );
+    let camera = workflow["roles"]
+        .as_array_mut()
+        .unwrap()
+        .iter_mut()
+        .filter_map(|r| r.as_table_mut())
+        .find(|r| r.get("name").and_then(|n| n.as_str()) == Some("camera"))
+        .unwrap();
+    let mut params = toml::Table::new();
+    params.insert("pipeline".into(), toml::Value::String(pipeline));
+    camera.insert("params".into(), toml::Value::Table(params));
+    let path = write_workflow(&dir.0, "video", &workflow);
+
+    let mut run = spawn_run(&dir.0, &flight, &[path.to_str().unwrap()]);
+    let tx_log = dir.0.join("transmitter.stderr");
+    let tx_out = dir.0.join("transmitter.stdout");
+    let transmitter = || {
+        ChildGuard::spawn(
+            Command::new(aeris_bin())
+                .args(["scene", "video", "village", "--follow", &flight])
+                .arg("--udp")
+                .arg(format!("127.0.0.1:{port}"))
+                .stdin(Stdio::null())
+                .stdout(std::fs::File::create(&tx_out).unwrap())
+                .stderr(std::fs::File::create(&tx_log).unwrap()),
+        )
+        .unwrap()
+    };
+    let mut tx = Some(transmitter());
+
+    // the camera's heartbeats: frames published from the decoded stream
+    let observer = poll_until(Duration::from_secs(120), || {
+        aeris_runtime::bus::list_flights()
+            .contains(&flight)
+            .then(|| {
+                FlightBus::builder(&flight)
+                    .node_name("test-observer")
+                    .create()
+                    .ok()
+            })
+            .flatten()
+    })
+    .expect("the flight starts");
+    let heartbeats = observer
+        .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
+        .unwrap();
+    // phases: 0 video up; 1 cut (transmitter killed), waiting for the stall; 2 stalled,
+    // transmitter restarted, waiting for frames again; 3 restored
+    let mut phase = 0;
+    let (mut camera_frames, mut camera_status, mut frames_at_cut) = (0, 0u8, 0);
+    let start = std::time::Instant::now();
+    let status = loop {
+        heartbeats
+            .drain(|h| {
+                if h.role.as_str_lossy() == "camera" {
+                    camera_frames = camera_frames.max(h.counters[0]);
+                    camera_status = h.status;
+                }
+            })
+            .unwrap();
+        match phase {
+            0 if camera_frames >= 30 => {
+                tx = None; // SIGKILL: the video stops mid-stream
+                frames_at_cut = camera_frames;
+                phase = 1;
+            }
+            1 if camera_status == RoleStatus::Degraded as u8 => {
+                tx = Some(transmitter());
+                phase = 2;
+            }
+            2 if camera_frames > frames_at_cut + 10
+                && camera_status == RoleStatus::Running as u8 =>
+            {
+                phase = 3;
+            }
+            _ => {}
+        }
+        if let Ok(Some(s)) = run.0.try_wait() {
+            break Some(s);
+        }
+        if start.elapsed() > FLIGHT_BOUND {
+            break None;
+        }
+        // polling interval of the heartbeat reader, not a synchronisation
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    let (stdout, stderr) = run_output(&dir.0);
+    let status = status.unwrap_or_else(|| panic!("flight did not finish\n{stderr}"));
+    assert!(status.success(), "aeris run failed: {status}\n{stderr}");
+    let summary = last_json_line(&stdout);
+    assert_eq!(
+        summary["reached_goal"],
+        true,
+        "{summary}\n{stderr}\n{}",
+        run_logs_tail(&dir.0, 20)
+    );
+    assert_eq!(
+        phase,
+        3,
+        "video cut and restored during the flight (camera frames {camera_frames}, at the cut \
+         {frames_at_cut})\n{}",
+        run_logs_tail(&dir.0, 20)
+    );
+    assert_eq!(summary["controller_refused_setpoints"], 0, "{summary}");
+    assert_eq!(summary["role_restarts"], 0, "{summary}");
+    let camera_log = run_logs_tail(&dir.0, 200);
+    assert!(camera_log.contains("`pipeline` stalled"), "{camera_log}");
+    assert!(camera_log.contains("`pipeline` resumed"), "{camera_log}");
+    // the second transmitter ends with its flight and says how many frames it rendered at
+    // the vehicle's pose
+    let mut tx = tx.expect("the second transmitter");
+    let tx_status = wait_bounded(&mut tx.0, Duration::from_secs(60));
+    let tx_stdout = std::fs::read_to_string(&tx_out).unwrap_or_default();
+    let tx_stderr = std::fs::read_to_string(&tx_log).unwrap_or_default();
+    assert!(
+        tx_status.is_some_and(|s| s.success()),
+        "transmitter: {tx_status:?}\n{tx_stdout}{tx_stderr}"
+    );
+    let posed: u64 = tx_stdout
+        .split(" frames (")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(0);
+    assert!(
+        posed > 0,
+        "no frame rendered at the vehicle's pose: {tx_stdout}"
+    );
+}
