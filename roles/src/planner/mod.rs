@@ -140,10 +140,11 @@ struct Step {
 /// from the detection's bearing and range, and approached at a height that clears the
 /// obstacle tops the occupancy grid shows ahead.
 ///
-/// From the first S_t without present occupancy (absent or stale) until one brings it
-/// back, every decision keeps to the geofence and the conservative altitude instead of
-/// taking unknown space for free (`blind`); before any S_t it has no evidence either way
-/// (the hub's gate, blind until its first S_t, holds any move made low).
+/// Until an S_t brings present occupancy, and from any S_t without it (absent or stale)
+/// until one brings it back, every decision keeps to the geofence and the conservative
+/// altitude instead of taking unknown space for free (`blind`), as the hub's gate does: a
+/// flight whose perception publishes no S_t at all (a camera without depth feeding a
+/// perception that needs it) is flown blind, not over space assumed free.
 #[derive(Debug, Clone)]
 pub struct Planner {
     steps: [Option<Step>; MAX_SUBGOALS],
@@ -254,11 +255,10 @@ impl Planner {
         self.occupancy
     }
 
-    /// `true` while the planner decides without occupancy (the latest S_t had none
-    /// present): moves keep to the conservative altitude.
+    /// `true` while the planner decides without occupancy (no S_t yet, or the latest had
+    /// none present): moves keep to the conservative altitude.
     pub fn blind(&self) -> bool {
-        self.occupancy
-            .is_some_and(|s| s != OccupancyStatus::Present)
+        self.occupancy != Some(OccupancyStatus::Present)
     }
 
     /// Decisions made without occupancy so far.

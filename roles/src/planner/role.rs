@@ -14,7 +14,7 @@ use super::Planner;
 use crate::reasoner_io::{POLL, ReasonerIo};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
-use aeris_schemas::Decision;
+use aeris_schemas::{Decision, OccupancyStatus};
 use core::time::Duration;
 
 /// The planner of the mission in `spec`, seen through its camera (every reasoning role
@@ -30,6 +30,9 @@ pub fn mission_planner(spec: &RoleSpec) -> Result<Planner, RoleError> {
 pub(crate) struct PlannerReasoner {
     pub(crate) planner: Planner,
     pub(crate) io: ReasonerIo,
+    /// What the log last said: blind or not, and the occupancy status (`None`: nothing
+    /// said yet).
+    blind_announced: Option<(bool, Option<OccupancyStatus>)>,
 }
 
 impl PlannerReasoner {
@@ -37,7 +40,11 @@ impl PlannerReasoner {
     pub(crate) fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
         let mut planner = mission_planner(&ctx.spec)?;
         let io = ReasonerIo::new(ctx, &mut planner)?;
-        Ok(Self { planner, io })
+        Ok(Self {
+            planner,
+            io,
+            blind_announced: None,
+        })
     }
 
     /// Read inputs and, when a decision is due, make it (stamped, not yet published).
@@ -50,22 +57,26 @@ impl PlannerReasoner {
         };
         let reasoning_start = monotonic_ns();
         let before = self.planner.rejections().0;
-        let was_blind = self.planner.blind();
+        let was_blind = self.blind_announced;
         let state = self.io.state(&due);
         let mut d = self
             .planner
             .decide(due.position, due.yaw, due.landed, state);
-        if self.planner.blind() != was_blind {
+        let now = (self.planner.blind(), self.planner.occupancy());
+        if Some(now) != was_blind {
+            self.blind_announced = Some(now);
             // rare (when the depth source goes or comes back): a line in the role's log
             match self.planner.occupancy() {
-                Some(s) if self.planner.blind() => eprintln!(
+                _ if self.planner.blind() => eprintln!(
                     "reasoning: step {}: occupancy {}: unknown space is not free; planning \
                      inside the geofence at the conservative altitude",
                     d.step,
-                    s.name()
+                    self.planner
+                        .occupancy()
+                        .map_or("not seen yet (no S_t)", |s| s.name())
                 ),
                 _ => eprintln!(
-                    "reasoning: step {}: occupancy present again: planning over the grid",
+                    "reasoning: step {}: occupancy present: planning over the grid",
                     d.step
                 ),
             }

@@ -33,11 +33,18 @@ fn mission() -> aeris_runtime::MissionSpec {
     }
 }
 
+/// A planner that has seen present occupancy with nothing in the way (the waypoint tests
+/// decide on telemetry alone after that; before any S_t a planner is blind).
+fn seeing(mut p: Planner) -> Planner {
+    p.occupancy = Some(OccupancyStatus::Present);
+    p
+}
+
 #[test]
 fn advances_through_subgoals_and_every_decision_is_valid() {
     let m = mission();
     let limits = m.decision_limits();
-    let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
+    let mut p = seeing(Planner::new(&m, &CameraSpec::default()).unwrap());
     let d = p.decide([0.0, 0.0, 0.0], 0.0, true, None);
     assert_eq!(
         (d.step, ActionMode::from_u8(d.action)),
@@ -135,7 +142,7 @@ fn hover_holds_one_heartbeat_and_turn_waits_for_the_heading() {
 
 #[test]
 fn yaw_points_at_the_target() {
-    let mut p = Planner::new(&mission(), &CameraSpec::default()).unwrap();
+    let mut p = seeing(Planner::new(&mission(), &CameraSpec::default()).unwrap());
     let _ = p.decide([0.0, 0.0, 10.0], 0.0, false, None);
     let d = p.decide([30.0, -20.0, 10.0], 0.0, false, None);
     assert!(
@@ -732,7 +739,10 @@ fn without_occupancy_moves_keep_to_the_conservative_altitude() {
     for status in [OccupancyStatus::Absent, OccupancyStatus::Stale] {
         let s = state(status);
         let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
-        assert!(!p.blind(), "no evidence before the first S_t");
+        assert!(
+            p.blind(),
+            "before the first S_t there is no occupancy either: blind, as the hub's gate"
+        );
         // the take-off from the ground climbs as asked
         let d = p.decide([0.0; 3], 0.0, true, Some(&s));
         assert!(p.blind());
