@@ -5,7 +5,7 @@
 //! starting processes.
 
 use crate::restart::RestartPolicy;
-use crate::workflow::{ExecutorCpus, Workflow, WorkflowError};
+use crate::workflow::{ExecutorCpus, RECORDER_KIND, Workflow, WorkflowError};
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::spec::RoleSpec;
 use aeris_schemas::topics;
@@ -136,6 +136,13 @@ pub fn plan_launch(
             }
         }
         None => {}
+    }
+    // a recorder subscribes to the topics it was fitted to (`Workflow::fit_recorders`)
+    for r in w.roles.iter_mut().filter(|r| r.kind == RECORDER_KIND) {
+        if !r.params.contains_key("topics") {
+            let topics = r.subscribes.clone();
+            r.params.insert("topics".into(), topics.into());
+        }
     }
     w.validate()?;
     let executors = resolve_executors(&w, online);

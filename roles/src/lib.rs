@@ -10,7 +10,8 @@
 //! - [`language`]: the language-model reasoning variants (llama.cpp, grammar-constrained);
 //! - [`reasoner_io`]: what every reasoning variant does around its decision (inputs, when to
 //!   decide, stamping and publishing);
-//! - [`controller`]: tracks bound setpoints at the control rate over MAVLink.
+//! - [`controller`]: tracks bound setpoints at the control rate over MAVLink;
+//! - the flight recorder (kind `recorder`) is `aeris-record`'s, dispatched here.
 
 #![deny(missing_docs)]
 
@@ -48,6 +49,7 @@ pub fn runner(kind: &str, variant: &str) -> Option<RoleRunner> {
         ("occupancy", "depth" | "onnx") => RoleHost::run::<occupancy::OccupancyRole>,
         ("image-to-text", "compose" | "vlm") => RoleHost::run::<compose::ComposeRole>,
         ("controller", "mavlink") => RoleHost::run::<controller::ControllerRole>,
+        ("recorder", "mcap") => RoleHost::run::<aeris_record::RecorderRole>,
         _ => return None,
     };
     Some(run)
