@@ -47,8 +47,9 @@ pub struct RunArgs {
     pub fixed_variants: bool,
     /// Record every topic of the flight into this MCAP file (default: RUN_DIR/flight.mcap;
     /// a restarted recorder writes FILE.1, FILE.2, ...).
-    #[arg(long, value_name = "FILE", num_args = 0..=1, default_missing_value = "")]
-    pub record: Option<PathBuf>,
+    #[arg(long, value_name = "FILE", num_args = 0..=1)]
+    #[allow(clippy::option_option)]
+    pub record: Option<Option<PathBuf>>,
     /// With --record: every Nth camera frame's pixels are recorded as an image (0: none).
     #[arg(long, value_name = "N", requires = "record")]
     pub record_frame_every: Option<u64>,
@@ -56,11 +57,13 @@ pub struct RunArgs {
 
 /// The file `--record` names: as given (relative to the working directory), or
 /// `flight.mcap` in the run directory when none is given.
-fn record_path(arg: &Path) -> Result<PathBuf> {
-    if arg.as_os_str().is_empty() {
-        return Ok(PathBuf::from("flight.mcap"));
+fn record_path(arg: Option<&Path>) -> Result<PathBuf> {
+    match arg {
+        None => Ok(PathBuf::from("flight.mcap")),
+        Some(file) => {
+            std::path::absolute(file).with_context(|| format!("--record {}", file.display()))
+        }
     }
-    std::path::absolute(arg).with_context(|| format!("--record {}", arg.display()))
 }
 
 /// A positive, finite number of seconds (clap names the flag when it is not).
@@ -164,7 +167,7 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
         flight = flight.run_dir(dir);
     }
     if let Some(file) = &args.record {
-        flight = flight.record(record_path(file)?);
+        flight = flight.record(record_path(file.as_deref())?);
         if let Some(n) = args.record_frame_every {
             flight = flight.record_frame_every(n);
         }
