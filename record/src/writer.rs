@@ -15,7 +15,7 @@ use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TryRecvError};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -328,8 +328,5 @@ fn read_header(bytes: &[u8]) -> Option<aeris_schemas::FrameHeader> {
 
 /// A free slot of `pool`, if any (none: the sample is dropped).
 pub fn take(pool: &Receiver<Slot>) -> Option<Slot> {
-    match pool.try_recv() {
-        Ok(slot) => Some(slot),
-        Err(TryRecvError::Empty | TryRecvError::Disconnected) => None,
-    }
+    pool.try_recv().ok()
 }
