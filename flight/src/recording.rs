@@ -51,6 +51,13 @@ impl RecordingSummary {
 /// Why a flight cannot be recorded.
 #[derive(Debug, thiserror::Error)]
 pub enum RecordError {
+    /// The path names something other than a regular file (a device, a folder): it is
+    /// neither replaced nor written.
+    #[error("{} exists and is not a regular file; record into a file", path.display())]
+    NotAFile {
+        /// The path.
+        path: PathBuf,
+    },
     /// An earlier recording at the path could not be removed, or its folder created.
     #[error("preparing the recording {}", path.display())]
     Prepare {
@@ -71,7 +78,15 @@ pub(crate) fn add_recorder(
     path: &Path,
     frame_every: Option<u64>,
 ) -> Result<String, RecordError> {
-    for old in aeris_record::recording_files(path) {
+    if path.exists() && !path.is_file() {
+        return Err(RecordError::NotAFile {
+            path: path.to_path_buf(),
+        });
+    }
+    for old in aeris_record::recording_files(path)
+        .into_iter()
+        .filter(|p| p.is_file())
+    {
         std::fs::remove_file(&old).map_err(|source| RecordError::Prepare { path: old, source })?;
     }
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -143,5 +158,16 @@ mod tests {
         assert!(!r.subscribes.iter().any(|t| t == "perception/text"));
         assert_eq!(w.start_order()[0], 0, "the recorder starts first");
         assert!(path.parent().unwrap().is_dir());
+    }
+
+    #[test]
+    fn a_device_or_folder_is_neither_replaced_nor_recorded_into() {
+        let mut w = Workflow::builtin_default().unwrap();
+        for p in ["/dev/null", "/"] {
+            let err = add_recorder(&mut w, Path::new(p), None).unwrap_err();
+            assert!(err.to_string().starts_with(p), "{err}");
+        }
+        assert!(Path::new("/dev/null").exists());
+        assert!(w.roles.iter().all(|r| r.kind != RECORDER_KIND));
     }
 }

@@ -17,7 +17,8 @@
 //! publisher waits on it), its cycle only copies samples into preallocated slots, and a
 //! writer thread does the JSON and the disk ([`writer`]). No free slot: the sample is
 //! dropped and counted. A file that cannot be created or written (disk full): one error
-//! line, status `Degraded`, recording stops, the role keeps running, the flight goes on.
+//! line, status `Degraded`, recording stops, the role keeps running, the flight goes on
+//! (a file-size limit, RLIMIT_FSIZE, too: SIGXFSZ is ignored, so the write fails instead).
 //!
 //! Files: `params.path`; when it exists already (a restarted recorder, after a crash or
 //! SIGKILL), the next free `PATH.1`, `PATH.2`, ...: a restart never touches the file of an
@@ -214,6 +215,10 @@ impl Role for RecorderRole {
                 source: subscribe(ctx, t, *payload)?,
             });
         }
+        // past a file-size limit (RLIMIT_FSIZE) a write fails with EFBIG instead of the
+        // kernel killing the process: the recorder reports it like a full disk
+        // SAFETY: signal() with a valid signal number and SIG_IGN has no preconditions.
+        unsafe { libc::signal(libc::SIGXFSZ, libc::SIG_IGN) };
         let (path, file_index) = next_free_path(Path::new(path));
         let counters = Arc::new(Counters::default());
         let images = if frame_every > 0 { IMAGE_SLOTS } else { 0 };

@@ -207,3 +207,85 @@ fn a_killed_recorder_is_restarted_into_a_new_file_and_its_first_file_reads_back(
     assert_well_formed(&after, "the restarted recorder's file");
     assert!(count(&after, "hub/report") > 0, "{after}");
 }
+
+#[test]
+fn a_recording_that_cannot_be_written_stops_and_the_flight_goes_on() {
+    let dir = TempDir::new("record-full");
+    let flight = unique_flight("record-full");
+    let file = dir.0.join("flight.mcap");
+    let mut run = spawn_run(
+        &dir.0,
+        &flight,
+        &[
+            "--record",
+            file.to_str().unwrap(),
+            "--record-frame-every",
+            "0",
+        ],
+    );
+    // A disk that fills up mid-flight, played by a file-size limit (RLIMIT_FSIZE) on the
+    // recorder process alone (iceoryx2 sizes its shared memory with ftruncate, which the
+    // limit would refuse elsewhere), set once the recorder has created its file (after
+    // it stopped SIGXFSZ from killing it) at 512 KiB beyond what it holds.
+    let observer = FlightBus::builder(&flight)
+        .node_name("test-observer")
+        .create()
+        .unwrap();
+    let (pid, len) = poll_until(Duration::from_secs(180), || {
+        let b = observer.read_status_board().ok()?;
+        let r = *b
+            .roles()
+            .iter()
+            .find(|r| r.name.as_str() == Some("recorder"))?;
+        let len = std::fs::metadata(&file).ok()?.len();
+        (r.pid != 0 && len > 0).then_some((r.pid, len))
+    })
+    .unwrap_or_else(|| {
+        panic!(
+            "the recorder never created its file: {:?}",
+            run_output(&dir.0)
+        )
+    });
+    let limit = libc::rlimit {
+        rlim_cur: len + 512 * 1024,
+        rlim_max: len + 512 * 1024,
+    };
+    // SAFETY: prlimit(2) on a pid the supervisor reports for its child, with a valid limit.
+    let rc = unsafe {
+        libc::prlimit(
+            pid as libc::pid_t,
+            libc::RLIMIT_FSIZE,
+            &limit,
+            std::ptr::null_mut(),
+        )
+    };
+    assert_eq!(rc, 0, "prlimit: {}", std::io::Error::last_os_error());
+    let status = wait_bounded(&mut run.0, FLIGHT_BOUND).expect("flight finished");
+    let (stdout, stderr) = run_output(&dir.0);
+    assert!(status.success(), "aeris run failed: {status}\n{stderr}");
+    let summary = last_json_line(&stdout);
+    assert_eq!(summary["reached_goal"], true, "{summary}");
+    // stopped, not crashed: no restart, one file, reported failed
+    assert_eq!(summary["role_restarts"], 0, "{summary}");
+    let rec = &summary["recording"];
+    assert_eq!(rec["failed"], true, "{summary}");
+    assert_eq!(rec["files"], serde_json::json!([file.to_str().unwrap()]));
+    assert!(rec["dropped"].as_u64().unwrap() > 0, "{summary}");
+    // one error line naming the file and the cause
+    let log = std::fs::read_to_string(dir.0.join("run/logs/recorder.log")).unwrap();
+    let lines: Vec<&str> = log
+        .lines()
+        .filter(|l| l.contains("recording stopped"))
+        .collect();
+    assert_eq!(lines.len(), 1, "{log}");
+    assert!(
+        lines[0].contains(file.to_str().unwrap()) && lines[0].contains("too large"),
+        "{}",
+        lines[0]
+    );
+    // what was written before the limit reads back
+    let read = read_back(&file);
+    assert_eq!(read["complete"], false, "{read}");
+    assert_well_formed(&read, "the cut-off recording");
+    assert!(count(&read, "heartbeat") > 0, "{read}");
+}
