@@ -223,6 +223,33 @@ mod tests {
     }
 
     #[test]
+    fn a_declared_recorder_is_fitted_to_the_published_topics_and_told_them() {
+        let toml = format!(
+            "{}\n[[roles]]\nname = \"rec\"\nkind = \"recorder\"\nvariant = \"mcap\"\nparams = {{ path = \"f.mcap\" }}\n",
+            crate::workflow::DEFAULT_WORKFLOW_TOML
+        );
+        let w = Workflow::from_toml_str(&toml).unwrap();
+        let rec = w.role("rec").unwrap();
+        assert!(rec.subscribes.iter().any(|t| t == "hub/report"));
+        assert!(!rec.subscribes.iter().any(|t| t == "perception/text"));
+        assert!(
+            w.service_edges()
+                .iter()
+                .all(|(_, to, _)| w.roles[*to].name != "rec")
+        );
+        assert_eq!(w.role_budget_ms(rec), None);
+        let plan = plan_launch(&w, "plan-test", None, &four_cpus(), || Ok(14999)).unwrap();
+        let spec = &plan
+            .roles
+            .iter()
+            .find(|r| r.spec.name == "rec")
+            .unwrap()
+            .spec;
+        let topics: Vec<String> = serde_json::from_value(spec.params["topics"].clone()).unwrap();
+        assert_eq!(topics, rec.subscribes);
+    }
+
+    #[test]
     fn the_builtin_vehicle_is_linked_to_the_controller() {
         let w = Workflow::builtin_default().unwrap();
         let plan = plan_launch(&w, "plan-test", None, &four_cpus(), || Ok(14999)).unwrap();
