@@ -46,7 +46,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub fixed_variants: bool,
     /// Record every topic of the flight into this MCAP file (default: RUN_DIR/flight.mcap;
-    /// a restarted recorder writes FILE.1, FILE.2, ...).
+    /// a restarted recorder writes FILE.1, FILE.2, ...). Its FILE is optional: give the
+    /// WORKFLOW before it (`aeris run flight.toml --record`).
     #[arg(long, value_name = "FILE", num_args = 0..=1)]
     #[allow(clippy::option_option)]
     pub record: Option<Option<PathBuf>>,
