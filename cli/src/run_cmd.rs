@@ -45,6 +45,26 @@ pub struct RunArgs {
     /// (the workflow's `[scheduling] adapt_variants = false`).
     #[arg(long)]
     pub fixed_variants: bool,
+    /// Record every topic of the flight into this MCAP file (default: RUN_DIR/flight.mcap;
+    /// a restarted recorder writes FILE.1, FILE.2, ...). Its FILE is optional: give the
+    /// WORKFLOW before it (`aeris run flight.toml --record`).
+    #[arg(long, value_name = "FILE", num_args = 0..=1)]
+    #[allow(clippy::option_option)]
+    pub record: Option<Option<PathBuf>>,
+    /// With --record: every Nth camera frame's pixels are recorded as an image (0: none).
+    #[arg(long, value_name = "N", requires = "record")]
+    pub record_frame_every: Option<u64>,
+}
+
+/// The file `--record` names: as given (relative to the working directory), or
+/// `flight.mcap` in the run directory when none is given.
+fn record_path(arg: Option<&Path>) -> Result<PathBuf> {
+    match arg {
+        None => Ok(PathBuf::from("flight.mcap")),
+        Some(file) => {
+            std::path::absolute(file).with_context(|| format!("--record {}", file.display()))
+        }
+    }
 }
 
 /// A positive, finite number of seconds (clap names the flag when it is not).
@@ -147,6 +167,12 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
     if let Some(dir) = &args.run_dir {
         flight = flight.run_dir(dir);
     }
+    if let Some(file) = &args.record {
+        flight = flight.record(record_path(file.as_deref())?);
+        if let Some(n) = args.record_frame_every {
+            flight = flight.record_frame_every(n);
+        }
+    }
     let mut printer = FlightPrinter::new(true, "")?;
     let flight = flight.start()?;
     let name = flight.name().to_string();
@@ -208,6 +234,17 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
         summary.autopilot_link_losses,
         summary.autopilot_commands_refused
     );
+    if let Some(r) = &summary.recording {
+        let files: Vec<String> = r.files.iter().map(|f| f.display().to_string()).collect();
+        println!(
+            "  recording {}: {} messages, {} dropped, {} bytes{}",
+            files.join(", "),
+            r.messages,
+            r.dropped,
+            r.bytes,
+            if r.failed { "; writing FAILED" } else { "" }
+        );
+    }
     if args.json {
         println!(
             "{}",

@@ -62,6 +62,9 @@ pub enum FlightError {
     /// The step hook failed; its own error says how.
     #[error(transparent)]
     Hook(HookError),
+    /// The flight could not be set up for recording.
+    #[error(transparent)]
+    Record(#[from] crate::recording::RecordError),
     /// The cycle trace could not be written into the run directory.
     #[error("writing {}", path.display())]
     WriteTrace {
@@ -86,6 +89,7 @@ pub struct FlightBuilder<H: StepHook = NoHook> {
     overrides: Overrides,
     stop: StopRule,
     role_executable: Option<PathBuf>,
+    record: Option<(PathBuf, Option<u64>)>,
     hook: H,
 }
 
@@ -126,6 +130,25 @@ impl<H: StepHook> FlightBuilder<H> {
         self
     }
 
+    /// Record the flight into the MCAP file `path` (see `aeris-record`; a relative path is
+    /// taken in the run directory): a recorder role is added to the workflow, and the
+    /// summary gains `recording`. An earlier recording at `path` is replaced; a restarted
+    /// recorder writes `path.1`, `path.2`, ...
+    pub fn record(mut self, path: impl Into<PathBuf>) -> Self {
+        let frame_every = self.record.as_ref().and_then(|r| r.1);
+        self.record = Some((path.into(), frame_every));
+        self
+    }
+
+    /// Record every `n`-th camera frame's pixels as an image (0: none); with
+    /// [`FlightBuilder::record`] (default `aeris_record::DEFAULT_FRAME_EVERY`).
+    pub fn record_frame_every(mut self, n: u64) -> Self {
+        if let Some(r) = &mut self.record {
+            r.1 = Some(n);
+        }
+        self
+    }
+
     /// Run `step` once every supervisor step (see [`StepHook`]).
     pub fn on_step<F>(self, step: F) -> FlightBuilder<FnHook<F>>
     where
@@ -144,6 +167,7 @@ impl<H: StepHook> FlightBuilder<H> {
             overrides: self.overrides,
             stop: self.stop,
             role_executable: self.role_executable,
+            record: self.record,
             hook,
         }
     }
@@ -165,6 +189,14 @@ impl<H: StepHook> FlightBuilder<H> {
         let run_dir = self
             .run_dir
             .unwrap_or_else(|| std::env::temp_dir().join("aeris").join(&name));
+        let record = match self.record {
+            Some((path, frame_every)) => {
+                let path = run_dir.join(path);
+                let role = crate::recording::add_recorder(&mut workflow, &path, frame_every)?;
+                Some((path, role))
+            }
+            None => None,
+        };
         let shared = Arc::new(Shared::new(&name));
         let (events_tx, events) = mpsc::channel();
         let (started_tx, started_rx) = mpsc::sync_channel(1);
@@ -176,6 +208,7 @@ impl<H: StepHook> FlightBuilder<H> {
             dynamic: self.overrides.dynamic,
             stop: self.stop,
             role_executable,
+            record,
         };
         let hook = self.hook;
         let thread_shared = shared.clone();
@@ -227,6 +260,7 @@ impl Flight {
             overrides: Overrides::default(),
             stop: StopRule::Goal,
             role_executable: None,
+            record: None,
             hook: NoHook,
         }
     }

@@ -36,6 +36,7 @@
 //!   collision checks);
 //! - [`monitor`]: the [`FlightMonitor`], the [`FlightSummary`] and the [`CycleTrace`];
 //! - [`Overrides`]: a flight's changes to its workflow;
+//! - [`recording`]: a recorded flight ([`FlightBuilder::record`]: the `aeris-record` role);
 //! - [`executors`]: the executor registry a workflow would start with, and the
 //!   accelerators ONNX Runtime offers.
 
@@ -48,6 +49,7 @@ mod handle;
 pub mod hook;
 pub mod monitor;
 pub mod overrides;
+pub mod recording;
 mod supervise;
 
 pub use autopilot_link::{AutopilotEvent, silent_diagnosis};
@@ -59,3 +61,4 @@ pub use handle::{Flight, FlightBuilder, FlightError, FlightOutcome};
 pub use hook::{FnHook, HookError, NoHook, StepContext, StepHook};
 pub use monitor::{CycleTrace, FlightMonitor, FlightSummary, StageMeans};
 pub use overrides::{OverrideError, Overrides, VariantChoice};
+pub use recording::{RecordError, RecordingSummary};

@@ -98,6 +98,8 @@ pub struct FlightSummary {
     pub commits_without_occupancy: u64,
     /// Committed decisions the gate clamped for want of occupancy (of the reports seen).
     pub no_occupancy_clamps: u64,
+    /// The recording, when the flight was recorded ([`crate::FlightBuilder::record`]).
+    pub recording: Option<crate::RecordingSummary>,
 }
 
 /// Mean stage durations.
@@ -529,6 +531,7 @@ impl FlightMonitor {
             autopilot_commands_refused: self.link_follower.commands_refused(),
             commits_without_occupancy: self.commits_without_occupancy,
             no_occupancy_clamps: self.no_occupancy_clamps,
+            recording: None,
         }
     }
 }

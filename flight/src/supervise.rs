@@ -8,6 +8,7 @@ use crate::executors::{accelerator_line, onnx_accelerators};
 use crate::handle::{FlightError, FlightOutcome};
 use crate::hook::{StepContext, StepHook};
 use crate::monitor::{CycleTrace, FlightMonitor};
+use crate::recording::RecordingSummary;
 use aeris_orchestrator::supervisor::{RoleState, Supervisor, SupervisorEvent, SupervisorOptions};
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::MissionSpec;
@@ -35,6 +36,8 @@ pub(crate) struct FlightSetup {
     pub dynamic: Option<bool>,
     pub stop: StopRule,
     pub role_executable: PathBuf,
+    /// The recording's path and its recorder role's name, when recorded.
+    pub record: Option<(PathBuf, String)>,
 }
 
 /// Why the flight was asked to end.
@@ -119,6 +122,7 @@ pub(crate) fn supervise<H: StepHook>(
         dynamic,
         stop,
         role_executable,
+        record,
     } = setup;
     let send = |event| {
         // nobody listening is no reason to stop flying
@@ -168,7 +172,10 @@ pub(crate) fn supervise<H: StepHook>(
             match event {
                 SupervisorEvent::SwapDone { .. } => swaps_done += 1,
                 SupervisorEvent::SwapFailed { .. } => swaps_failed += 1,
-                SupervisorEvent::RoleGaveUp { name } => {
+                // a recorder that gave up leaves the flight unrecorded, not failed
+                SupervisorEvent::RoleGaveUp { name }
+                    if record.as_ref().is_none_or(|(_, role)| role != name) =>
+                {
                     failure = Some(FlightFailure::RoleGaveUp { role: name.clone() });
                 }
                 _ => {}
@@ -239,8 +246,18 @@ pub(crate) fn supervise<H: StepHook>(
     summary.stalls = sup.roles().iter().map(|r| u64::from(r.stalls())).sum();
     summary.swaps_done = swaps_done;
     summary.swaps_failed = swaps_failed;
+    let recorder_heartbeat = record.as_ref().and_then(|(_, role)| {
+        sup.roles()
+            .iter()
+            .find(|r| r.name() == role)
+            .and_then(|r| r.last_heartbeat().copied())
+    });
     shared.set_phase(FlightPhase::ShuttingDown);
     let shutdown = sup.shutdown(SHUTDOWN_GRACE);
+    // after the shutdown: the recorder has finished its file (or been killed)
+    summary.recording = record
+        .as_ref()
+        .map(|(path, _)| RecordingSummary::new(path, recorder_heartbeat.as_ref()));
     shared.update(|s| {
         for r in &mut s.roles {
             r.pid = None;

@@ -5,7 +5,7 @@
 //! starting processes.
 
 use crate::restart::RestartPolicy;
-use crate::workflow::{ExecutorCpus, Workflow, WorkflowError};
+use crate::workflow::{ExecutorCpus, RECORDER_KIND, Workflow, WorkflowError};
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::spec::RoleSpec;
 use aeris_schemas::topics;
@@ -137,6 +137,13 @@ pub fn plan_launch(
         }
         None => {}
     }
+    // a recorder subscribes to the topics it was fitted to (`Workflow::fit_recorders`)
+    for r in w.roles.iter_mut().filter(|r| r.kind == RECORDER_KIND) {
+        if !r.params.contains_key("topics") {
+            let topics = r.subscribes.clone();
+            r.params.insert("topics".into(), topics.into());
+        }
+    }
     w.validate()?;
     let executors = resolve_executors(&w, online);
     let roles = w
@@ -213,6 +220,33 @@ mod tests {
         let ex = resolve_executors(&w, &four_cpus());
         assert_eq!(ex[0].1, four_cpus());
         assert_eq!(ex[1].1, CpuSet::parse("0").unwrap());
+    }
+
+    #[test]
+    fn a_declared_recorder_is_fitted_to_the_published_topics_and_told_them() {
+        let toml = format!(
+            "{}\n[[roles]]\nname = \"rec\"\nkind = \"recorder\"\nvariant = \"mcap\"\nparams = {{ path = \"f.mcap\" }}\n",
+            crate::workflow::DEFAULT_WORKFLOW_TOML
+        );
+        let w = Workflow::from_toml_str(&toml).unwrap();
+        let rec = w.role("rec").unwrap();
+        assert!(rec.subscribes.iter().any(|t| t == "hub/report"));
+        assert!(!rec.subscribes.iter().any(|t| t == "perception/text"));
+        assert!(
+            w.service_edges()
+                .iter()
+                .all(|(_, to, _)| w.roles[*to].name != "rec")
+        );
+        assert_eq!(w.role_budget_ms(rec), None);
+        let plan = plan_launch(&w, "plan-test", None, &four_cpus(), || Ok(14999)).unwrap();
+        let spec = &plan
+            .roles
+            .iter()
+            .find(|r| r.spec.name == "rec")
+            .unwrap()
+            .spec;
+        let topics: Vec<String> = serde_json::from_value(spec.params["topics"].clone()).unwrap();
+        assert_eq!(topics, rec.subscribes);
     }
 
     #[test]

@@ -22,6 +22,9 @@ use aeris_runtime::affinity::{CpuSet, CpuSetError};
 use aeris_runtime::spec::{CameraSpec, MissionError, MissionSpec, TimingSpec};
 use aeris_schemas::heartbeat::NAME_MAX;
 
+/// Kind of the flight recorder role (`aeris-record`).
+pub const RECORDER_KIND: &str = "recorder";
+
 /// Default restart budget of a role.
 pub const DEFAULT_MAX_RESTARTS: u32 = 5;
 /// Default first backoff of a role (ms).
@@ -447,8 +450,29 @@ impl Workflow {
             "reasoning" => Some(hb * 0.5),
             "camera" => Some(1000.0 / self.camera.fps.max(1.0)),
             "hub" | "controller" => Some(1000.0 / self.timing.control_rate_hz),
-            "vehicle" => None,
+            // off the critical path: no budget, so the scheduler never moves roles for it
+            "vehicle" | RECORDER_KIND => None,
             _ => Some(hb * 0.25),
+        }
+    }
+
+    /// Fit every recorder role (kind [`RECORDER_KIND`]) to what the flight publishes: its
+    /// `subscribes` become every topic another role publishes, and `heartbeat`, in the
+    /// order of [`topics::ALL`](aeris_schemas::topics::ALL).
+    pub fn fit_recorders(&mut self) {
+        let published: Vec<String> = aeris_schemas::topics::ALL
+            .iter()
+            .filter(|t| {
+                **t == aeris_schemas::topics::HEARTBEAT
+                    || self
+                        .roles
+                        .iter()
+                        .any(|r| r.kind != RECORDER_KIND && r.publishes.iter().any(|p| p == *t))
+            })
+            .map(|t| t.to_string())
+            .collect();
+        for r in self.roles.iter_mut().filter(|r| r.kind == RECORDER_KIND) {
+            r.subscribes = published.clone();
         }
     }
 

@@ -11,7 +11,8 @@
 //! - [`reasoner_io`]: what every reasoning variant does around its decision (inputs, when to
 //!   decide, stamping and publishing);
 //! - [`controller`]: tracks bound setpoints at the control rate over MAVLink;
-//! - [`gstreamer_camera`]: a real camera (any GStreamer pipeline ending in an appsink).
+//! - [`gstreamer_camera`]: a real camera (any GStreamer pipeline ending in an appsink);
+//! - the flight recorder (kind `recorder`) is `aeris-record`'s, dispatched here.
 
 #![deny(missing_docs)]
 
@@ -51,6 +52,7 @@ pub fn runner(kind: &str, variant: &str) -> Option<RoleRunner> {
         ("image-to-text", "compose" | "vlm") => RoleHost::run::<compose::ComposeRole>,
         ("controller", "mavlink") => RoleHost::run::<controller::ControllerRole>,
         ("camera", "gstreamer") => RoleHost::run::<gstreamer_camera::GstreamerCameraRole>,
+        ("recorder", "mcap") => RoleHost::run::<aeris_record::RecorderRole>,
         _ => return None,
     };
     Some(run)

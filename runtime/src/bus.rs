@@ -155,23 +155,25 @@ pub fn qos(topic: &str) -> Qos {
         max_publishers,
         max_subscribers,
     };
+    // every max_subscribers holds one more for the flight recorder (`aeris-record`), which
+    // subscribes to every topic of a recorded flight
     match topic {
-        topics::CAMERA_RGB | topics::CAMERA_DEPTH => q(1, 2, 4, 8),
+        topics::CAMERA_RGB | topics::CAMERA_DEPTH => q(1, 2, 4, 9),
         topics::PERCEPTION_STATE
         | topics::PERCEPTION_TEXT
         | topics::PERCEPTION_DETECTIONS
         | topics::PERCEPTION_CUES
-        | topics::PERCEPTION_OCCUPANCY => q(1, 4, 4, 8),
-        topics::REASONING_DECISION => q(0, 32, 4, 8),
-        topics::HUB_SETPOINT => q(1, 8, 4, 8),
-        topics::HUB_REPORT => q(1, 64, 4, 8),
-        topics::VEHICLE_TELEMETRY => q(1, 64, 4, 12),
+        | topics::PERCEPTION_OCCUPANCY => q(1, 4, 4, 9),
+        topics::REASONING_DECISION => q(0, 32, 4, 9),
+        topics::HUB_SETPOINT => q(1, 8, 4, 9),
+        topics::HUB_REPORT => q(1, 64, 4, 9),
+        topics::VEHICLE_TELEMETRY => q(1, 64, 4, 13),
         // no history: a lease is only evidence while it is fresh
-        topics::CONTROLLER_LEASE => q(0, 16, 4, 8),
+        topics::CONTROLLER_LEASE => q(0, 16, 4, 9),
         // history 1: a watcher that joins late sees where the link is
-        topics::CONTROLLER_LINK => q(1, 16, 4, 8),
-        topics::HEARTBEAT => q(0, 1024, 32, 8),
-        _ => q(1, 16, 4, 8),
+        topics::CONTROLLER_LINK => q(1, 16, 4, 9),
+        topics::HEARTBEAT => q(0, 1024, 32, 9),
+        _ => q(1, 16, 4, 9),
     }
 }
 

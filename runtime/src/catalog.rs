@@ -132,6 +132,16 @@ pub const ROLE_KINDS: &[RoleKind] = &[
             "a controller is replaced by its hot standby (a second controller role), not swapped",
         ),
     },
+    RoleKind {
+        kind: "recorder",
+        variants: &["mcap"],
+        // every topic; a workflow's recorder is fitted to the topics its flight publishes
+        // (`Workflow::fit_recorders`)
+        subscribes: &topics::ALL,
+        publishes: &[],
+        summary: "records every topic of the flight into an MCAP file (JSON and raw shared-memory bytes, images at a reduced rate); never slows the flight",
+        swap_refusal: None,
+    },
 ];
 
 /// The catalog entry of `kind`.

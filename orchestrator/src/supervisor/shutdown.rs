@@ -87,13 +87,16 @@ impl core::fmt::Display for ShutdownReport {
     }
 }
 
-/// Order in which shutdown stops kinds: reasoning first, controller and vehicle last.
+/// Order in which shutdown stops kinds: reasoning first, controller, vehicle and recorder
+/// last.
 fn shutdown_rank(kind: &str) -> u8 {
     match kind {
         "reasoning" => 0,
         "perception" | "camera" => 1,
         "controller" => 3,
         "vehicle" => 4,
+        // last: it records the flight down to its end
+        "recorder" => 5,
         _ => 2,
     }
 }

@@ -1,8 +1,8 @@
 //! The services graph of a workflow: an edge from each publisher to each subscriber of a
-//! topic (feedback topics and `heartbeat` excepted), the cycle [`Workflow::validate`]
+//! topic (feedback topics, `heartbeat` and the recorder's subscriptions excepted), the cycle [`Workflow::validate`]
 //! refuses, and the start order (publishers first).
 
-use super::Workflow;
+use super::{RECORDER_KIND, Workflow};
 use aeris_schemas::topics;
 
 impl Workflow {
@@ -18,7 +18,10 @@ impl Workflow {
                     continue;
                 }
                 for (to, b) in self.roles.iter().enumerate() {
-                    if b.subscribes.contains(topic)
+                    // the recorder is nobody's dependant: it may start first and see the
+                    // flight from its first message
+                    if b.kind != RECORDER_KIND
+                        && b.subscribes.contains(topic)
                         && !b.publishes.contains(topic)
                         && !edges.iter().any(|(f, t, _)| *f == from && *t == to)
                     {

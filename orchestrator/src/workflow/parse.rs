@@ -196,6 +196,7 @@ impl Workflow {
         }
 
         let mut roles = Vec::with_capacity(raw.roles.len());
+        let mut fit_recorders = false;
         for r in raw.roles {
             let restart = match &r.restart {
                 None => RestartPolicy::default(),
@@ -213,6 +214,7 @@ impl Workflow {
                     .map(|k| f(k).iter().map(|t| t.to_string()).collect())
                     .unwrap_or_default()
             };
+            fit_recorders |= r.kind == super::RECORDER_KIND && r.subscribes.is_none();
             let subscribes = r.subscribes.unwrap_or_else(|| catalog(|k| k.subscribes));
             let publishes = r.publishes.unwrap_or_else(|| catalog(|k| k.publishes));
             roles.push(RoleDecl {
@@ -244,7 +246,7 @@ impl Workflow {
             adapt_variants: rs.adapt_variants.unwrap_or(d.adapt_variants),
             probe_ticks: rs.probe_ticks.unwrap_or(d.probe_ticks),
         };
-        Ok(Workflow {
+        let mut workflow = Workflow {
             timing,
             feedback,
             camera: raw.camera,
@@ -252,7 +254,12 @@ impl Workflow {
             executors,
             roles,
             scheduling,
-        })
+        };
+        if fit_recorders {
+            // a recorder records what this flight publishes, not the catalog's every topic
+            workflow.fit_recorders();
+        }
+        Ok(workflow)
     }
 }
 

@@ -1,0 +1,173 @@
+//! A recorded flight: the recorder role a builder adds ([`FlightBuilder::record`]) and what
+//! the summary says of the recording.
+//!
+//! [`FlightBuilder::record`]: crate::FlightBuilder::record
+
+use aeris_orchestrator::restart::RestartPolicy;
+use aeris_orchestrator::workflow::{
+    DEFAULT_BACKOFF_MS, DEFAULT_MAX_RESTARTS, RECORDER_KIND, RoleDecl, Workflow,
+};
+use aeris_record::counter;
+use aeris_schemas::RoleHeartbeat;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// The recorder's variant.
+const VARIANT: &str = "mcap";
+
+/// What the summary says of a recorded flight (`aeris run --json`: `recording`).
+#[derive(Debug, Clone, Serialize, PartialEq, Eq)]
+pub struct RecordingSummary {
+    /// The recording asked for.
+    pub path: PathBuf,
+    /// Every file it holds: `path`, then `path.1`, ... one per recorder process (a
+    /// restarted recorder never writes into an earlier process's file).
+    pub files: Vec<PathBuf>,
+    /// MCAP messages the last recorder process had written by the end of the flight.
+    pub messages: u64,
+    /// Samples it dropped (queue full, or recording stopped).
+    pub dropped: u64,
+    /// Bytes of message data it had written.
+    pub bytes: u64,
+    /// Its writing failed (disk full, unwritable file): recording stopped early.
+    pub failed: bool,
+}
+
+impl RecordingSummary {
+    /// The summary of the recording at `path`, from the last heartbeat of its recorder.
+    pub(crate) fn new(path: &Path, last: Option<&RoleHeartbeat>) -> Self {
+        let c = last.map(|h| h.counters).unwrap_or_default();
+        Self {
+            path: path.to_path_buf(),
+            files: aeris_record::recording_files(path),
+            messages: c[counter::MESSAGES],
+            dropped: c[counter::DROPPED],
+            bytes: c[counter::BYTES],
+            failed: c[counter::FAILED] != 0,
+        }
+    }
+}
+
+/// Why a flight cannot be recorded.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// The path names something other than a regular file (a device, a folder): it is
+    /// neither replaced nor written.
+    #[error("{} exists and is not a regular file; record into a file", path.display())]
+    NotAFile {
+        /// The path.
+        path: PathBuf,
+    },
+    /// An earlier recording at the path could not be removed, or its folder created.
+    #[error("preparing the recording {}", path.display())]
+    Prepare {
+        /// The file or folder.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// Add a recorder role writing to `path` to `workflow`: first in declaration order (it has
+/// no service dependencies, so it starts first and sees the flight from its first message),
+/// on the executor with the fewest roles, restarted on failure. An earlier recording at
+/// `path` (`path` and its `path.N` files) is removed. Returns the role's name.
+pub(crate) fn add_recorder(
+    workflow: &mut Workflow,
+    path: &Path,
+    frame_every: Option<u64>,
+) -> Result<String, RecordError> {
+    if path.exists() && !path.is_file() {
+        return Err(RecordError::NotAFile {
+            path: path.to_path_buf(),
+        });
+    }
+    for old in aeris_record::recording_files(path)
+        .into_iter()
+        .filter(|p| p.is_file())
+    {
+        std::fs::remove_file(&old).map_err(|source| RecordError::Prepare { path: old, source })?;
+    }
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|source| RecordError::Prepare {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+    }
+    let mut name = RECORDER_KIND.to_string();
+    let mut n = 1;
+    while workflow.role(&name).is_some() {
+        n += 1;
+        name = format!("{RECORDER_KIND}-{n}");
+    }
+    let executor = workflow
+        .executors
+        .iter()
+        .min_by_key(|e| {
+            workflow
+                .roles
+                .iter()
+                .filter(|r| r.executor.as_deref() == Some(e.name.as_str()))
+                .count()
+        })
+        .map(|e| e.name.clone());
+    let mut params = serde_json::Map::new();
+    params.insert("path".into(), path.to_string_lossy().into_owned().into());
+    if let Some(n) = frame_every {
+        params.insert("frame_every".into(), n.into());
+    }
+    workflow.roles.insert(
+        0,
+        RoleDecl {
+            name: name.clone(),
+            kind: RECORDER_KIND.into(),
+            variant: VARIANT.into(),
+            variants: vec![VARIANT.into()],
+            ladder: Vec::new(),
+            executor,
+            restart: RestartPolicy::OnFailure,
+            max_restarts: DEFAULT_MAX_RESTARTS,
+            backoff_ms: DEFAULT_BACKOFF_MS,
+            budget_ms: None,
+            params,
+            subscribes: Vec::new(),
+            publishes: Vec::new(),
+        },
+    );
+    workflow.fit_recorders();
+    Ok(name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_recorder_is_added_first_fitted_to_the_published_topics_and_valid() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("sub/flight.mcap");
+        let mut w = Workflow::builtin_default().unwrap();
+        let name = add_recorder(&mut w, &path, Some(3)).unwrap();
+        w.validate().unwrap();
+        let r = &w.roles[0];
+        assert_eq!((r.name.as_str(), name.as_str()), ("recorder", "recorder"));
+        assert!(r.subscribes.iter().any(|t| t == "hub/report"));
+        assert!(r.subscribes.iter().any(|t| t == "heartbeat"));
+        // the default flight has no text reader
+        assert!(!r.subscribes.iter().any(|t| t == "perception/text"));
+        assert_eq!(w.start_order()[0], 0, "the recorder starts first");
+        assert!(path.parent().unwrap().is_dir());
+    }
+
+    #[test]
+    fn a_device_or_folder_is_neither_replaced_nor_recorded_into() {
+        let mut w = Workflow::builtin_default().unwrap();
+        for p in ["/dev/null", "/"] {
+            let err = add_recorder(&mut w, Path::new(p), None).unwrap_err();
+            assert!(err.to_string().starts_with(p), "{err}");
+        }
+        assert!(Path::new("/dev/null").exists());
+        assert!(w.roles.iter().all(|r| r.kind != RECORDER_KIND));
+    }
+}

@@ -1,0 +1,446 @@
+//! What the recorder knows of each topic: its payload type, the payload's exact bytes, the
+//! JSON a reader sees, the JSON Schema of that JSON (inferred from the converter's own
+//! output, so the two cannot disagree) and the message's log time.
+
+use aeris_schemas::{
+    AutopilotLinkStatus, BoundSetpoint, ControllerLease, Cue, Decision, Detection, FrameHeader,
+    HubReport, MAX_CUES, MAX_DETECTIONS, MAX_SUBGOALS, PerceptionState, RoleHeartbeat,
+    SCHEMA_LAYOUT_HASH, SCHEMA_VERSION, VehicleTelemetry, ZeroCopySend, topics,
+};
+use serde_json::{Map, Value, json};
+
+/// The payload type behind a topic.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Payload {
+    /// Frames (`[u8]` with a [`FrameHeader`]): the header is the typed message.
+    Frame,
+    /// [`PerceptionState`] (S_t or one of its blocks).
+    State,
+    /// [`Decision`].
+    Decision,
+    /// [`BoundSetpoint`].
+    Setpoint,
+    /// [`HubReport`].
+    HubReport,
+    /// [`VehicleTelemetry`].
+    Telemetry,
+    /// [`ControllerLease`].
+    Lease,
+    /// [`AutopilotLinkStatus`].
+    Link,
+    /// [`RoleHeartbeat`].
+    Heartbeat,
+}
+
+/// The payload type of `topic`, if it is one of [`topics::ALL`].
+pub fn payload_of(topic: &str) -> Option<Payload> {
+    Some(match topic {
+        topics::CAMERA_RGB | topics::CAMERA_DEPTH => Payload::Frame,
+        topics::PERCEPTION_STATE
+        | topics::PERCEPTION_TEXT
+        | topics::PERCEPTION_DETECTIONS
+        | topics::PERCEPTION_CUES
+        | topics::PERCEPTION_OCCUPANCY => Payload::State,
+        topics::REASONING_DECISION => Payload::Decision,
+        topics::HUB_SETPOINT => Payload::Setpoint,
+        topics::HUB_REPORT => Payload::HubReport,
+        topics::VEHICLE_TELEMETRY => Payload::Telemetry,
+        topics::CONTROLLER_LEASE => Payload::Lease,
+        topics::CONTROLLER_LINK => Payload::Link,
+        topics::HEARTBEAT => Payload::Heartbeat,
+        _ => return None,
+    })
+}
+
+/// The bytes of a plain `#[repr(C)]` payload as they lie in memory (for a sample: in shared
+/// memory, exactly what the publisher wrote, padding included).
+pub fn bytes_of<T: ZeroCopySend + Copy>(value: &T) -> &[u8] {
+    // SAFETY: every payload of aeris-schemas is `#[repr(C)]`, `Copy` and pointer-free; the
+    // slice borrows `value` and lives no longer. The few implicit padding bytes (e.g. in
+    // `StageTiming`) are read as the bytes the publisher's shared-memory slot holds, which
+    // is mapped, written memory: recording them is what makes a replay bit-exact.
+    unsafe { core::slice::from_raw_parts((value as *const T).cast::<u8>(), size_of::<T>()) }
+}
+
+/// `T` read back from its bytes; `None` when `bytes` has the wrong length.
+fn read<T: ZeroCopySend + Copy>(bytes: &[u8]) -> Option<T> {
+    (bytes.len() == size_of::<T>())
+        // SAFETY: the length is that of `T`; every payload type is plain data for which any
+        // bytes its publisher wrote are a value (enums travel as `u8`), and the read is
+        // unaligned-safe.
+        .then(|| unsafe { core::ptr::read_unaligned(bytes.as_ptr().cast::<T>()) })
+}
+
+fn type_name_of<T: ZeroCopySend>() -> &'static str {
+    // SAFETY: type_name has no preconditions; it is unsafe only to discourage overriding.
+    unsafe { <T as ZeroCopySend>::type_name() }
+}
+
+impl Payload {
+    /// The iceoryx2 type name (`aeris::Decision@s6`): the raw channel's schema name.
+    pub fn type_name(self) -> &'static str {
+        match self {
+            Payload::Frame => type_name_of::<FrameHeader>(),
+            Payload::State => type_name_of::<PerceptionState>(),
+            Payload::Decision => type_name_of::<Decision>(),
+            Payload::Setpoint => type_name_of::<BoundSetpoint>(),
+            Payload::HubReport => type_name_of::<HubReport>(),
+            Payload::Telemetry => type_name_of::<VehicleTelemetry>(),
+            Payload::Lease => type_name_of::<ControllerLease>(),
+            Payload::Link => type_name_of::<AutopilotLinkStatus>(),
+            Payload::Heartbeat => type_name_of::<RoleHeartbeat>(),
+        }
+    }
+
+    /// Size and alignment of the payload (of the header, for frames).
+    pub fn layout(self) -> (usize, usize) {
+        fn l<T>() -> (usize, usize) {
+            (size_of::<T>(), align_of::<T>())
+        }
+        match self {
+            Payload::Frame => l::<FrameHeader>(),
+            Payload::State => l::<PerceptionState>(),
+            Payload::Decision => l::<Decision>(),
+            Payload::Setpoint => l::<BoundSetpoint>(),
+            Payload::HubReport => l::<HubReport>(),
+            Payload::Telemetry => l::<VehicleTelemetry>(),
+            Payload::Lease => l::<ControllerLease>(),
+            Payload::Link => l::<AutopilotLinkStatus>(),
+            Payload::Heartbeat => l::<RoleHeartbeat>(),
+        }
+    }
+
+    /// The JSON channel's schema name (`aeris.Decision`).
+    pub fn json_schema_name(self) -> String {
+        let bare = self.type_name().split('@').next().unwrap_or_default();
+        bare.replace("::", ".")
+    }
+
+    /// The raw channel's schema data: what a replay checks before trusting the bytes.
+    pub fn raw_schema(self) -> Value {
+        let (size, align) = self.layout();
+        json!({
+            "type_name": self.type_name(),
+            "schema_version": SCHEMA_VERSION,
+            "layout_hash": format!("{SCHEMA_LAYOUT_HASH:#018x}"),
+            "size": size,
+            "align": align,
+        })
+    }
+
+    /// CLOCK_MONOTONIC ns the message was captured or published, by its own stamp.
+    pub fn stamp_ns(self, bytes: &[u8]) -> Option<u64> {
+        Some(match self {
+            Payload::Frame => read::<FrameHeader>(bytes)?.capture_ns,
+            Payload::State => read::<PerceptionState>(bytes)?.publish_ns,
+            Payload::Decision => read::<Decision>(bytes)?.publish_ns,
+            Payload::Setpoint => read::<BoundSetpoint>(bytes)?.publish_ns,
+            Payload::HubReport => read::<HubReport>(bytes)?.publish_ns,
+            Payload::Telemetry => read::<VehicleTelemetry>(bytes)?.stamp_ns,
+            Payload::Lease => read::<ControllerLease>(bytes)?.stamp_ns,
+            Payload::Link => read::<AutopilotLinkStatus>(bytes)?.stamp_ns,
+            Payload::Heartbeat => read::<RoleHeartbeat>(bytes)?.stamp_ns,
+        })
+    }
+
+    /// The payload in `bytes` as JSON; `None` when the length is not the payload's.
+    pub fn to_json(self, bytes: &[u8]) -> Option<Value> {
+        Some(match self {
+            Payload::Frame => frame_json(&read(bytes)?),
+            Payload::State => state_json(&read(bytes)?),
+            Payload::Decision => decision_json(&read(bytes)?),
+            Payload::Setpoint => setpoint_json(&read(bytes)?),
+            Payload::HubReport => hub_report_json(&read(bytes)?),
+            Payload::Telemetry => telemetry_json(&read(bytes)?),
+            Payload::Lease => lease_json(&read(bytes)?),
+            Payload::Link => link_json(&read(bytes)?),
+            Payload::Heartbeat => heartbeat_json(&read(bytes)?),
+        })
+    }
+
+    /// The JSON Schema of [`Payload::to_json`]'s output, inferred from a full example (every
+    /// variable-length list at its longest), so the schema and the encoder agree.
+    pub fn json_schema(self) -> Value {
+        let example = match self {
+            Payload::State => {
+                let s = PerceptionState {
+                    detection_count: MAX_DETECTIONS as u32,
+                    cue_count: MAX_CUES as u32,
+                    relevance_count: MAX_SUBGOALS as u32,
+                    ..PerceptionState::default()
+                };
+                state_json(&s)
+            }
+            Payload::Frame => frame_json(&FrameHeader::default()),
+            Payload::Decision => decision_json(&Decision::default()),
+            Payload::Setpoint => setpoint_json(&BoundSetpoint::default()),
+            Payload::HubReport => hub_report_json(&HubReport::default()),
+            Payload::Telemetry => telemetry_json(&VehicleTelemetry::default()),
+            Payload::Lease => lease_json(&ControllerLease::default()),
+            Payload::Link => link_json(&AutopilotLinkStatus::default()),
+            Payload::Heartbeat => heartbeat_json(&RoleHeartbeat::default()),
+        };
+        document_schema(&self.json_schema_name(), &example)
+    }
+}
+
+/// A JSON Schema document (draft 2020-12) titled `title` for values shaped like `example`.
+pub fn document_schema(title: &str, example: &Value) -> Value {
+    let mut schema = infer_schema(example);
+    if let Value::Object(m) = &mut schema {
+        m.insert(
+            "$schema".into(),
+            "https://json-schema.org/draft/2020-12/schema".into(),
+        );
+        m.insert("title".into(), title.into());
+    }
+    schema
+}
+
+/// The JSON Schema of values shaped like `v`.
+fn infer_schema(v: &Value) -> Value {
+    match v {
+        Value::Null => json!({"type": "null"}),
+        Value::Bool(_) => json!({"type": "boolean"}),
+        Value::Number(n) if n.is_f64() => json!({"type": "number"}),
+        Value::Number(_) => json!({"type": "integer"}),
+        Value::String(_) => json!({"type": "string"}),
+        Value::Array(items) => match items.first() {
+            Some(first) => json!({"type": "array", "items": infer_schema(first)}),
+            None => json!({"type": "array"}),
+        },
+        Value::Object(fields) => {
+            let properties: Map<String, Value> = fields
+                .iter()
+                .map(|(k, v)| (k.clone(), infer_schema(v)))
+                .collect();
+            let required: Vec<&String> = fields.keys().collect();
+            json!({"type": "object", "properties": properties, "required": required})
+        }
+    }
+}
+
+/// Standard base64 (RFC 4648, padded): how JSON carries bytes (`foxglove.RawImage.data`).
+pub fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            *chunk.get(1).unwrap_or(&0),
+            *chunk.get(2).unwrap_or(&0),
+        ];
+        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        for i in 0..4 {
+            if i <= chunk.len() {
+                out.push(ALPHABET[(n >> (18 - 6 * i) & 63) as usize] as char);
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
+/// A `foxglove.RawImage` (JSON encoding) of one frame: `rgb8` or `16UC1` (depth, mm).
+pub fn raw_image_json(frame_id: &str, header: &FrameHeader, pixels: &[u8]) -> Value {
+    let depth = header.format == aeris_schemas::FrameFormat::DepthU16Mm as u8;
+    let (encoding, bpp) = if depth { ("16UC1", 2) } else { ("rgb8", 3) };
+    json!({
+        "timestamp": {
+            "sec": header.capture_ns / 1_000_000_000,
+            "nsec": header.capture_ns % 1_000_000_000,
+        },
+        "frame_id": frame_id,
+        "width": header.width,
+        "height": header.height,
+        "encoding": encoding,
+        "step": header.width * bpp,
+        "data": base64(pixels),
+    })
+}
+
+/// The JSON Schema of [`raw_image_json`].
+pub fn raw_image_schema() -> Value {
+    let h = FrameHeader {
+        width: 1,
+        height: 1,
+        ..FrameHeader::default()
+    };
+    document_schema("foxglove.RawImage", &raw_image_json("camera", &h, &[0; 3]))
+}
+
+fn frame_json(h: &FrameHeader) -> Value {
+    json!({
+        "seq": h.seq, "capture_ns": h.capture_ns, "width": h.width, "height": h.height,
+        "camera_position": h.camera_position, "camera_yaw": h.camera_yaw, "hfov": h.hfov,
+        "format": h.format,
+    })
+}
+
+fn detection_json(d: &Detection) -> Value {
+    json!({
+        "label": d.label.as_str_lossy(), "class_id": d.class_id, "score": d.score,
+        "bbox": d.bbox, "range_m": d.range_m,
+    })
+}
+
+fn cue_json(c: &Cue) -> Value {
+    json!({"text": c.text.as_str_lossy(), "score": c.score})
+}
+
+fn state_json(s: &PerceptionState) -> Value {
+    let dets = &s.detections[..(s.detection_count as usize).min(MAX_DETECTIONS)];
+    let cues = &s.cues[..(s.cue_count as usize).min(MAX_CUES)];
+    let relevance = &s.subgoal_relevance[..(s.relevance_count as usize).min(MAX_SUBGOALS)];
+    json!({
+        "seq": s.seq, "frame_seq": s.frame_seq, "capture_ns": s.capture_ns,
+        "publish_ns": s.publish_ns, "position": s.position, "yaw": s.yaw,
+        "summary": s.summary.as_str_lossy(),
+        "detections": dets.iter().map(detection_json).collect::<Vec<_>>(),
+        "cues": cues.iter().map(cue_json).collect::<Vec<_>>(),
+        "occupancy": {
+            "origin": s.occupancy.origin, "resolution_m": s.occupancy.resolution_m,
+            "status": s.occupancy.status, "cells_base64": base64(&s.occupancy.cells),
+        },
+        "blocks": s.blocks,
+        "subgoal_relevance": relevance,
+    })
+}
+
+fn decision_json(d: &Decision) -> Value {
+    json!({
+        "seq": d.seq, "cycle": d.cycle, "cycle_start_ns": d.cycle_start_ns,
+        "state_stamp_ns": d.state_stamp_ns, "reasoning_start_ns": d.reasoning_start_ns,
+        "publish_ns": d.publish_ns, "target": d.target, "yaw": d.yaw, "speed": d.speed,
+        "altitude": d.altitude, "acceptance_radius": d.acceptance_radius,
+        "confidence": d.confidence, "step": d.step, "action": d.action, "source": d.source,
+    })
+}
+
+fn setpoint_json(s: &BoundSetpoint) -> Value {
+    json!({
+        "seq": s.seq, "decision_seq": s.decision_seq, "publish_ns": s.publish_ns,
+        "position": s.position, "yaw": s.yaw, "speed": s.speed,
+        "acceptance_radius": s.acceptance_radius, "active_step": s.active_step,
+        "mode": s.mode, "reused": s.reused, "clamped": s.clamped,
+    })
+}
+
+fn hub_report_json(r: &HubReport) -> Value {
+    let attention = &r.attention[..usize::from(r.subgoals).min(MAX_SUBGOALS)];
+    json!({
+        "seq": r.seq, "cycle": r.cycle, "publish_ns": r.publish_ns, "ct_ns": r.ct_ns,
+        "stage_ns": r.stage_ns, "committed": r.committed, "reused": r.reused,
+        "clamped": r.clamped, "occupancy": r.occupancy, "active_step": r.active_step,
+        "subgoals": r.subgoals, "attention": attention,
+        "decisions_received": r.decisions_received,
+        "decisions_committed": r.decisions_committed,
+        "decisions_rejected": r.decisions_rejected, "decisions_late": r.decisions_late,
+        "decisions_reused": r.decisions_reused, "sequence_gaps": r.sequence_gaps,
+        "sequence_reorders": r.sequence_reorders, "states_received": r.states_received,
+        "states_rejected": r.states_rejected, "decisions_superseded": r.decisions_superseded,
+        "source_switches": r.source_switches, "decision_source": r.decision_source,
+        "clamp_reasons": r.clamp_reasons,
+    })
+}
+
+fn telemetry_json(t: &VehicleTelemetry) -> Value {
+    json!({
+        "seq": t.seq, "stamp_ns": t.stamp_ns, "autopilot_time_ms": t.autopilot_time_ms,
+        "armed": t.armed, "offboard": t.offboard, "link_up": t.link_up, "landed": t.landed,
+        "position": t.position, "velocity": t.velocity, "attitude": t.attitude,
+        "controller_ticks": t.controller_ticks,
+        "controller_missed_ticks": t.controller_missed_ticks,
+        "setpoints_refused": t.setpoints_refused, "hold_ticks": t.hold_ticks,
+    })
+}
+
+fn lease_json(l: &ControllerLease) -> Value {
+    json!({
+        "epoch": l.epoch, "stamp_ns": l.stamp_ns, "sent": l.sent, "holder_pid": l.holder_pid,
+        "reference": l.reference, "anchor": l.anchor, "hold": l.hold, "hold_yaw": l.hold_yaw,
+        "rank": l.rank, "anchor_mode": l.anchor_mode, "flags": l.flags,
+    })
+}
+
+fn link_json(l: &AutopilotLinkStatus) -> Value {
+    json!({
+        "seq": l.seq, "stamp_ns": l.stamp_ns, "frames": l.frames,
+        "autopilot_frames": l.autopilot_frames, "other_frames": l.other_frames,
+        "v1_refused": l.v1_refused, "unsigned_refused": l.unsigned_refused,
+        "bad_signature_refused": l.bad_signature_refused,
+        "foreign_heartbeats": l.foreign_heartbeats, "commands_refused": l.commands_refused,
+        "losses": l.losses, "timeout_ms": l.timeout_ms,
+        "last_refused_command": l.last_refused_command, "state": l.state,
+        "autopilot": l.autopilot, "system_id": l.system_id, "component_id": l.component_id,
+        "heard_version": l.heard_version, "send_version": l.send_version,
+        "last_refused_result": l.last_refused_result, "other_system_id": l.other_system_id,
+        "other_component_id": l.other_component_id, "foreign_type": l.foreign_type,
+        "foreign_autopilot": l.foreign_autopilot, "signing": l.signing,
+        "url": l.url.as_str_lossy(), "last_refusal": l.last_refusal.as_str_lossy(),
+        "foreign": l.foreign.as_str_lossy(),
+    })
+}
+
+fn heartbeat_json(h: &RoleHeartbeat) -> Value {
+    let stages: Vec<Value> = h
+        .stages
+        .iter()
+        .map(|s| json!({"name": s.name.as_str_lossy(), "ns": s.ns}))
+        .collect();
+    json!({
+        "role": h.role.as_str_lossy(), "variant": h.variant.as_str_lossy(),
+        "executor": h.executor.as_str_lossy(), "pid": h.pid, "status": h.status,
+        "worked": h.worked, "seq": h.seq, "stamp_ns": h.stamp_ns,
+        "cycle_latency_ns": h.cycle_latency_ns, "stages": stages, "counters": h.counters,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_topic_has_a_payload_and_its_json_round_trips_the_bytes() {
+        for topic in topics::ALL {
+            let p = payload_of(topic).unwrap_or_else(|| panic!("{topic} has no payload"));
+            let (size, _) = p.layout();
+            let zeros = vec![0u8; size];
+            assert!(p.to_json(&zeros).is_some(), "{topic}");
+            assert!(
+                p.to_json(&zeros[1..]).is_none(),
+                "{topic}: a short payload is refused"
+            );
+            assert!(p.type_name().ends_with(&format!("@s{SCHEMA_VERSION}")));
+            let schema = p.json_schema();
+            assert_eq!(schema["type"], "object", "{topic}");
+        }
+    }
+
+    #[test]
+    fn the_state_schema_describes_its_lists_items() {
+        let s = Payload::State.json_schema();
+        assert_eq!(s["properties"]["detections"]["items"]["type"], "object");
+        assert_eq!(s["properties"]["seq"]["type"], "integer");
+        assert_eq!(s["properties"]["yaw"]["type"], "number");
+    }
+
+    #[test]
+    fn base64_matches_rfc_4648() {
+        assert_eq!(base64(b""), "");
+        assert_eq!(base64(b"f"), "Zg==");
+        assert_eq!(base64(b"fo"), "Zm8=");
+        assert_eq!(base64(b"foo"), "Zm9v");
+        assert_eq!(base64(b"foobar"), "Zm9vYmFy");
+    }
+
+    #[test]
+    fn stamps_come_from_the_payload() {
+        let d = Decision {
+            publish_ns: 42,
+            ..Decision::default()
+        };
+        assert_eq!(Payload::Decision.stamp_ns(bytes_of(&d)), Some(42));
+    }
+}

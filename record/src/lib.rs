@@ -1,0 +1,359 @@
+//! # aeris-record
+//!
+//! The flight recorder (kind `recorder`, variant `mcap`): a role process like the others,
+//! subscribed to every topic of the flight, that writes what it sees into an MCAP file.
+//!
+//! - Every typed message goes on two channels: `TOPIC` (message encoding `json`, schema
+//!   encoding `jsonschema`, see [`codec`]) and `TOPIC/raw` (message encoding `aeris-raw`:
+//!   the exact shared-memory bytes; schema named by the iceoryx2 type name, `aeris::X@sN`,
+//!   with the schema version, layout hash, size and alignment as its data), so a replay can
+//!   be bit-exact and refuses bytes of another layout.
+//! - Frames: the header on `TOPIC` and `TOPIC/raw`; every `params.frame_every`-th frame
+//!   (default [`DEFAULT_FRAME_EVERY`], 0 = none) also as a `foxglove.RawImage` on
+//!   `TOPIC/image` (`rgb8`, or `16UC1` for depth).
+//! - Log and publish time: the message's own capture or publish stamp, CLOCK_MONOTONIC ns.
+//!
+//! It never slows the flight: its subscribers have bounded buffers that overwrite (no
+//! publisher waits on it), its cycle only copies samples into preallocated slots, and a
+//! writer thread does the JSON and the disk ([`writer`]). No free slot: the sample is
+//! dropped and counted. A file that cannot be created or written (disk full): one error
+//! line, status `Degraded`, recording stops, the role keeps running, the flight goes on
+//! (a file-size limit, RLIMIT_FSIZE, too: SIGXFSZ is ignored, so the write fails instead).
+//!
+//! Files: `params.path`; when it exists already (a restarted recorder, after a crash or
+//! SIGKILL), the next free `PATH.1`, `PATH.2`, ...: a restart never touches the file of an
+//! earlier process, which stays readable up to its last complete chunk.
+//!
+//! Parameters: `path` (required), `frame_every`, `topics` (default: every topic),
+//! `period_ms` (drain period, default 10), `slots` (typed queue slots, default 4096).
+//! Heartbeat counters: `[messages written, samples dropped, bytes written, failed (0/1),
+//! samples received, file index (0 = PATH, n = PATH.n), 0, 0]`.
+
+#![deny(missing_docs)]
+
+pub mod codec;
+pub mod writer;
+
+use aeris_runtime::bus::{BusError, FrameSubscriber, TypedSubscriber};
+use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::{
+    AutopilotLinkStatus, BoundSetpoint, ControllerLease, Decision, HubReport, PerceptionState,
+    RoleHeartbeat, RoleStatus, VehicleTelemetry, ZeroCopySend, topics,
+};
+use codec::{Payload, bytes_of, payload_of};
+use core::fmt::Debug;
+use core::time::Duration;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::thread::JoinHandle;
+use writer::{Counters, Queue, Slot, SlotKind, take};
+
+/// Default: every 5th frame's pixels are recorded as an image.
+pub const DEFAULT_FRAME_EVERY: u64 = 5;
+/// Default number of typed queue slots.
+pub const DEFAULT_SLOTS: usize = 4096;
+/// Image queue slots.
+pub const IMAGE_SLOTS: usize = 8;
+
+/// Heartbeat counter indices.
+pub mod counter {
+    /// MCAP messages written.
+    pub const MESSAGES: usize = 0;
+    /// Samples dropped (queue full, or recording stopped).
+    pub const DROPPED: usize = 1;
+    /// Bytes of message data written.
+    pub const BYTES: usize = 2;
+    /// 1 once writing failed.
+    pub const FAILED: usize = 3;
+    /// Samples received from the bus.
+    pub const RECEIVED: usize = 4;
+    /// Which file: 0 = `path`, n = `path.n`.
+    pub const FILE_INDEX: usize = 5;
+}
+
+/// The file a recorder process writes: `path` when free, else the first free `path.N`.
+pub fn next_free_path(path: &Path) -> (PathBuf, u64) {
+    if !path.exists() {
+        return (path.to_path_buf(), 0);
+    }
+    let mut n = 1u64;
+    loop {
+        let mut name = path.as_os_str().to_owned();
+        name.push(format!(".{n}"));
+        let candidate = PathBuf::from(name);
+        if !candidate.exists() {
+            return (candidate, n);
+        }
+        n += 1;
+    }
+}
+
+/// Every file a recording at `path` has: `path`, then `path.1`, `path.2`, ... while they
+/// exist (one per recorder process of the flight).
+pub fn recording_files(path: &Path) -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    if path.exists() {
+        files.push(path.to_path_buf());
+    }
+    for n in 1.. {
+        let mut name = path.as_os_str().to_owned();
+        name.push(format!(".{n}"));
+        let p = PathBuf::from(name);
+        if !p.exists() {
+            break;
+        }
+        files.push(p);
+    }
+    files
+}
+
+/// A subscriber whose next sample the recorder copies as bytes.
+trait RawSource {
+    /// Copy the next sample, if any, into `f`; `false` when the buffer is empty.
+    fn next_raw(&self, f: &mut dyn FnMut(&[u8])) -> Result<bool, BusError>;
+}
+
+impl<T: Debug + ZeroCopySend + Copy + 'static> RawSource for TypedSubscriber<T> {
+    fn next_raw(&self, f: &mut dyn FnMut(&[u8])) -> Result<bool, BusError> {
+        match self.next_sample()? {
+            Some(sample) => {
+                f(bytes_of(sample.payload()));
+                Ok(true)
+            }
+            None => Ok(false),
+        }
+    }
+}
+
+enum Source {
+    Typed(Box<dyn RawSource>),
+    Frames { sub: FrameSubscriber, seen: u64 },
+}
+
+struct Input {
+    payload: Payload,
+    source: Source,
+}
+
+/// The recorder role (kind `recorder`, variant `mcap`).
+pub struct RecorderRole {
+    inputs: Vec<Input>,
+    queue: Option<Queue>,
+    writer: Option<JoinHandle<()>>,
+    counters: Arc<Counters>,
+    frame_every: u64,
+    period: Duration,
+    dropped: u64,
+    received: u64,
+    file_index: u64,
+}
+
+fn subscribe(ctx: &RoleContext, topic: &str, payload: Payload) -> Result<Source, BusError> {
+    let bus = &ctx.bus;
+    let boxed = |s: Box<dyn RawSource>| Source::Typed(s);
+    Ok(match payload {
+        Payload::Frame => Source::Frames {
+            sub: bus.frame_subscriber(topic)?,
+            seen: 0,
+        },
+        Payload::State => boxed(Box::new(bus.subscriber::<PerceptionState>(topic)?)),
+        Payload::Decision => boxed(Box::new(bus.subscriber::<Decision>(topic)?)),
+        Payload::Setpoint => boxed(Box::new(bus.subscriber::<BoundSetpoint>(topic)?)),
+        Payload::HubReport => boxed(Box::new(bus.subscriber::<HubReport>(topic)?)),
+        Payload::Telemetry => boxed(Box::new(bus.subscriber::<VehicleTelemetry>(topic)?)),
+        Payload::Lease => boxed(Box::new(bus.subscriber::<ControllerLease>(topic)?)),
+        Payload::Link => boxed(Box::new(bus.subscriber::<AutopilotLinkStatus>(topic)?)),
+        Payload::Heartbeat => boxed(Box::new(bus.subscriber::<RoleHeartbeat>(topic)?)),
+    })
+}
+
+impl Role for RecorderRole {
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+        let spec = &ctx.spec;
+        let path = spec
+            .param_str("path")
+            .ok_or_else(|| RoleError::Config("recorder: params.path is required".into()))?;
+        let topic_names: Vec<String> = match spec.params.get("topics") {
+            None => topics::ALL.iter().map(|t| t.to_string()).collect(),
+            Some(v) => serde_json::from_value(v.clone()).map_err(|e| {
+                RoleError::Config(format!(
+                    "recorder: params.topics is not a list of topics: {e}"
+                ))
+            })?,
+        };
+        let mut topics_in = Vec::with_capacity(topic_names.len());
+        for t in topic_names {
+            let payload = payload_of(&t).ok_or_else(|| {
+                RoleError::Config(format!("recorder: params.topics names unknown topic `{t}`"))
+            })?;
+            topics_in.push((t, payload));
+        }
+        let frame_every = match spec.params.get("frame_every") {
+            None => DEFAULT_FRAME_EVERY,
+            Some(v) => v.as_u64().ok_or_else(|| {
+                RoleError::Config(format!(
+                    "recorder: params.frame_every = {v} is not a whole number of frames"
+                ))
+            })?,
+        };
+        let period = Duration::from_millis(spec.param_f64("period_ms").unwrap_or(10.0) as u64)
+            .max(Duration::from_millis(1));
+        let slots = spec
+            .param_f64("slots")
+            .map_or(DEFAULT_SLOTS, |s| s.max(1.0) as usize);
+        let typed_bytes = topics_in
+            .iter()
+            .map(|(_, p)| p.layout().0)
+            .max()
+            .unwrap_or(0);
+        let image_bytes = spec.camera.width as usize * spec.camera.height as usize * 3;
+        let mut inputs = Vec::with_capacity(topics_in.len());
+        for (t, payload) in &topics_in {
+            inputs.push(Input {
+                payload: *payload,
+                source: subscribe(ctx, t, *payload)?,
+            });
+        }
+        // past a file-size limit (RLIMIT_FSIZE) a write fails with EFBIG instead of the
+        // kernel killing the process: the recorder reports it like a full disk
+        // SAFETY: signal() with a valid signal number and SIG_IGN has no preconditions.
+        unsafe { libc::signal(libc::SIGXFSZ, libc::SIG_IGN) };
+        let (path, file_index) = next_free_path(Path::new(path));
+        let counters = Arc::new(Counters::default());
+        let images = if frame_every > 0 { IMAGE_SLOTS } else { 0 };
+        let (queue, writer) = match writer::start(
+            &path,
+            &topics_in,
+            (slots, typed_bytes),
+            (images, image_bytes),
+            counters.clone(),
+        ) {
+            Ok((q, w)) => (Some(q), Some(w)),
+            Err(e) => {
+                // the flight goes on without a recording: say so once, report Degraded
+                eprintln!(
+                    "recorder: {}; recording stopped, the flight goes on",
+                    aeris_runtime::error_chain::chain(&e)
+                );
+                counters.failed.store(true, Ordering::SeqCst);
+                (None, None)
+            }
+        };
+        if queue.is_some() {
+            eprintln!("recorder: recording to {}", path.display());
+        }
+        Ok(Self {
+            inputs,
+            queue,
+            writer,
+            counters,
+            frame_every,
+            period,
+            dropped: 0,
+            received: 0,
+            file_index,
+        })
+    }
+
+    fn period(&self) -> Duration {
+        self.period
+    }
+
+    fn cycle(
+        &mut self,
+        _ctx: &mut RoleContext,
+        report: &mut CycleReport,
+    ) -> Result<CycleOutcome, RoleError> {
+        let failed = self.counters.failed.load(Ordering::SeqCst);
+        let mut got = 0u64;
+        let mut dropped = 0u64;
+        for (index, input) in self.inputs.iter_mut().enumerate() {
+            let payload = input.payload;
+            match &mut input.source {
+                Source::Typed(sub) => loop {
+                    let mut push = |bytes: &[u8]| {
+                        got += 1;
+                        match self.queue.as_ref().filter(|_| !failed) {
+                            Some(q) => match take(&q.free_typed) {
+                                Some(slot) => enqueue_typed(q, slot, index, payload, bytes),
+                                None => dropped += 1,
+                            },
+                            None => dropped += 1,
+                        }
+                    };
+                    if !sub.next_raw(&mut push)? {
+                        break;
+                    }
+                },
+                Source::Frames { sub, seen } => {
+                    while let Some(frame) = sub.next()? {
+                        got += 1;
+                        *seen += 1;
+                        let Some(q) = self.queue.as_ref().filter(|_| !failed) else {
+                            dropped += 1;
+                            continue;
+                        };
+                        let header = frame.user_header();
+                        match take(&q.free_typed) {
+                            Some(slot) => enqueue_typed(q, slot, index, payload, bytes_of(header)),
+                            None => dropped += 1,
+                        }
+                        if self.frame_every > 0 && (*seen - 1) % self.frame_every == 0 {
+                            match take(&q.free_images) {
+                                Some(mut slot) => {
+                                    slot.topic = index;
+                                    slot.kind = SlotKind::Image;
+                                    slot.stamp_ns = header.capture_ns;
+                                    slot.bytes.clear();
+                                    slot.bytes.extend_from_slice(frame.payload());
+                                    slot.header.clear();
+                                    slot.header.extend_from_slice(bytes_of(header));
+                                    let _ = q.filled.try_send(slot);
+                                }
+                                None => dropped += 1,
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        self.received += got;
+        self.dropped += dropped;
+        let failed = self.counters.failed.load(Ordering::SeqCst);
+        report.counters[counter::MESSAGES] = self.counters.messages.load(Ordering::Relaxed);
+        report.counters[counter::DROPPED] = self.dropped;
+        report.counters[counter::BYTES] = self.counters.bytes.load(Ordering::Relaxed);
+        report.counters[counter::FAILED] = u64::from(failed);
+        report.counters[counter::RECEIVED] = self.received;
+        report.counters[counter::FILE_INDEX] = self.file_index;
+        report.status = if failed {
+            RoleStatus::Degraded
+        } else {
+            RoleStatus::Running
+        };
+        Ok(if got > 0 {
+            CycleOutcome::Worked
+        } else {
+            CycleOutcome::Idle
+        })
+    }
+
+    fn shutdown(&mut self, _ctx: &mut RoleContext) {
+        // closing the queue lets the writer write what is queued and finish the file
+        self.queue = None;
+        if let Some(w) = self.writer.take() {
+            let _ = w.join();
+        }
+    }
+}
+
+/// Copy `bytes` into `slot` and queue it (the queue holds every slot: never full).
+fn enqueue_typed(q: &Queue, mut slot: Slot, topic: usize, payload: Payload, bytes: &[u8]) {
+    slot.topic = topic;
+    slot.kind = SlotKind::Typed;
+    slot.stamp_ns = payload.stamp_ns(bytes).unwrap_or(0);
+    slot.bytes.clear();
+    slot.bytes.extend_from_slice(bytes);
+    let _ = q.filled.try_send(slot);
+}

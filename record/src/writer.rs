@@ -1,0 +1,332 @@
+//! The recorder's queue and its writer thread.
+//!
+//! The role's drain loop never waits on the disk: it takes a preallocated [`Slot`] from a
+//! free list, copies a sample into it and hands it to the writer thread; with no free slot
+//! the sample is dropped and counted. The writer thread turns slots into MCAP messages
+//! (JSON and raw bytes), gives the slots back, and ends every chunk at least every
+//! [`FLUSH_EVERY`] so a killed recorder leaves a file readable up to its last chunk.
+
+use crate::codec::{Payload, raw_image_json, raw_image_schema};
+use mcap::records::MessageHeader;
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// Longest time a written message waits in an open chunk.
+pub const FLUSH_EVERY: Duration = Duration::from_millis(250);
+/// Chunk size (bytes): small, so chunks end often even without [`FLUSH_EVERY`].
+pub const CHUNK_SIZE: u64 = 64 * 1024;
+
+/// What a slot holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SlotKind {
+    /// A typed payload (or a frame header): JSON and raw channels.
+    Typed,
+    /// A frame's pixels, with its header in `header`: the image channel.
+    Image,
+}
+
+/// One queued sample; its buffer is allocated once and reused.
+#[derive(Debug)]
+pub struct Slot {
+    /// Index of the topic in the recorder's topic list.
+    pub topic: usize,
+    /// What it holds.
+    pub kind: SlotKind,
+    /// Log time (CLOCK_MONOTONIC ns).
+    pub stamp_ns: u64,
+    /// The payload bytes (pixels, for an image).
+    pub bytes: Vec<u8>,
+    /// The frame header bytes, for an image.
+    pub header: Vec<u8>,
+}
+
+impl Slot {
+    fn with_capacity(bytes: usize, header: usize) -> Self {
+        Self {
+            topic: 0,
+            kind: SlotKind::Typed,
+            stamp_ns: 0,
+            bytes: Vec::with_capacity(bytes),
+            header: Vec::with_capacity(header),
+        }
+    }
+}
+
+/// Counters the writer thread and the role share (the role's heartbeat reports them).
+#[derive(Debug, Default)]
+pub struct Counters {
+    /// MCAP messages written.
+    pub messages: AtomicU64,
+    /// Bytes of message data written.
+    pub bytes: AtomicU64,
+    /// The writer failed: recording stopped (the flight goes on).
+    pub failed: AtomicBool,
+}
+
+/// Why a recording cannot be written.
+#[derive(Debug, thiserror::Error)]
+pub enum WriteError {
+    /// The file could not be created.
+    #[error("creating {}", path.display())]
+    Create {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The MCAP writer failed (a full or vanished disk).
+    #[error("writing {}", path.display())]
+    Mcap {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: mcap::McapError,
+    },
+}
+
+/// One topic's channels in the file.
+struct Channels {
+    payload: Payload,
+    json: u16,
+    raw: u16,
+    image: Option<u16>,
+    sequence: u32,
+}
+
+/// The pools of free slots and the queue to the writer.
+pub struct Queue {
+    /// Free typed slots.
+    pub free_typed: Receiver<Slot>,
+    /// Free image slots.
+    pub free_images: Receiver<Slot>,
+    /// Filled slots to the writer (never full: it holds every slot there is).
+    pub filled: SyncSender<Slot>,
+}
+
+/// Start the writer thread on a new MCAP file at `path` recording `topics` (each with its
+/// payload). `typed_slots` of `typed_bytes` and `image_slots` of `image_bytes` are
+/// allocated now.
+pub fn start(
+    path: &Path,
+    topics: &[(String, Payload)],
+    typed: (usize, usize),
+    images: (usize, usize),
+    counters: Arc<Counters>,
+) -> Result<(Queue, JoinHandle<()>), WriteError> {
+    let file = File::create(path).map_err(|source| WriteError::Create {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mcap_err = |source| WriteError::Mcap {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut out = mcap::WriteOptions::new()
+        .compression(None)
+        .chunk_size(Some(CHUNK_SIZE))
+        .profile("")
+        .library(concat!("aeris-record ", env!("CARGO_PKG_VERSION")))
+        .create(BufWriter::new(file))
+        .map_err(mcap_err)?;
+    let mut channels = Vec::with_capacity(topics.len());
+    let none = BTreeMap::new();
+    let image_schema = raw_image_schema().to_string();
+    for (topic, payload) in topics {
+        let json_schema = payload.json_schema().to_string();
+        let sid = out
+            .add_schema(
+                &payload.json_schema_name(),
+                "jsonschema",
+                json_schema.as_bytes(),
+            )
+            .map_err(mcap_err)?;
+        let json = out
+            .add_channel(sid, topic, "json", &none)
+            .map_err(mcap_err)?;
+        let raw_schema = payload.raw_schema().to_string();
+        let rid = out
+            .add_schema(payload.type_name(), "aeris-layout", raw_schema.as_bytes())
+            .map_err(mcap_err)?;
+        let raw = out
+            .add_channel(rid, &format!("{topic}/raw"), "aeris-raw", &none)
+            .map_err(mcap_err)?;
+        let image = if *payload == Payload::Frame {
+            let iid = out
+                .add_schema("foxglove.RawImage", "jsonschema", image_schema.as_bytes())
+                .map_err(mcap_err)?;
+            Some(
+                out.add_channel(iid, &format!("{topic}/image"), "json", &none)
+                    .map_err(mcap_err)?,
+            )
+        } else {
+            None
+        };
+        channels.push(Channels {
+            payload: *payload,
+            json,
+            raw,
+            image,
+            sequence: 0,
+        });
+    }
+    out.flush().map_err(mcap_err)?;
+
+    let (free_typed_tx, free_typed) = std::sync::mpsc::sync_channel(typed.0);
+    let (free_images_tx, free_images) = std::sync::mpsc::sync_channel(images.0);
+    let (filled, filled_rx) = std::sync::mpsc::sync_channel(typed.0 + images.0);
+    for _ in 0..typed.0 {
+        let _ = free_typed_tx.send(Slot::with_capacity(typed.1, 0));
+    }
+    for _ in 0..images.0 {
+        let _ = free_images_tx.send(Slot::with_capacity(images.1, typed.1));
+    }
+    let mut thread = WriterThread {
+        path: path.to_path_buf(),
+        out,
+        channels,
+        topics: topics.iter().map(|(t, _)| t.clone()).collect(),
+        counters,
+        free_typed: free_typed_tx,
+        free_images: free_images_tx,
+    };
+    let handle = std::thread::Builder::new()
+        .name("recorder writer".into())
+        .spawn(move || thread.run(filled_rx))
+        .map_err(|source| WriteError::Create {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    Ok((
+        Queue {
+            free_typed,
+            free_images,
+            filled,
+        },
+        handle,
+    ))
+}
+
+struct WriterThread {
+    path: PathBuf,
+    out: mcap::Writer<BufWriter<File>>,
+    channels: Vec<Channels>,
+    topics: Vec<String>,
+    counters: Arc<Counters>,
+    free_typed: SyncSender<Slot>,
+    free_images: SyncSender<Slot>,
+}
+
+impl WriterThread {
+    /// Write until every sender is gone (the role stopped), then finish the file; on the
+    /// first failure say so once, mark the counters failed and stop writing.
+    fn run(&mut self, filled: Receiver<Slot>) {
+        let mut last_flush = Instant::now();
+        let result = loop {
+            let slot = match filled.recv_timeout(FLUSH_EVERY) {
+                Ok(slot) => Some(slot),
+                Err(RecvTimeoutError::Timeout) => None,
+                Err(RecvTimeoutError::Disconnected) => break self.out.finish().map(|_| ()),
+            };
+            if let Some(slot) = slot {
+                let written = self.write(&slot);
+                let pool = match slot.kind {
+                    SlotKind::Typed => &self.free_typed,
+                    SlotKind::Image => &self.free_images,
+                };
+                // the role may be gone already: a slot with nowhere to go is just freed
+                let _ = pool.try_send(slot);
+                if let Err(e) = written {
+                    break Err(e);
+                }
+            }
+            if last_flush.elapsed() >= FLUSH_EVERY {
+                last_flush = Instant::now();
+                if let Err(e) = self.out.flush() {
+                    break Err(e);
+                }
+            }
+        };
+        if let Err(source) = result {
+            self.counters.failed.store(true, Ordering::SeqCst);
+            let e = WriteError::Mcap {
+                path: self.path.clone(),
+                source,
+            };
+            eprintln!(
+                "recorder: {}; recording stopped, the flight goes on",
+                aeris_runtime::error_chain::chain(&e)
+            );
+            // keep returning slots so the role's drain loop sees a steady state, not a leak
+            while let Ok(slot) = filled.recv() {
+                let pool = match slot.kind {
+                    SlotKind::Typed => &self.free_typed,
+                    SlotKind::Image => &self.free_images,
+                };
+                let _ = pool.try_send(slot);
+            }
+        }
+    }
+
+    fn write(&mut self, slot: &Slot) -> Result<(), mcap::McapError> {
+        let ch = &mut self.channels[slot.topic];
+        let mut put = |out: &mut mcap::Writer<BufWriter<File>>, channel_id, data: &[u8]| {
+            ch.sequence = ch.sequence.wrapping_add(1);
+            let header = MessageHeader {
+                channel_id,
+                sequence: ch.sequence,
+                log_time: slot.stamp_ns,
+                publish_time: slot.stamp_ns,
+            };
+            out.write_to_known_channel(&header, data)?;
+            self.counters.messages.fetch_add(1, Ordering::Relaxed);
+            self.counters
+                .bytes
+                .fetch_add(data.len() as u64, Ordering::Relaxed);
+            Ok::<(), mcap::McapError>(())
+        };
+        match slot.kind {
+            SlotKind::Typed => {
+                let json = ch.payload.to_json(&slot.bytes).unwrap_or(Value::Null);
+                let text = json.to_string();
+                let (json_id, raw_id) = (ch.json, ch.raw);
+                put(&mut self.out, json_id, text.as_bytes())?;
+                put(&mut self.out, raw_id, &slot.bytes)?;
+            }
+            SlotKind::Image => {
+                let Some(image_id) = ch.image else {
+                    return Ok(());
+                };
+                let Some(header) = read_header(&slot.header) else {
+                    return Ok(());
+                };
+                let image = raw_image_json(&self.topics[slot.topic], &header, &slot.bytes);
+                put(&mut self.out, image_id, image.to_string().as_bytes())?;
+            }
+        }
+        Ok(())
+    }
+}
+
+fn read_header(bytes: &[u8]) -> Option<aeris_schemas::FrameHeader> {
+    (bytes.len() == size_of::<aeris_schemas::FrameHeader>())
+        // SAFETY: the length is that of the header, a plain `#[repr(C)]` type of integers
+        // and floats; the read is unaligned-safe.
+        .then(|| unsafe {
+            core::ptr::read_unaligned(bytes.as_ptr().cast::<aeris_schemas::FrameHeader>())
+        })
+}
+
+/// A free slot of `pool`, if any (none: the sample is dropped).
+pub fn take(pool: &Receiver<Slot>) -> Option<Slot> {
+    pool.try_recv().ok()
+}
