@@ -99,7 +99,9 @@ fn print_supervisor_event(event: &SupervisorEvent) {
         | SupervisorEvent::ServiceLost { .. }
         | SupervisorEvent::VariantStepped { .. }
         | SupervisorEvent::BindingProbed { .. }
-        | SupervisorEvent::InitialBinding { .. } => eprintln!("aeris: {event}"),
+        | SupervisorEvent::InitialBinding { .. }
+        | SupervisorEvent::RoleDegraded { .. }
+        | SupervisorEvent::RoleRecovered { .. } => eprintln!("aeris: {event}"),
         _ => {}
     }
 }

@@ -134,6 +134,12 @@ fn the_default_mission_flies_on_decoded_video_from_a_following_transmitter() {
     let camera_log = run_logs_tail(&dir.0, 200);
     assert!(camera_log.contains("`pipeline` stalled"), "{camera_log}");
     assert!(camera_log.contains("`pipeline` resumed"), "{camera_log}");
+    // and the flight says so as it happens
+    assert!(
+        stderr.contains("role `camera` is degraded")
+            && stderr.contains("role `camera` runs normally again"),
+        "{stderr}"
+    );
     // the second transmitter ends with its flight and says how many frames it rendered at
     // the vehicle's pose
     let mut tx = tx.expect("the second transmitter");

@@ -47,6 +47,17 @@ pub enum SupervisorEvent {
         /// Role name.
         name: String,
     },
+    /// The role's heartbeat says it is degraded (working, but something is wrong: a camera
+    /// whose stream failed or stalled, a recorder that cannot write); its log says what.
+    RoleDegraded {
+        /// Role name.
+        name: String,
+    },
+    /// A degraded role's heartbeat says it is running normally again.
+    RoleRecovered {
+        /// Role name.
+        name: String,
+    },
     /// A hot swap started the new process; the old one keeps running.
     SwapStarted {
         /// Role name.
@@ -223,6 +234,12 @@ impl core::fmt::Display for SupervisorEvent {
             }
             SupervisorEvent::FirstHeartbeat { name } => {
                 write!(f, "role `{name}` is alive (first heartbeat)")
+            }
+            SupervisorEvent::RoleDegraded { name } => {
+                write!(f, "role `{name}` is degraded (its log says why)")
+            }
+            SupervisorEvent::RoleRecovered { name } => {
+                write!(f, "role `{name}` runs normally again")
             }
             SupervisorEvent::SwapStarted {
                 name,

@@ -72,6 +72,24 @@ impl HeartbeatIntake {
             if role.old_pids.contains(&hb.pid) {
                 continue; // late heartbeat of a process that already exited
             }
+            // a process that turns degraded, or back: an event each way
+            let was_degraded = role
+                .last_heartbeat
+                .filter(|l| l.pid == hb.pid)
+                .is_some_and(|l| l.status == RoleStatus::Degraded as u8);
+            match status {
+                RoleStatus::Degraded if !was_degraded => {
+                    events.push(SupervisorEvent::RoleDegraded {
+                        name: role.name.clone(),
+                    });
+                }
+                RoleStatus::Running if was_degraded => {
+                    events.push(SupervisorEvent::RoleRecovered {
+                        name: role.name.clone(),
+                    });
+                }
+                _ => {}
+            }
             if role.record(&hb, status) {
                 events.push(SupervisorEvent::FirstHeartbeat {
                     name: role.name.clone(),
