@@ -6,7 +6,9 @@
 //! killed): the camera reports the stall (`degraded`) and the flight goes on; a new
 //! transmitter restores the video and the camera publishes again without a restart. The
 //! flight must reach its goal with no setpoint refused and no role restarted, and the
-//! transmitter must have rendered at the vehicle's pose.
+//! transmitter must have rendered at the vehicle's pose. A second flight replaces the
+//! geometric perception (which needs depth) by RGB-only roles, so S_t itself is built
+//! from the decoded video.
 
 use aeris_runtime::FlightBus;
 use aeris_schemas::{RoleHeartbeat, RoleStatus, topics};
@@ -159,5 +161,125 @@ fn the_default_mission_flies_on_decoded_video_from_a_following_transmitter() {
     assert!(
         posed > 0,
         "no frame rendered at the vehicle's pose: {tx_stdout}"
+    );
+}
+
+/// The model perception on the decoded stream: the geometric perception (which needs depth)
+/// is replaced by roles that read RGB alone, the PP-OCR text reader and the palette detector,
+/// joined by compose; S_t is built from the decoded frames (text or detections in it, its
+/// occupancy absent), the hub gates every commit without occupancy, and the mission reaches
+/// its goal.
+#[test]
+fn rgb_perception_builds_s_t_from_the_decoded_video_and_the_mission_reaches_its_goal() {
+    let dir = TempDir::new("flight-video-rgb");
+    let flight = unique_flight("flight-video-rgb");
+    let port = free_udp_port();
+    let mut workflow = default_workflow();
+    set_variant(&mut workflow, "camera", "gstreamer");
+    let pipeline = format!(
+        "udpsrc port={port} caps=\"application/x-rtp,media=video,clock-rate=90000,\
+         encoding-name=H264,payload=96\" ! rtph264depay ! avdec_h264 ! appsink sync=false"
+    );
+    let roles = workflow["roles"].as_array_mut().unwrap();
+    roles.retain(|r| r.get("name").and_then(|n| n.as_str()) != Some("perception"));
+    let camera = roles
+        .iter_mut()
+        .filter_map(|r| r.as_table_mut())
+        .find(|r| r.get("name").and_then(|n| n.as_str()) == Some("camera"))
+        .unwrap();
+    let mut params = toml::Table::new();
+    params.insert("pipeline".into(), toml::Value::String(pipeline));
+    camera.insert("params".into(), toml::Value::Table(params));
+    for (name, kind, variant) in [
+        ("text", "text-reader", "ppocr"),
+        ("detector", "detector", "palette"),
+        ("scene", "image-to-text", "compose"),
+    ] {
+        let mut role = toml::Table::new();
+        role.insert("name".into(), name.into());
+        role.insert("kind".into(), kind.into());
+        role.insert("variant".into(), variant.into());
+        role.insert("executor".into(), "perception".into());
+        if kind == "image-to-text" {
+            // the blocks there are: text and detections (no depth, so no occupancy)
+            let topics = vec![
+                toml::Value::from("perception/text"),
+                toml::Value::from("perception/detections"),
+            ];
+            role.insert("subscribes".into(), toml::Value::Array(topics));
+        }
+        roles.push(toml::Value::Table(role));
+    }
+    let path = write_workflow(&dir.0, "video-rgb", &workflow);
+    let mut run = spawn_run(&dir.0, &flight, &[path.to_str().unwrap()]);
+    let _tx = ChildGuard::spawn(
+        Command::new(aeris_bin())
+            .args(["scene", "video", "village", "--follow", &flight])
+            .arg("--udp")
+            .arg(format!("127.0.0.1:{port}"))
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null()),
+    )
+    .unwrap();
+    let observer = poll_until(Duration::from_secs(120), || {
+        aeris_runtime::bus::list_flights()
+            .contains(&flight)
+            .then(|| {
+                FlightBus::builder(&flight)
+                    .node_name("test-observer")
+                    .create()
+                    .ok()
+            })
+            .flatten()
+    })
+    .expect("the flight starts");
+    let states = observer
+        .subscriber::<aeris_schemas::PerceptionState>(topics::PERCEPTION_STATE)
+        .unwrap();
+    let (mut seen, mut with_content, mut with_occupancy) = (0u64, 0u64, 0u64);
+    let start = std::time::Instant::now();
+    let status = loop {
+        states
+            .drain(|s| {
+                seen += 1;
+                let blocks = aeris_schemas::block::TEXT | aeris_schemas::block::DETECTIONS;
+                if s.frame_seq > 0
+                    && s.blocks & blocks != 0
+                    && (s.detection_count > 0 || !s.summary.is_empty())
+                {
+                    with_content += 1;
+                }
+                if s.occupancy.is_present() {
+                    with_occupancy += 1;
+                }
+            })
+            .unwrap();
+        if let Ok(Some(s)) = run.0.try_wait() {
+            break Some(s);
+        }
+        if start.elapsed() > FLIGHT_BOUND {
+            break None;
+        }
+        // polling interval of the state reader, not a synchronisation
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    let (stdout, stderr) = run_output(&dir.0);
+    let status = status.unwrap_or_else(|| panic!("flight did not finish\n{stderr}"));
+    let logs = run_logs_tail(&dir.0, 20);
+    assert!(
+        status.success(),
+        "aeris run failed: {status}\n{stderr}\n{logs}"
+    );
+    let summary = last_json_line(&stdout);
+    assert_eq!(summary["reached_goal"], true, "{summary}\n{logs}");
+    assert!(
+        with_content > 0,
+        "no S_t with text or detections from the decoded video ({seen} seen)\n{logs}"
+    );
+    assert_eq!(with_occupancy, 0, "no depth, so no occupancy");
+    assert!(
+        summary["commits_without_occupancy"].as_u64().unwrap_or(0) > 0,
+        "{summary}"
     );
 }
