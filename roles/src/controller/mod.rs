@@ -12,9 +12,11 @@
 //! The link is watched: every tick the lease holder publishes an [`AutopilotLinkStatus`]
 //! on `controller/link` (waiting, up, silent, lost; frames heard by kind; MAVLink 1 frames
 //! refused; the last command the autopilot refused and its MAV_RESULT). No autopilot
-//! HEARTBEAT within `link_timeout_ms` of the start is a silent link (the flight ends on
-//! it, naming the URL and what was heard); none for `link_timeout_ms` after the last is a
-//! lost one (an event; the flight goes on and the autopilot's own failsafe acts).
+//! HEARTBEAT within `link_timeout_ms` of taking the lease is a silent link (the flight
+//! ends on it, naming the URL and what was heard); none for `link_timeout_ms` after the
+//! last (or after taking the lease) is a lost one (an event; the flight goes on and the
+//! autopilot's own failsafe acts). A standby's link is not judged: an autopilot answers
+//! whoever sends to it, so a standby may hear it only once it holds the lease.
 //!
 //! Parameters (`params` of the [`RoleSpec`]):
 //! - `autopilot`: MAVLink URL of the autopilot (`udpin:`, `udpout:`, `tcpout:`, `tcpin:`,

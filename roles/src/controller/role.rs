@@ -101,6 +101,8 @@ pub struct ControllerRole {
     link_timeout_ns: u64,
     link_state: LinkState,
     link_losses: u64,
+    /// When this process last took the autopilot lease (`None`: never held it).
+    term_start_ns: Option<u64>,
     url: FixedText<{ aeris_schemas::LINK_URL_MAX }>,
     setpoints: TypedSubscriber<BoundSetpoint>,
     telemetry: TypedPublisher<VehicleTelemetry>,
@@ -224,10 +226,16 @@ impl ControllerRole {
                 );
             }
         }
+        // Only the holder's link is judged: an autopilot answers whoever sends to it, so a
+        // standby's own link may hear nothing until it takes over. The clock starts when
+        // this process took the lease, and a heartbeat heard before that counts from then.
+        let Some(term_start) = self.term_start_ns.filter(|_| self.arbiter.is_active()) else {
+            return Ok(());
+        };
         let state = link_state(
             now_ns,
-            self.start_ns,
-            self.ap_cache.last_heartbeat_ns,
+            term_start,
+            self.ap_cache.last_heartbeat_ns.map(|t| t.max(term_start)),
             self.link_timeout_ns,
         );
         if state != self.link_state {
@@ -240,9 +248,6 @@ impl ControllerRole {
                 self.url.as_str_lossy()
             );
             self.link_state = state;
-        }
-        if !self.arbiter.is_active() {
-            return Ok(());
         }
         self.link_seq += 1;
         let link = self.receiver.link();
@@ -368,6 +373,7 @@ impl Role for ControllerRole {
             link_timeout_ns: link_timeout_ms.saturating_mul(1_000_000),
             link_state: LinkState::Waiting,
             link_losses: 0,
+            term_start_ns: None,
             url: FixedText::from_str_truncated(&url),
             setpoints,
             telemetry,
@@ -430,6 +436,7 @@ impl Role for ControllerRole {
             // fly from this poll on (the holder's last tick was a period or more ago), from
             // the reference the holder last published
             self.next_tick_ns = t0;
+            self.term_start_ns = Some(t0);
             if let Some(l) = self.arbiter.highest_seen() {
                 self.tracker.adopt(l);
             }
