@@ -195,21 +195,23 @@ impl MavLink {
         let r = if self.poll_with_try_recv {
             // a serial port is polled (its blocking read retries timeouts for ever); the
             // crate reports no framing version there
-            self.conn.try_recv().map(|(header, message)| Received {
-                header,
-                message,
-                version: None,
+            self.conn.try_recv().map(|(header, message)| {
+                Some(Received {
+                    header,
+                    message,
+                    version: None,
+                })
             })
         } else {
             self.conn.recv_raw().and_then(|raw| {
                 if let Some(signer) = &self.signer
                     && signer.check(&raw) != SignatureVerdict::Valid
                 {
-                    // refused and counted; the caller polls again
-                    return Err(MessageReadError::Io(std::io::ErrorKind::WouldBlock.into()));
+                    // refused and counted: nothing for the caller this poll
+                    return Ok(None);
                 }
                 let message = MavMessage::parse(raw.version(), raw.message_id(), raw.payload())?;
-                Ok(Received {
+                Ok(Some(Received {
                     header: MavHeader {
                         system_id: raw.system_id(),
                         component_id: raw.component_id(),
@@ -217,11 +219,11 @@ impl MavLink {
                     },
                     message,
                     version: Some(raw.version()),
-                })
+                }))
             })
         };
         match r {
-            Ok(m) => Ok(Some(m)),
+            Ok(m) => Ok(m),
             Err(MessageReadError::Io(e)) => match e.kind() {
                 std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut => Ok(None),
                 std::io::ErrorKind::UnexpectedEof
