@@ -18,11 +18,9 @@ use std::time::Duration;
 
 const FLIGHT_BOUND: Duration = Duration::from_secs(900);
 
-#[test]
-fn the_default_mission_flies_on_decoded_video_from_a_following_transmitter() {
-    let dir = TempDir::new("flight-video");
-    let flight = unique_flight("flight-video");
-    let port = free_udp_port();
+/// The default workflow with its camera the `gstreamer` variant on an RTP/H.264 stream
+/// arriving at UDP `port`.
+fn video_workflow(port: u16) -> toml::Table {
     let mut workflow = default_workflow();
     set_variant(&mut workflow, "camera", "gstreamer");
     let pipeline = format!(
@@ -39,6 +37,32 @@ fn the_default_mission_flies_on_decoded_video_from_a_following_transmitter() {
     let mut params = toml::Table::new();
     params.insert("pipeline".into(), toml::Value::String(pipeline));
     camera.insert("params".into(), toml::Value::Table(params));
+    workflow
+}
+
+/// A node on `flight`'s bus, once the flight is up.
+fn join_flight(flight: &str) -> FlightBus {
+    poll_until(Duration::from_secs(120), || {
+        aeris_runtime::bus::list_flights()
+            .iter()
+            .any(|f| f == flight)
+            .then(|| {
+                FlightBus::builder(flight)
+                    .node_name("test-observer")
+                    .create()
+                    .ok()
+            })
+            .flatten()
+    })
+    .expect("the flight starts")
+}
+
+#[test]
+fn the_default_mission_flies_on_decoded_video_from_a_following_transmitter() {
+    let dir = TempDir::new("flight-video");
+    let flight = unique_flight("flight-video");
+    let port = free_udp_port();
+    let workflow = video_workflow(port);
     let path = write_workflow(&dir.0, "video", &workflow);
 
     let mut run = spawn_run(&dir.0, &flight, &[path.to_str().unwrap()]);
@@ -59,18 +83,7 @@ fn the_default_mission_flies_on_decoded_video_from_a_following_transmitter() {
     let mut tx = Some(transmitter());
 
     // the camera's heartbeats: frames published from the decoded stream
-    let observer = poll_until(Duration::from_secs(120), || {
-        aeris_runtime::bus::list_flights()
-            .contains(&flight)
-            .then(|| {
-                FlightBus::builder(&flight)
-                    .node_name("test-observer")
-                    .create()
-                    .ok()
-            })
-            .flatten()
-    })
-    .expect("the flight starts");
+    let observer = join_flight(&flight);
     let heartbeats = observer
         .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
         .unwrap();
@@ -174,22 +187,9 @@ fn rgb_perception_builds_s_t_from_the_decoded_video_and_the_mission_reaches_its_
     let dir = TempDir::new("flight-video-rgb");
     let flight = unique_flight("flight-video-rgb");
     let port = free_udp_port();
-    let mut workflow = default_workflow();
-    set_variant(&mut workflow, "camera", "gstreamer");
-    let pipeline = format!(
-        "udpsrc port={port} caps=\"application/x-rtp,media=video,clock-rate=90000,\
-         encoding-name=H264,payload=96\" ! rtph264depay ! avdec_h264 ! appsink sync=false"
-    );
+    let mut workflow = video_workflow(port);
     let roles = workflow["roles"].as_array_mut().unwrap();
     roles.retain(|r| r.get("name").and_then(|n| n.as_str()) != Some("perception"));
-    let camera = roles
-        .iter_mut()
-        .filter_map(|r| r.as_table_mut())
-        .find(|r| r.get("name").and_then(|n| n.as_str()) == Some("camera"))
-        .unwrap();
-    let mut params = toml::Table::new();
-    params.insert("pipeline".into(), toml::Value::String(pipeline));
-    camera.insert("params".into(), toml::Value::Table(params));
     for (name, kind, variant) in [
         ("text", "text-reader", "ppocr"),
         ("detector", "detector", "palette"),
@@ -222,18 +222,7 @@ fn rgb_perception_builds_s_t_from_the_decoded_video_and_the_mission_reaches_its_
             .stderr(Stdio::null()),
     )
     .unwrap();
-    let observer = poll_until(Duration::from_secs(120), || {
-        aeris_runtime::bus::list_flights()
-            .contains(&flight)
-            .then(|| {
-                FlightBus::builder(&flight)
-                    .node_name("test-observer")
-                    .create()
-                    .ok()
-            })
-            .flatten()
-    })
-    .expect("the flight starts");
+    let observer = join_flight(&flight);
     let states = observer
         .subscriber::<aeris_schemas::PerceptionState>(topics::PERCEPTION_STATE)
         .unwrap();
