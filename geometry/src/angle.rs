@@ -9,6 +9,12 @@ use core::f32::consts::{PI, TAU};
 /// finite-command check, the controller's output guard) where a made-up angle such as 0
 /// (north) would pass them and be flown.
 pub fn wrap_pi(a: f32) -> f32 {
+    // an angle already in [-pi, pi) is returned as it is: wrapping it through `rem_euclid`
+    // would round it (1.25 came back as 1.2500002), so a yaw that only passes through a
+    // wrap (an interpolation between two equal samples) would not be the yaw sent
+    if (-PI..PI).contains(&a) {
+        return a;
+    }
     // rem_euclid is in [0, TAU] after rounding: the result is in [-pi, pi] except for NaN
     ((a + PI).rem_euclid(TAU) - PI).clamp(-PI, PI)
 }
@@ -16,6 +22,13 @@ pub fn wrap_pi(a: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_angle_in_range_comes_back_unchanged() {
+        for a in [0.0, 1.25, -1.25, 3.0, -3.0, -PI, 1e-7] {
+            assert_eq!(wrap_pi(a).to_bits(), a.to_bits(), "{a}");
+        }
+    }
 
     #[test]
     fn wraps_into_minus_pi_to_pi() {
