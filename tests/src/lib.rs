@@ -47,7 +47,8 @@ impl Drop for ChildGuard {
     }
 }
 
-/// A scratch directory under the system temp dir, removed on drop.
+/// A scratch directory under the system temp dir, removed on drop (kept when the environment
+/// sets `AERIS_TEST_KEEP`, to read a failed test's run directory and logs).
 pub struct TempDir(pub PathBuf);
 
 impl TempDir {
@@ -62,6 +63,10 @@ impl TempDir {
 
 impl Drop for TempDir {
     fn drop(&mut self) {
+        if std::env::var_os("AERIS_TEST_KEEP").is_some() {
+            eprintln!("kept {}", self.0.display());
+            return;
+        }
         let _ = std::fs::remove_dir_all(&self.0);
     }
 }

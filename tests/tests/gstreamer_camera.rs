@@ -262,3 +262,67 @@ fn a_bad_pipeline_is_a_configuration_error_naming_the_parameter_once() {
         assert_eq!(stderr.matches(says).count(), 1, "{stderr}");
     }
 }
+
+#[test]
+fn a_video_file_plays_at_its_rate_ends_and_plays_again_from_its_start() {
+    // a 2 s H.264 MP4 of the open scene (10 frames at 5 fps), decoded by `decodebin`, whose
+    // decoder pad appears only once the file is read: a restart must link it again
+    let dir = TempDir::new("gstcam-file-video");
+    let video = dir.0.join("hover.mp4");
+    let rendered = Command::new(aeris_bin())
+        .args(["scene", "video", "open", "--path", "0,0,10", "--hold", "2"])
+        .args(["--fps", "5", "--out"])
+        .arg(&video)
+        .output()
+        .unwrap();
+    assert!(
+        rendered.status.success(),
+        "{}",
+        String::from_utf8_lossy(&rendered.stderr)
+    );
+    // "wrote N frames (...)" on stdout
+    let said = String::from_utf8_lossy(&rendered.stdout).into_owned();
+    let per_play: u64 = said
+        .split_whitespace()
+        .skip_while(|w| *w != "wrote")
+        .nth(1)
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("frames written: {said}"));
+    let cam = start_camera(
+        "gstcam-file",
+        serde_json::json!({
+            "pipeline": format!(
+                "filesrc location=\"{}\" ! decodebin ! appsink sync=true",
+                video.display()
+            ),
+        }),
+    );
+    let heartbeats = cam
+        .bus
+        .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
+        .unwrap();
+    let mut frames = 0u64;
+    let counters = poll_until(BOUND, || {
+        while let Some(f) = cam.rgb.next().unwrap() {
+            assert_eq!(f.payload().len(), 320 * 240 * 3);
+            frames += 1;
+        }
+        let mut last = None;
+        heartbeats.drain(|h| last = Some(h.counters)).unwrap();
+        // two restarts, and more frames than two plays of the file hold
+        last.filter(|c| c[2] >= 2 && frames > 2 * per_play)
+    })
+    .unwrap_or_else(|| {
+        panic!(
+            "the file did not play again ({frames} frames); log:\n{}",
+            cam.log()
+        )
+    });
+    assert!(counters[0] > 2 * per_play, "frames published: {counters:?}");
+    let log = cam.log();
+    assert!(!log.contains("failed"), "{log}");
+    assert!(
+        log.contains("`pipeline` reached the end of its stream"),
+        "{log}"
+    );
+}

@@ -163,6 +163,10 @@ pub enum StartError {
     /// GStreamer refused to bring the pipeline up and posted no error message.
     #[error("the pipeline did not start and GStreamer gave no reason")]
     NoReason,
+    /// The description, parsed once already, could not be parsed again for a restart (a
+    /// plugin removed meanwhile).
+    #[error("the pipeline could not be built again for a restart")]
+    Rebuild(#[source] BuildError),
 }
 
 /// Why a frame could not be copied out.
@@ -215,6 +219,8 @@ pub enum CaptureEvent {
 
 /// A running (or stopped) capture pipeline.
 pub struct Capture {
+    /// The description as parsed (the converters inserted), parsed again for every restart.
+    description: String,
     pipeline: gst::Pipeline,
     sink: gst_app::AppSink,
     bus: gst::Bus,
@@ -224,6 +230,8 @@ pub struct Capture {
     width: u32,
     height: u32,
     stall_ns: u64,
+    /// Whether the pipeline has been brought up before (a restart then builds a new one).
+    started: bool,
     running: bool,
     last_frame_ns: u64,
     stalled_since: Option<u64>,
@@ -298,6 +306,51 @@ pub fn forced_description(
     ))
 }
 
+/// A parsed pipeline: the pipeline, its appsink (caps forced) and its bus.
+struct Built {
+    pipeline: gst::Pipeline,
+    sink: gst_app::AppSink,
+    bus: gst::Bus,
+}
+
+/// Parse `description` (the converters already inserted) into a pipeline that runs on `clock`,
+/// its appsink accepting exactly `format` at `width`×`height`.
+fn build(
+    description: &str,
+    format: PixelFormat,
+    width: u32,
+    height: u32,
+    clock: &gst::Clock,
+) -> Result<Built, BuildError> {
+    let element = gst::parse::launch(description).map_err(BuildError::Parse)?;
+    let pipeline = element
+        .downcast::<gst::Pipeline>()
+        .map_err(|_| BuildError::Unlinked)?;
+    let sink = pipeline
+        .by_name(CAPS_NAME)
+        .and_then(|c| c.static_pad("src"))
+        .and_then(|p| p.peer())
+        .and_then(|p| p.parent_element())
+        .and_then(|e| e.downcast::<gst_app::AppSink>().ok())
+        .ok_or(BuildError::Unlinked)?;
+    let caps = gst::Caps::builder("video/x-raw")
+        .field("format", format.gst_name())
+        .field("width", width as i32)
+        .field("height", height as i32)
+        .field("pixel-aspect-ratio", gst::Fraction::new(1, 1))
+        .build();
+    sink.set_caps(Some(&caps));
+    sink.set_max_buffers(1);
+    sink.set_drop(true);
+    pipeline.use_clock(Some(clock));
+    let bus = pipeline.bus().ok_or(BuildError::Unlinked)?;
+    Ok(Built {
+        pipeline,
+        sink,
+        bus,
+    })
+}
+
 impl Capture {
     /// Parse and set up `config.pipeline` (not started: see [`Capture::start`]).
     pub fn new(config: &CaptureConfig) -> Result<Self, BuildError> {
@@ -310,33 +363,17 @@ impl Capture {
             });
         }
         let description = forced_description(&config.pipeline, config.format, w, h)?;
-        let element = gst::parse::launch(&description).map_err(BuildError::Parse)?;
-        let pipeline = element
-            .downcast::<gst::Pipeline>()
-            .map_err(|_| BuildError::Unlinked)?;
-        let sink = pipeline
-            .by_name(CAPS_NAME)
-            .and_then(|c| c.static_pad("src"))
-            .and_then(|p| p.peer())
-            .and_then(|p| p.parent_element())
-            .and_then(|e| e.downcast::<gst_app::AppSink>().ok())
-            .ok_or(BuildError::Unlinked)?;
-        let caps = gst::Caps::builder("video/x-raw")
-            .field("format", config.format.gst_name())
-            .field("width", w as i32)
-            .field("height", h as i32)
-            .field("pixel-aspect-ratio", gst::Fraction::new(1, 1))
-            .build();
-        sink.set_caps(Some(&caps));
-        sink.set_max_buffers(1);
-        sink.set_drop(true);
         let clock = gst::SystemClock::obtain();
         let clock_is_monotonic = clock
             .has_property_with_type("clock-type", gst::ClockType::static_type())
             && clock.property::<gst::ClockType>("clock-type") == gst::ClockType::Monotonic;
-        pipeline.use_clock(Some(&clock));
-        let bus = pipeline.bus().ok_or(BuildError::Unlinked)?;
+        let Built {
+            pipeline,
+            sink,
+            bus,
+        } = build(&description, config.format, w, h, &clock)?;
         Ok(Capture {
+            description,
             pipeline,
             sink,
             bus,
@@ -346,6 +383,7 @@ impl Capture {
             width: w,
             height: h,
             stall_ns: u64::try_from(config.stall.as_nanos()).unwrap_or(u64::MAX),
+            started: false,
             running: false,
             last_frame_ns: 0,
             stalled_since: None,
@@ -372,9 +410,27 @@ impl Capture {
     /// Bring the pipeline to PLAYING. A failure that GStreamer reports at once (a device, port
     /// or file that cannot be opened) is an error with its text; one it reports later comes as
     /// a [`CaptureEvent::Error`].
+    ///
+    /// Every start after the first runs a pipeline parsed anew from the description: elements
+    /// that add their pads once data flows (`decodebin`, `rtspsrc`, demuxers) are linked by
+    /// the parser only once, so the stopped pipeline cannot be brought up again (its decoder
+    /// would feed nothing: "streaming stopped, reason not-linked").
     pub fn start(&mut self) -> Result<(), StartError> {
-        // what an earlier run left on the bus belongs to it
-        while self.bus.pop().is_some() {}
+        if self.started {
+            let _ = self.pipeline.set_state(gst::State::Null);
+            let built = build(
+                &self.description,
+                self.format,
+                self.width,
+                self.height,
+                &self.clock,
+            )
+            .map_err(StartError::Rebuild)?;
+            self.pipeline = built.pipeline;
+            self.sink = built.sink;
+            self.bus = built.bus;
+        }
+        self.started = true;
         if self.pipeline.set_state(gst::State::Playing).is_err() {
             let text = self
                 .bus
