@@ -1,28 +1,47 @@
-//! A flight whose perception has no depth source: the default mission with the model
-//! pipeline's layout (detector + compose) instead of the geometric perception, and no
-//! occupancy role, so S_t never carries occupancy (the sim camera still renders depth: a
-//! camera without depth is the gstreamer variant's job, not the simulator's). The hub
-//! gates every decision without occupancy and says so in its reports, the planner keeps to
-//! the conservative altitude (the band's top) rather than taking unknown space for free,
-//! and the flight still reaches its goal.
+//! A flight whose eyes are a video file and which has no depth source: the camera is the
+//! `gstreamer` variant on `filesrc ! decodebin` of an H.264 MP4 that `aeris scene video`
+//! rendered along the default mission's route (a recorded FPV video played back at its own
+//! rate), with no `depth_pipeline`; perception is the model pipeline's layout (the YOLO
+//! detector on the decoded frames + compose) instead of the geometric perception, and there is no occupancy role, so S_t
+//! never carries occupancy. The hub gates every decision without occupancy and says so in
+//! its reports, the planner keeps to the conservative altitude (the band's top) rather than
+//! taking unknown space for free, and the flight still reaches its goal.
 
 use aeris_tests::*;
+use std::process::Command;
 use std::time::Duration;
 
 const FLIGHT_BOUND: Duration = Duration::from_secs(900);
 
 #[test]
-fn without_depth_the_hub_reports_no_occupancy_and_the_flight_keeps_high() {
+fn on_a_video_file_without_depth_the_hub_reports_no_occupancy_and_the_flight_keeps_high() {
     let dir = TempDir::new("nodepth");
     let flight = unique_flight("nodepth");
+    // the route of the default mission at 5 m/s, then a minute over the landing point
+    let video = dir.0.join("route.mp4");
+    let rendered = Command::new(aeris_bin())
+        .args(["scene", "video", "village", "--fps", "5", "--hold", "60"])
+        .args([
+            "--path", "0,0,12", "--path", "62,0,12", "--path", "62,64,12",
+        ])
+        .args(["--path", "42,88,2", "--out"])
+        .arg(&video)
+        .output()
+        .expect("aeris scene video runs");
+    assert!(
+        rendered.status.success(),
+        "aeris scene video failed: {}",
+        String::from_utf8_lossy(&rendered.stderr)
+    );
     let mut workflow = default_workflow();
+    set_variant(&mut workflow, "camera", "gstreamer");
     let roles = workflow
         .get_mut("roles")
         .and_then(|r| r.as_array_mut())
         .expect("roles");
     roles.retain(|r| r.get("name").and_then(|n| n.as_str()) != Some("perception"));
     for (name, kind, variant) in [
-        ("detector", "detector", "palette"),
+        ("detector", "detector", "yolo"),
         ("scene", "image-to-text", "compose"),
     ] {
         let mut role = toml::Table::new();
@@ -37,6 +56,19 @@ fn without_depth_the_hub_reports_no_occupancy_and_the_flight_keeps_high() {
         }
         roles.push(toml::Value::Table(role));
     }
+    let camera = roles
+        .iter_mut()
+        .filter_map(|r| r.as_table_mut())
+        .find(|r| r.get("name").and_then(|n| n.as_str()) == Some("camera"))
+        .expect("camera role");
+    let mut params = toml::Table::new();
+    // played at the file's own rate (sync=true), as a camera would deliver it
+    let pipeline = format!(
+        "filesrc location=\"{}\" ! decodebin ! appsink sync=true",
+        video.display()
+    );
+    params.insert("pipeline".into(), pipeline.into());
+    camera.insert("params".into(), toml::Value::Table(params));
     let path = write_workflow(&dir.0, "nodepth", &workflow);
     let mut run = spawn_run(&dir.0, &flight, &[path.to_str().unwrap()]);
     let status = wait_bounded(&mut run.0, FLIGHT_BOUND).expect("flight finished");
@@ -56,7 +88,12 @@ fn without_depth_the_hub_reports_no_occupancy_and_the_flight_keeps_high() {
         Some(committed),
         "{summary}"
     );
-    // the hub and the planner say so in their logs (once, when it happens)
+    // the file was played without a failure (its end is a restart, not an error)
+    let camera = std::fs::read_to_string(dir.0.join("run").join("logs").join("camera.log"))
+        .unwrap_or_default();
+    assert!(!camera.contains("failed"), "camera log:\n{camera}");
+    // the hub and the planner say so in their logs (once, when it happens): S_t came, built
+    // from the decoded frames
     for (role, line) in [
         ("hub", "hub: occupancy absent"),
         ("reasoning", "occupancy absent: unknown space is not free"),
