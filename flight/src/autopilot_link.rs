@@ -174,6 +174,13 @@ pub fn silent_diagnosis(s: &AutopilotLinkStatus) -> String {
             s.bad_signature_refused
         ));
     }
+    if s.crc_failures > 0 {
+        heard.push(format!(
+            "{} frames that failed their CRC (a wrong baud rate, a dialect with other CRC \
+             seeds, or a damaged line)",
+            s.crc_failures
+        ));
+    }
     if s.other_frames > 0 {
         let mut line = format!(
             "{} frames from system {} component {}",
@@ -228,10 +235,12 @@ mod tests {
             foreign_heartbeats: 3,
             foreign: FixedText::from_str_truncated("MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID"),
             v1_refused: 40,
+            crc_failures: 7,
             ..s
         };
         let d = silent_diagnosis(&gcs);
         assert!(d.contains("40 MAVLink 1 frames"), "{d}");
+        assert!(d.contains("7 frames that failed their CRC"), "{d}");
         assert!(d.contains("12 frames from system 255 component 190"), "{d}");
         assert!(d.contains("MAV_TYPE_GCS"), "{d}");
     }

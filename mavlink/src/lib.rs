@@ -23,6 +23,7 @@ pub mod link;
 pub mod px4;
 pub mod receiver;
 pub mod signing;
+mod transport;
 
 /// A message's sender and sequence number.
 pub use mavlink::MavHeader;

@@ -4,25 +4,38 @@
 //! sending works from any thread and does not allocate. The link receives MAVLink 1 and 2
 //! frames of the [`crate::dialect`] and sends in the version set with
 //! [`MavLink::set_send_version`] (MAVLink 2 until then), so it talks to autopilots and tools
-//! that speak only MAVLink 1.
+//! that speak only MAVLink 1. On UDP and TCP the frames are found by our own scanner
+//! ([`crate::transport`]) so that frames failing their CRC are counted
+//! ([`MavLink::crc_failures`]); a serial port is the `mavlink` crate's connection.
 
 use crate::MavHeader;
 use crate::dialect::MavMessage;
 use crate::signing::{LinkSigner, LinkSigning, SignatureVerdict};
+use crate::transport::{Scanned, TcpTransport, UdpTransport};
 use mavlink::error::{MessageReadError, MessageWriteError};
 use mavlink::{
     Connectable, MAVLinkMessageRaw, MAVLinkV1MessageRaw, MAVLinkV2MessageRaw, MavConnection,
-    MavlinkVersion, Message, SerialConfig, TcpConfig, UdpConfig, UdpMode,
+    MavlinkVersion, Message, SerialConfig,
 };
 use std::net::{TcpListener, TcpStream};
-use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
 use std::time::Duration;
 
 /// How long a receive call waits before giving the receive loop a chance to stop.
 pub const LINK_POLL: Duration = Duration::from_millis(50);
 
-/// The connection under a [`MavLink`].
+/// The `mavlink` crate's connection (serial ports).
 type Connection = mavlink::Connection<MavMessage>;
+
+/// The bytes under a [`MavLink`].
+enum Transport {
+    /// A serial port, polled through the crate's connection.
+    Serial(Box<Connection>),
+    /// A UDP socket and our frame scanner.
+    Udp(UdpTransport),
+    /// A TCP stream and our frame scanner.
+    Tcp(TcpTransport),
+}
 
 /// Why a MAVLink link operation failed.
 #[derive(Debug, thiserror::Error)]
@@ -78,8 +91,9 @@ pub struct Received {
 
 /// An open MAVLink link: send from any thread, receive with a timeout.
 pub struct MavLink {
-    conn: Connection,
-    poll_with_try_recv: bool,
+    transport: Transport,
+    /// Frame-shaped bytes whose CRC did not check (UDP and TCP).
+    crc_failures: AtomicU64,
     /// 1 or 2: the framing [`MavLink::send`] writes.
     send_version: AtomicU8,
     /// The next outgoing sequence number.
@@ -95,12 +109,14 @@ impl core::fmt::Debug for MavLink {
 }
 
 impl MavLink {
-    /// A link over `conn` that receives either MAVLink version and sends MAVLink 2.
-    fn new(mut conn: Connection, poll_with_try_recv: bool) -> Self {
-        conn.set_allow_recv_any_version(true);
+    /// A link over `transport` that receives either MAVLink version and sends MAVLink 2.
+    fn new(mut transport: Transport) -> Self {
+        if let Transport::Serial(conn) = &mut transport {
+            conn.set_allow_recv_any_version(true);
+        }
         Self {
-            conn,
-            poll_with_try_recv,
+            transport,
+            crc_failures: AtomicU64::new(0),
             send_version: AtomicU8::new(2),
             sequence: AtomicU8::new(0),
             signer: None,
@@ -112,8 +128,8 @@ impl MavLink {
     /// On a serial link the `mavlink` crate checks the signatures itself: refusals are
     /// enforced there but not counted.
     pub fn set_signing(&mut self, signing: LinkSigning) {
-        if self.poll_with_try_recv {
-            self.conn.setup_signing(Some(mavlink::SigningConfig::new(
+        if let Transport::Serial(conn) = &mut self.transport {
+            conn.setup_signing(Some(mavlink::SigningConfig::new(
                 signing.key,
                 signing.link_id,
                 true,
@@ -121,6 +137,12 @@ impl MavLink {
             )));
         }
         self.signer = Some(LinkSigner::new(signing));
+    }
+
+    /// Frames received whose CRC did not check, dropped (0 on a serial link, where the
+    /// `mavlink` crate drops them uncounted). A run of damaged bytes counts once.
+    pub fn crc_failures(&self) -> u64 {
+        self.crc_failures.load(Ordering::Relaxed)
     }
 
     /// Whether the link signs and checks signatures.
@@ -183,44 +205,70 @@ impl MavLink {
                 MAVLinkMessageRaw::V2(raw)
             }
         };
-        self.conn.send_raw(&raw).map_err(|e| match e {
-            MessageWriteError::Io(io) => LinkError::Send(io.to_string()),
-            other => LinkError::Send(format!("{other:?}")),
-        })
+        let bytes = match &raw {
+            MAVLinkMessageRaw::V1(r) => r.raw_bytes(),
+            MAVLinkMessageRaw::V2(r) => r.raw_bytes(),
+        };
+        match &self.transport {
+            Transport::Serial(conn) => conn.send_raw(&raw).map_err(|e| match e {
+                MessageWriteError::Io(io) => LinkError::Send(io.to_string()),
+                other => LinkError::Send(format!("{other:?}")),
+            }),
+            Transport::Udp(t) => t.send(bytes).map_err(|e| LinkError::Send(e.to_string())),
+            Transport::Tcp(t) => t.send(bytes).map_err(|e| LinkError::Send(e.to_string())),
+        }
+    }
+
+    /// A raw frame that passed its CRC, checked against the signing and decoded.
+    fn accept(&self, raw: MAVLinkMessageRaw) -> Result<Option<Received>, MessageReadError> {
+        if let Some(signer) = &self.signer
+            && signer.check(&raw) != SignatureVerdict::Valid
+        {
+            // refused and counted: nothing for the caller this poll
+            return Ok(None);
+        }
+        let message = MavMessage::parse(raw.version(), raw.message_id(), raw.payload())?;
+        Ok(Some(Received {
+            header: MavHeader {
+                system_id: raw.system_id(),
+                component_id: raw.component_id(),
+                sequence: raw.sequence(),
+            },
+            message,
+            version: Some(raw.version()),
+        }))
+    }
+
+    /// One scanned step of a UDP or TCP link as a receive result.
+    fn scanned(
+        &self,
+        step: std::io::Result<Scanned>,
+    ) -> Result<Option<Received>, MessageReadError> {
+        match step? {
+            Scanned::Frame(raw) => self.accept(raw),
+            Scanned::CrcFailure => {
+                self.crc_failures.fetch_add(1, Ordering::Relaxed);
+                Ok(None)
+            }
+            Scanned::NeedMore => Ok(None),
+        }
     }
 
     /// Receive one message of either MAVLink version; `Ok(None)` when nothing arrived
     /// within the link's poll timeout.
     pub fn recv(&self) -> Result<Option<Received>, LinkError> {
-        let r = if self.poll_with_try_recv {
+        let r = match &self.transport {
             // a serial port is polled (its blocking read retries timeouts for ever); the
             // crate reports no framing version there
-            self.conn.try_recv().map(|(header, message)| {
+            Transport::Serial(conn) => conn.try_recv().map(|(header, message)| {
                 Some(Received {
                     header,
                     message,
                     version: None,
                 })
-            })
-        } else {
-            self.conn.recv_raw().and_then(|raw| {
-                if let Some(signer) = &self.signer
-                    && signer.check(&raw) != SignatureVerdict::Valid
-                {
-                    // refused and counted: nothing for the caller this poll
-                    return Ok(None);
-                }
-                let message = MavMessage::parse(raw.version(), raw.message_id(), raw.payload())?;
-                Ok(Some(Received {
-                    header: MavHeader {
-                        system_id: raw.system_id(),
-                        component_id: raw.component_id(),
-                        sequence: raw.sequence(),
-                    },
-                    message,
-                    version: Some(raw.version()),
-                }))
-            })
+            }),
+            Transport::Udp(t) => self.scanned(t.recv()),
+            Transport::Tcp(t) => self.scanned(t.recv()),
         };
         match r {
             Ok(m) => Ok(m),
@@ -265,11 +313,8 @@ fn tcp_link(stream: TcpStream, timeout: Duration, url: &str) -> Result<MavLink, 
     stream
         .set_read_timeout(Some(timeout))
         .map_err(open_err(url))?;
-    let conn = TcpConfig::from_stream(stream)
-        .map_err(open_err(url))?
-        .connect::<MavMessage>()
-        .map_err(open_err(url))?;
-    Ok(MavLink::new(conn, false))
+    let transport = TcpTransport::new(stream).map_err(open_err(url))?;
+    Ok(MavLink::new(Transport::Tcp(transport)))
 }
 
 /// Parse `url` and open its transport (binding, connecting, opening the device), except
@@ -283,17 +328,17 @@ pub fn prepare_link(url: &str, read_timeout: Duration) -> Result<PendingLink, Li
     if addr.is_empty() {
         return Err(LinkError::Address(url.to_string()));
     }
-    let udp = |mode| -> Result<PendingLink, LinkError> {
-        let conn = UdpConfig::new(addr.to_string(), mode)
-            .read_timeout(timeout)
-            .connect::<MavMessage>()
-            .map_err(open_err(url))?;
-        Ok(PendingLink::Ready(Box::new(MavLink::new(conn, false))))
+    let udp = |opened: std::io::Result<UdpTransport>| -> Result<PendingLink, LinkError> {
+        let transport = opened.map_err(open_err(url))?;
+        transport.set_read_timeout(timeout).map_err(open_err(url))?;
+        Ok(PendingLink::Ready(Box::new(MavLink::new(Transport::Udp(
+            transport,
+        )))))
     };
     match proto {
-        "udpin" | "udp" => udp(UdpMode::Udpin),
-        "udpout" => udp(UdpMode::Udpout),
-        "udpbcast" => udp(UdpMode::UdpBroadcast),
+        "udpin" | "udp" => udp(UdpTransport::server(addr)),
+        "udpout" => udp(UdpTransport::client(addr, false)),
+        "udpbcast" => udp(UdpTransport::client(addr, true)),
         "tcpout" | "tcp" => {
             let stream = TcpStream::connect(addr).map_err(open_err(url))?;
             Ok(PendingLink::Ready(Box::new(tcp_link(
@@ -319,7 +364,9 @@ pub fn prepare_link(url: &str, read_timeout: Duration) -> Result<PendingLink, Li
                 .timeout(timeout)
                 .connect::<MavMessage>()
                 .map_err(open_err(url))?;
-            Ok(PendingLink::Ready(Box::new(MavLink::new(conn, true))))
+            Ok(PendingLink::Ready(Box::new(MavLink::new(
+                Transport::Serial(Box::new(conn)),
+            ))))
         }
         _ => Err(LinkError::Address(url.to_string())),
     }

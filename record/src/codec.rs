@@ -370,6 +370,7 @@ fn link_json(l: &AutopilotLinkStatus) -> Value {
         "autopilot_frames": l.autopilot_frames, "other_frames": l.other_frames,
         "v1_refused": l.v1_refused, "unsigned_refused": l.unsigned_refused,
         "bad_signature_refused": l.bad_signature_refused,
+        "crc_failures": l.crc_failures,
         "foreign_heartbeats": l.foreign_heartbeats, "commands_refused": l.commands_refused,
         "losses": l.losses, "timeout_ms": l.timeout_ms,
         "last_refused_command": l.last_refused_command, "state": l.state,

@@ -104,6 +104,9 @@ pub struct AutopilotLinkStatus {
     pub unsigned_refused: u64,
     /// Signed frames whose signature or timestamp did not check, refused.
     pub bad_signature_refused: u64,
+    /// Frame-shaped bytes whose CRC did not check, dropped (a run of damage counts once;
+    /// not counted on serial links).
+    pub crc_failures: u64,
     /// Heartbeats of systems that are not autopilots the controller can fly.
     pub foreign_heartbeats: u64,
     /// Commands the autopilot refused (a COMMAND_ACK with a result other than accepted or
@@ -158,6 +161,7 @@ impl Default for AutopilotLinkStatus {
             v1_refused: 0,
             unsigned_refused: 0,
             bad_signature_refused: 0,
+            crc_failures: 0,
             foreign_heartbeats: 0,
             commands_refused: 0,
             losses: 0,

@@ -2,7 +2,9 @@
 """A ground station alone on a link (pymavlink): answers whoever talks to it with
 HEARTBEATs of MAV_TYPE_GCS from system 255, component 190, at 5 Hz, until --timeout
 seconds passed. No autopilot is on this link, so a controller must say it heard none.
-Speaks MAVLink 2, or MAVLink 1 with --mavlink 1."""
+Speaks MAVLink 2, or MAVLink 1 with --mavlink 1. With --damage-crc every frame goes out
+with its checksum inverted (what a dialect with other CRC seeds, a wrong baud rate or a
+damaged line delivers): a controller must say it heard frames that failed their CRC."""
 
 import argparse
 import os
@@ -20,6 +22,8 @@ def main():
     ap.add_argument("--mavlink", type=int, choices=[1, 2], default=2)
     ap.add_argument("--as-autopilot", action="store_true",
                     help="send PX4 quadrotor HEARTBEATs from system 1 instead (still no answers)")
+    ap.add_argument("--damage-crc", action="store_true",
+                    help="invert the checksum of every frame sent")
     args = ap.parse_args()
     sysid, comp = (1, 1) if args.as_autopilot else (255, 190)
     conn = mavutil.mavlink_connection(args.listen, source_system=sysid,
@@ -32,7 +36,14 @@ def main():
         now = time.monotonic()
         if now >= next_hb and getattr(conn, "clients", None):
             next_hb = now + 0.2
-            if args.as_autopilot:
+            if args.damage_crc:
+                msg = m.MAVLink_heartbeat_message(m.MAV_TYPE_QUADROTOR, m.MAV_AUTOPILOT_PX4,
+                                                  0, 0, m.MAV_STATE_STANDBY, 3)
+                frame = bytearray(msg.pack(conn.mav, force_mavlink1=args.mavlink == 1))
+                frame[-2] ^= 0xFF
+                frame[-1] ^= 0xFF
+                conn.write(bytes(frame))
+            elif args.as_autopilot:
                 conn.mav.heartbeat_send(m.MAV_TYPE_QUADROTOR, m.MAV_AUTOPILOT_PX4, 0, 0,
                                         m.MAV_STATE_STANDBY, force_mavlink1=args.mavlink == 1)
             else:

@@ -1,8 +1,8 @@
 //! A link that hears no autopilot is an error, never a silent hover: `aeris run --autopilot
 //! URL` ends with a non-zero exit within the link timeout (5 s by default) and a message
-//! that names the URL and what was heard: nothing at all, only a ground station, or an
-//! autopilot speaking MAVLink 1 to a controller set to MAVLink 2 only. The peers are real
-//! pymavlink processes.
+//! that names the URL and what was heard: nothing at all, only a ground station, an
+//! autopilot speaking MAVLink 1 to a controller set to MAVLink 2 only, or an autopilot whose
+//! frames all fail their CRC. The peers are real pymavlink processes.
 
 use aeris_tests::*;
 use std::path::Path;
@@ -127,4 +127,19 @@ fn mavlink_1_to_a_controller_set_to_mavlink_2_only_is_named() {
     assert!(code.is_some_and(|c| c != 0), "exit {code:?}: {out}");
     assert!(out.contains("MAVLink 1 frames, refused"), "{out}");
     assert!(out.contains("params.mavlink = 2"), "{out}");
+}
+
+#[test]
+fn an_autopilot_whose_frames_fail_their_crc_is_named() {
+    let port = free_udp_port();
+    let _autopilot = peer(port, &["--as-autopilot", "--damage-crc"]);
+    let url = format!("udpout:127.0.0.1:{port}");
+    let (code, out) = run_against("bad-crc", &url, None);
+    assert!(code.is_some_and(|c| c != 0), "exit {code:?}: {out}");
+    assert!(
+        out.contains(&format!("no autopilot HEARTBEAT on {url}")),
+        "{out}"
+    );
+    assert!(out.contains("frames that failed their CRC"), "{out}");
+    assert!(!out.contains("heard: nothing"), "{out}");
 }

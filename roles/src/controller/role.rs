@@ -257,6 +257,7 @@ impl ControllerRole {
             seq: self.link_seq,
             unsigned_refused,
             bad_signature_refused,
+            crc_failures: link.map_or(0, |l| l.crc_failures()),
             signing: u8::from(link.is_some_and(|l| l.is_signed())),
             stamp_ns: now_ns,
             losses: self.link_losses,
