@@ -234,6 +234,9 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
         summary.autopilot_link_losses,
         summary.autopilot_commands_refused
     );
+    if let Some(s) = summary.first_decision_on_video_s {
+        println!("  first decision on the video {s:.2} s after its first frame");
+    }
     if let Some(r) = &summary.recording {
         let files: Vec<String> = r.files.iter().map(|f| f.display().to_string()).collect();
         println!(

@@ -51,6 +51,7 @@ pub mod monitor;
 pub mod overrides;
 pub mod recording;
 mod supervise;
+mod video_start;
 
 pub use autopilot_link::{AutopilotEvent, silent_diagnosis};
 pub use event::{

@@ -2,6 +2,7 @@
 //! the per-cycle trace and the summary.
 
 use crate::autopilot_link::{AutopilotEvent, LinkFollower};
+use crate::video_start::FirstDecisionOnVideo;
 use aeris_runtime::MissionSpec;
 use aeris_runtime::bus::{BusError, FlightBus, TypedSubscriber};
 use aeris_runtime::stats::{mean_std, percentile};
@@ -98,6 +99,11 @@ pub struct FlightSummary {
     pub commits_without_occupancy: u64,
     /// Committed decisions the gate clamped for want of occupancy (of the reports seen).
     pub no_occupancy_clamps: u64,
+    /// Seconds from the capture of the first camera frame after the flight was up to the
+    /// first decision taken on an S_t of it or a later frame: for a video stream that starts
+    /// after the roles, how long the stack flew on telemetry alone once pictures came
+    /// (`None`: no frame, or no decision on one).
+    pub first_decision_on_video_s: Option<f64>,
     /// The recording, when the flight was recorded ([`crate::FlightBuilder::record`]).
     pub recording: Option<crate::RecordingSummary>,
 }
@@ -210,6 +216,7 @@ pub struct FlightMonitor {
     setpoints: TypedSubscriber<BoundSetpoint>,
     link: TypedSubscriber<AutopilotLinkStatus>,
     link_follower: LinkFollower,
+    video_start: FirstDecisionOnVideo,
     autopilot_events: Vec<AutopilotEvent>,
     last_setpoint: Option<(u64, u64)>,
     last_bound: Option<([f32; 3], u8)>,
@@ -249,6 +256,7 @@ impl FlightMonitor {
             setpoints: bus.subscriber(topics::HUB_SETPOINT)?,
             link: bus.subscriber(topics::CONTROLLER_LINK)?,
             link_follower: LinkFollower::default(),
+            video_start: FirstDecisionOnVideo::new(bus, aeris_runtime::clock::monotonic_ns())?,
             autopilot_events: Vec::new(),
             last_setpoint: None,
             last_bound: None,
@@ -276,6 +284,7 @@ impl FlightMonitor {
 
     /// Drain new reports and telemetry.
     pub fn poll(&mut self) -> Result<(), BusError> {
+        self.video_start.poll()?;
         while let Some(r) = self.reports.next()? {
             if r.validate().is_err() {
                 self.invalid_reports += 1;
@@ -531,6 +540,7 @@ impl FlightMonitor {
             autopilot_commands_refused: self.link_follower.commands_refused(),
             commits_without_occupancy: self.commits_without_occupancy,
             no_occupancy_clamps: self.no_occupancy_clamps,
+            first_decision_on_video_s: self.video_start.seconds(),
             recording: None,
         }
     }

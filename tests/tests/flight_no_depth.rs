@@ -80,6 +80,12 @@ fn on_a_video_file_without_depth_the_hub_reports_no_occupancy_and_the_flight_kee
     );
     let summary = last_json_line(&stdout);
     assert_eq!(summary["reached_goal"], true, "{summary}\n{logs}");
+    assert!(
+        summary["first_decision_on_video_s"]
+            .as_f64()
+            .is_some_and(|s| s > 0.0),
+        "a decision on the file's frames: {summary}"
+    );
     // every committed decision was gated without occupancy, and the reports say so
     let committed = summary["cycles_committed"].as_u64().unwrap();
     assert!(committed > 0, "{summary}");

@@ -262,6 +262,13 @@ fn rgb_perception_builds_s_t_from_the_decoded_video_and_the_mission_reaches_its_
     );
     let summary = last_json_line(&stdout);
     assert_eq!(summary["reached_goal"], true, "{summary}\n{logs}");
+    // the figure of how soon the stack decides on the video once it starts was taken
+    assert!(
+        summary["first_decision_on_video_s"]
+            .as_f64()
+            .is_some_and(|s| s > 0.0),
+        "{summary}"
+    );
     assert!(
         with_content > 0,
         "no S_t with text or detections from the decoded video ({seen} seen)\n{logs}"
