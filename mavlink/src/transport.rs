@@ -34,6 +34,8 @@ const SIGNATURE_LEN: usize = 13;
 const SCAN_BUFFER: usize = 65_536;
 
 /// One step of [`FrameScanner::next_frame`].
+// the frame is moved out by value: boxing it would allocate on every receive
+#[allow(clippy::large_enum_variant)]
 pub(crate) enum Scanned {
     /// A frame whose CRC checks.
     Frame(MAVLinkMessageRaw),
