@@ -54,6 +54,10 @@ pub struct RunArgs {
     /// With --record: every Nth camera frame's pixels are recorded as an image (0: none).
     #[arg(long, value_name = "N", requires = "record")]
     pub record_frame_every: Option<u64>,
+    /// With --record: the images are JPEG of this quality (1-100; depth frames as PNG), or
+    /// raw pixels with 0 [default: 80].
+    #[arg(long, value_name = "Q", requires = "record", value_parser = clap::value_parser!(u8).range(0..=100))]
+    pub record_jpeg_quality: Option<u8>,
 }
 
 /// The file `--record` names: as given (relative to the working directory), or
@@ -169,6 +173,9 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
     }
     if let Some(file) = &args.record {
         flight = flight.record(record_path(file.as_deref())?);
+        if let Some(q) = args.record_jpeg_quality {
+            flight = flight.record_jpeg_quality(q);
+        }
         if let Some(n) = args.record_frame_every {
             flight = flight.record_frame_every(n);
         }

@@ -89,7 +89,7 @@ pub struct FlightBuilder<H: StepHook = NoHook> {
     overrides: Overrides,
     stop: StopRule,
     role_executable: Option<PathBuf>,
-    record: Option<(PathBuf, Option<u64>)>,
+    record: Option<crate::recording::RecordRequest>,
     hook: H,
 }
 
@@ -135,8 +135,9 @@ impl<H: StepHook> FlightBuilder<H> {
     /// summary gains `recording`. An earlier recording at `path` is replaced; a restarted
     /// recorder writes `path.1`, `path.2`, ...
     pub fn record(mut self, path: impl Into<PathBuf>) -> Self {
-        let frame_every = self.record.as_ref().and_then(|r| r.1);
-        self.record = Some((path.into(), frame_every));
+        let mut request = self.record.take().unwrap_or_default();
+        request.path = path.into();
+        self.record = Some(request);
         self
     }
 
@@ -144,7 +145,17 @@ impl<H: StepHook> FlightBuilder<H> {
     /// [`FlightBuilder::record`] (default `aeris_record::DEFAULT_FRAME_EVERY`).
     pub fn record_frame_every(mut self, n: u64) -> Self {
         if let Some(r) = &mut self.record {
-            r.1 = Some(n);
+            r.frame_every = Some(n);
+        }
+        self
+    }
+
+    /// Record the images as JPEG of quality `q` (1..=100; depth as PNG), or with 0 as raw
+    /// pixels (`foxglove.RawImage`); with [`FlightBuilder::record`] (default JPEG at
+    /// `aeris_record::codec::DEFAULT_JPEG_QUALITY`).
+    pub fn record_jpeg_quality(mut self, q: u8) -> Self {
+        if let Some(r) = &mut self.record {
+            r.jpeg_quality = Some(q);
         }
         self
     }
@@ -190,9 +201,10 @@ impl<H: StepHook> FlightBuilder<H> {
             .run_dir
             .unwrap_or_else(|| std::env::temp_dir().join("aeris").join(&name));
         let record = match self.record {
-            Some((path, frame_every)) => {
-                let path = run_dir.join(path);
-                let role = crate::recording::add_recorder(&mut workflow, &path, frame_every)?;
+            Some(mut request) => {
+                request.path = run_dir.join(&request.path);
+                let role = crate::recording::add_recorder(&mut workflow, &request)?;
+                let path = request.path;
                 Some((path, role))
             }
             None => None,

@@ -69,15 +69,26 @@ pub enum RecordError {
     },
 }
 
-/// Add a recorder role writing to `path` to `workflow`: first in declaration order (it has
+/// What [`crate::FlightBuilder::record`] asked for.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct RecordRequest {
+    /// The MCAP file.
+    pub(crate) path: PathBuf,
+    /// Every n-th frame's pixels as an image (the recorder's default when `None`).
+    pub(crate) frame_every: Option<u64>,
+    /// JPEG quality of the images, 0 for raw pixels (the recorder's default when `None`).
+    pub(crate) jpeg_quality: Option<u8>,
+}
+
+/// Add a recorder role writing to `request.path` to `workflow`: first in declaration order (it has
 /// no service dependencies, so it starts first and sees the flight from its first message),
 /// on the executor with the fewest roles, restarted on failure. An earlier recording at
 /// `path` (`path` and its `path.N` files) is removed. Returns the role's name.
 pub(crate) fn add_recorder(
     workflow: &mut Workflow,
-    path: &Path,
-    frame_every: Option<u64>,
+    request: &RecordRequest,
 ) -> Result<String, RecordError> {
+    let path = request.path.as_path();
     if path.exists() && !path.is_file() {
         return Err(RecordError::NotAFile {
             path: path.to_path_buf(),
@@ -114,8 +125,17 @@ pub(crate) fn add_recorder(
         .map(|e| e.name.clone());
     let mut params = serde_json::Map::new();
     params.insert("path".into(), path.to_string_lossy().into_owned().into());
-    if let Some(n) = frame_every {
+    if let Some(n) = request.frame_every {
         params.insert("frame_every".into(), n.into());
+    }
+    match request.jpeg_quality {
+        Some(0) => {
+            params.insert("image".into(), "raw".into());
+        }
+        Some(q) => {
+            params.insert("jpeg_quality".into(), q.into());
+        }
+        None => {}
     }
     workflow.roles.insert(
         0,
@@ -148,9 +168,16 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("sub/flight.mcap");
         let mut w = Workflow::builtin_default().unwrap();
-        let name = add_recorder(&mut w, &path, Some(3)).unwrap();
+        let request = RecordRequest {
+            path: path.clone(),
+            frame_every: Some(3),
+            jpeg_quality: Some(0),
+        };
+        let name = add_recorder(&mut w, &request).unwrap();
         w.validate().unwrap();
         let r = &w.roles[0];
+        assert_eq!(r.params.get("frame_every"), Some(&3.into()));
+        assert_eq!(r.params.get("image"), Some(&"raw".into()));
         assert_eq!((r.name.as_str(), name.as_str()), ("recorder", "recorder"));
         assert!(r.subscribes.iter().any(|t| t == "hub/report"));
         assert!(r.subscribes.iter().any(|t| t == "heartbeat"));
@@ -164,7 +191,11 @@ mod tests {
     fn a_device_or_folder_is_neither_replaced_nor_recorded_into() {
         let mut w = Workflow::builtin_default().unwrap();
         for p in ["/dev/null", "/"] {
-            let err = add_recorder(&mut w, Path::new(p), None).unwrap_err();
+            let request = RecordRequest {
+                path: p.into(),
+                ..RecordRequest::default()
+            };
+            let err = add_recorder(&mut w, &request).unwrap_err();
             assert!(err.to_string().starts_with(p), "{err}");
         }
         assert!(Path::new("/dev/null").exists());

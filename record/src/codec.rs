@@ -143,6 +143,15 @@ impl Payload {
         })
     }
 
+    /// The vehicle pose of a telemetry message in `bytes` as a `foxglove.PoseInFrame`
+    /// ([`pose_in_frame_json`]); `None` for other payloads or another length.
+    pub fn to_pose_json(self, bytes: &[u8]) -> Option<Value> {
+        match self {
+            Payload::Telemetry => Some(pose_in_frame_json(&read(bytes)?)),
+            _ => None,
+        }
+    }
+
     /// The payload in `bytes` as JSON; `None` when the length is not the payload's.
     pub fn to_json(self, bytes: &[u8]) -> Option<Value> {
         Some(match self {
@@ -268,6 +277,167 @@ pub fn raw_image_schema() -> Value {
         ..FrameHeader::default()
     };
     document_schema("foxglove.RawImage", &raw_image_json("camera", &h, &[0; 3]))
+}
+
+/// How a frame's pixels go onto its topic's image channel (`TOPIC/image`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ImageFormat {
+    /// `foxglove.CompressedImage`: RGB frames as JPEG at `jpeg_quality` (1..=100), depth
+    /// frames as 16-bit grey PNG (lossless: JPEG has no 16-bit depth).
+    Compressed {
+        /// JPEG quality, 1..=100.
+        jpeg_quality: u8,
+    },
+    /// `foxglove.RawImage`: the pixels as they are (`rgb8`, `16UC1`).
+    Raw,
+}
+
+/// JPEG quality of recorded frames unless the recorder's `params.jpeg_quality` says.
+pub const DEFAULT_JPEG_QUALITY: u8 = 80;
+
+impl Default for ImageFormat {
+    fn default() -> Self {
+        ImageFormat::Compressed {
+            jpeg_quality: DEFAULT_JPEG_QUALITY,
+        }
+    }
+}
+
+impl ImageFormat {
+    /// The Foxglove schema name of the image channel.
+    pub fn schema_name(self) -> &'static str {
+        match self {
+            ImageFormat::Compressed { .. } => "foxglove.CompressedImage",
+            ImageFormat::Raw => "foxglove.RawImage",
+        }
+    }
+
+    /// The JSON Schema of the image channel.
+    pub fn schema(self) -> Value {
+        match self {
+            ImageFormat::Compressed { .. } => compressed_image_schema(),
+            ImageFormat::Raw => raw_image_schema(),
+        }
+    }
+}
+
+/// A `foxglove.CompressedImage` (JSON encoding) of one encoded frame (`format`: `jpeg` or
+/// `png`).
+pub fn compressed_image_json(
+    frame_id: &str,
+    header: &FrameHeader,
+    format: &str,
+    data: &[u8],
+) -> Value {
+    json!({
+        "timestamp": {
+            "sec": header.capture_ns / 1_000_000_000,
+            "nsec": header.capture_ns % 1_000_000_000,
+        },
+        "frame_id": frame_id,
+        "format": format,
+        "data": base64(data),
+    })
+}
+
+/// The JSON Schema of [`compressed_image_json`].
+pub fn compressed_image_schema() -> Value {
+    document_schema(
+        "foxglove.CompressedImage",
+        &compressed_image_json("camera", &FrameHeader::default(), "jpeg", &[0; 3]),
+    )
+}
+
+/// Why a frame could not be encoded.
+#[derive(Debug, thiserror::Error)]
+pub enum EncodeError {
+    /// The pixels are not one frame of the header's size and format.
+    #[error("{got} bytes of pixels for a {width}x{height} frame of format {format}")]
+    Size {
+        /// Bytes given.
+        got: usize,
+        /// Frame width.
+        width: u32,
+        /// Frame height.
+        height: u32,
+        /// The header's format byte.
+        format: u8,
+    },
+    /// The encoder failed.
+    #[error("encoding the frame")]
+    Encoder(#[source] image::ImageError),
+}
+
+/// Encode one frame's `pixels` into `out` (cleared first): RGB as JPEG at `jpeg_quality`,
+/// depth (little-endian u16 millimetres) as 16-bit grey PNG. Returns the format name.
+pub fn encode_frame(
+    header: &FrameHeader,
+    pixels: &[u8],
+    jpeg_quality: u8,
+    out: &mut Vec<u8>,
+) -> Result<&'static str, EncodeError> {
+    use image::ImageEncoder;
+    out.clear();
+    let (w, h) = (header.width, header.height);
+    let depth = header.format == aeris_schemas::FrameFormat::DepthU16Mm as u8;
+    let bpp = if depth { 2 } else { 3 };
+    if pixels.len() != w as usize * h as usize * bpp {
+        return Err(EncodeError::Size {
+            got: pixels.len(),
+            width: w,
+            height: h,
+            format: header.format,
+        });
+    }
+    if depth {
+        // the PNG encoder takes 16-bit samples in native byte order: ours are little-endian
+        let native: Vec<u8> = pixels
+            .chunks_exact(2)
+            .flat_map(|b| u16::from_le_bytes([b[0], b[1]]).to_ne_bytes())
+            .collect();
+        image::codecs::png::PngEncoder::new(&mut *out)
+            .write_image(&native, w, h, image::ExtendedColorType::L16)
+            .map_err(EncodeError::Encoder)?;
+        Ok("png")
+    } else {
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut *out, jpeg_quality.clamp(1, 100))
+            .write_image(pixels, w, h, image::ExtendedColorType::Rgb8)
+            .map_err(EncodeError::Encoder)?;
+        Ok("jpeg")
+    }
+}
+
+/// The frame Foxglove draws the vehicle in: east-north-up metres from the mission origin
+/// (x east, y north, z up, as ROS REP 103's `map`).
+pub const POSE_FRAME_ID: &str = "map";
+
+/// The vehicle's pose as a `foxglove.PoseInFrame` (JSON) in [`POSE_FRAME_ID`]: our
+/// `[N, E, U]` becomes `x = E, y = N, z = U`, and the yaw (0 north, clockwise) a rotation
+/// about z of `pi/2 - yaw` (counter-clockwise from east), so the 3D panel draws the
+/// trajectory and heading.
+pub fn pose_in_frame_json(t: &VehicleTelemetry) -> Value {
+    let [n, e, u] = t.position.map(f64::from);
+    let heading = core::f64::consts::FRAC_PI_2 - f64::from(t.attitude[2]);
+    let (sin, cos) = (heading / 2.0).sin_cos();
+    json!({
+        "timestamp": {
+            "sec": t.stamp_ns / 1_000_000_000,
+            "nsec": t.stamp_ns % 1_000_000_000,
+        },
+        "frame_id": POSE_FRAME_ID,
+        "pose": {
+            "position": {"x": e, "y": n, "z": u},
+            "orientation": {"x": 0.0, "y": 0.0, "z": sin, "w": cos},
+        },
+    })
+}
+
+/// The JSON Schema of [`pose_in_frame_json`].
+pub fn pose_in_frame_schema() -> Value {
+    document_schema(
+        "foxglove.PoseInFrame",
+        &pose_in_frame_json(&VehicleTelemetry::default()),
+    )
 }
 
 fn frame_json(h: &FrameHeader) -> Value {

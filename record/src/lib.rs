@@ -9,8 +9,12 @@
 //!   with the schema version, layout hash, size and alignment as its data), so a replay can
 //!   be bit-exact and refuses bytes of another layout.
 //! - Frames: the header on `TOPIC` and `TOPIC/raw`; every `params.frame_every`-th frame
-//!   (default [`DEFAULT_FRAME_EVERY`], 0 = none) also as a `foxglove.RawImage` on
-//!   `TOPIC/image` (`rgb8`, or `16UC1` for depth).
+//!   (default [`DEFAULT_FRAME_EVERY`], 0 = none) also as a picture on `TOPIC/image`: a
+//!   `foxglove.CompressedImage` (JPEG at `params.jpeg_quality`, default
+//!   [`codec::DEFAULT_JPEG_QUALITY`]; depth as 16-bit PNG), or with `params.image = "raw"` a
+//!   `foxglove.RawImage` (`rgb8`, or `16UC1` for depth). The writer thread encodes.
+//! - The vehicle pose of every telemetry message also as a `foxglove.PoseInFrame` on
+//!   `vehicle/telemetry/pose` (frame `map`, east-north-up), for Foxglove's 3D panel.
 //! - Log and publish time: the message's own capture or publish stamp, CLOCK_MONOTONIC ns.
 //!
 //! It never slows the flight: its subscribers have bounded buffers that overwrite (no
@@ -24,7 +28,8 @@
 //! SIGKILL), the next free `PATH.1`, `PATH.2`, ...: a restart never touches the file of an
 //! earlier process, which stays readable up to its last complete chunk.
 //!
-//! Parameters: `path` (required), `frame_every`, `topics` (default: every topic),
+//! Parameters: `path` (required), `frame_every`, `image` (`jpeg` or `raw`), `jpeg_quality`,
+//! `topics` (default: every topic),
 //! `period_ms` (drain period, default 10), `slots` (typed queue slots, default 4096).
 //! Heartbeat counters: `[messages written, samples dropped, bytes written, failed (0/1),
 //! samples received, file index (0 = PATH, n = PATH.n), 0, 0]`.
@@ -40,7 +45,7 @@ use aeris_schemas::{
     AutopilotLinkStatus, BoundSetpoint, ControllerLease, Decision, HubReport, PerceptionState,
     RoleHeartbeat, RoleStatus, VehicleTelemetry, ZeroCopySend, topics,
 };
-use codec::{Payload, bytes_of, payload_of};
+use codec::{ImageFormat, Payload, bytes_of, payload_of};
 use core::fmt::Debug;
 use core::time::Duration;
 use std::path::{Path, PathBuf};
@@ -197,6 +202,25 @@ impl Role for RecorderRole {
                 ))
             })?,
         };
+        let image_format = match (spec.param_str("image"), spec.params.get("jpeg_quality")) {
+            (None | Some("jpeg"), None) => ImageFormat::default(),
+            (None | Some("jpeg"), Some(q)) => match q.as_u64() {
+                Some(q @ 1..=100) => ImageFormat::Compressed {
+                    jpeg_quality: q as u8,
+                },
+                _ => {
+                    return Err(RoleError::Config(format!(
+                        "recorder: params.jpeg_quality = {q} is not a whole number in 1..=100"
+                    )));
+                }
+            },
+            (Some("raw"), _) => ImageFormat::Raw,
+            (Some(other), _) => {
+                return Err(RoleError::Config(format!(
+                    "recorder: params.image = {other:?} is neither \"jpeg\" nor \"raw\""
+                )));
+            }
+        };
         let period = Duration::from_millis(spec.param_f64("period_ms").unwrap_or(10.0) as u64)
             .max(Duration::from_millis(1));
         let slots = spec
@@ -227,6 +251,7 @@ impl Role for RecorderRole {
             &topics_in,
             (slots, typed_bytes),
             (images, image_bytes),
+            image_format,
             counters.clone(),
         ) {
             Ok((q, w)) => (Some(q), Some(w)),

@@ -6,7 +6,9 @@
 //! (JSON and raw bytes), gives the slots back, and ends every chunk at least every
 //! [`FLUSH_EVERY`] so a killed recorder leaves a file readable up to its last chunk.
 
-use crate::codec::{Payload, raw_image_json, raw_image_schema};
+use crate::codec::{
+    ImageFormat, Payload, compressed_image_json, encode_frame, pose_in_frame_schema, raw_image_json,
+};
 use mcap::records::MessageHeader;
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -100,6 +102,8 @@ struct Channels {
     json: u16,
     raw: u16,
     image: Option<u16>,
+    /// `TOPIC/pose` (`foxglove.PoseInFrame`), for the telemetry.
+    pose: Option<u16>,
     sequence: u32,
 }
 
@@ -121,6 +125,7 @@ pub fn start(
     topics: &[(String, Payload)],
     typed: (usize, usize),
     images: (usize, usize),
+    image_format: ImageFormat,
     counters: Arc<Counters>,
 ) -> Result<(Queue, JoinHandle<()>), WriteError> {
     let file = File::create(path).map_err(|source| WriteError::Create {
@@ -140,7 +145,7 @@ pub fn start(
         .map_err(mcap_err)?;
     let mut channels = Vec::with_capacity(topics.len());
     let none = BTreeMap::new();
-    let image_schema = raw_image_schema().to_string();
+    let image_schema = image_format.schema().to_string();
     for (topic, payload) in topics {
         let json_schema = payload.json_schema().to_string();
         let sid = out
@@ -162,10 +167,26 @@ pub fn start(
             .map_err(mcap_err)?;
         let image = if *payload == Payload::Frame {
             let iid = out
-                .add_schema("foxglove.RawImage", "jsonschema", image_schema.as_bytes())
+                .add_schema(
+                    image_format.schema_name(),
+                    "jsonschema",
+                    image_schema.as_bytes(),
+                )
                 .map_err(mcap_err)?;
             Some(
                 out.add_channel(iid, &format!("{topic}/image"), "json", &none)
+                    .map_err(mcap_err)?,
+            )
+        } else {
+            None
+        };
+        let pose = if *payload == Payload::Telemetry {
+            let schema = pose_in_frame_schema().to_string();
+            let pid = out
+                .add_schema("foxglove.PoseInFrame", "jsonschema", schema.as_bytes())
+                .map_err(mcap_err)?;
+            Some(
+                out.add_channel(pid, &format!("{topic}/pose"), "json", &none)
                     .map_err(mcap_err)?,
             )
         } else {
@@ -176,6 +197,7 @@ pub fn start(
             json,
             raw,
             image,
+            pose,
             sequence: 0,
         });
     }
@@ -198,6 +220,9 @@ pub fn start(
         counters,
         free_typed: free_typed_tx,
         free_images: free_images_tx,
+        image_format,
+        encoded: Vec::with_capacity(images.1),
+        encode_failed: false,
     };
     let handle = std::thread::Builder::new()
         .name("recorder writer".into())
@@ -224,6 +249,11 @@ struct WriterThread {
     counters: Arc<Counters>,
     free_typed: SyncSender<Slot>,
     free_images: SyncSender<Slot>,
+    image_format: ImageFormat,
+    /// The encoded picture, reused.
+    encoded: Vec<u8>,
+    /// An encoder failure was reported (once).
+    encode_failed: bool,
 }
 
 impl WriterThread {
@@ -301,6 +331,10 @@ impl WriterThread {
                 let (json_id, raw_id) = (ch.json, ch.raw);
                 put(&mut self.out, json_id, text.as_bytes())?;
                 put(&mut self.out, raw_id, &slot.bytes)?;
+                if let (Some(pose_id), Some(pose)) = (ch.pose, ch.payload.to_pose_json(&slot.bytes))
+                {
+                    put(&mut self.out, pose_id, pose.to_string().as_bytes())?;
+                }
             }
             SlotKind::Image => {
                 let Some(image_id) = ch.image else {
@@ -309,7 +343,30 @@ impl WriterThread {
                 let Some(header) = read_header(&slot.header) else {
                     return Ok(());
                 };
-                let image = raw_image_json(&self.topics[slot.topic], &header, &slot.bytes);
+                let frame_id = &self.topics[slot.topic];
+                let image = match self.image_format {
+                    ImageFormat::Raw => raw_image_json(frame_id, &header, &slot.bytes),
+                    ImageFormat::Compressed { jpeg_quality } => {
+                        match encode_frame(&header, &slot.bytes, jpeg_quality, &mut self.encoded) {
+                            Ok(format) => {
+                                compressed_image_json(frame_id, &header, format, &self.encoded)
+                            }
+                            Err(e) => {
+                                // the frame's header and raw bytes are recorded; its picture
+                                // is not (said once)
+                                if !self.encode_failed {
+                                    self.encode_failed = true;
+                                    eprintln!(
+                                        "recorder: a frame of {frame_id} was not recorded as \
+                                         an image: {}",
+                                        aeris_runtime::error_chain::chain(&e)
+                                    );
+                                }
+                                return Ok(());
+                            }
+                        }
+                    }
+                };
                 put(&mut self.out, image_id, image.to_string().as_bytes())?;
             }
         }

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Independent reader of AERIS flight recordings (the `mcap` package from PyPI).
 
-Usage: mcap_read.py FILE
+Usage: mcap_read.py FILE [--layout LAYOUT.json] [--dump DIR]
 
 Reads FILE as a stream of records from its start (no summary section needed, so a file
 whose recorder was killed reads up to its last complete record) and prints one JSON object:
@@ -13,18 +13,62 @@ whose recorder was killed reads up to its last complete record) and prints one J
    "json_messages_valid": bool, # every json-encoded message parses as JSON
    "raw_sizes_ok": bool,        # every aeris-raw message is as long as its schema's size
    "counts": {topic: messages},
-   "first_json": {topic: the first message decoded}}
+   "first_json": {topic: the first message decoded},
+   "image_formats": {topic: sorted formats of its foxglove.CompressedImage messages},
+   "images_ok": bool,         # every CompressedImage's data is base64 of a whole JPEG
+                              # (FF D8 ... FF D9) or PNG (its signature), as its format says
+   "layout_missing": [topics] # with --layout: topics the Foxglove layout shows that the
+                              # recording lacks (image, 3D and plot panels)
+  }
+
+--dump DIR writes the first picture of each image topic to DIR/<topic with / as _>.<format>.
 """
 
+import argparse
+import base64
 import json
+import os
 import sys
 
 from mcap.records import Channel, Footer, Message, Schema
 from mcap.stream_reader import StreamReader
 
 
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def picture_ok(fmt, data):
+    if fmt == "jpeg":
+        return data[:2] == b"\xff\xd8" and data[-2:] == b"\xff\xd9"
+    if fmt == "png":
+        return data[:8] == PNG_SIGNATURE
+    return False
+
+
+def layout_topics(layout):
+    """Topics a Foxglove layout's image, 3D and plot panels read."""
+    topics = set()
+    for panel, config in layout.get("configById", {}).items():
+        kind = panel.split("!")[0]
+        if kind == "Image":
+            topics.add(config["imageMode"]["imageTopic"])
+        elif kind == "3D":
+            topics.update(config.get("topics", {}).keys())
+        elif kind in ("Plot", "StateTransitions"):
+            for p in config.get("paths", []):
+                topics.add(p["value"].split(".")[0])
+    return topics
+
+
 def main() -> int:
-    path = sys.argv[1]
+    ap = argparse.ArgumentParser()
+    ap.add_argument("file")
+    ap.add_argument("--layout")
+    ap.add_argument("--dump")
+    args = ap.parse_args()
+    path = args.file
+    image_formats = {}
+    images_ok = True
     schemas = {}
     channels = {}
     counts = {}
@@ -67,10 +111,26 @@ def main() -> int:
                             messages_ok = False
                             continue
                         first.setdefault(topic, value)
+                        if ch["schema_name"] == "foxglove.CompressedImage":
+                            fmt = value.get("format")
+                            data = base64.b64decode(value.get("data", ""))
+                            images_ok = images_ok and picture_ok(fmt, data)
+                            seen = image_formats.setdefault(topic, set())
+                            if args.dump and not seen:
+                                name = topic.replace("/", "_") + "." + str(fmt)
+                                with open(os.path.join(args.dump, name), "wb") as out:
+                                    out.write(data)
+                            seen.add(fmt)
                 elif isinstance(record, Footer):
                     complete = True
         except Exception as e:  # a truncated last record: stop there
             error = f"{type(e).__name__}: {e}"
+    missing = []
+    if args.layout:
+        with open(args.layout) as f:
+            wanted = layout_topics(json.load(f))
+        recorded = {c["topic"] for c in channels.values()}
+        missing = sorted(wanted - recorded)
     by_topic = {
         c["topic"]: {k: v for k, v in c.items() if k not in ("topic", "schema_id")} for c in channels.values()
     }
@@ -85,6 +145,9 @@ def main() -> int:
                 "raw_sizes_ok": raw_ok,
                 "counts": counts,
                 "first_json": {t: v for t, v in first.items() if not t.endswith("/image")},
+                "image_formats": {t: sorted(v) for t, v in image_formats.items()},
+                "images_ok": images_ok,
+                "layout_missing": missing,
             }
         )
     )

@@ -12,12 +12,13 @@ use std::time::Duration;
 
 const FLIGHT_BOUND: Duration = Duration::from_secs(900);
 
-/// What tests/py/mcap_read.py says of `file`.
-fn read_back(file: &Path) -> Value {
+/// What tests/py/mcap_read.py says of `file` (with `extra` arguments).
+fn read_back_with(file: &Path, extra: &[&std::ffi::OsStr]) -> Value {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("py/mcap_read.py");
     let out = Command::new(python())
         .arg(&script)
         .arg(file)
+        .args(extra)
         .output()
         .expect("run the python MCAP reader");
     assert!(
@@ -27,6 +28,11 @@ fn read_back(file: &Path) -> Value {
         String::from_utf8_lossy(&out.stderr)
     );
     last_json_line(&String::from_utf8_lossy(&out.stdout))
+}
+
+/// What tests/py/mcap_read.py says of `file`.
+fn read_back(file: &Path) -> Value {
+    read_back_with(file, &[])
 }
 
 fn count(read: &Value, topic: &str) -> u64 {
@@ -41,7 +47,7 @@ fn assert_well_formed(read: &Value, what: &str) {
     assert_eq!(read["raw_sizes_ok"], true, "{what}: {read}");
     let channels = read["channels"].as_object().expect("channels");
     for (topic, ch) in channels {
-        if topic.ends_with("/raw") || topic.ends_with("/image") {
+        if topic.ends_with("/raw") || topic.ends_with("/image") || topic.ends_with("/pose") {
             continue;
         }
         assert_eq!(ch["message_encoding"], "json", "{what}: {topic}");
@@ -82,11 +88,57 @@ fn a_recorded_flight_reads_back_with_the_summarys_counts() {
     assert!(rec["messages"].as_u64().unwrap() > 0, "{summary}");
     let dropped = rec["dropped"].as_u64().unwrap();
 
-    let read = read_back(&file);
+    // read with the repository's Foxglove layout; the first pictures dumped
+    let layout =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../record/foxglove/aeris-flight-layout.json");
+    let read = read_back_with(
+        &file,
+        &[
+            "--layout".as_ref(),
+            layout.as_os_str(),
+            "--dump".as_ref(),
+            dir.0.as_os_str(),
+        ],
+    );
     assert_eq!(
         read["complete"], true,
         "a stopped recorder finishes its file: {read}"
     );
+    // everything the layout shows is in the recording
+    assert_eq!(read["layout_missing"], serde_json::json!([]), "{read}");
+    // pictures as Foxglove's CompressedImage: JPEG for colour, PNG (16-bit) for depth,
+    // whole files that an independent decoder reads at the camera's size
+    assert_eq!(read["images_ok"], true, "{read}");
+    assert_eq!(
+        read["image_formats"]["camera/rgb/image"],
+        serde_json::json!(["jpeg"])
+    );
+    assert_eq!(
+        read["image_formats"]["camera/depth/image"],
+        serde_json::json!(["png"])
+    );
+    for (name, colour) in [
+        ("camera_rgb_image.jpeg", true),
+        ("camera_depth_image.png", false),
+    ] {
+        let picture = image::open(dir.0.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!((picture.width(), picture.height()), (320, 240), "{name}");
+        assert_eq!(picture.color().has_color(), colour, "{name}");
+    }
+    // the vehicle's pose beside every telemetry message, for the 3D panel
+    assert_eq!(
+        count(&read, "vehicle/telemetry/pose"),
+        count(&read, "vehicle/telemetry")
+    );
+    let pose = &read["first_json"]["vehicle/telemetry/pose"];
+    assert_eq!(pose["frame_id"], "map", "{pose}");
+    let telemetry = &read["first_json"]["vehicle/telemetry"];
+    let (x, east) = (
+        pose["pose"]["position"]["x"].as_f64().unwrap(),
+        telemetry["position"][1].as_f64().unwrap(),
+    );
+    // the same f32, printed at two precisions
+    assert!((x - east).abs() < 1e-4, "x is east: {pose} {telemetry}");
     assert_eq!(read["error"], Value::Null, "{read}");
     assert_well_formed(&read, "flight.mcap");
     for topic in [
