@@ -4,8 +4,9 @@
 //! - `compose`: joins the blocks of one frame (text, detections, cues, occupancy) and writes
 //!   the bounded scene summary from them, e.g. `reads "LAKE VIEW"; bus ahead 21 m; person
 //!   left 8 m`. It publishes when the cue block of a frame arrives (the last stage of the
-//!   pipeline) or, if it does not, `join_ms` (default 1500) after the first block of that
-//!   frame, with whatever blocks are there. The occupancy block may come from an earlier
+//!   pipeline), when every kind of block that has ever come (text, detections, cues) is
+//!   there for that frame (a pipeline without a cue role), or, failing both, `join_ms`
+//!   (default 1500) after the first block of that frame, with whatever blocks are there. The occupancy block may come from an earlier
 //!   frame than the others (the newest the occupancy role published); its status in S_t
 //!   says what it is worth: **absent** when no occupancy block ever came (no depth source:
 //!   a camera without depth, or no occupancy role), **stale** when the newest one's frame
@@ -150,6 +151,8 @@ pub struct ComposeRole {
     out: TypedPublisher<PerceptionState>,
     pending: Option<(u64, u64)>,
     done_frame: u64,
+    /// Which of text, detections and cues have ever arrived (bit i: `subs[i]`).
+    kinds_seen: u8,
     join_ns: u64,
     occupancy_max_age_ns: u64,
     state: Box<PerceptionState>,
@@ -177,6 +180,7 @@ impl Role for ComposeRole {
             out: ctx.bus.publisher(topics::PERCEPTION_STATE)?,
             pending: None,
             done_frame: 0,
+            kinds_seen: 0,
             join_ns: (ctx.spec.param_f64("join_ms").unwrap_or(1500.0).max(0.0) * 1e6) as u64,
             occupancy_max_age_ns: occupancy_max_age_ns(
                 ctx.spec
@@ -199,10 +203,13 @@ impl Role for ComposeRole {
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         let now = monotonic_ns();
-        for (sub, slot) in self.subs.iter().zip(self.held.iter_mut()) {
+        for (i, (sub, slot)) in self.subs.iter().zip(self.held.iter_mut()).enumerate() {
             if let Some(s) = sub.latest()?
                 && s.validate().is_ok()
             {
+                if i != OCC {
+                    self.kinds_seen |= 1 << i;
+                }
                 if s.frame_seq > self.done_frame
                     && self.pending.is_none_or(|(f, _)| s.frame_seq > f)
                 {
@@ -214,10 +221,10 @@ impl Role for ComposeRole {
         let Some((frame, since)) = self.pending else {
             return Ok(CycleOutcome::Idle);
         };
-        let cue_ready = self.held[CUES]
-            .as_ref()
-            .is_some_and(|c| c.frame_seq == frame);
-        if !cue_ready && now.saturating_sub(since) < self.join_ns {
+        let of_frame_held = |i: usize| self.held[i].as_ref().is_some_and(|c| c.frame_seq == frame);
+        let cue_ready = of_frame_held(CUES);
+        let all_kinds_ready = frame_complete(self.kinds_seen, of_frame_held);
+        if !cue_ready && !all_kinds_ready && now.saturating_sub(since) < self.join_ns {
             return Ok(CycleOutcome::Idle);
         }
         self.pending = None;
@@ -245,9 +252,28 @@ impl Role for ComposeRole {
     }
 }
 
+/// Whether every kind of block in `kinds_seen` (bits over text, detections, cues) is held
+/// for the frame (`held(i)`); never for no kind at all.
+fn frame_complete(kinds_seen: u8, held: impl Fn(usize) -> bool) -> bool {
+    kinds_seen != 0
+        && [TEXT, DETS, CUES]
+            .into_iter()
+            .all(|i| kinds_seen & (1 << i) == 0 || held(i))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_frame_is_complete_when_every_kind_seen_is_there() {
+        let text_and_dets = (1 << TEXT) | (1 << DETS);
+        assert!(frame_complete(text_and_dets, |i| i == TEXT || i == DETS));
+        assert!(!frame_complete(text_and_dets, |i| i == TEXT));
+        // cues seen once: they are waited for too
+        assert!(!frame_complete(text_and_dets | (1 << CUES), |i| i != CUES));
+        assert!(!frame_complete(0, |_| true));
+    }
     use aeris_schemas::OCCUPANCY_UNKNOWN;
 
     #[test]
