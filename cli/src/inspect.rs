@@ -151,7 +151,11 @@ pub fn status(flight: Option<String>, json: bool) -> Result<()> {
 fn type_of(topic: &str) -> &'static str {
     match topic {
         topics::CAMERA_RGB | topics::CAMERA_DEPTH => "[u8] + FrameHeader",
-        topics::PERCEPTION_STATE => "PerceptionState",
+        topics::PERCEPTION_STATE
+        | topics::PERCEPTION_TEXT
+        | topics::PERCEPTION_DETECTIONS
+        | topics::PERCEPTION_CUES
+        | topics::PERCEPTION_OCCUPANCY => "PerceptionState",
         topics::REASONING_DECISION => "Decision",
         topics::HUB_SETPOINT => "BoundSetpoint",
         topics::HUB_REPORT => "HubReport",
@@ -208,7 +212,12 @@ fn each_sample(
                     .map(|s| format!("{:?} bytes={}", s.user_header(), s.payload().len())))
             })
         }
-        topics::PERCEPTION_STATE => typed::<PerceptionState>(bus, topic)?,
+        // S_t and the blocks it is composed of share one type
+        topics::PERCEPTION_STATE
+        | topics::PERCEPTION_TEXT
+        | topics::PERCEPTION_DETECTIONS
+        | topics::PERCEPTION_CUES
+        | topics::PERCEPTION_OCCUPANCY => typed::<PerceptionState>(bus, topic)?,
         topics::REASONING_DECISION => typed::<Decision>(bus, topic)?,
         topics::HUB_SETPOINT => typed::<BoundSetpoint>(bus, topic)?,
         topics::HUB_REPORT => typed::<HubReport>(bus, topic)?,
