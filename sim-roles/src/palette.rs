@@ -8,8 +8,14 @@ use aeris_roles::detector::{DetectionEngine, DetectorRole};
 use aeris_runtime::{RoleContext, RoleError};
 use aeris_schemas::{FrameHeader, PerceptionState};
 
+/// Frames in a row without depth after which the engine says it cannot detect (once).
+const NO_DEPTH_SAID_AFTER: u32 = 10;
+
 /// The colour segmentation as a detection engine.
 pub struct PaletteDetection {
+    /// Frames in a row without their depth frame (a depth frame may come a little late; a
+    /// camera without depth never sends one).
+    without_depth: u32,
     segmenter: Box<Segmenter>,
     words: InstructionWords,
     /// The whole S_t the segmentation fills; the detections are copied out of it.
@@ -22,6 +28,7 @@ pub type PaletteDetectorRole = DetectorRole<PaletteDetection>;
 impl DetectionEngine for PaletteDetection {
     fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
         Ok(Self {
+            without_depth: 0,
             segmenter: Box::default(),
             words: InstructionWords::from_mission(&ctx.spec.mission),
             full: Box::default(),
@@ -36,8 +43,17 @@ impl DetectionEngine for PaletteDetection {
         state: &mut PerceptionState,
     ) -> bool {
         let Some(depth) = depth else {
+            self.without_depth = self.without_depth.saturating_add(1);
+            if self.without_depth == NO_DEPTH_SAID_AFTER {
+                eprintln!(
+                    "detector: palette: no depth frame came with the last \
+                     {NO_DEPTH_SAID_AFTER} frames; the colour segmentation needs depth, so \
+                     they give no detections (a camera without depth wants the yolo detector)"
+                );
+            }
             return false;
         };
+        self.without_depth = 0;
         let perceived = self.segmenter.perceive(
             rgb,
             depth,
@@ -88,6 +104,7 @@ mod tests {
         assert!(full.detection_count > 0, "a scene with something in it");
 
         let mut engine = PaletteDetection {
+            without_depth: 0,
             segmenter: Box::default(),
             words,
             full: Box::default(),
