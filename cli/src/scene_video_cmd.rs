@@ -182,12 +182,16 @@ pub fn run(args: VideoArgs) -> anyhow::Result<()> {
         yaw: args.yaw.map(f32::to_radians),
     };
     let poses = path_poses(&path, args.fps)?;
+    // on a terminal one line redrawn; in a log a line every 100 frames and at the end
+    let redraw = std::io::IsTerminal::is_terminal(&stderr);
     let report = render_poses(&world, &camera, &poses, sink, &mut |done, total| {
-        if done == total || done % 10 == 0 {
+        if redraw && (done == total || done % 10 == 0) {
             let _ = write!(stderr, "\rrendering {target}: {done}/{total} frames");
             if done == total {
                 let _ = writeln!(stderr);
             }
+        } else if !redraw && (done == total || done % 100 == 0) {
+            let _ = writeln!(stderr, "rendering {target}: {done}/{total} frames");
         }
     })
     // GStreamer's own message names the file or host that failed
