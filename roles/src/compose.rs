@@ -221,16 +221,15 @@ impl Role for ComposeRole {
         let Some((frame, since)) = self.pending else {
             return Ok(CycleOutcome::Idle);
         };
-        let of_frame_held = |i: usize| self.held[i].as_ref().is_some_and(|c| c.frame_seq == frame);
-        let cue_ready = of_frame_held(CUES);
-        let all_kinds_ready = frame_complete(self.kinds_seen, of_frame_held);
+        // blocks of this frame; occupancy may come from the newest frame it has
+        let of_frame = |i: usize| self.held[i].as_deref().filter(|s| s.frame_seq == frame);
+        let cue_ready = of_frame(CUES).is_some();
+        let all_kinds_ready = frame_complete(self.kinds_seen, |i| of_frame(i).is_some());
         if !cue_ready && !all_kinds_ready && now.saturating_sub(since) < self.join_ns {
             return Ok(CycleOutcome::Idle);
         }
         self.pending = None;
         self.done_frame = frame;
-        // blocks of this frame; occupancy may come from the newest frame it has
-        let of_frame = |i: usize| self.held[i].as_deref().filter(|s| s.frame_seq == frame);
         let occupancy = self.held[OCC].as_deref();
         let t0 = monotonic_ns();
         compose(
