@@ -390,11 +390,16 @@ pub fn encode_frame(
         });
     }
     if depth {
-        // the PNG encoder takes 16-bit samples in native byte order: ours are little-endian
-        let native: Vec<u8> = pixels
-            .chunks_exact(2)
-            .flat_map(|b| u16::from_le_bytes([b[0], b[1]]).to_ne_bytes())
-            .collect();
+        // the PNG encoder takes 16-bit samples in native byte order and ours are
+        // little-endian: as they are on a little-endian machine, swapped (a copy) elsewhere
+        let native: std::borrow::Cow<[u8]> = if cfg!(target_endian = "little") {
+            std::borrow::Cow::Borrowed(pixels)
+        } else {
+            pixels
+                .chunks_exact(2)
+                .flat_map(|b| u16::from_le_bytes([b[0], b[1]]).to_ne_bytes())
+                .collect()
+        };
         image::codecs::png::PngEncoder::new(&mut *out)
             .write_image(&native, w, h, image::ExtendedColorType::L16)
             .map_err(EncodeError::Encoder)?;
