@@ -165,32 +165,25 @@ pub fn start(
         let raw = out
             .add_channel(rid, &format!("{topic}/raw"), "aeris-raw", &none)
             .map_err(mcap_err)?;
-        let image = if *payload == Payload::Frame {
-            let iid = out
-                .add_schema(
-                    image_format.schema_name(),
-                    "jsonschema",
-                    image_schema.as_bytes(),
-                )
+        // a JSON side channel `{topic}/{suffix}` with its own schema
+        let mut side = |suffix: &str, name: &str, schema: &str| {
+            let id = out
+                .add_schema(name, "jsonschema", schema.as_bytes())
                 .map_err(mcap_err)?;
-            Some(
-                out.add_channel(iid, &format!("{topic}/image"), "json", &none)
-                    .map_err(mcap_err)?,
-            )
-        } else {
-            None
+            out.add_channel(id, &format!("{topic}/{suffix}"), "json", &none)
+                .map_err(mcap_err)
         };
-        let pose = if *payload == Payload::Telemetry {
-            let schema = pose_in_frame_schema().to_string();
-            let pid = out
-                .add_schema("foxglove.PoseInFrame", "jsonschema", schema.as_bytes())
-                .map_err(mcap_err)?;
-            Some(
-                out.add_channel(pid, &format!("{topic}/pose"), "json", &none)
-                    .map_err(mcap_err)?,
-            )
-        } else {
-            None
+        let image = match payload {
+            Payload::Frame => Some(side("image", image_format.schema_name(), &image_schema)?),
+            _ => None,
+        };
+        let pose = match payload {
+            Payload::Telemetry => Some(side(
+                "pose",
+                "foxglove.PoseInFrame",
+                &pose_in_frame_schema().to_string(),
+            )?),
+            _ => None,
         };
         channels.push(Channels {
             payload: *payload,
