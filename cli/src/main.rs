@@ -12,6 +12,7 @@ mod flight_print;
 mod inspect;
 #[cfg(feature = "sim")]
 mod plot_cmd;
+mod replay_cmd;
 mod run_cmd;
 #[cfg(feature = "sim")]
 mod scene_cmd;
@@ -91,6 +92,10 @@ enum Command {
     },
     /// List the role kinds and variants this build can run.
     Roles,
+    /// Replay a recorded flight (`aeris run --record --record-for-replay`): its frames and
+    /// telemetry at their recorded times, perception, reasoning and the hub live, every
+    /// decision set beside the recorded one; or compare variants on it (--compare).
+    Replay(replay_cmd::ReplayArgs),
     /// Run benchmarks (IPC, camera, gate, control, models, cycle, swap, ds) and print their figures.
     Bench(bench_cmd::BenchArgs),
     #[cfg(feature = "sim")]
@@ -257,6 +262,7 @@ fn main() -> ExitCode {
         } => inspect::migrate(flight, &role, &cpus, json).map(|_| ExitCode::SUCCESS),
         Command::Validate { workflow } => run_cmd::validate(&workflow),
         Command::Roles => roles(),
+        Command::Replay(args) => replay_cmd::run(args).map(|_| ExitCode::SUCCESS),
         Command::Bench(args) => bench_cmd::run(args).map(|_| ExitCode::SUCCESS),
         #[cfg(feature = "sim")]
         Command::Eval(args) => eval_cmd::run(args).map(|_| ExitCode::SUCCESS),

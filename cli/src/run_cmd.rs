@@ -58,6 +58,10 @@ pub struct RunArgs {
     /// raw pixels with 0 [default: 80].
     #[arg(long, value_name = "Q", requires = "record", value_parser = clap::value_parser!(u8).range(0..=100))]
     pub record_jpeg_quality: Option<u8>,
+    /// With --record: every camera frame is also recorded exactly (LZ4-compressed), so
+    /// that `aeris replay FILE` can replay the flight.
+    #[arg(long, requires = "record")]
+    pub record_for_replay: bool,
 }
 
 /// The file `--record` names: as given (relative to the working directory), or
@@ -179,6 +183,7 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
         if let Some(n) = args.record_frame_every {
             flight = flight.record_frame_every(n);
         }
+        flight = flight.record_exact_frames(args.record_for_replay);
     }
     let mut printer = FlightPrinter::new(true, "")?;
     let flight = flight.start()?;

@@ -160,6 +160,24 @@ impl<H: StepHook> FlightBuilder<H> {
         self
     }
 
+    /// Record every camera frame exactly as well, so that `aeris replay` can replay the
+    /// recording (LZ4-compressed; see `aeris_record::read`); with [`FlightBuilder::record`].
+    pub fn record_exact_frames(mut self, on: bool) -> Self {
+        if let Some(r) = &mut self.record {
+            r.exact_frames = on;
+        }
+        self
+    }
+
+    /// Record only `topics` (default: every topic the flight publishes); with
+    /// [`FlightBuilder::record`].
+    pub fn record_topics(mut self, topics: Vec<String>) -> Self {
+        if let Some(r) = &mut self.record {
+            r.topics = Some(topics);
+        }
+        self
+    }
+
     /// Run `step` once every supervisor step (see [`StepHook`]).
     pub fn on_step<F>(self, step: F) -> FlightBuilder<FnHook<F>>
     where

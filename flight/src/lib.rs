@@ -37,6 +37,8 @@
 //! - [`monitor`]: the [`FlightMonitor`], the [`FlightSummary`] and the [`CycleTrace`];
 //! - [`Overrides`]: a flight's changes to its workflow;
 //! - [`recording`]: a recorded flight ([`FlightBuilder::record`]: the `aeris-record` role);
+//! - [`replay`]: a recorded flight replayed with live roles, decision by decision against
+//!   the recording, and variants compared on it;
 //! - [`executors`]: the executor registry a workflow would start with, and the
 //!   accelerators ONNX Runtime offers.
 
@@ -50,6 +52,7 @@ pub mod hook;
 pub mod monitor;
 pub mod overrides;
 pub mod recording;
+pub mod replay;
 mod supervise;
 mod video_start;
 

@@ -78,6 +78,10 @@ pub(crate) struct RecordRequest {
     pub(crate) frame_every: Option<u64>,
     /// JPEG quality of the images, 0 for raw pixels (the recorder's default when `None`).
     pub(crate) jpeg_quality: Option<u8>,
+    /// Every frame exactly as well (a recording `aeris replay` can replay).
+    pub(crate) exact_frames: bool,
+    /// Only these topics (default: every topic the flight publishes).
+    pub(crate) topics: Option<Vec<String>>,
 }
 
 /// Add a recorder role writing to `request.path` to `workflow`: first in declaration order (it has
@@ -137,6 +141,23 @@ pub(crate) fn add_recorder(
         }
         None => {}
     }
+    if request.exact_frames {
+        params.insert("frames".into(), "exact".into());
+    }
+    if let Some(topics) = &request.topics {
+        params.insert("topics".into(), topics.clone().into());
+    }
+    // the flight itself goes into the recording, for a replay to run the same roles
+    params.insert("roles".into(), recorded_roles(workflow).into());
+    params.insert(
+        "executors".into(),
+        workflow
+            .executors
+            .iter()
+            .map(|e| serde_json::Value::from(e.name.clone()))
+            .collect::<Vec<_>>()
+            .into(),
+    );
     workflow.roles.insert(
         0,
         RoleDecl {
@@ -157,6 +178,27 @@ pub(crate) fn add_recorder(
     );
     workflow.fit_recorders();
     Ok(name)
+}
+
+/// The workflow's roles as a recording describes them
+/// ([`aeris_record::read::RecordedRole`]).
+fn recorded_roles(workflow: &Workflow) -> Vec<serde_json::Value> {
+    workflow
+        .roles
+        .iter()
+        .filter(|r| r.kind != RECORDER_KIND)
+        .filter_map(|r| {
+            serde_json::to_value(aeris_record::read::RecordedRole {
+                name: r.name.clone(),
+                kind: r.kind.clone(),
+                variant: r.variant.clone(),
+                variants: r.variants.clone(),
+                executor: r.executor.clone(),
+                params: r.params.clone(),
+            })
+            .ok()
+        })
+        .collect()
 }
 
 #[cfg(test)]

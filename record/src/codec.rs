@@ -63,7 +63,7 @@ pub fn bytes_of<T: ZeroCopySend + Copy>(value: &T) -> &[u8] {
 }
 
 /// `T` read back from its bytes; `None` when `bytes` has the wrong length.
-fn read<T: ZeroCopySend + Copy>(bytes: &[u8]) -> Option<T> {
+pub fn read<T: ZeroCopySend + Copy>(bytes: &[u8]) -> Option<T> {
     (bytes.len() == size_of::<T>())
         // SAFETY: the length is that of `T`; every payload type is plain data for which any
         // bytes its publisher wrote are a value (enums travel as `u8`), and the read is

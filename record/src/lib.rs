@@ -15,6 +15,13 @@
 //!   `foxglove.RawImage` (`rgb8`, or `16UC1` for depth). The writer thread encodes.
 //! - The vehicle pose of every telemetry message also as a `foxglove.PoseInFrame` on
 //!   `vehicle/telemetry/pose` (frame `map`, east-north-up), for Foxglove's 3D panel.
+//! - With `params.frames = "exact"` (a recording for replay, [`read`]), every frame also
+//!   goes on `TOPIC/frame`: its header bytes followed by its pixel bytes, exactly as in
+//!   shared memory (LZ4 chunks keep that small), so `aeris replay` publishes the very
+//!   frames the flight saw.
+//! - The flight itself (schema version, timing, camera, mission, and the roles and
+//!   executors the flight library passes as `params.roles` / `params.executors`) as the
+//!   MCAP metadata record `aeris.flight` ([`read::FLIGHT_METADATA`]).
 //! - Log and publish time: the message's own capture or publish stamp, CLOCK_MONOTONIC ns.
 //!
 //! It never slows the flight: its subscribers have bounded buffers that overwrite (no
@@ -29,7 +36,7 @@
 //! earlier process, which stays readable up to its last complete chunk.
 //!
 //! Parameters: `path` (required), `frame_every`, `image` (`jpeg` or `raw`), `jpeg_quality`,
-//! `topics` (default: every topic),
+//! `frames` (`exact`), `roles`, `executors`, `topics` (default: every topic),
 //! `period_ms` (drain period, default 10), `slots` (typed queue slots, default 4096).
 //! Heartbeat counters: `[messages written, samples dropped, bytes written, failed (0/1),
 //! samples received, file index (0 = PATH, n = PATH.n), 0, 0]`.
@@ -37,6 +44,8 @@
 #![deny(missing_docs)]
 
 pub mod codec;
+pub mod read;
+pub mod replay;
 pub mod writer;
 
 use aeris_runtime::bus::{BusError, FrameSubscriber, TypedSubscriber};
@@ -60,6 +69,9 @@ pub const DEFAULT_FRAME_EVERY: u64 = 5;
 pub const DEFAULT_SLOTS: usize = 4096;
 /// Image queue slots.
 pub const IMAGE_SLOTS: usize = 8;
+/// Exact-frame queue slots (frames recorded for replay): a second of RGB and depth at 10
+/// frames per second, and some.
+pub const EXACT_SLOTS: usize = 32;
 
 /// Heartbeat counter indices.
 pub mod counter {
@@ -148,6 +160,7 @@ pub struct RecorderRole {
     writer: Option<JoinHandle<()>>,
     counters: Arc<Counters>,
     frame_every: u64,
+    exact_frames: bool,
     period: Duration,
     dropped: u64,
     received: u64,
@@ -221,6 +234,15 @@ impl Role for RecorderRole {
                 )));
             }
         };
+        let exact_frames = match spec.param_str("frames") {
+            None => false,
+            Some("exact") => true,
+            Some(other) => {
+                return Err(RoleError::Config(format!(
+                    "recorder: params.frames = {other:?} is not \"exact\""
+                )));
+            }
+        };
         let period = Duration::from_millis(spec.param_f64("period_ms").unwrap_or(10.0) as u64)
             .max(Duration::from_millis(1));
         let slots = spec
@@ -246,12 +268,19 @@ impl Role for RecorderRole {
         let (path, file_index) = next_free_path(Path::new(path));
         let counters = Arc::new(Counters::default());
         let images = if frame_every > 0 { IMAGE_SLOTS } else { 0 };
+        let exact = if exact_frames { EXACT_SLOTS } else { 0 };
+        let pools = writer::Pools {
+            typed: (slots, typed_bytes),
+            images: (images, image_bytes),
+            exact: (exact, image_bytes + size_of::<aeris_schemas::FrameHeader>()),
+        };
+        let flight = read::flight_metadata(spec);
         let (queue, writer) = match writer::start(
             &path,
             &topics_in,
-            (slots, typed_bytes),
-            (images, image_bytes),
+            pools,
             image_format,
+            Some(flight),
             counters.clone(),
         ) {
             Ok((q, w)) => (Some(q), Some(w)),
@@ -274,6 +303,7 @@ impl Role for RecorderRole {
             writer,
             counters,
             frame_every,
+            exact_frames,
             period,
             dropped: 0,
             received: 0,
@@ -323,6 +353,20 @@ impl Role for RecorderRole {
                         match take(&q.free_typed) {
                             Some(slot) => enqueue_typed(q, slot, index, payload, bytes_of(header)),
                             None => dropped += 1,
+                        }
+                        if self.exact_frames {
+                            match take(&q.free_exact) {
+                                Some(mut slot) => {
+                                    slot.topic = index;
+                                    slot.kind = SlotKind::Exact;
+                                    slot.stamp_ns = header.capture_ns;
+                                    slot.bytes.clear();
+                                    slot.bytes.extend_from_slice(bytes_of(header));
+                                    slot.bytes.extend_from_slice(frame.payload());
+                                    let _ = q.filled.try_send(slot);
+                                }
+                                None => dropped += 1,
+                            }
                         }
                         if self.frame_every > 0 && (*seen - 1) % self.frame_every == 0 {
                             match take(&q.free_images) {

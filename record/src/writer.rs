@@ -33,6 +33,9 @@ pub enum SlotKind {
     Typed,
     /// A frame's pixels, with its header in `header`: the image channel.
     Image,
+    /// A frame's header bytes followed by its pixel bytes, exactly as in shared memory:
+    /// the `TOPIC/frame` channel a replay publishes from.
+    Exact,
 }
 
 /// One queued sample; its buffer is allocated once and reused.
@@ -104,6 +107,8 @@ struct Channels {
     image: Option<u16>,
     /// `TOPIC/pose` (`foxglove.PoseInFrame`), for the telemetry.
     pose: Option<u16>,
+    /// `TOPIC/frame` (header and pixels, exact), for frames when recorded for replay.
+    exact: Option<u16>,
     sequence: u32,
 }
 
@@ -113,21 +118,39 @@ pub struct Queue {
     pub free_typed: Receiver<Slot>,
     /// Free image slots.
     pub free_images: Receiver<Slot>,
+    /// Free exact-frame slots (none unless frames are recorded for replay).
+    pub free_exact: Receiver<Slot>,
     /// Filled slots to the writer (never full: it holds every slot there is).
     pub filled: SyncSender<Slot>,
 }
 
+/// The slot pools of a recording: how many slots of how many bytes each.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Pools {
+    /// Typed messages (and frame headers).
+    pub typed: (usize, usize),
+    /// Frames as pictures (`TOPIC/image`).
+    pub images: (usize, usize),
+    /// Frames exact (`TOPIC/frame`); 0 slots: the channel is not written.
+    pub exact: (usize, usize),
+}
+
 /// Start the writer thread on a new MCAP file at `path` recording `topics` (each with its
-/// payload). `typed_slots` of `typed_bytes` and `image_slots` of `image_bytes` are
-/// allocated now.
+/// payload); every slot of `pools` is allocated now. `flight` (if any) is written first as
+/// the MCAP metadata record `aeris.flight` ([`crate::read::FLIGHT_METADATA`]).
 pub fn start(
     path: &Path,
     topics: &[(String, Payload)],
-    typed: (usize, usize),
-    images: (usize, usize),
+    pools: Pools,
     image_format: ImageFormat,
+    flight: Option<BTreeMap<String, String>>,
     counters: Arc<Counters>,
 ) -> Result<(Queue, JoinHandle<()>), WriteError> {
+    let Pools {
+        typed,
+        images,
+        exact,
+    } = pools;
     let file = File::create(path).map_err(|source| WriteError::Create {
         path: path.to_path_buf(),
         source,
@@ -137,12 +160,19 @@ pub fn start(
         source,
     };
     let mut out = mcap::WriteOptions::new()
-        .compression(None)
+        .compression(Some(mcap::Compression::Lz4))
         .chunk_size(Some(CHUNK_SIZE))
         .profile("")
         .library(concat!("aeris-record ", env!("CARGO_PKG_VERSION")))
         .create(BufWriter::new(file))
         .map_err(mcap_err)?;
+    if let Some(metadata) = flight {
+        out.write_metadata(&mcap::records::Metadata {
+            name: crate::read::FLIGHT_METADATA.into(),
+            metadata,
+        })
+        .map_err(mcap_err)?;
+    }
     let mut channels = Vec::with_capacity(topics.len());
     let none = BTreeMap::new();
     let image_schema = image_format.schema().to_string();
@@ -185,12 +215,29 @@ pub fn start(
             )?),
             _ => None,
         };
+        let exact_channel = match payload {
+            Payload::Frame if exact.0 > 0 => {
+                let id = out
+                    .add_schema(
+                        &format!("{}+pixels", payload.type_name()),
+                        "aeris-layout",
+                        raw_schema.as_bytes(),
+                    )
+                    .map_err(mcap_err)?;
+                Some(
+                    out.add_channel(id, &format!("{topic}/frame"), "aeris-raw", &none)
+                        .map_err(mcap_err)?,
+                )
+            }
+            _ => None,
+        };
         channels.push(Channels {
             payload: *payload,
             json,
             raw,
             image,
             pose,
+            exact: exact_channel,
             sequence: 0,
         });
     }
@@ -198,12 +245,16 @@ pub fn start(
 
     let (free_typed_tx, free_typed) = std::sync::mpsc::sync_channel(typed.0);
     let (free_images_tx, free_images) = std::sync::mpsc::sync_channel(images.0);
-    let (filled, filled_rx) = std::sync::mpsc::sync_channel(typed.0 + images.0);
+    let (free_exact_tx, free_exact) = std::sync::mpsc::sync_channel(exact.0);
+    let (filled, filled_rx) = std::sync::mpsc::sync_channel(typed.0 + images.0 + exact.0);
     for _ in 0..typed.0 {
         let _ = free_typed_tx.send(Slot::with_capacity(typed.1, 0));
     }
     for _ in 0..images.0 {
         let _ = free_images_tx.send(Slot::with_capacity(images.1, typed.1));
+    }
+    for _ in 0..exact.0 {
+        let _ = free_exact_tx.send(Slot::with_capacity(exact.1, 0));
     }
     let mut thread = WriterThread {
         path: path.to_path_buf(),
@@ -213,6 +264,7 @@ pub fn start(
         counters,
         free_typed: free_typed_tx,
         free_images: free_images_tx,
+        free_exact: free_exact_tx,
         image_format,
         encoded: Vec::with_capacity(images.1),
         encode_failed: false,
@@ -228,6 +280,7 @@ pub fn start(
         Queue {
             free_typed,
             free_images,
+            free_exact,
             filled,
         },
         handle,
@@ -242,6 +295,7 @@ struct WriterThread {
     counters: Arc<Counters>,
     free_typed: SyncSender<Slot>,
     free_images: SyncSender<Slot>,
+    free_exact: SyncSender<Slot>,
     image_format: ImageFormat,
     /// The encoded picture, reused.
     encoded: Vec<u8>,
@@ -262,10 +316,7 @@ impl WriterThread {
             };
             if let Some(slot) = slot {
                 let written = self.write(&slot);
-                let pool = match slot.kind {
-                    SlotKind::Typed => &self.free_typed,
-                    SlotKind::Image => &self.free_images,
-                };
+                let pool = self.pool(slot.kind);
                 // the role may be gone already: a slot with nowhere to go is just freed
                 let _ = pool.try_send(slot);
                 if let Err(e) = written {
@@ -291,12 +342,17 @@ impl WriterThread {
             );
             // keep returning slots so the role's drain loop sees a steady state, not a leak
             while let Ok(slot) = filled.recv() {
-                let pool = match slot.kind {
-                    SlotKind::Typed => &self.free_typed,
-                    SlotKind::Image => &self.free_images,
-                };
-                let _ = pool.try_send(slot);
+                let _ = self.pool(slot.kind).try_send(slot);
             }
+        }
+    }
+
+    /// The free list a slot of `kind` goes back to.
+    fn pool(&self, kind: SlotKind) -> &SyncSender<Slot> {
+        match kind {
+            SlotKind::Typed => &self.free_typed,
+            SlotKind::Image => &self.free_images,
+            SlotKind::Exact => &self.free_exact,
         }
     }
 
@@ -327,6 +383,11 @@ impl WriterThread {
                 if let (Some(pose_id), Some(pose)) = (ch.pose, ch.payload.to_pose_json(&slot.bytes))
                 {
                     put(&mut self.out, pose_id, pose.to_string().as_bytes())?;
+                }
+            }
+            SlotKind::Exact => {
+                if let Some(id) = ch.exact {
+                    put(&mut self.out, id, &slot.bytes)?;
                 }
             }
             SlotKind::Image => {

@@ -2,13 +2,18 @@
 //!
 //! A decision is only as recent as the S_t it uses: the hub measures its cycle from that
 //! state's frame capture and rejects it after the deadline. So a reasoner decides on the
-//! first fresh S_t once most of a heartbeat has passed since its last decision, and never
-//! on a stale one: when no S_t arrived for one and a half heartbeats (perception slow or
-//! down), it decides on the telemetry alone and the cycle starts then.
+//! first S_t *captured* most of a heartbeat after the start of its last cycle, and never on
+//! a stale one: when no S_t arrived for one and a half heartbeats (perception slow or down),
+//! it decides on the telemetry alone and the cycle starts then.
+//!
+//! Which S_t starts a cycle depends only on the capture times of the states, not on when
+//! the reasoner happened to look: a replayed flight (the same frames at the same relative
+//! times) decides on the same frames, which is what makes its decisions comparable, byte
+//! for byte, with the recorded ones.
 
-/// Share of a heartbeat after a decision from which a fresh S_t is decided on (the rest
-/// absorbs the jitter of the perception pipeline, whose S_t come once per heartbeat), as
-/// tenths: 9 = 0.9 heartbeats. Integer so the schedule is exact in nanoseconds.
+/// Share of a heartbeat after a cycle's start from which a captured S_t starts the next
+/// cycle (the rest absorbs the jitter of the perception pipeline), as tenths: 9 = 0.9
+/// heartbeats. Integer so the schedule is exact in nanoseconds.
 pub const FRESH_AFTER_TENTHS: u64 = 9;
 /// Heartbeats without a fresh S_t after which the reasoner decides without one, as
 /// tenths: 15 = 1.5 heartbeats.
@@ -27,49 +32,66 @@ pub enum Basis {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct HeartbeatClock {
     period_ns: u64,
-    started_ns: u64,
+    /// When the first input (S_t or telemetry) came; `None` before.
+    started_ns: Option<u64>,
+    /// When the last decision was made (this machine's clock).
     last_ns: Option<u64>,
+    /// When the last cycle started: its S_t's capture, or the decision itself.
+    last_cycle_ns: Option<u64>,
 }
 
 impl HeartbeatClock {
-    /// A clock for heartbeats of `period_ns`, started at `now_ns`: the first fresh S_t is
-    /// decided on at once; without one, the first decision comes half a heartbeat later.
-    pub fn new(period_ns: u64, now_ns: u64) -> Self {
+    /// A clock for heartbeats of `period_ns`: the first fresh S_t is decided on at once;
+    /// without one, the first decision comes half a heartbeat after the first input
+    /// ([`HeartbeatClock::heard`]); with no input at all there is nothing to decide on.
+    pub fn new(period_ns: u64) -> Self {
         Self {
             period_ns: period_ns.max(1),
-            started_ns: now_ns,
+            started_ns: None,
             last_ns: None,
+            last_cycle_ns: None,
         }
     }
 
-    /// Whether to decide now, and on what; `fresh_state` says a new valid S_t arrived
-    /// since the last decision.
+    fn tenths(&self, n: u64) -> u64 {
+        self.period_ns.saturating_mul(n) / 10
+    }
+
+    /// Some input (S_t or telemetry) came at `now_ns`: the first one starts the clock.
+    pub fn heard(&mut self, now_ns: u64) {
+        self.started_ns.get_or_insert(now_ns);
+    }
+
+    /// Whether an S_t captured at `capture_ns` starts the next cycle: the first S_t does;
+    /// after that, one captured at least 0.9 heartbeats after the last cycle's start.
+    pub fn takes(&self, capture_ns: u64) -> bool {
+        self.last_cycle_ns
+            .is_none_or(|last| capture_ns >= last.saturating_add(self.tenths(FRESH_AFTER_TENTHS)))
+    }
+
+    /// Whether to decide now, and on what; `fresh_state` says an S_t the clock
+    /// [takes](HeartbeatClock::takes) is waiting.
     pub fn due(&self, now_ns: u64, fresh_state: bool) -> Option<Basis> {
-        let tenths = |n: u64| self.period_ns.saturating_mul(n) / 10;
-        let Some(last) = self.last_ns else {
-            // nothing decided yet: the first S_t at once, else half a heartbeat from start
-            let waited = now_ns.saturating_sub(self.started_ns);
-            return if fresh_state {
-                Some(Basis::State)
-            } else if waited >= tenths(STALE_AFTER_TENTHS - 10) {
-                Some(Basis::TelemetryOnly)
-            } else {
-                None
-            };
-        };
-        let since = now_ns.saturating_sub(last);
-        if fresh_state && since >= tenths(FRESH_AFTER_TENTHS) {
-            Some(Basis::State)
-        } else if since >= tenths(STALE_AFTER_TENTHS) {
-            Some(Basis::TelemetryOnly)
-        } else {
-            None
+        if fresh_state {
+            return Some(Basis::State);
         }
+        let (since, stale) = match (self.last_ns, self.started_ns) {
+            // nothing heard yet: nothing to decide on
+            (None, None) => return None,
+            // nothing decided yet: without an S_t, half a heartbeat from the first input
+            (None, Some(started)) => (
+                now_ns.saturating_sub(started),
+                self.tenths(STALE_AFTER_TENTHS - 10),
+            ),
+            (Some(last), _) => (now_ns.saturating_sub(last), self.tenths(STALE_AFTER_TENTHS)),
+        };
+        (since >= stale).then_some(Basis::TelemetryOnly)
     }
 
-    /// A decision started at `now_ns`.
-    pub fn decided(&mut self, now_ns: u64) {
+    /// A decision made at `now_ns` whose cycle started at `cycle_start_ns`.
+    pub fn decided(&mut self, now_ns: u64, cycle_start_ns: u64) {
         self.last_ns = Some(now_ns);
+        self.last_cycle_ns = Some(cycle_start_ns);
     }
 }
 
@@ -82,23 +104,25 @@ mod tests {
     #[test]
     fn one_decision_per_heartbeat_on_fresh_states_whatever_their_rate() {
         // S_t every 2 s, arriving with jitter: every one is decided on
-        let mut c = HeartbeatClock::new(2 * S, 0);
+        let mut c = HeartbeatClock::new(2 * S);
         let mut decided = 0;
         for k in 0..10u64 {
-            let t = k * 2 * S + if k % 2 == 0 { 190 } else { 260 } * 1_000_000;
+            let capture = k * 2 * S;
+            let t = capture + if k % 2 == 0 { 190 } else { 260 } * 1_000_000;
+            assert!(c.takes(capture), "state {k}");
             assert_eq!(c.due(t, true), Some(Basis::State), "state {k}");
-            c.decided(t);
+            c.decided(t, capture);
             decided += 1;
         }
         assert_eq!(decided, 10);
         // S_t at 10 Hz over 20 s: one decision every 0.9 heartbeat (0, 1.8 s, .., 19.8 s),
         // not one per state
-        let mut c = HeartbeatClock::new(2 * S, 0);
+        let mut c = HeartbeatClock::new(2 * S);
         let mut times = Vec::new();
         for k in 0..200u64 {
             let t = k * S / 10;
-            if c.due(t, true).is_some() {
-                c.decided(t);
+            if c.takes(t) {
+                c.decided(t, t);
                 times.push(t);
             }
         }
@@ -107,18 +131,45 @@ mod tests {
     }
 
     #[test]
+    fn the_frames_decided_on_depend_on_their_capture_times_not_on_when_they_arrive() {
+        // the same 10 Hz states, once arriving 40 ms after capture and once with 40-390 ms
+        // of jitter: the same captures start the cycles
+        let run = |latency: &dyn Fn(u64) -> u64| {
+            let mut c = HeartbeatClock::new(2 * S);
+            let mut chosen = Vec::new();
+            for k in 0..100u64 {
+                let capture = k * S / 10;
+                if c.takes(capture) {
+                    c.decided(capture + latency(k), capture);
+                    chosen.push(capture);
+                }
+            }
+            chosen
+        };
+        let steady = run(&|_| 40_000_000);
+        let jittery = run(&|k| 40_000_000 + (k * 7919 % 351) * 1_000_000);
+        assert_eq!(steady, jittery);
+        assert_eq!(steady.len(), 6);
+    }
+
+    #[test]
     fn without_fresh_states_it_decides_on_telemetry_every_heartbeat_and_a_half() {
-        let mut c = HeartbeatClock::new(2 * S, 10 * S);
+        let mut c = HeartbeatClock::new(2 * S);
+        assert_eq!(c.due(10 * S, false), None, "nothing heard: nothing to decide on");
+        c.heard(10 * S);
+        c.heard(10 * S + 5);
         assert_eq!(c.due(10 * S, false), None);
         assert_eq!(c.due(10 * S + S - 1, false), None);
         assert_eq!(c.due(11 * S, false), Some(Basis::TelemetryOnly));
-        c.decided(11 * S);
+        c.decided(11 * S, 11 * S);
         assert_eq!(
             c.due(13 * S, false),
             None,
             "a stale state is never decided on"
         );
         assert_eq!(c.due(14 * S, false), Some(Basis::TelemetryOnly));
+        assert!(!c.takes(12 * S), "captured too soon after the cycle's start");
+        assert!(c.takes(11 * S + 18 * S / 10));
         assert_eq!(c.due(13 * S, true), Some(Basis::State));
     }
 }

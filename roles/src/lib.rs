@@ -53,6 +53,7 @@ pub fn runner(kind: &str, variant: &str) -> Option<RoleRunner> {
         ("controller", "mavlink") => RoleHost::run::<controller::ControllerRole>,
         ("camera", "gstreamer") => RoleHost::run::<gstreamer_camera::GstreamerCameraRole>,
         ("recorder", "mcap") => RoleHost::run::<aeris_record::RecorderRole>,
+        ("replay", "mcap") => RoleHost::run::<aeris_record::replay::ReplaySource>,
         _ => return None,
     };
     Some(run)

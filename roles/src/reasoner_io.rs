@@ -2,9 +2,10 @@
 //! ([`crate::planner`]) and its garbage and random variants, and the language-model roles
 //! ([`crate::language`]).
 //!
-//! [`ReasonerIo`] reads the latest valid S_t and telemetry every poll, decides when a
-//! decision is due ([`HeartbeatClock`]: once per heartbeat on the first fresh S_t, or on the
-//! telemetry alone when no S_t came for a heartbeat and a half), stamps a decision's cycle
+//! [`ReasonerIo`] reads every valid S_t and telemetry every poll, decides when a decision
+//! is due ([`HeartbeatClock`]: once per heartbeat on the first S_t captured most of a
+//! heartbeat after the last cycle's start, or on the telemetry alone when no S_t came for a
+//! heartbeat and a half), stamps a decision's cycle
 //! and timing, and publishes it on `reasoning/decision`. A reasoner that starts during a
 //! flight (restart, hot swap) first takes the mission up at the hub's active step, read
 //! from the latest `hub/setpoint` ([`hub_active_step`]).
@@ -25,6 +26,10 @@ use core::time::Duration;
 
 /// How often the reasoning roles look for a fresh S_t.
 pub const POLL: Duration = Duration::from_millis(50);
+
+/// Telemetry samples kept to find the vehicle's state at an S_t's capture (2.5 s at the
+/// controller's 50 Hz: longer than any S_t that is not stale).
+pub const TELEMETRY_KEPT: usize = 128;
 
 /// How long a starting reasoner waits for the hub's latest setpoint (the hub publishes
 /// every 20 ms once a decision is in force; at the flight's start there is none).
@@ -56,7 +61,10 @@ pub struct DecisionDue {
     pub poll_ns: u64,
     /// What it is based on: the fresh S_t ([`ReasonerIo::state`]), or the telemetry alone.
     pub basis: Basis,
-    /// The vehicle's position `[N, E, U]`: from telemetry, else from the latest S_t, else
+    /// The vehicle's position `[N, E, U]`: for a decision on an S_t, from the last
+    /// telemetry stamped at or before its frame's capture (so the decision depends on the
+    /// S_t and not on when the reasoner looked: a replay decides alike), else from the S_t;
+    /// on telemetry alone, from the latest telemetry, else
     /// the mission's start.
     pub position: [f32; 3],
     /// The vehicle's yaw (rad), from the same source.
@@ -74,6 +82,7 @@ pub struct ReasonerIo {
     state: Option<PerceptionState>,
     fresh_state: bool,
     telemetry_last: Option<VehicleTelemetry>,
+    telemetry_kept: TelemetryRing,
     start: [f32; 3],
     seq: u64,
     cycle: u64,
@@ -91,13 +100,11 @@ impl ReasonerIo {
             states: ctx.bus.subscriber(topics::PERCEPTION_STATE)?,
             telemetry: ctx.bus.subscriber(topics::VEHICLE_TELEMETRY)?,
             decisions: ctx.bus.publisher(topics::REASONING_DECISION)?,
-            clock: HeartbeatClock::new(
-                ctx.spec.timing.heartbeat_period_ms.max(1) * 1_000_000,
-                monotonic_ns(),
-            ),
+            clock: HeartbeatClock::new(ctx.spec.timing.heartbeat_period_ms.max(1) * 1_000_000),
             state: None,
             fresh_state: false,
             telemetry_last: None,
+            telemetry_kept: TelemetryRing::default(),
             start: ctx.spec.mission.start,
             seq: 0,
             cycle: 0,
@@ -105,32 +112,54 @@ impl ReasonerIo {
         })
     }
 
-    /// Read the latest valid S_t and telemetry; when a decision is due, take it as made
-    /// now and say what it is based on.
+    /// Read every new valid S_t and telemetry; when a decision is due, take it as made now
+    /// and say what it is based on.
     pub fn poll(&mut self) -> Result<Option<DecisionDue>, RoleError> {
         let poll_ns = monotonic_ns();
-        if let Some(s) = self.states.latest()?
-            && s.validate().is_ok()
-            && self.state.as_ref().is_none_or(|old| old.seq != s.seq)
-        {
-            self.state = Some(s);
-            self.fresh_state = true;
-        }
-        if let Some(t) = self.telemetry.latest()?
-            && t.validate().is_ok()
-        {
-            self.telemetry_last = Some(t);
+        let (kept, last) = (&mut self.telemetry_kept, &mut self.telemetry_last);
+        let heard = self.telemetry.drain(|t| {
+            if t.validate().is_ok() {
+                kept.push(*t);
+                *last = Some(*t);
+            }
+        })?;
+        // the first S_t that starts the next cycle, in the order perception published them
+        let (clock, state, fresh) = (&self.clock, &mut self.state, &mut self.fresh_state);
+        let heard = heard + self.states.drain(|s| {
+            if !*fresh
+                && s.validate().is_ok()
+                && state.as_ref().is_none_or(|old| old.seq != s.seq)
+                && clock.takes(s.capture_ns)
+            {
+                *state = Some(*s);
+                *fresh = true;
+            }
+        })?;
+        if heard > 0 {
+            self.clock.heard(poll_ns);
         }
         let Some(basis) = self.clock.due(poll_ns, self.fresh_state) else {
             return Ok(None);
         };
         self.fresh_state = false;
-        self.clock.decided(poll_ns);
-        let (position, yaw, landed) = match (&self.telemetry_last, &self.state) {
-            (Some(t), _) => (t.position, t.attitude[2], t.landed == 1),
-            (None, Some(s)) => (s.position, s.yaw, s.position[2] < 0.3),
-            (None, None) => (self.start, 0.0, true),
+        let (position, yaw, landed, cycle_start) = match (basis, &self.state) {
+            (Basis::State, Some(s)) => {
+                let (p, y, l) = match self.telemetry_kept.at(s.capture_ns) {
+                    Some(t) => (t.position, t.attitude[2], t.landed == 1),
+                    None => (s.position, s.yaw, s.position[2] < 0.3),
+                };
+                (p, y, l, s.capture_ns)
+            }
+            _ => {
+                let (p, y, l) = match (&self.telemetry_last, &self.state) {
+                    (Some(t), _) => (t.position, t.attitude[2], t.landed == 1),
+                    (None, Some(s)) => (s.position, s.yaw, s.position[2] < 0.3),
+                    (None, None) => (self.start, 0.0, true),
+                };
+                (p, y, l, poll_ns)
+            }
         };
+        self.clock.decided(poll_ns, cycle_start);
         Ok(Some(DecisionDue {
             poll_ns,
             basis,
@@ -198,5 +227,59 @@ impl ReasonerIo {
         report.stage("publish", monotonic_ns() - t);
         report.counters[0] = self.seq;
         Ok(())
+    }
+}
+
+/// The last [`TELEMETRY_KEPT`] telemetry samples, in arrival order (no allocation).
+struct TelemetryRing {
+    samples: [VehicleTelemetry; TELEMETRY_KEPT],
+    next: usize,
+    len: usize,
+}
+
+impl Default for TelemetryRing {
+    fn default() -> Self {
+        Self {
+            samples: [VehicleTelemetry::default(); TELEMETRY_KEPT],
+            next: 0,
+            len: 0,
+        }
+    }
+}
+
+impl TelemetryRing {
+    fn push(&mut self, t: VehicleTelemetry) {
+        self.samples[self.next] = t;
+        self.next = (self.next + 1) % TELEMETRY_KEPT;
+        self.len = (self.len + 1).min(TELEMETRY_KEPT);
+    }
+
+    /// The latest sample stamped at or before `ns`; `None` when every kept one is later.
+    fn at(&self, ns: u64) -> Option<&VehicleTelemetry> {
+        (1..=self.len)
+            .map(|back| &self.samples[(self.next + TELEMETRY_KEPT - back) % TELEMETRY_KEPT])
+            .find(|t| t.stamp_ns <= ns)
+    }
+}
+
+#[cfg(test)]
+mod ring_tests {
+    use super::*;
+
+    #[test]
+    fn the_vehicle_at_a_capture_is_the_last_sample_stamped_before_it() {
+        let mut ring = TelemetryRing::default();
+        assert!(ring.at(5).is_none());
+        for k in 1..=(TELEMETRY_KEPT as u64 + 10) {
+            ring.push(VehicleTelemetry {
+                seq: k,
+                stamp_ns: k * 20,
+                ..VehicleTelemetry::default()
+            });
+        }
+        assert_eq!(ring.at(20 * 100 + 5).map(|t| t.seq), Some(100));
+        assert_eq!(ring.at(u64::MAX).map(|t| t.seq), Some(TELEMETRY_KEPT as u64 + 10));
+        // older than everything kept: none
+        assert!(ring.at(20 * 5).is_none());
     }
 }

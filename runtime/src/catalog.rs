@@ -142,6 +142,18 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         summary: "records every topic of the flight into an MCAP file (JSON and raw shared-memory bytes, images at a reduced rate); never slows the flight",
         swap_refusal: None,
     },
+    RoleKind {
+        kind: "replay",
+        variants: &["mcap"],
+        subscribes: &[],
+        publishes: &[
+            topics::CAMERA_RGB,
+            topics::CAMERA_DEPTH,
+            topics::VEHICLE_TELEMETRY,
+        ],
+        summary: "the camera and the vehicle of a replayed flight: a recording's exact frames and telemetry at their recorded times (`aeris replay`)",
+        swap_refusal: Some("two sources would publish the recording twice"),
+    },
 ];
 
 /// The catalog entry of `kind`.

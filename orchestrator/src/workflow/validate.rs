@@ -9,7 +9,7 @@ use aeris_schemas::heartbeat::NAME_MAX;
 use aeris_schemas::{MAX_ROLES, topics};
 
 /// Role kinds every workflow must have (plus `vehicle` while the controller's autopilot is
-/// `auto`). S_t may come from one `perception` role or from the perception pipeline
+/// `auto`; a replayed flight's `replay` role stands in for the controller and camera). S_t may come from one `perception` role or from the perception pipeline
 /// (`image-to-text` composing the blocks): the topic check requires a publisher of
 /// `perception/state` either way.
 pub const REQUIRED_KINDS: [&str; 4] = ["hub", "reasoning", "controller", "camera"];
@@ -308,8 +308,10 @@ impl Workflow {
 
     fn validate_required(&self) -> Result<(), WorkflowError> {
         let has = |kind: &str| self.roles.iter().any(|r| r.kind == kind);
+        // a replayed flight's camera and vehicle are its recording (`aeris replay`)
+        let replayed = |kind: &str| matches!(kind, "controller" | "camera") && has("replay");
         for kind in REQUIRED_KINDS {
-            if !has(kind) {
+            if !has(kind) && !replayed(kind) {
                 return Err(WorkflowError::MissingRole { kind, hint: "" });
             }
         }

@@ -1,0 +1,714 @@
+//! A replayed flight (`aeris replay`): the recording is the camera and the vehicle, the
+//! roles under test (perception, reasoning, hub, with any variant) run live on it, and
+//! every semantic cycle's recorded decision is set beside the replayed one.
+//!
+//! - The workflow is the recorded flight's ([`aeris_record::read::RecordedFlight`]) with
+//!   its vehicle, controllers, camera and recorder replaced by one replay source
+//!   ([`aeris_record::replay`]), which publishes the recording's exact frames and telemetry
+//!   at their recorded times (scaled by [`ReplayRequest::speed`], the heartbeat with
+//!   them).
+//! - The replay records its own decisions and hub reports (`replay.mcap` in its run
+//!   directory, for Foxglove); after the flight both recordings are read by the same code
+//!   ([`compare`]).
+//! - A replayed decision pairs with the recorded one whose cycle started at the same frame
+//!   capture (moved back onto the recording's clock); a pair is *identical* when the
+//!   decision's content (waypoint, yaw, speed, altitude, radius, confidence, step,
+//!   action) is equal bit for bit. Stamps, sequence numbers and the publisher's instance
+//!   differ by nature and are not compared.
+//! - A replay starts at a recorded cycle's frame (the first at or after `from`), so the
+//!   reasoner's heartbeat has the recorded phase. Started mid-flight, the roles start
+//!   fresh (a planner at step 1, an empty map): compare from the start for determinism.
+
+use crate::event::StopRule;
+use crate::handle::{Flight, FlightError, FlightOutcome};
+use crate::hook::{HookError, StepContext, StepHook};
+use crate::overrides::{Overrides, VariantChoice};
+use crate::FlightWatcher;
+use aeris_orchestrator::restart::RestartPolicy;
+use aeris_orchestrator::workflow::{
+    DEFAULT_BACKOFF_MS, DEFAULT_MAX_RESTARTS, Executor, ExecutorCpus, RECORDER_KIND, RoleDecl,
+    SchedulingSpec, Workflow, WorkflowError,
+};
+use aeris_record::read::{ReadError, RecordedFlight, Recording};
+use aeris_record::replay::counter;
+use aeris_schemas::{ActionMode, Decision, HubReport, topics};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// Kind and variant of the replay source role.
+pub const SOURCE_KIND: &str = "replay";
+const SOURCE_VARIANT: &str = "mcap";
+/// The replay's own recording, in its run directory.
+pub const REPLAY_RECORDING: &str = "replay.mcap";
+/// Kinds a replay does not run: the recording stands in for them.
+const REPLACED_KINDS: [&str; 5] = ["vehicle", "controller", "camera", RECORDER_KIND, SOURCE_KIND];
+/// Two cycle starts this close (ns, recording clock) are the same frame (a scaled replay
+/// rounds its stamps).
+const PAIR_TOLERANCE_NS: u64 = 500_000;
+
+/// What to replay, and how.
+#[derive(Debug, Clone)]
+pub struct ReplayRequest {
+    /// The recording (made with `aeris run --record --record-for-replay`).
+    pub path: PathBuf,
+    /// Start at the first recorded cycle at or after this many seconds into the recording.
+    pub from_s: Option<f64>,
+    /// End this many seconds into the recording (default: its end).
+    pub to_s: Option<f64>,
+    /// Time scale: 2 replays twice as fast (the heartbeat and deadline scale with it).
+    pub speed: f64,
+    /// Roles run with another variant than the recorded one.
+    pub variants: Vec<VariantChoice>,
+    /// Flight name (default `replay-PID`).
+    pub name: Option<String>,
+    /// Run directory (default `$TMPDIR/aeris/NAME`).
+    pub run_dir: Option<PathBuf>,
+    /// The executable the roles run as (default: this one).
+    pub role_executable: Option<PathBuf>,
+}
+
+impl ReplayRequest {
+    /// Replay `path` whole, at recorded speed, with the recorded variants.
+    pub fn new(path: impl Into<PathBuf>) -> Self {
+        Self {
+            path: path.into(),
+            from_s: None,
+            to_s: None,
+            speed: 1.0,
+            variants: Vec::new(),
+            name: None,
+            run_dir: None,
+            role_executable: None,
+        }
+    }
+}
+
+/// Why a replay could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    /// The recording could not be read (or another schema version made it).
+    #[error("reading the recording")]
+    Read(#[from] ReadError),
+    /// The recording holds no exact frames.
+    #[error(
+        "{} holds no exact frames: record the flight with `aeris run --record \
+         --record-for-replay`",
+        path.display()
+    )]
+    NotReplayable {
+        /// The recording.
+        path: PathBuf,
+    },
+    /// The recording holds no decision in the range asked for.
+    #[error("{} holds no recorded decision from {from_s:.1} s to {to_s:.1} s", path.display())]
+    NoCycles {
+        /// The recording.
+        path: PathBuf,
+        /// Start of the range (s into the recording).
+        from_s: f64,
+        /// End of the range (s into the recording).
+        to_s: f64,
+    },
+    /// The speed is not a positive number.
+    #[error("--speed must be a positive number, got {given}")]
+    Speed {
+        /// The speed given.
+        given: f64,
+    },
+    /// The replay's workflow is not valid (a variant its kind does not have, ...).
+    #[error("the replayed flight")]
+    Workflow(#[source] WorkflowError),
+    /// The replayed flight failed.
+    #[error("the replayed flight")]
+    Flight(#[from] FlightError),
+    /// The replayed flight ended before the recording was replayed.
+    #[error("the replayed flight ended early: {why}")]
+    Ended {
+        /// Why.
+        why: String,
+    },
+}
+
+/// One decision as the table shows it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DecisionView {
+    /// Its cycle number (per reasoner process).
+    pub cycle: u64,
+    /// Action mode.
+    pub action: String,
+    /// Active instruction step.
+    pub step: u16,
+    /// Waypoint `[N, E, U]` (m).
+    pub target: [f32; 3],
+    /// From its frame's capture to its publication (s).
+    pub latency_s: f64,
+}
+
+impl DecisionView {
+    fn of(d: &Decision, speed: f64) -> Self {
+        Self {
+            cycle: d.cycle,
+            action: ActionMode::from_u8(d.action)
+                .map_or_else(|| format!("mode {}", d.action), |a| a.name().to_string()),
+            step: d.step,
+            target: d.target,
+            latency_s: d.publish_ns.saturating_sub(d.cycle_start_ns) as f64 * 1e-9 * speed,
+        }
+    }
+}
+
+/// One semantic cycle of the replay.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ReplayCycle {
+    /// Capture time of its frame, seconds into the recording.
+    pub t_s: f64,
+    /// The recorded decision (`None`: only the replay decided here).
+    pub recorded: Option<DecisionView>,
+    /// The replayed decision (`None`: the replay did not decide on this frame).
+    pub replayed: Option<DecisionView>,
+    /// Both decided, and their content is equal bit for bit.
+    pub identical: bool,
+    /// Distance between the two waypoints (m), when both decided.
+    pub target_delta_m: Option<f64>,
+}
+
+/// Cycle times and errors of one run, from its hub reports.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RunFigures {
+    /// Decisions.
+    pub decisions: usize,
+    /// Semantic cycles the hub closed (committed or reused).
+    pub cycles: u64,
+    /// Mean cycle time of the committed cycles (s).
+    pub ct_mean_s: f64,
+    /// 95th percentile of it (s).
+    pub ct_p95_s: f64,
+    /// Execution error rate: reused cycles over cycles.
+    pub eer: f64,
+}
+
+/// What a replay found.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ReplaySummary {
+    /// The recording replayed.
+    pub recording: PathBuf,
+    /// The replay's own recording.
+    pub replay_recording: PathBuf,
+    /// The variant of every reasoning and perception role in the replay (`ROLE=VARIANT`).
+    pub variants: Vec<String>,
+    /// Start of the replayed range (s into the recording).
+    pub from_s: f64,
+    /// End of it (s).
+    pub to_s: f64,
+    /// Time scale.
+    pub speed: f64,
+    /// Recorded cycles in the range.
+    pub recorded_cycles: usize,
+    /// Replayed cycles.
+    pub replayed_cycles: usize,
+    /// Cycles both decided on the same frame.
+    pub paired: usize,
+    /// Of those, identical bit for bit.
+    pub identical: usize,
+    /// `identical / recorded_cycles`.
+    pub agreement: f64,
+    /// Cycles with the same action and step, over recorded cycles.
+    pub action_agreement: f64,
+    /// The recording, in the range.
+    pub recorded: RunFigures,
+    /// The replay.
+    pub replayed: RunFigures,
+    /// Mean tokens per second of a language-model reasoner (`None` for others).
+    pub tokens_per_s: Option<f64>,
+    /// Most a replayed message was published after its time (ms).
+    pub late_max_ms: f64,
+}
+
+/// A replay's cycles and summary, and the replayed flight's own outcome.
+#[derive(Debug, Clone)]
+pub struct ReplayReport {
+    /// Every cycle, in order of capture.
+    pub cycles: Vec<ReplayCycle>,
+    /// The summary.
+    pub summary: ReplaySummary,
+    /// The replayed decisions, for comparing variants with each other.
+    pub decisions: Vec<(u64, Decision)>,
+    /// The replayed flight's outcome.
+    pub outcome: FlightOutcome,
+}
+
+/// The workflow that replays `flight` from the recording at `path`: its roles minus the
+/// vehicle, controllers, camera and recorder, plus the replay source.
+pub fn replay_workflow(
+    flight: &RecordedFlight,
+    path: &Path,
+    from_ns: u64,
+    to_ns: u64,
+    speed: f64,
+) -> Result<Workflow, WorkflowError> {
+    let mut timing = flight.timing.clone();
+    let scale = |ms: u64| ((ms as f64 / speed).round() as u64).max(1);
+    timing.heartbeat_period_ms = scale(timing.heartbeat_period_ms);
+    timing.decision_deadline_ms = scale(timing.decision_deadline_ms);
+    let mut executors: Vec<Executor> = flight
+        .executors
+        .iter()
+        .map(|name| Executor {
+            name: name.clone(),
+            cpus: ExecutorCpus::Auto,
+        })
+        .collect();
+    if executors.is_empty() {
+        executors.push(Executor {
+            name: "replay".into(),
+            cpus: ExecutorCpus::Auto,
+        });
+    }
+    executors.sort_by(|a, b| a.name.cmp(&b.name));
+    let catalog = |kind: &str| aeris_runtime::catalog::role_kind(kind);
+    let decl = |name: &str, kind: &str, variant: &str, variants, executor, params| {
+        let k = catalog(kind);
+        RoleDecl {
+            name: name.to_string(),
+            kind: kind.to_string(),
+            variant: variant.to_string(),
+            variants,
+            ladder: Vec::new(),
+            executor,
+            restart: RestartPolicy::OnFailure,
+            max_restarts: DEFAULT_MAX_RESTARTS,
+            backoff_ms: DEFAULT_BACKOFF_MS,
+            budget_ms: None,
+            params,
+            subscribes: k.map_or_else(Vec::new, |k| {
+                k.subscribes.iter().map(|t| t.to_string()).collect()
+            }),
+            publishes: k.map_or_else(Vec::new, |k| {
+                k.publishes.iter().map(|t| t.to_string()).collect()
+            }),
+        }
+    };
+    let mut source_params = serde_json::Map::new();
+    source_params.insert("path".into(), path.to_string_lossy().into_owned().into());
+    source_params.insert("from_ns".into(), from_ns.into());
+    source_params.insert("to_ns".into(), to_ns.into());
+    source_params.insert("speed".into(), speed.into());
+    let mut roles = vec![decl(
+        "replay",
+        SOURCE_KIND,
+        SOURCE_VARIANT,
+        vec![SOURCE_VARIANT.to_string()],
+        Some(executors[0].name.clone()),
+        source_params,
+    )];
+    for r in flight
+        .roles
+        .iter()
+        .filter(|r| !REPLACED_KINDS.contains(&r.kind.as_str()))
+    {
+        roles.push(decl(
+            &r.name,
+            &r.kind,
+            &r.variant,
+            r.variants.clone(),
+            r.executor
+                .clone()
+                .filter(|e| executors.iter().any(|x| &x.name == e)),
+            r.params.clone(),
+        ));
+    }
+    let workflow = Workflow {
+        scheduling: SchedulingSpec::defaults(&timing),
+        timing,
+        feedback: Vec::new(),
+        camera: flight.camera.clone(),
+        mission: flight.mission.clone(),
+        executors,
+        roles,
+    };
+    workflow.validate()?;
+    Ok(workflow)
+}
+
+/// Ends the replayed flight once the source has published the whole range and one more
+/// heartbeat (and deadline) has passed for the last decision; keeps the source's clock
+/// offset and the reasoner's token rate.
+struct ReplayHook {
+    heartbeat_ns: u64,
+    done_at: Option<std::time::Instant>,
+    offset: Option<(u64, i64)>,
+    late_max_us: u64,
+    reasoner: Option<String>,
+    last_decisions: u64,
+    tokens_per_s: Vec<f64>,
+}
+
+impl StepHook for ReplayHook {
+    fn step(&mut self, ctx: &mut StepContext<'_>) -> Result<bool, HookError> {
+        if let Some(hb) = ctx
+            .supervisor
+            .role("replay")
+            .and_then(|r| r.last_heartbeat())
+        {
+            let c = hb.counters;
+            if c[counter::WAITING] == 0 {
+                self.offset = Some((c[counter::START], c[counter::OFFSET] as i64));
+            }
+            self.late_max_us = self.late_max_us.max(c[counter::LATE_MAX_US]);
+            if c[counter::DONE] == 1 && self.done_at.is_none() {
+                self.done_at = Some(std::time::Instant::now());
+                ctx.note("replay: the recording is replayed; waiting one heartbeat for the last decision");
+            }
+        }
+        if let Some(hb) = self
+            .reasoner
+            .as_deref()
+            .and_then(|name| ctx.supervisor.role(name))
+            .filter(|r| matches!(r.variant(), "smollm2" | "gemma3"))
+            .and_then(|r| r.last_heartbeat())
+            && hb.counters[0] != self.last_decisions
+        {
+            self.last_decisions = hb.counters[0];
+            if hb.counters[1] > 0 {
+                self.tokens_per_s.push(hb.counters[1] as f64 / 100.0);
+            }
+        }
+        Ok(self.done_at.is_some_and(|t| {
+            t.elapsed().as_nanos() as u64 >= 2 * self.heartbeat_ns
+        }))
+    }
+}
+
+/// Replay `request.path` (see the module docs), `watcher` seeing the replayed flight's
+/// events.
+pub fn replay(
+    request: &ReplayRequest,
+    watcher: &mut dyn FlightWatcher,
+) -> Result<ReplayReport, ReplayError> {
+    if !(request.speed.is_finite() && request.speed > 0.0) {
+        return Err(ReplayError::Speed {
+            given: request.speed,
+        });
+    }
+    let mut recording = Recording::open(&request.path)?;
+    let flight = recording.flight().clone();
+    if !flight.exact_frames {
+        return Err(ReplayError::NotReplayable {
+            path: request.path.clone(),
+        });
+    }
+    let (start, end) = recording.time_range().unwrap_or((0, 0));
+    let at = |s: Option<f64>, default: u64| {
+        s.map_or(default, |s| start.saturating_add((s.max(0.0) * 1e9) as u64))
+    };
+    let (from_ns, to_ns) = (at(request.from_s, start), at(request.to_s, end + 1));
+    let recorded: Vec<Decision> = recording.typed(topics::REASONING_DECISION)?;
+    // the first recorded cycle at or after `from`, started on a frame
+    let frames: Vec<u64> = {
+        let mut captures = Vec::new();
+        recording.for_each(&["camera/rgb/frame"], Some(from_ns), Some(to_ns), |_, t, _| {
+            captures.push(t);
+            true
+        })?;
+        captures
+    };
+    let first = recorded
+        .iter()
+        .map(|d| d.cycle_start_ns)
+        .filter(|t| *t >= from_ns && *t < to_ns && frames.binary_search(t).is_ok())
+        .min()
+        .ok_or_else(|| ReplayError::NoCycles {
+            path: request.path.clone(),
+            from_s: from_ns.saturating_sub(start) as f64 * 1e-9,
+            to_s: to_ns.min(end).saturating_sub(start) as f64 * 1e-9,
+        })?;
+    let workflow = replay_workflow(&flight, &request.path, first, to_ns, request.speed)
+        .map_err(ReplayError::Workflow)?;
+    let reasoner = workflow
+        .roles
+        .iter()
+        .find(|r| r.kind == "reasoning")
+        .map(|r| r.name.clone());
+    let span_s = to_ns.min(end).saturating_sub(first) as f64 * 1e-9 / request.speed;
+    let overrides = Overrides {
+        variants: request.variants.clone(),
+        max_duration_s: Some(span_s + 60.0),
+        dynamic: None,
+        // an A/B comparison keeps each role on the variant it was given
+        fixed_variants: true,
+    };
+    let name = request
+        .name
+        .clone()
+        .unwrap_or_else(|| format!("replay-{}", std::process::id()));
+    let mut builder = Flight::builder(workflow)
+        .name(name)
+        .overrides(overrides)
+        .stop_when(StopRule::Hook)
+        .record(REPLAY_RECORDING)
+        .record_frame_every(0)
+        .record_topics(vec![
+            topics::REASONING_DECISION.into(),
+            topics::HUB_REPORT.into(),
+            topics::HUB_SETPOINT.into(),
+            topics::PERCEPTION_STATE.into(),
+            topics::HEARTBEAT.into(),
+        ]);
+    if let Some(dir) = &request.run_dir {
+        builder = builder.run_dir(dir.clone());
+    }
+    if let Some(exe) = &request.role_executable {
+        builder = builder.role_executable(exe.clone());
+    }
+    let hook = ReplayHook {
+        heartbeat_ns: flight.timing.heartbeat_period_ms.max(1) * 1_000_000,
+        done_at: None,
+        offset: None,
+        late_max_us: 0,
+        reasoner,
+        last_decisions: 0,
+        tokens_per_s: Vec::new(),
+    };
+    let started = builder.step_hook(hook).start()?;
+    let run_dir = started.run_dir().to_path_buf();
+    let variants = started
+        .status()
+        .roles
+        .iter()
+        .filter(|r| !matches!(r.kind.as_str(), SOURCE_KIND | RECORDER_KIND))
+        .map(|r| format!("{}={}", r.name, r.variant))
+        .collect();
+    let (outcome, hook) = started.watch(watcher)?;
+    if let Some(f) = &outcome.failure
+        && hook.done_at.is_none()
+    {
+        return Err(ReplayError::Ended {
+            why: format!("{f:?}"),
+        });
+    }
+    let Some((t0_rec, offset)) = hook.offset else {
+        return Err(ReplayError::Ended {
+            why: "the replay source never started".into(),
+        });
+    };
+    let replay_path = run_dir.join(REPLAY_RECORDING);
+    let mut replayed_rec = Recording::open(&replay_path)?;
+    let replayed: Vec<Decision> = replayed_rec.typed(topics::REASONING_DECISION)?;
+    let replayed_reports: Vec<HubReport> = replayed_rec.typed(topics::HUB_REPORT)?;
+    let recorded_reports: Vec<HubReport> = recording.typed(topics::HUB_REPORT)?;
+    // the replay's clock back onto the recording's
+    let t0_wall = (t0_rec as i64).wrapping_sub(offset) as u64;
+    let speed = request.speed;
+    let to_recording =
+        |t: u64| t0_rec.saturating_add((t.saturating_sub(t0_wall) as f64 * speed) as u64);
+    let recorded_in: Vec<(u64, Decision)> = recorded
+        .iter()
+        .filter(|d| d.cycle_start_ns >= first && d.cycle_start_ns < to_ns)
+        .map(|d| (d.cycle_start_ns, *d))
+        .collect();
+    // decisions after the range are the reasoner's on telemetry alone, once the frames
+    // stopped: not part of the replay
+    let replayed_in: Vec<(u64, Decision)> = replayed
+        .iter()
+        .map(|d| (to_recording(d.cycle_start_ns), *d))
+        .filter(|(t, _)| *t >= first && *t < to_ns.min(end + 1))
+        .collect();
+    let cycles = pair(&recorded_in, &replayed_in, start, speed);
+    let paired = cycles
+        .iter()
+        .filter(|c| c.recorded.is_some() && c.replayed.is_some())
+        .count();
+    let identical = cycles.iter().filter(|c| c.identical).count();
+    let same_action = cycles
+        .iter()
+        .filter(|c| match (&c.recorded, &c.replayed) {
+            (Some(a), Some(b)) => a.action == b.action && a.step == b.step,
+            _ => false,
+        })
+        .count();
+    let share = |n: usize| match recorded_in.len() {
+        0 => 0.0,
+        total => n as f64 / total as f64,
+    };
+    let recorded_reports: Vec<HubReport> = recorded_reports
+        .into_iter()
+        .filter(|r| r.publish_ns >= first && r.publish_ns < to_ns)
+        .collect();
+    let summary = ReplaySummary {
+        recording: request.path.clone(),
+        replay_recording: replay_path,
+        variants,
+        from_s: first.saturating_sub(start) as f64 * 1e-9,
+        to_s: to_ns.min(end).saturating_sub(start) as f64 * 1e-9,
+        speed,
+        recorded_cycles: recorded_in.len(),
+        replayed_cycles: replayed_in.len(),
+        paired,
+        identical,
+        agreement: share(identical),
+        action_agreement: share(same_action),
+        recorded: figures(recorded_in.len(), &recorded_reports, 1.0),
+        replayed: figures(replayed_in.len(), &replayed_reports, speed),
+        tokens_per_s: (!hook.tokens_per_s.is_empty())
+            .then(|| hook.tokens_per_s.iter().sum::<f64>() / hook.tokens_per_s.len() as f64),
+        late_max_ms: hook.late_max_us as f64 / 1000.0,
+    };
+    Ok(ReplayReport {
+        cycles,
+        summary,
+        decisions: replayed_in,
+        outcome,
+    })
+}
+
+/// The content of a decision, bit for bit: what a replay must reproduce.
+pub fn same_content(a: &Decision, b: &Decision) -> bool {
+    let bits = |d: &Decision| {
+        (
+            d.target.map(f32::to_bits),
+            [
+                d.yaw,
+                d.speed,
+                d.altitude,
+                d.acceptance_radius,
+                d.confidence,
+            ]
+            .map(f32::to_bits),
+            d.step,
+            d.action,
+            d.reserved,
+        )
+    };
+    bits(a) == bits(b)
+}
+
+/// Recorded and replayed decisions (each with its cycle start on the recording's clock)
+/// side by side, in order of capture.
+fn pair(
+    recorded: &[(u64, Decision)],
+    replayed: &[(u64, Decision)],
+    start: u64,
+    speed: f64,
+) -> Vec<ReplayCycle> {
+    let mut cycles = Vec::new();
+    let mut used = vec![false; replayed.len()];
+    for (t, rec) in recorded {
+        let m = replayed
+            .iter()
+            .enumerate()
+            .filter(|(i, (u, _))| !used[*i] && u.abs_diff(*t) <= PAIR_TOLERANCE_NS)
+            .min_by_key(|(_, (u, _))| u.abs_diff(*t))
+            .map(|(i, _)| i);
+        let rep = m.map(|i| {
+            used[i] = true;
+            &replayed[i].1
+        });
+        cycles.push(ReplayCycle {
+            t_s: t.saturating_sub(start) as f64 * 1e-9,
+            recorded: Some(DecisionView::of(rec, 1.0)),
+            replayed: rep.map(|d| DecisionView::of(d, speed)),
+            identical: rep.is_some_and(|d| same_content(rec, d)),
+            target_delta_m: rep.map(|d| {
+                (0..3)
+                    .map(|k| (f64::from(d.target[k]) - f64::from(rec.target[k])).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            }),
+        });
+    }
+    for (i, (u, d)) in replayed.iter().enumerate() {
+        if !used[i] {
+            cycles.push(ReplayCycle {
+                t_s: u.saturating_sub(start) as f64 * 1e-9,
+                recorded: None,
+                replayed: Some(DecisionView::of(d, speed)),
+                identical: false,
+                target_delta_m: None,
+            });
+        }
+    }
+    cycles.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
+    cycles
+}
+
+/// Cycle-time figures from hub reports (times scaled back by `speed`).
+fn figures(decisions: usize, reports: &[HubReport], speed: f64) -> RunFigures {
+    let ct: Vec<f64> = reports
+        .iter()
+        .filter(|r| r.committed == 1)
+        .map(|r| r.ct_ns as f64 * 1e-9 * speed)
+        .collect();
+    let reused = reports.iter().filter(|r| r.reused == 1).count() as u64;
+    let cycles = ct.len() as u64 + reused;
+    RunFigures {
+        decisions,
+        cycles,
+        ct_mean_s: if ct.is_empty() {
+            0.0
+        } else {
+            ct.iter().sum::<f64>() / ct.len() as f64
+        },
+        ct_p95_s: aeris_runtime::stats::percentile(&ct, 95.0).unwrap_or(0.0),
+        eer: if cycles == 0 {
+            0.0
+        } else {
+            reused as f64 / cycles as f64
+        },
+    }
+}
+
+/// One variant's row of an A/B comparison.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CompareRow {
+    /// The variant (`ROLE=VARIANT`).
+    pub variant: String,
+    /// Its replay's summary.
+    pub summary: ReplaySummary,
+    /// Agreement with every other variant: identical decisions over the cycles either
+    /// decided, in the order of the rows.
+    pub agreement_with: Vec<f64>,
+}
+
+/// Replay `request` once per variant of `role` and compare them: with the recording and
+/// with each other. `watcher` sees every replayed flight's events.
+pub fn compare(
+    request: &ReplayRequest,
+    role: &str,
+    variants: &[String],
+    watcher: &mut dyn FlightWatcher,
+) -> Result<Vec<CompareRow>, ReplayError> {
+    let mut reports = Vec::with_capacity(variants.len());
+    for (k, v) in variants.iter().enumerate() {
+        let mut r = request.clone();
+        r.variants.retain(|c| c.role != role);
+        r.variants.push(VariantChoice {
+            role: role.to_string(),
+            variant: v.clone(),
+        });
+        r.name = request.name.as_ref().map(|n| format!("{n}-{k}"));
+        r.run_dir = request.run_dir.as_ref().map(|d| d.join(v));
+        reports.push(replay(&r, watcher)?);
+    }
+    let rows = reports
+        .iter()
+        .zip(variants)
+        .map(|(rep, v)| CompareRow {
+            variant: format!("{role}={v}"),
+            summary: rep.summary.clone(),
+            agreement_with: reports
+                .iter()
+                .map(|other| mutual_agreement(&rep.decisions, &other.decisions))
+                .collect(),
+        })
+        .collect();
+    Ok(rows)
+}
+
+/// Identical decisions over the frames either of two replays decided on.
+fn mutual_agreement(a: &[(u64, Decision)], b: &[(u64, Decision)]) -> f64 {
+    let cycles = pair(a, b, 0, 1.0);
+    match cycles.len() {
+        0 => 1.0,
+        n => cycles.iter().filter(|c| c.identical).count() as f64 / n as f64,
+    }
+}

@@ -1,0 +1,305 @@
+//! The replay source (kind `replay`, variant `mcap`): the camera and the vehicle of a
+//! replayed flight are its recording.
+//!
+//! It publishes the recording's exact frames (`camera/rgb/frame`, `camera/depth/frame`)
+//! and its telemetry (`vehicle/telemetry/raw`) on the live topics at their recorded times
+//! (scaled by `params.speed`), while the roles under test (perception, reasoning, hub) run
+//! live on them. Every stamp is moved onto this machine's clock by one offset (`t' = start
+//! + (t - t0) / speed`), so the hub measures cycle times as in a live flight and the
+//! replayed decisions pair with the recorded ones by the capture time of their frame.
+//!
+//! It starts publishing once every other role of the flight reports itself running (read
+//! from the supervisor's status board), so no role misses the first frames; it starts at
+//! `params.from_ns` (recording clock; default: its first message) and ends before
+//! `params.to_ns`. A reader thread reads the file ahead through a bounded queue whose
+//! buffers are reused: the cycle itself only copies bytes into shared memory.
+//!
+//! Parameters: `path` (required), `from_ns`, `to_ns`, `speed` (default 1).
+//! Heartbeat counters: [`counter`].
+
+use crate::read::{ReadError, Recording};
+use aeris_runtime::bus::{FramePublisher, TypedPublisher};
+use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::{FrameHeader, RoleStatus, VehicleTelemetry, topics};
+use core::time::Duration;
+use std::path::PathBuf;
+use std::sync::mpsc::{Receiver, SyncSender, TryRecvError};
+use std::thread::JoinHandle;
+
+/// Heartbeat counter indices.
+pub mod counter {
+    /// Frames published (RGB and depth).
+    pub const FRAMES: usize = 0;
+    /// Telemetry messages published.
+    pub const TELEMETRY: usize = 1;
+    /// 1 once the whole range is published (the flight may end).
+    pub const DONE: usize = 2;
+    /// Most a message was published after its scheduled time (µs).
+    pub const LATE_MAX_US: usize = 3;
+    /// 1 while waiting for the other roles' first heartbeats.
+    pub const WAITING: usize = 4;
+    /// The recording's clock minus this machine's at the start (ns, as `u64` bits of an
+    /// `i64`): what turns a replayed stamp back into a recorded one.
+    pub const OFFSET: usize = 5;
+    /// The recording time the replay starts at (ns, recording clock).
+    pub const START: usize = 6;
+}
+
+/// The recording's channels the source publishes from.
+const CHANNELS: [&str; 3] = ["camera/rgb/frame", "camera/depth/frame", "vehicle/telemetry/raw"];
+/// Messages read ahead.
+const READ_AHEAD: usize = 64;
+/// Cycle period.
+const PERIOD: Duration = Duration::from_millis(2);
+/// How often the status board is read while waiting for the other roles.
+const WAIT_POLL_NS: u64 = 50_000_000;
+
+/// One message read ahead.
+struct Item {
+    channel: usize,
+    log_time: u64,
+    bytes: Vec<u8>,
+}
+
+/// The replay source role.
+pub struct ReplaySource {
+    rgb: FramePublisher,
+    depth: FramePublisher,
+    telemetry: TypedPublisher<VehicleTelemetry>,
+    items: Receiver<Item>,
+    recycle: SyncSender<Vec<u8>>,
+    reader: Option<JoinHandle<Result<(), ReadError>>>,
+    next: Option<Item>,
+    /// Recording time of the start.
+    t0_rec: u64,
+    /// This machine's time of the start (`None` while waiting for the roles).
+    t0_wall: Option<u64>,
+    next_wait_poll: u64,
+    speed: f64,
+    done: bool,
+    frames: u64,
+    telemetry_count: u64,
+    late_max_us: u64,
+    failed: bool,
+}
+
+impl ReplaySource {
+    /// `t` of the recording on this machine's clock.
+    fn wall(&self, t: u64, t0_wall: u64) -> u64 {
+        let since = t.saturating_sub(self.t0_rec) as f64 / self.speed;
+        t0_wall + since as u64
+    }
+
+    /// Whether every other role of the flight is built and running (a `Starting`
+    /// heartbeat comes before its ports exist).
+    fn others_up(ctx: &RoleContext) -> bool {
+        let Ok(board) = ctx.bus.read_status_board() else {
+            return false;
+        };
+        let n = (board.role_count as usize).min(board.roles.len());
+        n > 0
+            && board.roles[..n]
+                .iter()
+                .filter(|r| r.name.as_str() != Some(ctx.spec.name.as_str()))
+                .all(|r| {
+                    matches!(
+                        RoleStatus::from_u8(r.status),
+                        Some(RoleStatus::Running | RoleStatus::Degraded)
+                    )
+                })
+    }
+
+    fn publish(&mut self, item: &Item, t0_wall: u64) -> Result<(), RoleError> {
+        match item.channel {
+            0 | 1 => {
+                let h = size_of::<FrameHeader>();
+                let Some(mut header) = item
+                    .bytes
+                    .get(..h)
+                    .and_then(crate::codec::read::<FrameHeader>)
+                else {
+                    return Ok(());
+                };
+                header.capture_ns = self.wall(header.capture_ns, t0_wall);
+                let pixels = &item.bytes[h..];
+                let publisher = if item.channel == 0 {
+                    &self.rgb
+                } else {
+                    &self.depth
+                };
+                publisher.publish_with(&header, pixels.len(), |out| out.copy_from_slice(pixels))?;
+                self.frames += 1;
+            }
+            _ => {
+                let Some(mut t) = crate::codec::read::<VehicleTelemetry>(&item.bytes) else {
+                    return Ok(());
+                };
+                t.stamp_ns = self.wall(t.stamp_ns, t0_wall);
+                self.telemetry.publish(&t)?;
+                self.telemetry_count += 1;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Read `path`'s replayed channels in `[from, to)` into `items`, reusing the buffers that
+/// come back on `recycle`.
+fn read_ahead(
+    mut recording: Recording,
+    from: Option<u64>,
+    to: Option<u64>,
+    items: SyncSender<Item>,
+    recycle: Receiver<Vec<u8>>,
+) -> Result<(), ReadError> {
+    recording.for_each(&CHANNELS, from, to, |topic, log_time, data| {
+        let Some(channel) = CHANNELS.iter().position(|c| *c == topic) else {
+            return true;
+        };
+        let mut bytes = recycle.try_recv().unwrap_or_default();
+        bytes.clear();
+        bytes.extend_from_slice(data);
+        // the role gone: stop reading
+        items
+            .send(Item {
+                channel,
+                log_time,
+                bytes,
+            })
+            .is_ok()
+    })
+}
+
+impl Role for ReplaySource {
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+        let spec = &ctx.spec;
+        let path = PathBuf::from(
+            spec.param_str("path")
+                .ok_or_else(|| RoleError::Config("replay: params.path is required".into()))?,
+        );
+        let speed = spec.param_f64("speed").unwrap_or(1.0);
+        if !(speed.is_finite() && speed > 0.0) {
+            return Err(RoleError::Config(format!(
+                "replay: params.speed = {speed} is not a positive number"
+            )));
+        }
+        let bound = |key: &str| spec.params.get(key).and_then(|v| v.as_u64());
+        let recording = Recording::open(&path)
+            .map_err(|e| RoleError::Config(aeris_runtime::error_chain::chain(&e).to_string()))?;
+        if !recording.flight().exact_frames {
+            return Err(RoleError::Config(format!(
+                "replay: {} holds no exact frames (record with `aeris run --record \
+                 --record-for-replay`)",
+                path.display()
+            )));
+        }
+        let start = recording.time_range().map_or(0, |r| r.0);
+        let from = bound("from_ns");
+        let t0_rec = from.unwrap_or(start).max(start);
+        let to = bound("to_ns");
+        let frame_bytes = spec.camera.width as usize * spec.camera.height as usize * 3;
+        let (items_tx, items) = std::sync::mpsc::sync_channel(READ_AHEAD);
+        let (recycle, recycle_rx) = std::sync::mpsc::sync_channel(READ_AHEAD + 2);
+        let reader = std::thread::Builder::new()
+            .name("replay reader".into())
+            .spawn(move || read_ahead(recording, from, to, items_tx, recycle_rx))
+            .map_err(|e| RoleError::Config(format!("replay: starting the reader: {e}")))?;
+        Ok(Self {
+            rgb: ctx.bus.frame_publisher(topics::CAMERA_RGB, frame_bytes)?,
+            depth: ctx.bus.frame_publisher(topics::CAMERA_DEPTH, frame_bytes)?,
+            telemetry: ctx.bus.publisher(topics::VEHICLE_TELEMETRY)?,
+            items,
+            recycle,
+            reader: Some(reader),
+            next: None,
+            t0_rec,
+            t0_wall: None,
+            next_wait_poll: 0,
+            speed,
+            done: false,
+            frames: 0,
+            telemetry_count: 0,
+            late_max_us: 0,
+            failed: false,
+        })
+    }
+
+    fn period(&self) -> Duration {
+        PERIOD
+    }
+
+    fn cycle(
+        &mut self,
+        ctx: &mut RoleContext,
+        report: &mut CycleReport,
+    ) -> Result<CycleOutcome, RoleError> {
+        let now = monotonic_ns();
+        let t0_wall = match self.t0_wall {
+            Some(t) => t,
+            None if now >= self.next_wait_poll && Self::others_up(ctx) => {
+                self.t0_wall = Some(now);
+                eprintln!(
+                    "replay: every role is up; replaying from {:.3} s of the recording",
+                    self.t0_rec as f64 / 1e9
+                );
+                now
+            }
+            None => {
+                if now >= self.next_wait_poll {
+                    self.next_wait_poll = now + WAIT_POLL_NS;
+                }
+                report.counters[counter::WAITING] = 1;
+                report.counters[counter::START] = self.t0_rec;
+                return Ok(CycleOutcome::Idle);
+            }
+        };
+        let mut worked = false;
+        while !self.done {
+            let item = match self.next.take() {
+                Some(item) => item,
+                None => match self.items.try_recv() {
+                    Ok(item) => item,
+                    Err(TryRecvError::Empty) => break,
+                    Err(TryRecvError::Disconnected) => {
+                        self.done = true;
+                        if let Some(Err(e)) = self.reader.take().and_then(|r| r.join().ok()) {
+                            self.failed = true;
+                            eprintln!(
+                                "replay: the recording ended early: {}",
+                                aeris_runtime::error_chain::chain(&e)
+                            );
+                        }
+                        break;
+                    }
+                },
+            };
+            let due = self.wall(item.log_time, t0_wall);
+            if due > now {
+                self.next = Some(item);
+                break;
+            }
+            self.late_max_us = self.late_max_us.max((now - due) / 1000);
+            self.publish(&item, t0_wall)?;
+            worked = true;
+            let _ = self.recycle.try_send(item.bytes);
+        }
+        report.counters[counter::WAITING] = 0;
+        report.counters[counter::FRAMES] = self.frames;
+        report.counters[counter::TELEMETRY] = self.telemetry_count;
+        report.counters[counter::DONE] = u64::from(self.done);
+        report.counters[counter::LATE_MAX_US] = self.late_max_us;
+        report.counters[counter::OFFSET] = (self.t0_rec as i64).wrapping_sub(t0_wall as i64) as u64;
+        report.counters[counter::START] = self.t0_rec;
+        report.status = if self.failed {
+            RoleStatus::Degraded
+        } else {
+            RoleStatus::Running
+        };
+        Ok(if worked {
+            CycleOutcome::Worked
+        } else {
+            CycleOutcome::Idle
+        })
+    }
+}
