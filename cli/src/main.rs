@@ -92,7 +92,7 @@ enum Command {
     },
     /// List the role kinds and variants this build can run.
     Roles,
-    /// Replay a recorded flight (`aeris run --record --record-for-replay`): its frames and
+    /// Replay a recorded flight (`aeris run --record`): its frames and
     /// telemetry at their recorded times, perception, reasoning and the hub live, every
     /// decision set beside the recorded one; or compare variants on it (--compare).
     Replay(replay_cmd::ReplayArgs),

@@ -12,7 +12,7 @@ use std::path::PathBuf;
 /// Arguments of `aeris replay`.
 #[derive(Debug, Args)]
 pub struct ReplayArgs {
-    /// The recording (`aeris run --record FILE --record-for-replay`).
+    /// The recording (`aeris run --record FILE`).
     pub file: PathBuf,
     /// Start at the first recorded cycle at or after this many seconds into the recording
     /// (the roles start fresh there: a planner at step 1).

@@ -46,7 +46,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub fixed_variants: bool,
     /// Record every topic of the flight into this MCAP file (default: RUN_DIR/flight.mcap;
-    /// a restarted recorder writes FILE.1, FILE.2, ...). Its FILE is optional: give the
+    /// a restarted recorder writes FILE.1, FILE.2, ...), every frame exactly, so that
+    /// `aeris replay FILE` can replay it. Its FILE is optional: give the
     /// WORKFLOW before it (`aeris run flight.toml --record`).
     #[arg(long, value_name = "FILE", num_args = 0..=1)]
     #[allow(clippy::option_option)]
@@ -58,10 +59,10 @@ pub struct RunArgs {
     /// raw pixels with 0 [default: 80].
     #[arg(long, value_name = "Q", requires = "record", value_parser = clap::value_parser!(u8).range(0..=100))]
     pub record_jpeg_quality: Option<u8>,
-    /// With --record: every camera frame is also recorded exactly (LZ4-compressed), so
-    /// that `aeris replay FILE` can replay the flight.
+    /// With --record: frames only as pictures (every Nth), not every frame exactly as well:
+    /// much smaller for a real camera's noisy pixels, but `aeris replay` cannot replay it.
     #[arg(long, requires = "record")]
-    pub record_for_replay: bool,
+    pub record_no_exact_frames: bool,
 }
 
 /// The file `--record` names: as given (relative to the working directory), or
@@ -183,7 +184,7 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
         if let Some(n) = args.record_frame_every {
             flight = flight.record_frame_every(n);
         }
-        flight = flight.record_exact_frames(args.record_for_replay);
+        flight = flight.record_exact_frames(!args.record_no_exact_frames);
     }
     let mut printer = FlightPrinter::new(true, "")?;
     let flight = flight.start()?;

@@ -133,9 +133,16 @@ impl<H: StepHook> FlightBuilder<H> {
     /// Record the flight into the MCAP file `path` (see `aeris-record`; a relative path is
     /// taken in the run directory): a recorder role is added to the workflow, and the
     /// summary gains `recording`. An earlier recording at `path` is replaced; a restarted
-    /// recorder writes `path.1`, `path.2`, ...
+    /// recorder writes `path.1`, `path.2`, ... Every frame is recorded exactly, so that
+    /// the recording can be replayed ([`FlightBuilder::record_exact_frames`]).
     pub fn record(mut self, path: impl Into<PathBuf>) -> Self {
-        let mut request = self.record.take().unwrap_or_default();
+        let mut request = self
+            .record
+            .take()
+            .unwrap_or(crate::recording::RecordRequest {
+                exact_frames: true,
+                ..Default::default()
+            });
         request.path = path.into();
         self.record = Some(request);
         self
@@ -160,8 +167,9 @@ impl<H: StepHook> FlightBuilder<H> {
         self
     }
 
-    /// Record every camera frame exactly as well, so that `aeris replay` can replay the
-    /// recording (LZ4-compressed; see `aeris_record::read`); with [`FlightBuilder::record`].
+    /// Record every camera frame exactly as well (the default), so that `aeris replay` can
+    /// replay the recording (LZ4-compressed; see `aeris_record::read`); `false` keeps only
+    /// the pictures; with [`FlightBuilder::record`].
     pub fn record_exact_frames(mut self, on: bool) -> Self {
         if let Some(r) = &mut self.record {
             r.exact_frames = on;

@@ -214,10 +214,13 @@ mod tests {
             path: path.clone(),
             frame_every: Some(3),
             jpeg_quality: Some(0),
+            exact_frames: true,
+            topics: None,
         };
         let name = add_recorder(&mut w, &request).unwrap();
         w.validate().unwrap();
         let r = &w.roles[0];
+        assert_eq!(r.params.get("frames"), Some(&"exact".into()));
         assert_eq!(r.params.get("frame_every"), Some(&3.into()));
         assert_eq!(r.params.get("image"), Some(&"raw".into()));
         assert_eq!((r.name.as_str(), name.as_str()), ("recorder", "recorder"));
@@ -227,6 +230,41 @@ mod tests {
         assert!(!r.subscribes.iter().any(|t| t == "perception/text"));
         assert_eq!(w.start_order()[0], 0, "the recorder starts first");
         assert!(path.parent().unwrap().is_dir());
+
+        // the flight goes into the recording: a replay runs its roles but the ones the
+        // recording stands in for, on the recorded timeline
+        let roles: Vec<aeris_record::read::RecordedRole> =
+            serde_json::from_value(r.params["roles"].clone()).unwrap();
+        assert_eq!(
+            roles.len(),
+            w.roles.len() - 1,
+            "every role but the recorder"
+        );
+        let executors: Vec<String> = serde_json::from_value(r.params["executors"].clone()).unwrap();
+        let flight = aeris_record::read::RecordedFlight {
+            flight: "f".into(),
+            schema_version: aeris_schemas::SCHEMA_VERSION,
+            layout_hash: String::new(),
+            timing: w.timing.clone(),
+            camera: w.camera.clone(),
+            mission: w.mission.clone(),
+            roles,
+            executors,
+            exact_frames: true,
+        };
+        let replay = crate::replay::replay_workflow(&flight, &path, 5, 10, 2.0).unwrap();
+        let kinds: Vec<&str> = replay.roles.iter().map(|r| r.kind.as_str()).collect();
+        assert_eq!(
+            kinds,
+            ["replay", "perception", "hub", "reasoning"],
+            "{kinds:?}"
+        );
+        assert_eq!(
+            replay.timing.heartbeat_period_ms,
+            w.timing.heartbeat_period_ms / 2,
+            "twice as fast: the heartbeat too"
+        );
+        assert_eq!(replay.roles[0].params["from_ns"], 5);
     }
 
     #[test]

@@ -19,11 +19,11 @@
 //!   reasoner's heartbeat has the recorded phase. Started mid-flight, the roles start
 //!   fresh (a planner at step 1, an empty map): compare from the start for determinism.
 
+use crate::FlightWatcher;
 use crate::event::StopRule;
 use crate::handle::{Flight, FlightError, FlightOutcome};
 use crate::hook::{HookError, StepContext, StepHook};
 use crate::overrides::{Overrides, VariantChoice};
-use crate::FlightWatcher;
 use aeris_orchestrator::restart::RestartPolicy;
 use aeris_orchestrator::workflow::{
     DEFAULT_BACKOFF_MS, DEFAULT_MAX_RESTARTS, Executor, ExecutorCpus, RECORDER_KIND, RoleDecl,
@@ -41,7 +41,13 @@ const SOURCE_VARIANT: &str = "mcap";
 /// The replay's own recording, in its run directory.
 pub const REPLAY_RECORDING: &str = "replay.mcap";
 /// Kinds a replay does not run: the recording stands in for them.
-const REPLACED_KINDS: [&str; 5] = ["vehicle", "controller", "camera", RECORDER_KIND, SOURCE_KIND];
+const REPLACED_KINDS: [&str; 5] = [
+    "vehicle",
+    "controller",
+    "camera",
+    RECORDER_KIND,
+    SOURCE_KIND,
+];
 /// Two cycle starts this close (ns, recording clock) are the same frame (a scaled replay
 /// rounds its stamps).
 const PAIR_TOLERANCE_NS: u64 = 500_000;
@@ -49,7 +55,7 @@ const PAIR_TOLERANCE_NS: u64 = 500_000;
 /// What to replay, and how.
 #[derive(Debug, Clone)]
 pub struct ReplayRequest {
-    /// The recording (made with `aeris run --record --record-for-replay`).
+    /// The recording (made with `aeris run --record`).
     pub path: PathBuf,
     /// Start at the first recorded cycle at or after this many seconds into the recording.
     pub from_s: Option<f64>,
@@ -91,8 +97,8 @@ pub enum ReplayError {
     Read(#[from] ReadError),
     /// The recording holds no exact frames.
     #[error(
-        "{} holds no exact frames: record the flight with `aeris run --record \
-         --record-for-replay`",
+        "{} holds no exact frames (recorded with --record-no-exact-frames): it cannot be \
+         replayed",
         path.display()
     )]
     NotReplayable {
@@ -373,9 +379,9 @@ impl StepHook for ReplayHook {
                 self.tokens_per_s.push(hb.counters[1] as f64 / 100.0);
             }
         }
-        Ok(self.done_at.is_some_and(|t| {
-            t.elapsed().as_nanos() as u64 >= 2 * self.heartbeat_ns
-        }))
+        Ok(self
+            .done_at
+            .is_some_and(|t| t.elapsed().as_nanos() as u64 >= 2 * self.heartbeat_ns))
     }
 }
 
@@ -406,10 +412,15 @@ pub fn replay(
     // the first recorded cycle at or after `from`, started on a frame
     let frames: Vec<u64> = {
         let mut captures = Vec::new();
-        recording.for_each(&["camera/rgb/frame"], Some(from_ns), Some(to_ns), |_, t, _| {
-            captures.push(t);
-            true
-        })?;
+        recording.for_each(
+            &["camera/rgb/frame"],
+            Some(from_ns),
+            Some(to_ns),
+            |_, t, _| {
+                captures.push(t);
+                true
+            },
+        )?;
         captures
     };
     let first = recorded

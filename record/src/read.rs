@@ -217,6 +217,17 @@ impl Recording {
             source,
         };
         let mut file = File::open(path).map_err(io)?;
+        // a closed MCAP file ends with the magic; one cut short (its writer killed) does not
+        let mut tail = [0u8; 8];
+        let closed = file.seek(SeekFrom::End(-8)).is_ok()
+            && file.read_exact(&mut tail).is_ok()
+            && tail == *mcap::MAGIC;
+        if !closed {
+            return Err(ReadError::NotClosed {
+                path: path.to_path_buf(),
+            });
+        }
+        file.seek(SeekFrom::Start(0)).map_err(io)?;
         let mut reader = SummaryReader::new();
         while let Some(event) = reader.next_event() {
             match event.map_err(bad)? {
@@ -264,9 +275,11 @@ impl Recording {
                 ours: SCHEMA_VERSION,
             });
         }
-        let json = metadata.get(FLIGHT_KEY).ok_or_else(|| ReadError::NoFlight {
-            path: path.to_path_buf(),
-        })?;
+        let json = metadata
+            .get(FLIGHT_KEY)
+            .ok_or_else(|| ReadError::NoFlight {
+                path: path.to_path_buf(),
+            })?;
         let flight: RecordedFlight =
             serde_json::from_str(json).map_err(|source| ReadError::BadFlight {
                 path: path.to_path_buf(),
@@ -348,7 +361,9 @@ impl Recording {
                     self.file.seek(SeekFrom::Start(offset)).map_err(io)?;
                     buffer.resize(length, 0);
                     self.file.read_exact(&mut buffer).map_err(io)?;
-                    reader.insert_chunk_record_data(offset, &buffer).map_err(bad)?;
+                    reader
+                        .insert_chunk_record_data(offset, &buffer)
+                        .map_err(bad)?;
                 }
                 IndexedReadEvent::Message { header, data } => {
                     let topic = self
@@ -370,8 +385,11 @@ impl Recording {
         let raw = format!("{topic}/raw");
         let mut out = Vec::new();
         let mut wrong = None;
-        self.for_each(&[raw.as_str()], None, None, |_, _, data| {
-            match crate::codec::read::<T>(data) {
+        self.for_each(
+            &[raw.as_str()],
+            None,
+            None,
+            |_, _, data| match crate::codec::read::<T>(data) {
                 Some(v) => {
                     out.push(v);
                     true
@@ -380,8 +398,8 @@ impl Recording {
                     wrong = Some(data.len());
                     false
                 }
-            }
-        })?;
+            },
+        )?;
         match wrong {
             Some(len) => Err(ReadError::BadMessage {
                 path: self.path.clone(),
@@ -431,5 +449,89 @@ mod tests {
         let e = check_schema(p, SCHEMA_VERSION, "0x0000000000000001").unwrap_err();
         assert!(e.to_string().contains("0x0000000000000001"), "{e}");
         check_schema(p, SCHEMA_VERSION, &layout_hash()).unwrap();
+    }
+
+    /// An MCAP file at `path` with `metadata` as its `aeris.flight` record (none: no
+    /// record), closed or cut before its summary.
+    fn write(path: &Path, metadata: Option<BTreeMap<String, String>>, close: bool) {
+        let file = std::io::BufWriter::new(File::create(path).unwrap());
+        let mut out = mcap::WriteOptions::new()
+            .compression(Some(mcap::Compression::Lz4))
+            .create(file)
+            .unwrap();
+        if let Some(metadata) = metadata {
+            out.write_metadata(&mcap::records::Metadata {
+                name: FLIGHT_METADATA.into(),
+                metadata,
+            })
+            .unwrap();
+        }
+        if close {
+            out.finish().unwrap();
+        } else {
+            out.flush().unwrap();
+            std::mem::forget(out);
+        }
+    }
+
+    #[test]
+    fn a_recording_opens_only_when_closed_described_and_of_this_schema() {
+        let dir = tempfile::tempdir().unwrap();
+        let spec = RoleSpec {
+            flight: "f".into(),
+            name: "recorder".into(),
+            kind: "recorder".into(),
+            variant: "mcap".into(),
+            cpus: String::new(),
+            timing: TimingSpec::default(),
+            camera: CameraSpec::default(),
+            mission: MissionSpec {
+                instruction: "land".into(),
+                subgoals: Vec::new(),
+                world: "village".into(),
+                start: [0.0; 3],
+                cruise_speed: 5.0,
+                acceptance_radius_m: 2.0,
+                max_duration_s: 60.0,
+                limits: aeris_schemas::DecisionLimits::default(),
+            },
+            params: Default::default(),
+            instance: 0,
+        };
+        let ours = flight_metadata(&spec);
+        let good = dir.path().join("good.mcap");
+        write(&good, Some(ours.clone()), true);
+        let rec = Recording::open(&good).unwrap();
+        assert_eq!(rec.flight().flight, "f");
+        assert_eq!(rec.flight().schema_version, SCHEMA_VERSION);
+
+        let mut older = ours.clone();
+        older.insert("schema_version".into(), (SCHEMA_VERSION - 1).to_string());
+        let old = dir.path().join("old.mcap");
+        write(&old, Some(older), true);
+        let e = Recording::open(&old).unwrap_err();
+        assert!(
+            matches!(e, ReadError::SchemaVersion { recorded, ours, .. }
+                if recorded == SCHEMA_VERSION - 1 && ours == SCHEMA_VERSION),
+            "{e}"
+        );
+
+        let bare = dir.path().join("bare.mcap");
+        write(&bare, None, true);
+        assert!(matches!(
+            Recording::open(&bare),
+            Err(ReadError::NoFlight { .. })
+        ));
+
+        let cut = dir.path().join("cut.mcap");
+        write(&cut, Some(ours), false);
+        let e = Recording::open(&cut).unwrap_err();
+        assert!(matches!(e, ReadError::NotClosed { .. }), "{e}");
+
+        let missing = dir.path().join("missing.mcap");
+        assert!(matches!(
+            Recording::open(&missing),
+            Err(ReadError::Io { .. })
+        ));
     }
 }

@@ -4,8 +4,8 @@
 //! It publishes the recording's exact frames (`camera/rgb/frame`, `camera/depth/frame`)
 //! and its telemetry (`vehicle/telemetry/raw`) on the live topics at their recorded times
 //! (scaled by `params.speed`), while the roles under test (perception, reasoning, hub) run
-//! live on them. Every stamp is moved onto this machine's clock by one offset (`t' = start
-//! + (t - t0) / speed`), so the hub measures cycle times as in a live flight and the
+//! live on them. Every stamp is moved onto this machine's clock by one offset
+//! (`t' = start + (t - t0) / speed`), so the hub measures cycle times as in a live flight and the
 //! replayed decisions pair with the recorded ones by the capture time of their frame.
 //!
 //! It starts publishing once every other role of the flight reports itself running (read
@@ -47,7 +47,11 @@ pub mod counter {
 }
 
 /// The recording's channels the source publishes from.
-const CHANNELS: [&str; 3] = ["camera/rgb/frame", "camera/depth/frame", "vehicle/telemetry/raw"];
+const CHANNELS: [&str; 3] = [
+    "camera/rgb/frame",
+    "camera/depth/frame",
+    "vehicle/telemetry/raw",
+];
 /// Messages read ahead.
 const READ_AHEAD: usize = 64;
 /// Cycle period.
@@ -189,8 +193,7 @@ impl Role for ReplaySource {
             .map_err(|e| RoleError::Config(aeris_runtime::error_chain::chain(&e).to_string()))?;
         if !recording.flight().exact_frames {
             return Err(RoleError::Config(format!(
-                "replay: {} holds no exact frames (record with `aeris run --record \
-                 --record-for-replay`)",
+                "replay: {} holds no exact frames (recorded with --record-no-exact-frames)",
                 path.display()
             )));
         }

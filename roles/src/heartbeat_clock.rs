@@ -155,7 +155,11 @@ mod tests {
     #[test]
     fn without_fresh_states_it_decides_on_telemetry_every_heartbeat_and_a_half() {
         let mut c = HeartbeatClock::new(2 * S);
-        assert_eq!(c.due(10 * S, false), None, "nothing heard: nothing to decide on");
+        assert_eq!(
+            c.due(10 * S, false),
+            None,
+            "nothing heard: nothing to decide on"
+        );
         c.heard(10 * S);
         c.heard(10 * S + 5);
         assert_eq!(c.due(10 * S, false), None);
@@ -168,7 +172,10 @@ mod tests {
             "a stale state is never decided on"
         );
         assert_eq!(c.due(14 * S, false), Some(Basis::TelemetryOnly));
-        assert!(!c.takes(12 * S), "captured too soon after the cycle's start");
+        assert!(
+            !c.takes(12 * S),
+            "captured too soon after the cycle's start"
+        );
         assert!(c.takes(11 * S + 18 * S / 10));
         assert_eq!(c.due(13 * S, true), Some(Basis::State));
     }

@@ -125,16 +125,17 @@ impl ReasonerIo {
         })?;
         // the first S_t that starts the next cycle, in the order perception published them
         let (clock, state, fresh) = (&self.clock, &mut self.state, &mut self.fresh_state);
-        let heard = heard + self.states.drain(|s| {
-            if !*fresh
-                && s.validate().is_ok()
-                && state.as_ref().is_none_or(|old| old.seq != s.seq)
-                && clock.takes(s.capture_ns)
-            {
-                *state = Some(*s);
-                *fresh = true;
-            }
-        })?;
+        let heard = heard
+            + self.states.drain(|s| {
+                if !*fresh
+                    && s.validate().is_ok()
+                    && state.as_ref().is_none_or(|old| old.seq != s.seq)
+                    && clock.takes(s.capture_ns)
+                {
+                    *state = Some(*s);
+                    *fresh = true;
+                }
+            })?;
         if heard > 0 {
             self.clock.heard(poll_ns);
         }
@@ -278,7 +279,10 @@ mod ring_tests {
             });
         }
         assert_eq!(ring.at(20 * 100 + 5).map(|t| t.seq), Some(100));
-        assert_eq!(ring.at(u64::MAX).map(|t| t.seq), Some(TELEMETRY_KEPT as u64 + 10));
+        assert_eq!(
+            ring.at(u64::MAX).map(|t| t.seq),
+            Some(TELEMETRY_KEPT as u64 + 10)
+        );
         // older than everything kept: none
         assert!(ring.at(20 * 5).is_none());
     }

@@ -12,6 +12,7 @@ whose recorder was killed reads up to its last complete record) and prints one J
    "schemas_valid_json": bool,  # every jsonschema / aeris-layout schema parses as JSON
    "json_messages_valid": bool, # every json-encoded message parses as JSON
    "raw_sizes_ok": bool,        # every aeris-raw message is as long as its schema's size
+                                # (an exact frame: its header's size plus its pixels)
    "counts": {topic: messages},
    "first_json": {topic: the first message decoded},
    "image_formats": {topic: sorted formats of its foxglove.CompressedImage messages},
@@ -28,6 +29,7 @@ import argparse
 import base64
 import json
 import os
+import struct
 import sys
 
 from mcap.records import Channel, Footer, Message, Schema
@@ -43,6 +45,17 @@ def picture_ok(fmt, data):
     if fmt == "png":
         return data[:8] == PNG_SIGNATURE
     return False
+
+
+def exact_frame_ok(data, header_size):
+    """An exact frame (TOPIC/frame): the FrameHeader (seq u64, capture_ns u64, width u32,
+    height u32, camera_position 3 f32, camera_yaw f32, hfov f32, format u8) then the pixels."""
+    if len(data) < header_size:
+        return False
+    width, height = struct.unpack_from("<II", data, 16)
+    fmt = data[44]
+    per_pixel = {1: 3, 2: 2}.get(fmt)
+    return per_pixel is not None and len(data) == header_size + width * height * per_pixel
 
 
 def layout_topics(layout):
@@ -103,7 +116,12 @@ def main() -> int:
                     counts[topic] = counts.get(topic, 0) + 1
                     if ch["message_encoding"] == "aeris-raw":
                         layout = json.loads(schemas[ch["schema_id"]].data)
-                        raw_ok = raw_ok and len(record.data) == layout["size"]
+                        if ch["schema_name"].endswith("+pixels"):
+                            # an exact frame: the header, then width x height pixels of
+                            # its format (1: RGB8, 2: depth u16)
+                            raw_ok = raw_ok and exact_frame_ok(record.data, layout["size"])
+                        else:
+                            raw_ok = raw_ok and len(record.data) == layout["size"]
                     if ch["message_encoding"] == "json":
                         try:
                             value = json.loads(record.data)

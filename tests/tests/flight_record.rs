@@ -1,7 +1,9 @@
-//! Every flight recorded (first slice: recording): `aeris run --record` writes an MCAP file
+//! Every flight recorded, any flight replayed: `aeris run --record` writes an MCAP file
 //! that an independent reader, the `mcap` package from PyPI (tests/py/mcap_read.py), reads
-//! back, with as many messages per topic as the flight's summary counts; and a recorder
-//! killed with SIGKILL mid-flight neither stops the flight nor spoils what it had written.
+//! back, with as many messages per topic as the flight's summary counts and every frame
+//! exact; `aeris replay` of it with the deterministic planner decides every cycle
+//! identically, byte for byte; and a recorder killed with SIGKILL mid-flight neither stops
+//! the flight nor spoils what it had written (which a replay refuses, clearly).
 
 use aeris_runtime::bus::FlightBus;
 use aeris_tests::*;
@@ -47,7 +49,8 @@ fn assert_well_formed(read: &Value, what: &str) {
     assert_eq!(read["raw_sizes_ok"], true, "{what}: {read}");
     let channels = read["channels"].as_object().expect("channels");
     for (topic, ch) in channels {
-        if topic.ends_with("/raw") || topic.ends_with("/image") || topic.ends_with("/pose") {
+        let side = ["/raw", "/image", "/pose", "/frame"];
+        if side.iter().any(|s| topic.ends_with(s)) {
             continue;
         }
         assert_eq!(ch["message_encoding"], "json", "{what}: {topic}");
@@ -192,6 +195,72 @@ fn a_recorded_flight_reads_back_with_the_summarys_counts() {
     );
     let decision = &read["first_json"]["reasoning/decision"];
     assert!(decision["publish_ns"].as_u64().unwrap() > 0, "{decision}");
+    // every frame exact (header and pixels, checked against the header by the reader)
+    for topic in ["camera/rgb", "camera/depth"] {
+        let exact = count(&read, &format!("{topic}/frame"));
+        assert!(
+            exact + dropped >= count(&read, topic) && exact > 0,
+            "{topic}: {exact} exact frames: {read}"
+        );
+    }
+
+    // replayed: the same frames and telemetry, perception, the planner and the hub live;
+    // the planner decides on the same frames what it decided in flight, bit for bit
+    let replay = replay_json(&dir.0, &flight, &file, &["--to", "20"]);
+    let (recorded, identical) = (
+        replay["recorded_cycles"].as_u64().unwrap(),
+        replay["identical"].as_u64().unwrap(),
+    );
+    assert!(recorded >= 5, "20 s hold several heartbeats: {replay}");
+    assert_eq!(identical, recorded, "every cycle identical: {replay}");
+    assert_eq!(replay["replayed_cycles"], recorded, "{replay}");
+    assert_eq!(replay["agreement"], 1.0, "{replay}");
+    // the replay recorded its own decisions, for Foxglove
+    let own = read_back(Path::new(replay["replay_recording"].as_str().unwrap()));
+    assert_eq!(own["complete"], true, "{own}");
+    // (and, after the range, a decision on the telemetry alone once the frames stopped)
+    assert!(count(&own, "reasoning/decision") >= recorded, "{own}");
+}
+
+/// `aeris replay FILE --json [extra..]` as flight `FLIGHT-replay` in `dir/replay`: its
+/// summary (the last JSON line), after asserting it succeeded.
+fn replay_json(dir: &Path, flight: &str, file: &Path, extra: &[&str]) -> Value {
+    let (status, stdout, stderr) = replay_run(dir, flight, file, extra);
+    assert!(
+        status.success(),
+        "aeris replay failed: {status}\n{stdout}\n{stderr}"
+    );
+    last_json_line(&stdout)
+}
+
+/// Run `aeris replay FILE --json [extra..]` to its end: status, stdout, stderr.
+fn replay_run(
+    dir: &Path,
+    flight: &str,
+    file: &Path,
+    extra: &[&str],
+) -> (std::process::ExitStatus, String, String) {
+    let out = dir.join("replay.stdout");
+    let err = dir.join("replay.stderr");
+    let mut cmd = Command::new(aeris_bin());
+    cmd.arg("replay")
+        .arg(file)
+        .arg("--json")
+        .arg("--flight")
+        .arg(format!("{flight}-replay"))
+        .arg("--run-dir")
+        .arg(dir.join("replay"))
+        .args(extra)
+        .stdin(std::process::Stdio::null())
+        .stdout(std::fs::File::create(&out).unwrap())
+        .stderr(std::fs::File::create(&err).unwrap());
+    let mut child = ChildGuard::spawn(&mut cmd).expect("spawn aeris replay");
+    let status = wait_bounded(&mut child.0, FLIGHT_BOUND).expect("replay finished");
+    (
+        status,
+        std::fs::read_to_string(out).unwrap_or_default(),
+        std::fs::read_to_string(err).unwrap_or_default(),
+    )
 }
 
 #[test]
@@ -250,6 +319,13 @@ fn a_killed_recorder_is_restarted_into_a_new_file_and_its_first_file_reads_back(
     // the killed recorder's file: no summary section, read as a stream up to where it stops
     let first = read_back(&file);
     assert_eq!(first["complete"], false, "{first}");
+    // ... which a replay refuses, saying why, before starting anything
+    let (status, _, stderr) = replay_run(&dir.0, &flight, &file, &[]);
+    assert!(!status.success(), "{stderr}");
+    assert!(
+        stderr.contains(file.to_str().unwrap()) && stderr.contains("did not close it"),
+        "{stderr}"
+    );
     assert_well_formed(&first, "the killed recorder's file");
     // killed early in the flight: the roles' heartbeats at least are in it
     assert!(count(&first, "heartbeat") > 0, "{first}");
