@@ -27,7 +27,8 @@ pub fn resolve_flight(flight: Option<String>) -> Result<String> {
     }
 }
 
-fn tool_bus(flight: &str, tool: &str) -> Result<FlightBus> {
+/// A bus node of the tool `tool` on `flight`.
+pub fn tool_bus(flight: &str, tool: &str) -> Result<FlightBus> {
     FlightBus::builder(flight)
         .node_name(&format!("cli-{tool}-{}", std::process::id()))
         .create()

@@ -12,6 +12,7 @@ mod flight_print;
 mod inspect;
 #[cfg(feature = "sim")]
 mod plot_cmd;
+mod record_cmd;
 mod replay_cmd;
 mod run_cmd;
 #[cfg(feature = "sim")]
@@ -96,6 +97,9 @@ enum Command {
     /// telemetry at their recorded times, perception, reasoning and the hub live, every
     /// decision set beside the recorded one; or compare variants on it (--compare).
     Replay(replay_cmd::ReplayArgs),
+    /// Record a running flight into an MCAP file (like `ros2 bag record`), every frame
+    /// exact, until Ctrl-C or the flight's end.
+    Record(record_cmd::RecordArgs),
     /// Run benchmarks (IPC, camera, gate, control, models, cycle, swap, ds) and print their figures.
     Bench(bench_cmd::BenchArgs),
     #[cfg(feature = "sim")]
@@ -263,6 +267,7 @@ fn main() -> ExitCode {
         Command::Validate { workflow } => run_cmd::validate(&workflow),
         Command::Roles => roles(),
         Command::Replay(args) => replay_cmd::run(args).map(|_| ExitCode::SUCCESS),
+        Command::Record(args) => record_cmd::run(args).map(|_| ExitCode::SUCCESS),
         Command::Bench(args) => bench_cmd::run(args).map(|_| ExitCode::SUCCESS),
         #[cfg(feature = "sim")]
         Command::Eval(args) => eval_cmd::run(args).map(|_| ExitCode::SUCCESS),

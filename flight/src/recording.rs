@@ -69,6 +69,123 @@ pub enum RecordError {
     },
 }
 
+/// Why `aeris record` cannot attach to a running flight.
+#[derive(Debug, thiserror::Error)]
+pub enum AttachError {
+    /// The file exists already: an attached recording never replaces one.
+    #[error("{} exists; record into a new file", path.display())]
+    Exists {
+        /// The file.
+        path: PathBuf,
+    },
+    /// The flight's role specs could not be listed (wrong run directory?).
+    #[error("listing the flight's role specs in {}", dir.display())]
+    Specs {
+        /// The folder.
+        dir: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The folder has no spec of the flight.
+    #[error(
+        "{} holds no role spec of flight `{flight}`: give the flight's --run-dir",
+        dir.display()
+    )]
+    NoSpecs {
+        /// The folder.
+        dir: PathBuf,
+        /// The flight.
+        flight: String,
+    },
+    /// A spec could not be read.
+    #[error("reading a role spec")]
+    Spec(#[from] aeris_runtime::spec::SpecError),
+}
+
+/// The spec of a recorder that attaches to the running flight `flight` (`aeris record`):
+/// the flight's timing, camera, mission and roles from the role specs its supervisor
+/// wrote into `run_dir/roles`, every topic those roles publish (or `topics`), every frame
+/// exact; the file must not exist.
+pub fn attach_spec(
+    flight: &str,
+    run_dir: &Path,
+    path: &Path,
+    topics: Option<Vec<String>>,
+) -> Result<aeris_runtime::RoleSpec, AttachError> {
+    if path.exists() {
+        return Err(AttachError::Exists {
+            path: path.to_path_buf(),
+        });
+    }
+    let dir = run_dir.join("roles");
+    let entries = std::fs::read_dir(&dir).map_err(|source| AttachError::Specs {
+        dir: dir.clone(),
+        source,
+    })?;
+    let mut files: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "json"))
+        .collect();
+    files.sort();
+    let mut specs = Vec::new();
+    for f in files {
+        let spec = aeris_runtime::RoleSpec::load(&f)?;
+        if spec.flight == flight && spec.kind != RECORDER_KIND {
+            specs.push(spec);
+        }
+    }
+    let Some(first) = specs.first() else {
+        return Err(AttachError::NoSpecs {
+            dir,
+            flight: flight.to_string(),
+        });
+    };
+    let topics = topics.unwrap_or_else(|| {
+        let mut published = vec![aeris_schemas::topics::HEARTBEAT.to_string()];
+        for s in &specs {
+            let kind = aeris_runtime::catalog::role_kind(&s.kind);
+            for t in kind.map_or(&[][..], |k| k.publishes) {
+                if !published.iter().any(|p| p == t) {
+                    published.push(t.to_string());
+                }
+            }
+        }
+        published
+    });
+    let roles: Vec<serde_json::Value> = specs
+        .iter()
+        .filter_map(|s| {
+            serde_json::to_value(aeris_record::read::RecordedRole {
+                name: s.name.clone(),
+                kind: s.kind.clone(),
+                variant: s.variant.clone(),
+                variants: vec![s.variant.clone()],
+                executor: None,
+                params: s.params.clone(),
+            })
+            .ok()
+        })
+        .collect();
+    let mut params = serde_json::Map::new();
+    params.insert("path".into(), path.to_string_lossy().into_owned().into());
+    params.insert("frames".into(), "exact".into());
+    params.insert("topics".into(), topics.into());
+    params.insert("roles".into(), roles.into());
+    Ok(aeris_runtime::RoleSpec {
+        flight: flight.to_string(),
+        name: "recorder-attached".into(),
+        kind: RECORDER_KIND.into(),
+        variant: VARIANT.into(),
+        cpus: String::new(),
+        timing: first.timing.clone(),
+        camera: first.camera.clone(),
+        mission: first.mission.clone(),
+        params,
+        instance: 0,
+    })
+}
+
 /// What [`crate::FlightBuilder::record`] asked for.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct RecordRequest {

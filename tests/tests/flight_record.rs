@@ -76,7 +76,47 @@ fn a_recorded_flight_reads_back_with_the_summarys_counts() {
     let dir = TempDir::new("record");
     let flight = unique_flight("record");
     let mut run = spawn_run(&dir.0, &flight, &["--record", "--record-frame-every", "10"]);
+    // `aeris record` attaches a second recorder to the running flight, which stops when
+    // the flight ends
+    let observer = FlightBus::builder(&flight)
+        .node_name("test-observer")
+        .create()
+        .unwrap();
+    poll_until(Duration::from_secs(180), || {
+        let b = observer.read_status_board().ok()?;
+        (b.supervisor_pid != 0 && b.roles().iter().all(|r| r.heartbeats > 0)).then_some(())
+    })
+    .unwrap_or_else(|| panic!("the flight never came up: {:?}", run_output(&dir.0)));
+    let attached = dir.0.join("attached.mcap");
+    let attach_out = dir.0.join("attach.stdout");
+    let attach_err = dir.0.join("attach.stderr");
+    let mut attach = ChildGuard::spawn(
+        Command::new(aeris_bin())
+            .arg("record")
+            .arg(&attached)
+            .arg("--flight")
+            .arg(&flight)
+            .arg("--run-dir")
+            .arg(dir.0.join("run"))
+            .stdin(std::process::Stdio::null())
+            .stdout(std::fs::File::create(&attach_out).unwrap())
+            .stderr(std::fs::File::create(&attach_err).unwrap()),
+    )
+    .expect("spawn aeris record");
     let status = wait_bounded(&mut run.0, FLIGHT_BOUND).expect("flight finished");
+    let attach_status = wait_bounded(&mut attach.0, FLIGHT_BOUND).expect("aeris record ended");
+    let attach_log = std::fs::read_to_string(&attach_err).unwrap_or_default();
+    assert!(
+        attach_status.success(),
+        "aeris record: {attach_status}\n{attach_log}"
+    );
+    assert!(attach_log.contains("the flight ended"), "{attach_log}");
+    let read = read_back(&attached);
+    assert_eq!(read["complete"], true, "{read}");
+    assert_well_formed(&read, "attached.mcap");
+    for topic in ["hub/report", "camera/rgb/frame", "vehicle/telemetry"] {
+        assert!(count(&read, topic) > 0, "{topic}: {read}");
+    }
     let (stdout, stderr) = run_output(&dir.0);
     assert!(status.success(), "aeris run failed: {status}\n{stderr}");
     let summary = last_json_line(&stdout);
