@@ -39,6 +39,9 @@ pub enum BenchCommand {
     /// garbage reasoner, a shared-memory service removed; detection and recovery times,
     /// missed controller ticks, lost decisions, invalid setpoints per fault.
     Faults(crate::bench_faults::FaultsArgs),
+    /// What recording costs: the default (and --models the model) flight without and with
+    /// the recorder: controller missed ticks, CT, EER, recorder CPU, MB per minute.
+    Record(crate::bench_flight::RecordArgs),
     /// One model of `bench models` (started by it).
     #[command(name = "model-probe", hide = true)]
     ModelProbe(crate::bench_models::ModelProbeArgs),
@@ -153,6 +156,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         BenchCommand::Swap(a) => crate::bench_flight::swap(a),
         BenchCommand::Ds(a) => crate::bench_ds::ds(a),
         BenchCommand::Faults(a) => crate::bench_faults::faults(a),
+        BenchCommand::Record(a) => crate::bench_flight::record(a),
         BenchCommand::ModelProbe(a) => crate::bench_models::probe(a),
         BenchCommand::IpcPong(a) => {
             let spec = PongSpec::from_json(&a.spec).context("bench ipc-pong: bad --spec")?;

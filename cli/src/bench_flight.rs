@@ -152,3 +152,67 @@ pub fn swap(a: SwapArgs) -> Result<()> {
     }
     Ok(())
 }
+
+/// Arguments of `aeris bench record`.
+#[derive(Debug, Args)]
+pub struct RecordArgs {
+    /// Semantic heartbeats each flight flies.
+    #[arg(long, default_value_t = 15)]
+    pub heartbeats: u64,
+    /// Busy threads started outside the flight (unpinned, normal priority) for the run.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub outside_load: usize,
+    /// The model flight (workflows/models.toml) too, not only the default one.
+    #[arg(long)]
+    pub models: bool,
+    /// Print one JSON object on the last line of stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `aeris bench record`.
+pub fn record(a: RecordArgs) -> Result<()> {
+    let config = aeris_bench::flights::RecordBenchConfig {
+        heartbeats: a.heartbeats,
+        outside_load: a.outside_load,
+        models: a.models,
+    };
+    let report = aeris_bench::flights::record::run(&config, &mut FlightPrinter::new(true, "")?)?;
+    println!(
+        "recording cost over {} heartbeats per flight, {} busy threads outside the flight",
+        a.heartbeats, report.outside_load
+    );
+    println!(
+        "  {:<8} {:<9} {:>6} {:>13} {:>8} {:>8} {:>6} {:>13} {:>8} {:>8}",
+        "flight",
+        "recorder",
+        "cycles",
+        "missed ticks",
+        "CT mean",
+        "CT p95",
+        "EER",
+        "recorder CPU",
+        "MB/min",
+        "dropped"
+    );
+    let opt = |v: Option<f64>, f: &dyn Fn(f64) -> String| v.map_or_else(|| "-".to_string(), f);
+    for r in &report.rows {
+        println!(
+            "  {:<8} {:<9} {:>6} {:>13} {:>7.3}s {:>7.3}s {:>5.1}% {:>13} {:>8} {:>8}",
+            r.workflow,
+            if r.recorded { "on" } else { "off" },
+            r.cycles,
+            r.controller_missed_ticks,
+            r.ct_mean_s,
+            r.ct_p95_s,
+            r.eer * 100.0,
+            opt(r.recorder_cpu_percent, &|c| format!("{c:.1}%")),
+            opt(r.mb_per_minute, &|m| format!("{m:.1}")),
+            r.dropped.map_or_else(|| "-".to_string(), |d| d.to_string()),
+        );
+    }
+    if a.json {
+        println!("{}", serde_json::to_string(&report)?);
+    }
+    Ok(())
+}

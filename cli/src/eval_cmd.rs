@@ -17,6 +17,10 @@ use std::path::PathBuf;
 /// Arguments of `aeris eval`.
 #[derive(Debug, Args)]
 pub struct EvalArgs {
+    /// Record every episode into its run folder (`runs/FLIGHT/flight.mcap`, named in
+    /// episodes.jsonl as `recording`): open a failed one in Foxglove, or `aeris replay` it.
+    #[arg(long)]
+    pub record: bool,
     /// Split to generate and fly: train, val_unseen or test_unseen.
     #[arg(long, default_value = "val_unseen")]
     pub split: String,
@@ -152,6 +156,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         source,
         episodes: args.episodes,
         out,
+        record: args.record,
     };
     let mut printer = EpisodePrinter(FlightPrinter::new(false, "aeris: ")?);
     let report = runner::run(&config, &mut printer)?;

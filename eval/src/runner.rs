@@ -177,7 +177,13 @@ pub struct EvalConfig {
     pub episodes: usize,
     /// Output folder for episodes.jsonl and the flights' run folders.
     pub out: PathBuf,
+    /// Record every episode (`RUN_DIR/flight.mcap`, replayable; open a failed one in
+    /// Foxglove or replay it with another variant).
+    pub record: bool,
 }
+
+/// An episode's recording, in its run folder (`aeris eval --record`).
+pub const EPISODE_RECORDING: &str = "flight.mcap";
 
 /// One line of episodes.jsonl.
 #[derive(Debug, Serialize)]
@@ -225,6 +231,9 @@ pub struct EpisodeLine<'a> {
     pub variant_steps: u64,
     /// The flight's run folder: cycles.jsonl, role specs and logs (`aeris plot`).
     pub run_dir: &'a Path,
+    /// The episode's recording (`aeris eval --record`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub recording: Option<&'a Path>,
 }
 
 /// The summary of a group of episodes.
@@ -490,14 +499,19 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
             episode: episode.episode_id.clone(),
             source,
         };
-        let (outcome, watch) = Flight::builder(workflow)
+        let mut builder = Flight::builder(workflow)
             .name(flight)
             .run_dir(&run_dir)
             .stop_when(StopRule::Landed)
             .overrides(Overrides {
                 dynamic: setup.no_ds.then_some(false),
                 ..Overrides::default()
-            })
+            });
+        let recording = config.record.then(|| run_dir.join(EPISODE_RECORDING));
+        if let Some(path) = &recording {
+            builder = builder.record(path);
+        }
+        let (outcome, watch) = builder
             .step_hook(watch)
             .start()
             .and_then(|f| f.watch(&mut *watcher))
@@ -576,6 +590,7 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
             failure: failure.as_deref(),
             variant_steps: summary.variant_steps,
             run_dir: &run_dir,
+            recording: recording.as_deref(),
         };
         let text = serde_json::to_string(&line).map_err(|e| write_error(e.into()))?;
         writeln!(jsonl, "{text}").map_err(write_error)?;
@@ -672,6 +687,7 @@ mod tests {
             failure: None,
             variant_steps: 0,
             run_dir: Path::new("runs/x"),
+            recording: None,
         };
         assert_eq!(
             serde_json::to_string(&line).unwrap(),

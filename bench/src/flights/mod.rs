@@ -6,7 +6,8 @@
 //!   setpoint gaps;
 //! - [`faults`]: the fault-injection table (SIGKILL, SIGSTOP, a garbage reasoner, a removed
 //!   service) over one flight of the default workflow;
-//! - [`ds`]: dynamic scheduling on and off under a CPU hog.
+//! - [`ds`]: dynamic scheduling on and off under a CPU hog;
+//! - [`record`]: what recording costs: flights with and without the recorder.
 //!
 //! Each takes a config and a [`aeris_flight::FlightWatcher`] that gets every event of its
 //! flights (the benchmark's own progress lines arrive as [`aeris_flight::FlightEvent::Note`])
@@ -15,11 +16,13 @@
 pub mod cycle;
 pub mod ds;
 pub mod faults;
+pub mod record;
 pub mod swap;
 
 pub use cycle::{CycleConfig, CycleReport, RoleLatency};
 pub use ds::{DsConfig, DsReport, DsRun};
 pub use faults::{FaultError, FaultKind, FaultRow, FaultsConfig, FaultsReport};
+pub use record::{RecordBenchConfig, RecordBenchReport, RecordRow};
 pub use swap::{SwapConfig, SwapReport, SwapRow};
 
 use aeris_flight::{FlightError, FlightFailure, OverrideError, Overrides, VariantChoice};
