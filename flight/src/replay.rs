@@ -344,6 +344,8 @@ struct ReplayHook {
     done_at: Option<std::time::Instant>,
     offset: Option<(u64, i64)>,
     late_max_us: u64,
+    /// The source could not read the recording to its end.
+    source_failed: bool,
     reasoner: Option<String>,
     last_decisions: u64,
     tokens_per_s: Vec<f64>,
@@ -361,6 +363,7 @@ impl StepHook for ReplayHook {
                 self.offset = Some((c[counter::START], c[counter::OFFSET] as i64));
             }
             self.late_max_us = self.late_max_us.max(c[counter::LATE_MAX_US]);
+            self.source_failed |= hb.status == aeris_schemas::RoleStatus::Degraded as u8;
             if c[counter::DONE] == 1 && self.done_at.is_none() {
                 self.done_at = Some(std::time::Instant::now());
                 ctx.note("replay: the recording is replayed; waiting one heartbeat for the last decision");
@@ -458,6 +461,7 @@ pub fn replay(
         .stop_when(StopRule::Hook)
         .record(REPLAY_RECORDING)
         .record_frame_every(0)
+        .record_exact_frames(false)
         .record_topics(vec![
             topics::REASONING_DECISION.into(),
             topics::HUB_REPORT.into(),
@@ -476,6 +480,7 @@ pub fn replay(
         done_at: None,
         offset: None,
         late_max_us: 0,
+        source_failed: false,
         reasoner,
         last_decisions: 0,
         tokens_per_s: Vec::new(),
@@ -493,8 +498,14 @@ pub fn replay(
     if let Some(f) = &outcome.failure
         && hook.done_at.is_none()
     {
+        return Err(ReplayError::Ended { why: f.to_string() });
+    }
+    if hook.source_failed {
         return Err(ReplayError::Ended {
-            why: format!("{f:?}"),
+            why: format!(
+                "the recording could not be read to its end (see {})",
+                run_dir.join("logs/replay.log").display()
+            ),
         });
     }
     let Some((t0_rec, offset)) = hook.offset else {
@@ -696,7 +707,12 @@ pub fn compare(
             role: role.to_string(),
             variant: v.clone(),
         });
-        r.name = request.name.as_ref().map(|n| format!("{n}-{k}"));
+        // one flight name and run directory per variant: each keeps its own replay.mcap
+        let base = request
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("replay-{}", std::process::id()));
+        r.name = Some(format!("{base}-{k}"));
         r.run_dir = request.run_dir.as_ref().map(|d| d.join(v));
         reports.push(replay(&r, watcher)?);
     }

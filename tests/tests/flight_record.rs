@@ -260,6 +260,28 @@ fn a_recorded_flight_reads_back_with_the_summarys_counts() {
     assert_eq!(own["complete"], true, "{own}");
     // (and, after the range, a decision on the telemetry alone once the frames stopped)
     assert!(count(&own, "reasoning/decision") >= recorded, "{own}");
+
+    // A/B on the same frames: the planner agrees with the recording, the garbage reasoner
+    // does not; one table, one JSON object
+    let rows = replay_json(
+        &dir.0,
+        &flight,
+        &file,
+        &["--to", "8", "--compare", "reasoning=planner,garbage"],
+    );
+    let rows = rows.as_array().expect("one row per variant");
+    assert_eq!(rows.len(), 2, "{rows:?}");
+    assert_eq!(rows[0]["variant"], "reasoning=planner");
+    assert_eq!(rows[0]["summary"]["agreement"], 1.0, "{:?}", rows[0]);
+    assert!(
+        rows[1]["summary"]["agreement"].as_f64().unwrap() < 1.0,
+        "garbage agrees with the planner's flight: {:?}",
+        rows[1]
+    );
+    for (i, row) in rows.iter().enumerate() {
+        assert_eq!(row["agreement_with"][i], 1.0, "itself: {row}");
+    }
+    assert_eq!(rows[0]["agreement_with"][1], rows[1]["agreement_with"][0]);
 }
 
 /// `aeris replay FILE --json [extra..]` as flight `FLIGHT-replay` in `dir/replay`: its
