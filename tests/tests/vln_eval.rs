@@ -1,7 +1,8 @@
 //! `aeris eval` flies generated VLN episodes through the full multi-process pipeline: the
 //! oracle baseline (the planner on the reference path) succeeds, the random baseline does
 //! not, the AERIS agent flies from the instruction alone, and every episode is written to
-//! episodes.jsonl with its trajectory, metrics and run folder, which `aeris plot` draws.
+//! episodes.jsonl with its trajectory, metrics and run folder (and with `--record` its
+//! recording), which `aeris plot` draws.
 
 use aeris_tests::*;
 use std::process::Command;
@@ -93,9 +94,26 @@ fn the_oracle_succeeds_and_random_does_not() {
             "1",
             "--baseline",
             "random",
+            "--record",
         ],
     );
     assert_eq!(summary["episodes"], 1, "{summary}");
+    // --record: the episode's recording, named in its line, in its run folder, closed (an
+    // MCAP file begins and ends with the magic)
+    let recording = std::path::PathBuf::from(episodes[0]["recording"].as_str().unwrap());
+    assert!(
+        recording.starts_with(episodes[0]["run_dir"].as_str().unwrap()),
+        "{}",
+        episodes[0]
+    );
+    let bytes = std::fs::read(&recording).expect("the episode's recording");
+    let magic = b"\x89MCAP0\r\n";
+    assert!(
+        bytes.len() > 16 && bytes.starts_with(magic) && bytes.ends_with(magic),
+        "{}: {} bytes",
+        recording.display(),
+        bytes.len()
+    );
     // every goal is 50 m or more from the start; a random walk of 5 m steps that stops
     // with probability 1/8 per heartbeat does not get there
     assert_eq!(summary["sr"], 0.0, "{summary}");
