@@ -32,11 +32,12 @@ pub struct ReplayArgs {
     /// and with each other, CT mean/p95, EER, tokens/s. E.g. reasoning=planner,smollm2.
     #[arg(long, value_name = "ROLE=V1,V2,..")]
     pub compare: Option<String>,
-    /// Flight name of the replay (default: replay-PID).
+    /// Flight name of the replay (default: replay-PID; with --compare, FLIGHT-K for the K-th
+    /// variant).
     #[arg(long)]
     pub flight: Option<String>,
-    /// Run directory of the replay (default: $TMPDIR/aeris/FLIGHT); it keeps the replay's
-    /// own recording, replay.mcap.
+    /// Run directory of the replay (default: $TMPDIR/aeris/FLIGHT; with --compare,
+    /// DIR/VARIANT per variant); it keeps the replay's own recording, replay.mcap.
     #[arg(long, value_name = "DIR")]
     pub run_dir: Option<PathBuf>,
     /// Print the summary as one JSON object on the last line of stdout.
@@ -58,10 +59,11 @@ pub fn run(args: ReplayArgs) -> Result<()> {
     };
     let mut printer = FlightPrinter::new(true, "")?;
     if let Some(spec) = &args.compare {
-        let Some((role, list)) = spec.split_once('=') else {
-            bail!("--compare expects ROLE=V1,V2,.., got `{spec}`");
-        };
-        let variants: Vec<String> = list
+        let choice: aeris_flight::VariantChoice =
+            spec.parse().with_context(|| format!("--compare {spec}"))?;
+        let role = choice.role.as_str();
+        let variants: Vec<String> = choice
+            .variant
             .split(',')
             .filter(|v| !v.is_empty())
             .map(str::to_string)

@@ -128,11 +128,18 @@ pub fn attach_spec(
         .filter(|p| p.extension().is_some_and(|x| x == "json"))
         .collect();
     files.sort();
-    let mut specs = Vec::new();
+    // one spec per role: a hot swap or restart leaves `NAME.iN.json` beside `NAME.json`;
+    // the highest instance is the one running
+    let mut specs: Vec<aeris_runtime::RoleSpec> = Vec::new();
     for f in files {
         let spec = aeris_runtime::RoleSpec::load(&f)?;
-        if spec.flight == flight && spec.kind != RECORDER_KIND {
-            specs.push(spec);
+        if spec.flight != flight || spec.kind == RECORDER_KIND {
+            continue;
+        }
+        match specs.iter_mut().find(|s| s.name == spec.name) {
+            Some(s) if s.instance < spec.instance => *s = spec,
+            Some(_) => {}
+            None => specs.push(spec),
         }
     }
     let Some(first) = specs.first() else {
@@ -156,15 +163,14 @@ pub fn attach_spec(
     let roles: Vec<serde_json::Value> = specs
         .iter()
         .filter_map(|s| {
-            serde_json::to_value(aeris_record::read::RecordedRole {
-                name: s.name.clone(),
-                kind: s.kind.clone(),
-                variant: s.variant.clone(),
-                variants: vec![s.variant.clone()],
-                executor: None,
-                params: s.params.clone(),
-            })
-            .ok()
+            recorded_role(
+                &s.name,
+                &s.kind,
+                &s.variant,
+                vec![s.variant.clone()],
+                None,
+                &s.params,
+            )
         })
         .collect();
     let mut params = serde_json::Map::new();
@@ -305,17 +311,36 @@ fn recorded_roles(workflow: &Workflow) -> Vec<serde_json::Value> {
         .iter()
         .filter(|r| r.kind != RECORDER_KIND)
         .filter_map(|r| {
-            serde_json::to_value(aeris_record::read::RecordedRole {
-                name: r.name.clone(),
-                kind: r.kind.clone(),
-                variant: r.variant.clone(),
-                variants: r.variants.clone(),
-                executor: r.executor.clone(),
-                params: r.params.clone(),
-            })
-            .ok()
+            recorded_role(
+                &r.name,
+                &r.kind,
+                &r.variant,
+                r.variants.clone(),
+                r.executor.clone(),
+                &r.params,
+            )
         })
         .collect()
+}
+
+/// One role as a recording describes it.
+fn recorded_role(
+    name: &str,
+    kind: &str,
+    variant: &str,
+    variants: Vec<String>,
+    executor: Option<String>,
+    params: &serde_json::Map<String, serde_json::Value>,
+) -> Option<serde_json::Value> {
+    serde_json::to_value(aeris_record::read::RecordedRole {
+        name: name.to_string(),
+        kind: kind.to_string(),
+        variant: variant.to_string(),
+        variants,
+        executor,
+        params: params.clone(),
+    })
+    .ok()
 }
 
 #[cfg(test)]

@@ -115,14 +115,20 @@ pub enum ReplayError {
         /// End of the range (s into the recording).
         to_s: f64,
     },
-    /// The speed is not a positive number.
-    #[error("--speed must be a positive number, got {given}")]
+    /// The speed is not a positive number, or does not divide the flight's periods into
+    /// whole milliseconds (a rounded heartbeat would pick other frames).
+    #[error(
+        "--speed {given}: must be positive and divide the heartbeat ({heartbeat_ms} ms) and \
+         the model roles' intervals into whole milliseconds (e.g. 0.5, 2 or 4)"
+    )]
     Speed {
         /// The speed given.
         given: f64,
+        /// The recorded heartbeat period (ms).
+        heartbeat_ms: u64,
     },
     /// The replay's workflow is not valid (a variant its kind does not have, ...).
-    #[error("the replayed flight")]
+    #[error("the replay's workflow")]
     Workflow(#[source] WorkflowError),
     /// The replayed flight failed.
     #[error("the replayed flight")]
@@ -151,14 +157,14 @@ pub struct DecisionView {
 }
 
 impl DecisionView {
-    fn of(d: &Decision, speed: f64) -> Self {
+    fn of(d: &Decision) -> Self {
         Self {
             cycle: d.cycle,
             action: ActionMode::from_u8(d.action)
                 .map_or_else(|| format!("mode {}", d.action), |a| a.name().to_string()),
             step: d.step,
             target: d.target,
-            latency_s: d.publish_ns.saturating_sub(d.cycle_start_ns) as f64 * 1e-9 * speed,
+            latency_s: d.publish_ns.saturating_sub(d.cycle_start_ns) as f64 * 1e-9,
         }
     }
 }
@@ -216,9 +222,12 @@ pub struct ReplaySummary {
     pub paired: usize,
     /// Of those, identical bit for bit.
     pub identical: usize,
-    /// `identical / recorded_cycles`.
+    /// Recorded cycles decided on the telemetry alone (no frame to pair them by): listed,
+    /// not counted in the agreement.
+    pub recorded_without_frame: usize,
+    /// `identical / (recorded_cycles - recorded_without_frame)`.
     pub agreement: f64,
-    /// Cycles with the same action and step, over recorded cycles.
+    /// Cycles with the same action and step, over the recorded cycles decided on a frame.
     pub action_agreement: f64,
     /// The recording, in the range.
     pub recorded: RunFigures,
@@ -243,8 +252,53 @@ pub struct ReplayReport {
     pub outcome: FlightOutcome,
 }
 
+/// Kinds whose roles keep the first frame of every `interval_ms` of the clock
+/// (`aeris_roles::vision::FrameStride`).
+const STRIDED_KINDS: [&str; 3] = ["text-reader", "detector", "occupancy"];
+/// Their default interval (ms), `aeris_roles::vision::DEFAULT_INTERVAL_MS`.
+const DEFAULT_INTERVAL_MS: u64 = 2000;
+
+/// The frame intervals (ms) of `flight`'s strided roles (the variants that run no model
+/// keep every frame, but an interval does them no harm).
+fn frame_intervals_ms(flight: &RecordedFlight) -> Vec<u64> {
+    flight
+        .roles
+        .iter()
+        .filter(|r| STRIDED_KINDS.contains(&r.kind.as_str()))
+        .map(|r| {
+            r.params
+                .get("interval_ms")
+                .and_then(|v| v.as_f64())
+                .map_or(DEFAULT_INTERVAL_MS, |v| v.max(1.0) as u64)
+        })
+        .collect()
+}
+
+/// `ms / speed` when it is a whole number of milliseconds.
+fn scaled_ms(ms: u64, speed: f64) -> Option<u64> {
+    let v = ms as f64 / speed;
+    (v >= 1.0 && (v - v.round()).abs() < 1e-6).then(|| v.round() as u64)
+}
+
+/// The alignment of the replay's start (ns, recording clock): the least common multiple of
+/// the strided roles' intervals, so each keeps the frames it kept in flight; 0 for none.
+fn start_alignment_ns(flight: &RecordedFlight) -> u64 {
+    let gcd = |mut a: u64, mut b: u64| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    frame_intervals_ms(flight)
+        .into_iter()
+        .fold(0u64, |l, i| if l == 0 { i } else { l / gcd(l, i) * i })
+        .saturating_mul(1_000_000)
+}
+
 /// The workflow that replays `flight` from the recording at `path`: its roles minus the
-/// vehicle, controllers, camera and recorder, plus the replay source.
+/// vehicle, controllers, camera and recorder, plus the replay source; its heartbeat,
+/// deadline and frame intervals divided by `speed` (which must leave them whole
+/// milliseconds: [`ReplayError::Speed`] from [`replay`]).
 pub fn replay_workflow(
     flight: &RecordedFlight,
     path: &Path,
@@ -253,7 +307,7 @@ pub fn replay_workflow(
     speed: f64,
 ) -> Result<Workflow, WorkflowError> {
     let mut timing = flight.timing.clone();
-    let scale = |ms: u64| ((ms as f64 / speed).round() as u64).max(1);
+    let scale = |ms: u64| scaled_ms(ms, speed).unwrap_or(((ms as f64 / speed) as u64).max(1));
     timing.heartbeat_period_ms = scale(timing.heartbeat_period_ms);
     timing.decision_deadline_ms = scale(timing.decision_deadline_ms);
     let mut executors: Vec<Executor> = flight
@@ -299,19 +353,41 @@ pub fn replay_workflow(
     source_params.insert("from_ns".into(), from_ns.into());
     source_params.insert("to_ns".into(), to_ns.into());
     source_params.insert("speed".into(), speed.into());
-    let mut roles = vec![decl(
+    // the vehicle's state at the first frame's capture: a heartbeat of telemetry before it
+    source_params.insert(
+        "lead_ns".into(),
+        flight
+            .timing
+            .heartbeat_period_ms
+            .saturating_mul(1_000_000)
+            .into(),
+    );
+    source_params.insert("align_ns".into(), start_alignment_ns(flight).into());
+    let mut source = decl(
         "replay",
         SOURCE_KIND,
         SOURCE_VARIANT,
         vec![SOURCE_VARIANT.to_string()],
         Some(executors[0].name.clone()),
         source_params,
-    )];
+    );
+    // a restarted source would replay from the start on another offset: the replay fails
+    // instead ([`ReplayHook`])
+    source.restart = RestartPolicy::Never;
+    let mut roles = vec![source];
     for r in flight
         .roles
         .iter()
         .filter(|r| !REPLACED_KINDS.contains(&r.kind.as_str()))
     {
+        let mut params = r.params.clone();
+        if STRIDED_KINDS.contains(&r.kind.as_str()) {
+            let interval = params
+                .get("interval_ms")
+                .and_then(|v| v.as_f64())
+                .map_or(DEFAULT_INTERVAL_MS, |v| v.max(1.0) as u64);
+            params.insert("interval_ms".into(), scale(interval).into());
+        }
         roles.push(decl(
             &r.name,
             &r.kind,
@@ -320,7 +396,7 @@ pub fn replay_workflow(
             r.executor
                 .clone()
                 .filter(|e| executors.iter().any(|x| &x.name == e)),
-            r.params.clone(),
+            params,
         ));
     }
     let workflow = Workflow {
@@ -340,7 +416,8 @@ pub fn replay_workflow(
 /// heartbeat (and deadline) has passed for the last decision; keeps the source's clock
 /// offset and the reasoner's token rate.
 struct ReplayHook {
-    heartbeat_ns: u64,
+    /// The replay's heartbeat plus its deadline (ns): how long the last decision may take.
+    last_wait_ns: u64,
     done_at: Option<std::time::Instant>,
     offset: Option<(u64, i64)>,
     late_max_us: u64,
@@ -353,13 +430,23 @@ struct ReplayHook {
 
 impl StepHook for ReplayHook {
     fn step(&mut self, ctx: &mut StepContext<'_>) -> Result<bool, HookError> {
-        if let Some(hb) = ctx
-            .supervisor
-            .role("replay")
-            .and_then(|r| r.last_heartbeat())
+        let source = ctx.supervisor.role("replay");
+        if self.done_at.is_none()
+            && source.is_some_and(|r| {
+                matches!(
+                    r.state(),
+                    aeris_orchestrator::supervisor::RoleState::Stopped
+                        | aeris_orchestrator::supervisor::RoleState::GaveUp
+                )
+            })
         {
+            return Err(
+                "the replay source stopped before the end of the recording (see its log)".into(),
+            );
+        }
+        if let Some(hb) = source.and_then(|r| r.last_heartbeat()) {
             let c = hb.counters;
-            if c[counter::WAITING] == 0 {
+            if c[counter::STARTED] == 1 {
                 self.offset = Some((c[counter::START], c[counter::OFFSET] as i64));
             }
             self.late_max_us = self.late_max_us.max(c[counter::LATE_MAX_US]);
@@ -384,7 +471,7 @@ impl StepHook for ReplayHook {
         }
         Ok(self
             .done_at
-            .is_some_and(|t| t.elapsed().as_nanos() as u64 >= 2 * self.heartbeat_ns))
+            .is_some_and(|t| t.elapsed().as_nanos() as u64 >= self.last_wait_ns))
     }
 }
 
@@ -394,14 +481,24 @@ pub fn replay(
     request: &ReplayRequest,
     watcher: &mut dyn FlightWatcher,
 ) -> Result<ReplayReport, ReplayError> {
-    if !(request.speed.is_finite() && request.speed > 0.0) {
-        return Err(ReplayError::Speed {
-            given: request.speed,
-        });
-    }
     let mut recording = Recording::open(&request.path)?;
     let flight = recording.flight().clone();
-    if !flight.exact_frames {
+    let speed = request.speed;
+    let periods = [
+        flight.timing.heartbeat_period_ms,
+        flight.timing.decision_deadline_ms,
+    ];
+    let whole = periods
+        .iter()
+        .chain(&frame_intervals_ms(&flight))
+        .all(|ms| scaled_ms(*ms, speed).is_some());
+    if !(speed.is_finite() && speed > 0.0 && whole) {
+        return Err(ReplayError::Speed {
+            given: speed,
+            heartbeat_ms: flight.timing.heartbeat_period_ms,
+        });
+    }
+    if !flight.exact_frames || recording.message_count("camera/rgb/frame") == 0 {
         return Err(ReplayError::NotReplayable {
             path: request.path.clone(),
         });
@@ -476,7 +573,9 @@ pub fn replay(
         builder = builder.role_executable(exe.clone());
     }
     let hook = ReplayHook {
-        heartbeat_ns: flight.timing.heartbeat_period_ms.max(1) * 1_000_000,
+        last_wait_ns: (scaled_ms(flight.timing.heartbeat_period_ms, speed).unwrap_or(1)
+            + scaled_ms(flight.timing.decision_deadline_ms, speed).unwrap_or(1))
+            * 1_000_000,
         done_at: None,
         offset: None,
         late_max_us: 0,
@@ -520,7 +619,6 @@ pub fn replay(
     let recorded_reports: Vec<HubReport> = recording.typed(topics::HUB_REPORT)?;
     // the replay's clock back onto the recording's
     let t0_wall = (t0_rec as i64).wrapping_sub(offset) as u64;
-    let speed = request.speed;
     let to_recording =
         |t: u64| t0_rec.saturating_add((t.saturating_sub(t0_wall) as f64 * speed) as u64);
     let recorded_in: Vec<(u64, Decision)> = recorded
@@ -528,6 +626,12 @@ pub fn replay(
         .filter(|d| d.cycle_start_ns >= first && d.cycle_start_ns < to_ns)
         .map(|d| (d.cycle_start_ns, *d))
         .collect();
+    // cycles decided on the telemetry alone start at the reasoner's poll, not at a frame:
+    // nothing to pair them by
+    let without_frame = recorded_in
+        .iter()
+        .filter(|(t, _)| frames.binary_search(t).is_err())
+        .count();
     // decisions after the range are the reasoner's on telemetry alone, once the frames
     // stopped: not part of the replay
     let replayed_in: Vec<(u64, Decision)> = replayed
@@ -535,7 +639,7 @@ pub fn replay(
         .map(|d| (to_recording(d.cycle_start_ns), *d))
         .filter(|(t, _)| *t >= first && *t < to_ns.min(end + 1))
         .collect();
-    let cycles = pair(&recorded_in, &replayed_in, start, speed);
+    let cycles = pair(&recorded_in, &replayed_in, start);
     let paired = cycles
         .iter()
         .filter(|c| c.recorded.is_some() && c.replayed.is_some())
@@ -548,13 +652,21 @@ pub fn replay(
             _ => false,
         })
         .count();
-    let share = |n: usize| match recorded_in.len() {
+    let share = |n: usize| match recorded_in.len() - without_frame {
         0 => 0.0,
         total => n as f64 / total as f64,
     };
+    // both runs' reports over the same range of the recording
     let recorded_reports: Vec<HubReport> = recorded_reports
         .into_iter()
         .filter(|r| r.publish_ns >= first && r.publish_ns < to_ns)
+        .collect();
+    let replayed_reports: Vec<HubReport> = replayed_reports
+        .into_iter()
+        .filter(|r| {
+            let t = to_recording(r.publish_ns);
+            t >= first && t < to_ns
+        })
         .collect();
     let summary = ReplaySummary {
         recording: request.path.clone(),
@@ -565,12 +677,13 @@ pub fn replay(
         speed,
         recorded_cycles: recorded_in.len(),
         replayed_cycles: replayed_in.len(),
+        recorded_without_frame: without_frame,
         paired,
         identical,
         agreement: share(identical),
         action_agreement: share(same_action),
-        recorded: figures(recorded_in.len(), &recorded_reports, 1.0),
-        replayed: figures(replayed_in.len(), &replayed_reports, speed),
+        recorded: figures(recorded_in.len(), &recorded_reports),
+        replayed: figures(replayed_in.len(), &replayed_reports),
         tokens_per_s: (!hook.tokens_per_s.is_empty())
             .then(|| hook.tokens_per_s.iter().sum::<f64>() / hook.tokens_per_s.len() as f64),
         late_max_ms: hook.late_max_us as f64 / 1000.0,
@@ -610,7 +723,6 @@ fn pair(
     recorded: &[(u64, Decision)],
     replayed: &[(u64, Decision)],
     start: u64,
-    speed: f64,
 ) -> Vec<ReplayCycle> {
     let mut cycles = Vec::new();
     let mut used = vec![false; replayed.len()];
@@ -627,8 +739,8 @@ fn pair(
         });
         cycles.push(ReplayCycle {
             t_s: t.saturating_sub(start) as f64 * 1e-9,
-            recorded: Some(DecisionView::of(rec, 1.0)),
-            replayed: rep.map(|d| DecisionView::of(d, speed)),
+            recorded: Some(DecisionView::of(rec)),
+            replayed: rep.map(DecisionView::of),
             identical: rep.is_some_and(|d| same_content(rec, d)),
             target_delta_m: rep.map(|d| {
                 (0..3)
@@ -643,7 +755,7 @@ fn pair(
             cycles.push(ReplayCycle {
                 t_s: u.saturating_sub(start) as f64 * 1e-9,
                 recorded: None,
-                replayed: Some(DecisionView::of(d, speed)),
+                replayed: Some(DecisionView::of(d)),
                 identical: false,
                 target_delta_m: None,
             });
@@ -653,12 +765,13 @@ fn pair(
     cycles
 }
 
-/// Cycle-time figures from hub reports (times scaled back by `speed`).
-fn figures(decisions: usize, reports: &[HubReport], speed: f64) -> RunFigures {
+/// Cycle-time figures from hub reports (compute time, which a faster replay does not
+/// scale).
+fn figures(decisions: usize, reports: &[HubReport]) -> RunFigures {
     let ct: Vec<f64> = reports
         .iter()
         .filter(|r| r.committed == 1)
-        .map(|r| r.ct_ns as f64 * 1e-9 * speed)
+        .map(|r| r.ct_ns as f64 * 1e-9)
         .collect();
     let reused = reports.iter().filter(|r| r.reused == 1).count() as u64;
     let cycles = ct.len() as u64 + reused;
@@ -733,7 +846,7 @@ pub fn compare(
 
 /// Identical decisions over the frames either of two replays decided on.
 fn mutual_agreement(a: &[(u64, Decision)], b: &[(u64, Decision)]) -> f64 {
-    let cycles = pair(a, b, 0, 1.0);
+    let cycles = pair(a, b, 0);
     match cycles.len() {
         0 => 1.0,
         n => cycles.iter().filter(|c| c.identical).count() as f64 / n as f64,

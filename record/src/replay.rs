@@ -9,12 +9,20 @@
 //! replayed decisions pair with the recorded ones by the capture time of their frame.
 //!
 //! It starts publishing once every other role of the flight reports itself running (read
-//! from the supervisor's status board), so no role misses the first frames; it starts at
-//! `params.from_ns` (recording clock; default: its first message) and ends before
-//! `params.to_ns`. A reader thread reads the file ahead through a bounded queue whose
-//! buffers are reused: the cycle itself only copies bytes into shared memory.
+//! from the supervisor's status board; after ten seconds it names the ones it waits for),
+//! so no role misses the first frames; it starts at `params.from_ns` (recording clock;
+//! default: its first message) and ends before `params.to_ns`. The telemetry of
+//! `params.lead_ns` before the start is published at once, so the first frame has the
+//! vehicle's state at its capture. With `params.align_ns` the start is chosen so that the
+//! offset between the clocks is a whole number of `align_ns` (scaled): the model roles,
+//! which keep the first frame of every interval of the clock, then keep the same frames as
+//! in the recording. A reader thread reads the file ahead through a bounded queue whose
+//! buffers are reused: the cycle only copies bytes into shared memory, at most one frame per
+//! camera topic and [`TELEMETRY_PER_CYCLE`] telemetry messages per cycle (the camera
+//! topics buffer two frames: a burst would overwrite them).
 //!
-//! Parameters: `path` (required), `from_ns`, `to_ns`, `speed` (default 1).
+//! Parameters: `path` (required), `from_ns`, `to_ns`, `lead_ns`, `align_ns`, `speed`
+//! (default 1).
 //! Heartbeat counters: [`counter`].
 
 use crate::read::{ReadError, Recording};
@@ -44,7 +52,14 @@ pub mod counter {
     pub const OFFSET: usize = 5;
     /// The recording time the replay starts at (ns, recording clock).
     pub const START: usize = 6;
+    /// 1 once the start is fixed (the offset and start counters hold).
+    pub const STARTED: usize = 7;
 }
+
+/// Telemetry messages published per cycle at most.
+pub const TELEMETRY_PER_CYCLE: u32 = 16;
+/// After this long waiting for the other roles, the source says which it waits for.
+const WAIT_NOTE_NS: u64 = 10_000_000_000;
 
 /// The recording's channels the source publishes from.
 const CHANNELS: [&str; 3] = [
@@ -52,6 +67,8 @@ const CHANNELS: [&str; 3] = [
     "camera/depth/frame",
     "vehicle/telemetry/raw",
 ];
+/// Index of the telemetry in [`CHANNELS`].
+const TELEMETRY: usize = 2;
 /// Messages read ahead.
 const READ_AHEAD: usize = 64;
 /// Cycle period.
@@ -80,6 +97,9 @@ pub struct ReplaySource {
     /// This machine's time of the start (`None` while waiting for the roles).
     t0_wall: Option<u64>,
     next_wait_poll: u64,
+    /// When the wait for the other roles began, and whether it was reported.
+    waiting_since: Option<(u64, bool)>,
+    align_ns: u64,
     speed: f64,
     done: bool,
     frames: u64,
@@ -89,29 +109,47 @@ pub struct ReplaySource {
 }
 
 impl ReplaySource {
-    /// `t` of the recording on this machine's clock.
+    /// `t` of the recording on this machine's clock (earlier than the start for the
+    /// telemetry read ahead of it).
     fn wall(&self, t: u64, t0_wall: u64) -> u64 {
-        let since = t.saturating_sub(self.t0_rec) as f64 / self.speed;
-        t0_wall + since as u64
+        let since = (t as f64 - self.t0_rec as f64) / self.speed;
+        (t0_wall as f64 + since).max(0.0) as u64
     }
 
-    /// Whether every other role of the flight is built and running (a `Starting`
-    /// heartbeat comes before its ports exist).
-    fn others_up(ctx: &RoleContext) -> bool {
-        let Ok(board) = ctx.bus.read_status_board() else {
-            return false;
-        };
+    /// The roles of the flight, other than this one, that are not yet built and running (a
+    /// `Starting` heartbeat comes before their ports exist); `None` before the supervisor's
+    /// status board is readable. Only called while waiting to start.
+    fn not_running(ctx: &RoleContext) -> Option<Vec<String>> {
+        let board = ctx.bus.read_status_board().ok()?;
         let n = (board.role_count as usize).min(board.roles.len());
-        n > 0
-            && board.roles[..n]
+        if n == 0 {
+            return None;
+        }
+        Some(
+            board.roles[..n]
                 .iter()
                 .filter(|r| r.name.as_str() != Some(ctx.spec.name.as_str()))
-                .all(|r| {
-                    matches!(
+                .filter(|r| {
+                    !matches!(
                         RoleStatus::from_u8(r.status),
                         Some(RoleStatus::Running | RoleStatus::Degraded)
                     )
                 })
+                .map(|r| r.name.as_str().unwrap_or("?").to_string())
+                .collect(),
+        )
+    }
+
+    /// The start on this machine's clock, at or after `now`: `now`, or with `align_ns` the
+    /// first instant whose scaled offset from the recording's start is a whole number of
+    /// `align_ns`.
+    fn start_at(&self, now: u64) -> u64 {
+        if self.align_ns == 0 {
+            return now;
+        }
+        let (a, t0, s) = (self.align_ns as f64, self.t0_rec as f64, self.speed);
+        let k = ((now as f64 * s - t0) / a).ceil();
+        (((t0 + k * a) / s).round() as u64).max(now)
     }
 
     fn publish(&mut self, item: &Item, t0_wall: u64) -> Result<(), RoleError> {
@@ -148,19 +186,22 @@ impl ReplaySource {
     }
 }
 
-/// Read `path`'s replayed channels in `[from, to)` into `items`, reusing the buffers that
-/// come back on `recycle`.
+/// Read `path`'s replayed channels in `[from, to)` into `items` (and the telemetry from
+/// `lead` before `from`), reusing the buffers that come back on `recycle`.
 fn read_ahead(
     mut recording: Recording,
-    from: Option<u64>,
-    to: Option<u64>,
+    (from, lead, to): (u64, u64, Option<u64>),
     items: SyncSender<Item>,
     recycle: Receiver<Vec<u8>>,
 ) -> Result<(), ReadError> {
-    recording.for_each(&CHANNELS, from, to, |topic, log_time, data| {
+    let early = Some(from.saturating_sub(lead));
+    recording.for_each(&CHANNELS, early, to, |topic, log_time, data| {
         let Some(channel) = CHANNELS.iter().position(|c| *c == topic) else {
             return true;
         };
+        if channel != TELEMETRY && log_time < from {
+            return true;
+        }
         let mut bytes = recycle.try_recv().unwrap_or_default();
         bytes.clear();
         bytes.extend_from_slice(data);
@@ -189,6 +230,10 @@ impl Role for ReplaySource {
             )));
         }
         let bound = |key: &str| spec.params.get(key).and_then(|v| v.as_u64());
+        let (lead, align_ns) = (
+            bound("lead_ns").unwrap_or(0),
+            bound("align_ns").unwrap_or(0),
+        );
         let recording = Recording::open(&path)
             .map_err(|e| RoleError::Config(aeris_runtime::error_chain::chain(&e).to_string()))?;
         if !recording.flight().exact_frames {
@@ -198,15 +243,14 @@ impl Role for ReplaySource {
             )));
         }
         let start = recording.time_range().map_or(0, |r| r.0);
-        let from = bound("from_ns");
-        let t0_rec = from.unwrap_or(start).max(start);
+        let t0_rec = bound("from_ns").unwrap_or(start).max(start);
         let to = bound("to_ns");
         let frame_bytes = spec.camera.width as usize * spec.camera.height as usize * 3;
         let (items_tx, items) = std::sync::mpsc::sync_channel(READ_AHEAD);
         let (recycle, recycle_rx) = std::sync::mpsc::sync_channel(READ_AHEAD + 2);
         let reader = std::thread::Builder::new()
             .name("replay reader".into())
-            .spawn(move || read_ahead(recording, from, to, items_tx, recycle_rx))
+            .spawn(move || read_ahead(recording, (t0_rec, lead, to), items_tx, recycle_rx))
             .map_err(|e| RoleError::Config(format!("replay: starting the reader: {e}")))?;
         Ok(Self {
             rgb: ctx.bus.frame_publisher(topics::CAMERA_RGB, frame_bytes)?,
@@ -219,6 +263,8 @@ impl Role for ReplaySource {
             t0_rec,
             t0_wall: None,
             next_wait_poll: 0,
+            waiting_since: None,
+            align_ns,
             speed,
             done: false,
             frames: 0,
@@ -240,24 +286,44 @@ impl Role for ReplaySource {
         let now = monotonic_ns();
         let t0_wall = match self.t0_wall {
             Some(t) => t,
-            None if now >= self.next_wait_poll && Self::others_up(ctx) => {
-                self.t0_wall = Some(now);
-                eprintln!(
-                    "replay: every role is up; replaying from {:.3} s of the recording",
-                    self.t0_rec as f64 / 1e9
-                );
-                now
-            }
             None => {
-                if now >= self.next_wait_poll {
-                    self.next_wait_poll = now + WAIT_POLL_NS;
-                }
                 report.counters[counter::WAITING] = 1;
                 report.counters[counter::START] = self.t0_rec;
-                return Ok(CycleOutcome::Idle);
+                if now < self.next_wait_poll {
+                    return Ok(CycleOutcome::Idle);
+                }
+                self.next_wait_poll = now + WAIT_POLL_NS;
+                match Self::not_running(ctx) {
+                    Some(waiting) if waiting.is_empty() => {
+                        let t = self.start_at(now);
+                        self.t0_wall = Some(t);
+                        eprintln!(
+                            "replay: every role is up; replaying from {:.3} s of the recording \
+                             in {:.0} ms",
+                            self.t0_rec as f64 / 1e9,
+                            t.saturating_sub(now) as f64 / 1e6
+                        );
+                        t
+                    }
+                    waiting => {
+                        let (since, said) = *self.waiting_since.get_or_insert((now, false));
+                        if !said && now.saturating_sub(since) >= WAIT_NOTE_NS {
+                            self.waiting_since = Some((since, true));
+                            eprintln!(
+                                "replay: still waiting for {} to run before replaying",
+                                waiting.map_or_else(
+                                    || "the supervisor's status board".to_string(),
+                                    |w| w.join(", ")
+                                )
+                            );
+                        }
+                        return Ok(CycleOutcome::Idle);
+                    }
+                }
             }
         };
         let mut worked = false;
+        let (mut rgb, mut depth, mut telemetry) = (0u32, 0u32, 0u32);
         while !self.done {
             let item = match self.next.take() {
                 Some(item) => item,
@@ -266,27 +332,50 @@ impl Role for ReplaySource {
                     Err(TryRecvError::Empty) => break,
                     Err(TryRecvError::Disconnected) => {
                         self.done = true;
-                        if let Some(Err(e)) = self.reader.take().and_then(|r| r.join().ok()) {
-                            self.failed = true;
-                            eprintln!(
-                                "replay: the recording ended early: {}",
-                                aeris_runtime::error_chain::chain(&e)
-                            );
+                        match self.reader.take().map(|r| r.join()) {
+                            Some(Ok(Ok(()))) | None => {}
+                            Some(Ok(Err(e))) => {
+                                self.failed = true;
+                                eprintln!(
+                                    "replay: the recording ended early: {}",
+                                    aeris_runtime::error_chain::chain(&e)
+                                );
+                            }
+                            Some(Err(_)) => {
+                                self.failed = true;
+                                eprintln!("replay: the recording's reader failed (it panicked)");
+                            }
                         }
                         break;
                     }
                 },
             };
             let due = self.wall(item.log_time, t0_wall);
-            if due > now {
+            // one frame per camera topic per cycle: the subscribers buffer two
+            let count = match item.channel {
+                0 => &mut rgb,
+                1 => &mut depth,
+                _ => &mut telemetry,
+            };
+            let cap = if item.channel == TELEMETRY {
+                TELEMETRY_PER_CYCLE
+            } else {
+                1
+            };
+            if due > now || *count >= cap {
                 self.next = Some(item);
                 break;
             }
-            self.late_max_us = self.late_max_us.max((now - due) / 1000);
+            *count += 1;
+            // the telemetry read ahead of the start is due at the start, not late
+            self.late_max_us = self
+                .late_max_us
+                .max(now.saturating_sub(due.max(t0_wall)) / 1000);
             self.publish(&item, t0_wall)?;
             worked = true;
             let _ = self.recycle.try_send(item.bytes);
         }
+        report.counters[counter::STARTED] = 1;
         report.counters[counter::WAITING] = 0;
         report.counters[counter::FRAMES] = self.frames;
         report.counters[counter::TELEMETRY] = self.telemetry_count;

@@ -255,19 +255,27 @@ fn a_recorded_flight_reads_back_with_the_summarys_counts() {
     assert_eq!(identical, recorded, "every cycle identical: {replay}");
     assert_eq!(replay["replayed_cycles"], recorded, "{replay}");
     assert_eq!(replay["agreement"], 1.0, "{replay}");
+    assert_eq!(replay["recorded_without_frame"], 0, "{replay}");
     // the replay recorded its own decisions, for Foxglove
     let own = read_back(Path::new(replay["replay_recording"].as_str().unwrap()));
     assert_eq!(own["complete"], true, "{own}");
     // (and, after the range, a decision on the telemetry alone once the frames stopped)
     assert!(count(&own, "reasoning/decision") >= recorded, "{own}");
 
-    // A/B on the same frames: the planner agrees with the recording, the garbage reasoner
-    // does not; one table, one JSON object
+    // A/B on the same frames, twice as fast (the heartbeat with them): the planner agrees
+    // with the recording, the garbage reasoner does not; one table, one JSON object
     let rows = replay_json(
         &dir.0,
         &flight,
         &file,
-        &["--to", "8", "--compare", "reasoning=planner,garbage"],
+        &[
+            "--to",
+            "12",
+            "--speed",
+            "2",
+            "--compare",
+            "reasoning=planner,garbage",
+        ],
     );
     let rows = rows.as_array().expect("one row per variant");
     assert_eq!(rows.len(), 2, "{rows:?}");

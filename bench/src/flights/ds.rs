@@ -4,7 +4,8 @@
 //! figures are taken over the cycles from the hog's landing to the end.
 
 use super::{
-    FlightBenchConfig, FlightBenchError, flight_name_and_dir, load_workflow, with_variants,
+    BusyThreads, FlightBenchConfig, FlightBenchError, flight_name_and_dir, load_workflow,
+    with_variants,
 };
 use aeris_flight::{
     CycleTrace, Flight, FlightWatcher, HookError, Overrides, StepContext, StepHook, StopRule,
@@ -15,8 +16,6 @@ use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::stats::{mean_std, percentile};
 use serde::Serialize;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Settings of `aeris bench ds`.
 #[derive(Debug, Clone)]
@@ -64,43 +63,6 @@ pub struct DsReport {
     pub ds_off: DsRun,
 }
 
-/// Busy threads pinned to a CPU set until dropped.
-struct Hog {
-    stop: Arc<AtomicBool>,
-    threads: Vec<std::thread::JoinHandle<()>>,
-}
-
-impl Hog {
-    fn start(cpus: &CpuSet, n: usize) -> Self {
-        let stop = Arc::new(AtomicBool::new(false));
-        let threads = (0..n)
-            .map(|_| {
-                let stop = stop.clone();
-                let cpus = cpus.clone();
-                std::thread::spawn(move || {
-                    let _ = cpus.bind_task(0);
-                    let mut x = 0u64;
-                    while !stop.load(Ordering::Relaxed) {
-                        for i in 0..10_000u64 {
-                            x = std::hint::black_box(x.wrapping_mul(31).wrapping_add(i));
-                        }
-                    }
-                })
-            })
-            .collect();
-        Self { stop, threads }
-    }
-}
-
-impl Drop for Hog {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        for t in self.threads.drain(..) {
-            let _ = t.join();
-        }
-    }
-}
-
 fn workflow(config: &FlightBenchConfig) -> Result<Workflow, FlightBenchError> {
     let mut w = load_workflow(config)?;
     // the built-in model flight runs its reasoner on every CPU, where a hog on "its
@@ -119,7 +81,7 @@ fn workflow(config: &FlightBenchConfig) -> Result<Workflow, FlightBenchError> {
 struct HogScenario {
     hog_after: u64,
     hog_threads: usize,
-    hog: Option<Hog>,
+    hog: Option<BusyThreads>,
     /// When the hog landed, and the trace's length then.
     landed: Option<(u64, usize)>,
     hogged_role: String,
@@ -163,7 +125,7 @@ impl StepHook for HogScenario {
                     self.hog_threads,
                     r.name()
                 ));
-                self.hog = Some(Hog::start(&set, self.hog_threads));
+                self.hog = Some(BusyThreads::start(Some(&set), self.hog_threads));
                 self.landed = Some((monotonic_ns(), ctx.monitor.trace().len()));
             }
         }

@@ -28,7 +28,10 @@ pub use swap::{SwapConfig, SwapReport, SwapRow};
 use aeris_flight::{FlightError, FlightFailure, OverrideError, Overrides, VariantChoice};
 use aeris_orchestrator::supervisor::Supervisor;
 use aeris_orchestrator::workflow::{Workflow, WorkflowError, WorkflowFileError};
+use aeris_runtime::affinity::CpuSet;
 use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Settings shared by the flight benchmarks.
 #[derive(Debug, Clone, Default)]
@@ -109,6 +112,47 @@ fn reason_text(failure: &Option<FlightFailure>) -> String {
     failure
         .as_ref()
         .map_or_else(|| "no reason given".into(), FlightFailure::to_string)
+}
+
+/// Busy threads (pinned to a CPU set, or unpinned at normal priority) until dropped: the
+/// CPU hog of `bench ds`, the outside load of `bench record`.
+pub(crate) struct BusyThreads {
+    stop: Arc<AtomicBool>,
+    threads: Vec<std::thread::JoinHandle<()>>,
+}
+
+impl BusyThreads {
+    /// Start `n` busy threads, bound to `cpus` when given.
+    pub(crate) fn start(cpus: Option<&CpuSet>, n: usize) -> Self {
+        let stop = Arc::new(AtomicBool::new(false));
+        let threads = (0..n)
+            .map(|_| {
+                let stop = stop.clone();
+                let cpus = cpus.cloned();
+                std::thread::spawn(move || {
+                    if let Some(cpus) = cpus {
+                        let _ = cpus.bind_task(0);
+                    }
+                    let mut x = 0u64;
+                    while !stop.load(Ordering::Relaxed) {
+                        for i in 0..10_000u64 {
+                            x = std::hint::black_box(x.wrapping_mul(31).wrapping_add(i));
+                        }
+                    }
+                })
+            })
+            .collect();
+        Self { stop, threads }
+    }
+}
+
+impl Drop for BusyThreads {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+    }
 }
 
 /// The workflow a flight benchmark flies: the file, or the built-in model flight.

@@ -4,12 +4,11 @@
 //! minute and samples dropped; optionally beside `outside_load` busy threads that are not
 //! part of the flight.
 
-use super::{FlightBenchError, flight_name_and_dir};
+use super::{BusyThreads, FlightBenchError, flight_name_and_dir};
 use aeris_flight::{Flight, FlightWatcher, HookError, StepContext, StepHook, StopRule};
+use aeris_orchestrator::executors::process_sched_time;
 use aeris_orchestrator::workflow::{RECORDER_KIND, Workflow};
 use serde::Serialize;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Settings of `aeris bench record`.
 #[derive(Debug, Clone)]
@@ -58,22 +57,12 @@ pub struct RecordBenchReport {
     pub rows: Vec<RecordRow>,
 }
 
-/// Samples the recorder's CPU time (utime + stime, in clock ticks) while it runs.
+/// Samples the recorder's CPU time (every thread's time on a CPU) while it runs.
 #[derive(Default)]
 struct RecorderCpu {
     pid: Option<u32>,
     first: Option<(u64, std::time::Instant)>,
     last: Option<(u64, std::time::Instant)>,
-}
-
-/// utime + stime of `pid` (clock ticks), from /proc.
-fn cpu_ticks(pid: u32) -> Option<u64> {
-    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
-    // the fields after the command name (which may hold spaces) in parentheses
-    let rest = stat.rsplit_once(')')?.1;
-    let fields: Vec<&str> = rest.split_whitespace().collect();
-    // utime and stime are fields 14 and 15 of the line: 12 and 13 after the name
-    Some(fields.get(11)?.parse::<u64>().ok()? + fields.get(12)?.parse::<u64>().ok()?)
 }
 
 impl StepHook for RecorderCpu {
@@ -85,13 +74,13 @@ impl StepHook for RecorderCpu {
             .find(|r| r.kind() == RECORDER_KIND)
             .and_then(|r| r.pid());
         if let Some(pid) = pid
-            && let Some(ticks) = cpu_ticks(pid)
+            && let Some(t) = process_sched_time(pid)
         {
             if self.pid != Some(pid) {
                 self.pid = Some(pid);
-                self.first = Some((ticks, std::time::Instant::now()));
+                self.first = Some((t.run_ns, std::time::Instant::now()));
             }
-            self.last = Some((ticks, std::time::Instant::now()));
+            self.last = Some((t.run_ns, std::time::Instant::now()));
         }
         Ok(false)
     }
@@ -99,47 +88,9 @@ impl StepHook for RecorderCpu {
 
 impl RecorderCpu {
     fn percent(&self) -> Option<f64> {
-        let ((t0, i0), (t1, i1)) = (self.first?, self.last?);
-        // SAFETY: sysconf has no preconditions.
-        let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) }.max(1) as f64;
+        let ((r0, i0), (r1, i1)) = (self.first?, self.last?);
         let wall = i1.duration_since(i0).as_secs_f64();
-        (wall > 0.0).then(|| (t1.saturating_sub(t0)) as f64 / hz / wall * 100.0)
-    }
-}
-
-/// `n` busy threads that spin until dropped.
-struct OutsideLoad {
-    stop: Arc<AtomicBool>,
-    threads: Vec<std::thread::JoinHandle<()>>,
-}
-
-impl OutsideLoad {
-    fn start(n: usize) -> Self {
-        let stop = Arc::new(AtomicBool::new(false));
-        let threads = (0..n)
-            .filter_map(|k| {
-                let stop = stop.clone();
-                std::thread::Builder::new()
-                    .name(format!("outside load {k}"))
-                    .spawn(move || {
-                        let mut x = 0u64;
-                        while !stop.load(Ordering::Relaxed) {
-                            x = std::hint::black_box(x.wrapping_mul(6364136223846793005) + 1);
-                        }
-                    })
-                    .ok()
-            })
-            .collect();
-        Self { stop, threads }
-    }
-}
-
-impl Drop for OutsideLoad {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        for t in self.threads.drain(..) {
-            let _ = t.join();
-        }
+        (wall > 0.0).then(|| r1.saturating_sub(r0) as f64 * 1e-9 / wall * 100.0)
     }
 }
 
@@ -163,7 +114,7 @@ pub fn run(
             Workflow::builtin_models().map_err(FlightBenchError::BuiltinWorkflow)?,
         ));
     }
-    let _load = OutsideLoad::start(config.outside_load);
+    let _load = BusyThreads::start(None, config.outside_load);
     let mut rows = Vec::new();
     for (label, workflow) in workflows {
         for recorded in [false, true] {
