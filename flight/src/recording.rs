@@ -3,10 +3,7 @@
 //!
 //! [`FlightBuilder::record`]: crate::FlightBuilder::record
 
-use aeris_orchestrator::restart::RestartPolicy;
-use aeris_orchestrator::workflow::{
-    DEFAULT_BACKOFF_MS, DEFAULT_MAX_RESTARTS, RECORDER_KIND, RoleDecl, Workflow,
-};
+use aeris_orchestrator::workflow::{RECORDER_KIND, RoleDecl, Workflow};
 use aeris_record::counter;
 use aeris_schemas::RoleHeartbeat;
 use serde::Serialize;
@@ -281,23 +278,10 @@ pub(crate) fn add_recorder(
             .collect::<Vec<_>>()
             .into(),
     );
+    // fitted below to what the flight publishes
     workflow.roles.insert(
         0,
-        RoleDecl {
-            name: name.clone(),
-            kind: RECORDER_KIND.into(),
-            variant: VARIANT.into(),
-            variants: vec![VARIANT.into()],
-            ladder: Vec::new(),
-            executor,
-            restart: RestartPolicy::OnFailure,
-            max_restarts: DEFAULT_MAX_RESTARTS,
-            backoff_ms: DEFAULT_BACKOFF_MS,
-            budget_ms: None,
-            params,
-            subscribes: Vec::new(),
-            publishes: Vec::new(),
-        },
+        RoleDecl::new(&name, RECORDER_KIND, VARIANT, executor, params),
     );
     workflow.fit_recorders();
     Ok(name)

@@ -95,6 +95,40 @@ pub struct RoleDecl {
 }
 
 impl RoleDecl {
+    /// A role of `kind` running `variant` (its only variant), with the workflow defaults:
+    /// no ladder, restarted on failure within the default budget and back-off, the kind's
+    /// default latency budget, and the catalog's topics (none for an unknown kind, which
+    /// [`Workflow::validate`] refuses).
+    pub fn new(
+        name: &str,
+        kind: &str,
+        variant: &str,
+        executor: Option<String>,
+        params: serde_json::Map<String, serde_json::Value>,
+    ) -> Self {
+        let catalog = aeris_runtime::catalog::role_kind(kind);
+        let topics = |list: fn(&aeris_runtime::catalog::RoleKind) -> &'static [&'static str]| {
+            catalog.map_or_else(Vec::new, |k| {
+                list(k).iter().map(|t| t.to_string()).collect()
+            })
+        };
+        Self {
+            name: name.to_string(),
+            kind: kind.to_string(),
+            variant: variant.to_string(),
+            variants: vec![variant.to_string()],
+            ladder: Vec::new(),
+            executor,
+            restart: RestartPolicy::OnFailure,
+            max_restarts: DEFAULT_MAX_RESTARTS,
+            backoff_ms: DEFAULT_BACKOFF_MS,
+            budget_ms: None,
+            params,
+            subscribes: topics(|k| k.subscribes),
+            publishes: topics(|k| k.publishes),
+        }
+    }
+
     /// A string parameter.
     pub fn param_str(&self, key: &str) -> Option<&str> {
         self.params.get(key).and_then(|v| v.as_str())

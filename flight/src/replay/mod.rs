@@ -26,8 +26,7 @@ use crate::hook::{HookError, StepContext, StepHook};
 use crate::overrides::{Overrides, VariantChoice};
 use aeris_orchestrator::restart::RestartPolicy;
 use aeris_orchestrator::workflow::{
-    DEFAULT_BACKOFF_MS, DEFAULT_MAX_RESTARTS, Executor, ExecutorCpus, RECORDER_KIND, RoleDecl,
-    SchedulingSpec, Workflow, WorkflowError,
+    Executor, ExecutorCpus, RECORDER_KIND, RoleDecl, SchedulingSpec, Workflow, WorkflowError,
 };
 use aeris_record::read::{ReadError, RecordedFlight, Recording};
 use aeris_record::replay::counter;
@@ -208,13 +207,16 @@ fn frame_intervals_ms(flight: &RecordedFlight) -> Vec<u64> {
         .roles
         .iter()
         .filter(|r| STRIDED_KINDS.contains(&r.kind.as_str()))
-        .map(|r| {
-            r.params
-                .get("interval_ms")
-                .and_then(|v| v.as_f64())
-                .map_or(DEFAULT_INTERVAL_MS, |v| v.max(1.0) as u64)
-        })
+        .map(|r| frame_interval_ms(&r.params))
         .collect()
+}
+
+/// A strided role's frame interval (ms) from its parameters.
+fn frame_interval_ms(params: &serde_json::Map<String, serde_json::Value>) -> u64 {
+    params
+        .get("interval_ms")
+        .and_then(|v| v.as_f64())
+        .map_or(DEFAULT_INTERVAL_MS, |v| v.max(1.0) as u64)
 }
 
 /// `ms / speed` when it is a whole number of milliseconds.
@@ -268,29 +270,6 @@ pub fn replay_workflow(
         });
     }
     executors.sort_by(|a, b| a.name.cmp(&b.name));
-    let catalog = |kind: &str| aeris_runtime::catalog::role_kind(kind);
-    let decl = |name: &str, kind: &str, variant: &str, variants, executor, params| {
-        let k = catalog(kind);
-        RoleDecl {
-            name: name.to_string(),
-            kind: kind.to_string(),
-            variant: variant.to_string(),
-            variants,
-            ladder: Vec::new(),
-            executor,
-            restart: RestartPolicy::OnFailure,
-            max_restarts: DEFAULT_MAX_RESTARTS,
-            backoff_ms: DEFAULT_BACKOFF_MS,
-            budget_ms: None,
-            params,
-            subscribes: k.map_or_else(Vec::new, |k| {
-                k.subscribes.iter().map(|t| t.to_string()).collect()
-            }),
-            publishes: k.map_or_else(Vec::new, |k| {
-                k.publishes.iter().map(|t| t.to_string()).collect()
-            }),
-        }
-    };
     let mut source_params = serde_json::Map::new();
     source_params.insert("path".into(), path.to_string_lossy().into_owned().into());
     source_params.insert("from_ns".into(), from_ns.into());
@@ -306,11 +285,10 @@ pub fn replay_workflow(
             .into(),
     );
     source_params.insert("align_ns".into(), start_alignment_ns(flight).into());
-    let mut source = decl(
+    let mut source = RoleDecl::new(
         "replay",
         SOURCE_KIND,
         SOURCE_VARIANT,
-        vec![SOURCE_VARIANT.to_string()],
         Some(executors[0].name.clone()),
         source_params,
     );
@@ -325,22 +303,16 @@ pub fn replay_workflow(
     {
         let mut params = r.params.clone();
         if STRIDED_KINDS.contains(&r.kind.as_str()) {
-            let interval = params
-                .get("interval_ms")
-                .and_then(|v| v.as_f64())
-                .map_or(DEFAULT_INTERVAL_MS, |v| v.max(1.0) as u64);
+            let interval = frame_interval_ms(&r.params);
             params.insert("interval_ms".into(), scale(interval).into());
         }
-        roles.push(decl(
-            &r.name,
-            &r.kind,
-            &r.variant,
-            r.variants.clone(),
-            r.executor
-                .clone()
-                .filter(|e| executors.iter().any(|x| &x.name == e)),
-            params,
-        ));
+        let executor = r
+            .executor
+            .clone()
+            .filter(|e| executors.iter().any(|x| &x.name == e));
+        let mut role = RoleDecl::new(&r.name, &r.kind, &r.variant, executor, params);
+        role.variants = r.variants.clone();
+        roles.push(role);
     }
     let workflow = Workflow {
         scheduling: SchedulingSpec::defaults(&timing),
