@@ -190,6 +190,10 @@ const VEH_MISSED: usize = 4;
 const VEH_REJECTED: usize = 5;
 /// Reasoner counter: decisions published.
 const REASONER_PUBLISHED: usize = 0;
+/// How long after a row's settling a decision the reasoner counts as published may still be
+/// on its way to the hub's report (the reasoner's heartbeat can count it a hub cycle before
+/// the hub's report does) before it counts as lost.
+const IN_FLIGHT_GRACE_NS: u64 = 500_000_000;
 
 struct Counters {
     vehicle: PerProcess,
@@ -532,8 +536,14 @@ impl StepHook for FaultInjector {
         let now = monotonic_ns();
         let monitor = ctx.monitor;
         let snap = self.counters.snapshot(ctx.supervisor, monitor);
+        let in_flight = |until_ns: u64, before: &Snapshot| {
+            let published = snap.published.saturating_sub(before.published);
+            let received = snap.received.saturating_sub(before.received);
+            published > received && now < until_ns.saturating_add(IN_FLIGHT_GRACE_NS)
+        };
         if let (Some((i, before)), Phase::Settle { until_ns }) = (self.pending_close, &self.phase)
             && now >= *until_ns
+            && !in_flight(*until_ns, &before)
             && let Some(r) = self.rows.get_mut(i)
         {
             r.missed_ticks = snap.missed.saturating_sub(before.missed);
@@ -554,7 +564,9 @@ impl StepHook for FaultInjector {
                     Phase::Warmup
                 }
             }
-            Phase::Settle { until_ns } if now >= until_ns => self.inject_next(ctx, now, snap)?,
+            Phase::Settle { until_ns } if now >= until_ns && self.pending_close.is_none() => {
+                self.inject_next(ctx, now, snap)?
+            }
             Phase::Injected(inj) => self.follow(ctx, inj, now, snap)?,
             other => other,
         };
