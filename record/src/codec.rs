@@ -5,119 +5,40 @@
 use aeris_schemas::{
     AutopilotLinkStatus, BoundSetpoint, ControllerLease, Cue, Decision, Detection, FrameHeader,
     HubReport, MAX_CUES, MAX_DETECTIONS, MAX_SUBGOALS, PerceptionState, RoleHeartbeat,
-    SCHEMA_LAYOUT_HASH, SCHEMA_VERSION, VehicleTelemetry, ZeroCopySend, topics,
+    SCHEMA_LAYOUT_HASH, SCHEMA_VERSION, VehicleTelemetry,
 };
 use serde_json::{Map, Value, json};
 
-/// The payload type behind a topic.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Payload {
-    /// Frames (`[u8]` with a [`FrameHeader`]): the header is the typed message.
-    Frame,
-    /// [`PerceptionState`] (S_t or one of its blocks).
-    State,
-    /// [`Decision`].
-    Decision,
-    /// [`BoundSetpoint`].
-    Setpoint,
-    /// [`HubReport`].
-    HubReport,
-    /// [`VehicleTelemetry`].
-    Telemetry,
-    /// [`ControllerLease`].
-    Lease,
-    /// [`AutopilotLinkStatus`].
-    Link,
-    /// [`RoleHeartbeat`].
-    Heartbeat,
-}
+pub use aeris_runtime::raw::{Payload, bytes_of, payload_of, read};
 
-/// The payload type of `topic`, if it is one of [`topics::ALL`].
-pub fn payload_of(topic: &str) -> Option<Payload> {
-    Some(match topic {
-        topics::CAMERA_RGB | topics::CAMERA_DEPTH => Payload::Frame,
-        topics::PERCEPTION_STATE
-        | topics::PERCEPTION_TEXT
-        | topics::PERCEPTION_DETECTIONS
-        | topics::PERCEPTION_CUES
-        | topics::PERCEPTION_OCCUPANCY => Payload::State,
-        topics::REASONING_DECISION => Payload::Decision,
-        topics::HUB_SETPOINT => Payload::Setpoint,
-        topics::HUB_REPORT => Payload::HubReport,
-        topics::VEHICLE_TELEMETRY => Payload::Telemetry,
-        topics::CONTROLLER_LEASE => Payload::Lease,
-        topics::CONTROLLER_LINK => Payload::Link,
-        topics::HEARTBEAT => Payload::Heartbeat,
-        _ => return None,
-    })
-}
-
-/// The bytes of a plain `#[repr(C)]` payload as they lie in memory (for a sample: in shared
-/// memory, exactly what the publisher wrote, padding included).
-pub fn bytes_of<T: ZeroCopySend + Copy>(value: &T) -> &[u8] {
-    // SAFETY: every payload of aeris-schemas is `#[repr(C)]`, `Copy` and pointer-free; the
-    // slice borrows `value` and lives no longer. The few implicit padding bytes (e.g. in
-    // `StageTiming`) are read as the bytes the publisher's shared-memory slot holds, which
-    // is mapped, written memory: recording them is what makes a replay bit-exact.
-    unsafe { core::slice::from_raw_parts((value as *const T).cast::<u8>(), size_of::<T>()) }
-}
-
-/// `T` read back from its bytes; `None` when `bytes` has the wrong length.
-pub fn read<T: ZeroCopySend + Copy>(bytes: &[u8]) -> Option<T> {
-    (bytes.len() == size_of::<T>())
-        // SAFETY: the length is that of `T`; every payload type is plain data for which any
-        // bytes its publisher wrote are a value (enums travel as `u8`), and the read is
-        // unaligned-safe.
-        .then(|| unsafe { core::ptr::read_unaligned(bytes.as_ptr().cast::<T>()) })
-}
-
-fn type_name_of<T: ZeroCopySend>() -> &'static str {
-    // SAFETY: type_name has no preconditions; it is unsafe only to discourage overriding.
-    unsafe { <T as ZeroCopySend>::type_name() }
-}
-
-impl Payload {
-    /// The iceoryx2 type name (`aeris::Decision@s6`): the raw channel's schema name.
-    pub fn type_name(self) -> &'static str {
-        match self {
-            Payload::Frame => type_name_of::<FrameHeader>(),
-            Payload::State => type_name_of::<PerceptionState>(),
-            Payload::Decision => type_name_of::<Decision>(),
-            Payload::Setpoint => type_name_of::<BoundSetpoint>(),
-            Payload::HubReport => type_name_of::<HubReport>(),
-            Payload::Telemetry => type_name_of::<VehicleTelemetry>(),
-            Payload::Lease => type_name_of::<ControllerLease>(),
-            Payload::Link => type_name_of::<AutopilotLinkStatus>(),
-            Payload::Heartbeat => type_name_of::<RoleHeartbeat>(),
-        }
-    }
-
-    /// Size and alignment of the payload (of the header, for frames).
-    pub fn layout(self) -> (usize, usize) {
-        fn l<T>() -> (usize, usize) {
-            (size_of::<T>(), align_of::<T>())
-        }
-        match self {
-            Payload::Frame => l::<FrameHeader>(),
-            Payload::State => l::<PerceptionState>(),
-            Payload::Decision => l::<Decision>(),
-            Payload::Setpoint => l::<BoundSetpoint>(),
-            Payload::HubReport => l::<HubReport>(),
-            Payload::Telemetry => l::<VehicleTelemetry>(),
-            Payload::Lease => l::<ControllerLease>(),
-            Payload::Link => l::<AutopilotLinkStatus>(),
-            Payload::Heartbeat => l::<RoleHeartbeat>(),
-        }
-    }
-
+/// What the recorder adds to a [`Payload`]: its JSON, the JSON's schema, the raw channel's
+/// schema, its stamp and (for telemetry) its pose.
+pub trait PayloadCodec {
     /// The JSON channel's schema name (`aeris.Decision`).
-    pub fn json_schema_name(self) -> String {
+    fn json_schema_name(self) -> String;
+    /// The raw channel's schema data: what a replay checks before trusting the bytes.
+    fn raw_schema(self) -> Value;
+    /// CLOCK_MONOTONIC ns the message was captured or published, by its own stamp.
+    fn stamp_ns(self, bytes: &[u8]) -> Option<u64>;
+    /// The vehicle pose of a telemetry message in `bytes` as a `foxglove.PoseInFrame`
+    /// ([`pose_in_frame_json`]); `None` for other payloads or another length.
+    fn to_pose_json(self, bytes: &[u8]) -> Option<Value>;
+    /// The payload in `bytes` as JSON; `None` when the length is not the payload's.
+    fn to_json(self, bytes: &[u8]) -> Option<Value>;
+    /// The JSON Schema of [`PayloadCodec::to_json`]'s output, inferred from a full example
+    /// (every variable-length list at its longest), so the schema and the encoder agree.
+    fn json_schema(self) -> Value;
+}
+
+impl PayloadCodec for Payload {
+    /// The JSON channel's schema name (`aeris.Decision`).
+    fn json_schema_name(self) -> String {
         let bare = self.type_name().split('@').next().unwrap_or_default();
         bare.replace("::", ".")
     }
 
     /// The raw channel's schema data: what a replay checks before trusting the bytes.
-    pub fn raw_schema(self) -> Value {
+    fn raw_schema(self) -> Value {
         let (size, align) = self.layout();
         json!({
             "type_name": self.type_name(),
@@ -129,7 +50,7 @@ impl Payload {
     }
 
     /// CLOCK_MONOTONIC ns the message was captured or published, by its own stamp.
-    pub fn stamp_ns(self, bytes: &[u8]) -> Option<u64> {
+    fn stamp_ns(self, bytes: &[u8]) -> Option<u64> {
         Some(match self {
             Payload::Frame => read::<FrameHeader>(bytes)?.capture_ns,
             Payload::State => read::<PerceptionState>(bytes)?.publish_ns,
@@ -145,7 +66,7 @@ impl Payload {
 
     /// The vehicle pose of a telemetry message in `bytes` as a `foxglove.PoseInFrame`
     /// ([`pose_in_frame_json`]); `None` for other payloads or another length.
-    pub fn to_pose_json(self, bytes: &[u8]) -> Option<Value> {
+    fn to_pose_json(self, bytes: &[u8]) -> Option<Value> {
         match self {
             Payload::Telemetry => Some(pose_in_frame_json(&read(bytes)?)),
             _ => None,
@@ -153,7 +74,7 @@ impl Payload {
     }
 
     /// The payload in `bytes` as JSON; `None` when the length is not the payload's.
-    pub fn to_json(self, bytes: &[u8]) -> Option<Value> {
+    fn to_json(self, bytes: &[u8]) -> Option<Value> {
         Some(match self {
             Payload::Frame => frame_json(&read(bytes)?),
             Payload::State => state_json(&read(bytes)?),
@@ -169,7 +90,7 @@ impl Payload {
 
     /// The JSON Schema of [`Payload::to_json`]'s output, inferred from a full example (every
     /// variable-length list at its longest), so the schema and the encoder agree.
-    pub fn json_schema(self) -> Value {
+    fn json_schema(self) -> Value {
         let example = match self {
             Payload::State => {
                 let s = PerceptionState {
@@ -576,6 +497,7 @@ fn heartbeat_json(h: &RoleHeartbeat) -> Value {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use aeris_schemas::topics;
 
     #[test]
     fn every_topic_has_a_payload_and_its_json_round_trips_the_bytes() {

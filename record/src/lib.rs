@@ -48,14 +48,11 @@ pub mod read;
 pub mod replay;
 pub mod writer;
 
-use aeris_runtime::bus::{BusError, FrameSubscriber, TypedSubscriber};
+use aeris_runtime::bus::{BusError, FrameSubscriber};
+use aeris_runtime::raw::{RawSubscriber, raw_subscriber};
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
-use aeris_schemas::{
-    AutopilotLinkStatus, BoundSetpoint, ControllerLease, Decision, HubReport, PerceptionState,
-    RoleHeartbeat, RoleStatus, VehicleTelemetry, ZeroCopySend, topics,
-};
-use codec::{ImageFormat, Payload, bytes_of, payload_of};
-use core::fmt::Debug;
+use aeris_schemas::{RoleStatus, topics};
+use codec::{ImageFormat, Payload, PayloadCodec, bytes_of, payload_of};
 use core::time::Duration;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -125,26 +122,8 @@ pub fn recording_files(path: &Path) -> Vec<PathBuf> {
     files
 }
 
-/// A subscriber whose next sample the recorder copies as bytes.
-trait RawSource {
-    /// Copy the next sample, if any, into `f`; `false` when the buffer is empty.
-    fn next_raw(&self, f: &mut dyn FnMut(&[u8])) -> Result<bool, BusError>;
-}
-
-impl<T: Debug + ZeroCopySend + Copy + 'static> RawSource for TypedSubscriber<T> {
-    fn next_raw(&self, f: &mut dyn FnMut(&[u8])) -> Result<bool, BusError> {
-        match self.next_sample()? {
-            Some(sample) => {
-                f(bytes_of(sample.payload()));
-                Ok(true)
-            }
-            None => Ok(false),
-        }
-    }
-}
-
 enum Source {
-    Typed(Box<dyn RawSource>),
+    Typed(Box<dyn RawSubscriber>),
     Frames { sub: FrameSubscriber, seen: u64 },
 }
 
@@ -168,21 +147,12 @@ pub struct RecorderRole {
 }
 
 fn subscribe(ctx: &RoleContext, topic: &str, payload: Payload) -> Result<Source, BusError> {
-    let bus = &ctx.bus;
-    let boxed = |s: Box<dyn RawSource>| Source::Typed(s);
     Ok(match payload {
         Payload::Frame => Source::Frames {
-            sub: bus.frame_subscriber(topic)?,
+            sub: ctx.bus.frame_subscriber(topic)?,
             seen: 0,
         },
-        Payload::State => boxed(Box::new(bus.subscriber::<PerceptionState>(topic)?)),
-        Payload::Decision => boxed(Box::new(bus.subscriber::<Decision>(topic)?)),
-        Payload::Setpoint => boxed(Box::new(bus.subscriber::<BoundSetpoint>(topic)?)),
-        Payload::HubReport => boxed(Box::new(bus.subscriber::<HubReport>(topic)?)),
-        Payload::Telemetry => boxed(Box::new(bus.subscriber::<VehicleTelemetry>(topic)?)),
-        Payload::Lease => boxed(Box::new(bus.subscriber::<ControllerLease>(topic)?)),
-        Payload::Link => boxed(Box::new(bus.subscriber::<AutopilotLinkStatus>(topic)?)),
-        Payload::Heartbeat => boxed(Box::new(bus.subscriber::<RoleHeartbeat>(topic)?)),
+        typed => Source::Typed(raw_subscriber(&ctx.bus, topic, typed)?),
     })
 }
 
@@ -327,7 +297,7 @@ impl Role for RecorderRole {
             let payload = input.payload;
             match &mut input.source {
                 Source::Typed(sub) => loop {
-                    let mut push = |bytes: &[u8]| {
+                    let mut push = |bytes: &[u8], _: &[u8], _| {
                         got += 1;
                         match self.queue.as_ref().filter(|_| !failed) {
                             Some(q) => match take(&q.free_typed) {

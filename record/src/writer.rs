@@ -7,7 +7,8 @@
 //! [`FLUSH_EVERY`] so a killed recorder leaves a file readable up to its last chunk.
 
 use crate::codec::{
-    ImageFormat, Payload, compressed_image_json, encode_frame, pose_in_frame_schema, raw_image_json,
+    ImageFormat, Payload, PayloadCodec, compressed_image_json, encode_frame, pose_in_frame_schema,
+    raw_image_json,
 };
 use mcap::records::MessageHeader;
 use serde_json::Value;

@@ -812,6 +812,11 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> TypedPublisher<T> {
         let _ = self.publisher.update_connections();
     }
 
+    /// This publisher's port id (what its subscribers see as a sample's publisher).
+    pub fn publisher_id(&self) -> iceoryx2::identifiers::UniquePublisherId {
+        self.publisher.id()
+    }
+
     /// The service name.
     pub fn service(&self) -> &str {
         &self.service
@@ -900,6 +905,11 @@ impl FramePublisher {
             reason: format!("{e:?}"),
         })?;
         Ok(())
+    }
+
+    /// This publisher's port id (what its subscribers see as a sample's publisher).
+    pub fn publisher_id(&self) -> iceoryx2::identifiers::UniquePublisherId {
+        self.publisher.id()
     }
 
     /// The service name.

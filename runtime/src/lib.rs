@@ -7,6 +7,8 @@
 //!   [`role::RoleHost`] that runs a role as a process (heartbeats, signals, deadlines).
 //! - [`spec`]: what the supervisor hands a role at launch ([`spec::RoleSpec`]).
 //! - [`clock`], [`signals`], [`affinity`]: monotonic time, termination requests, CPU sets.
+//! - [`raw`]: topics as bytes (their payload types, raw subscribers and publishers) for
+//!   whatever carries messages out of shared memory and back: recorder, replay, bridge.
 //! - [`error_chain`]: an error printed with its causes, for logs and replies.
 
 #![deny(missing_docs)]
@@ -16,6 +18,7 @@ pub mod bus;
 pub mod catalog;
 pub mod clock;
 pub mod error_chain;
+pub mod raw;
 pub mod role;
 pub mod signals;
 pub mod spec;
