@@ -6,6 +6,8 @@
 //! - [`launch`]: a workflow -> one role spec per role in start order, executors resolved to
 //!   CPU sets, the built-in vehicle linked to the controller;
 //! - [`restart`]: the restart policy as a pure function;
+//! - [`role_process`]: starting one role process (shared by the supervisor and the host
+//!   agent);
 //! - [`supervisor`]: starts every role as its own process bound to its executor's CPUs,
 //!   watches heartbeats (latency percentiles, sequence gaps), restarts failed roles with
 //!   backoff, keeps the status board, and hot-swaps role variants make-before-break;
@@ -27,6 +29,7 @@ pub mod launch;
 pub mod probe;
 pub mod rebind;
 pub mod restart;
+pub mod role_process;
 pub mod supervisor;
 pub mod workflow;
 
