@@ -1,5 +1,6 @@
 //! The `aeris` command line.
 
+mod agent_cmd;
 mod bench_camera;
 mod bench_cmd;
 mod bench_ds;
@@ -100,6 +101,9 @@ enum Command {
     /// Record a running flight into an MCAP file (like `ros2 bag record`), every frame
     /// exact, until Ctrl-C or the flight's end.
     Record(record_cmd::RecordArgs),
+    /// Run roles on this host for flights whose supervisor runs on another (a daemon: one on
+    /// every host a workflow's `[hosts.NAME]` names), until Ctrl-C.
+    Agent(agent_cmd::AgentArgs),
     /// Run benchmarks (IPC, camera, gate, control, models, cycle, swap, ds) and print their figures.
     Bench(bench_cmd::BenchArgs),
     #[cfg(feature = "sim")]
@@ -174,8 +178,16 @@ fn run_role(spec: PathBuf, instance: Option<u32>) -> anyhow::Result<ExitCode> {
         spec.instance = n;
     }
     let name = spec.name.clone();
+    if spec.remote.is_some() {
+        // on another host: this process is the role's handle there
+        let exit = aeris_hosts::handle::run_remote(spec)
+            .with_context(|| format!("role `{name}` on its host"))?;
+        return Ok(ExitCode::from(exit.exit_code()));
+    }
     let result = if spec.kind == "hub" {
         aeris_hub::run(spec)
+    } else if spec.kind == aeris_orchestrator::workflow::BRIDGE_KIND {
+        aeris_hosts::bridge::run(spec)
     } else if let Some(run) = sim_runner(&spec.kind, &spec.variant) {
         run(spec)
     } else {
@@ -208,6 +220,7 @@ fn roles() -> anyhow::Result<ExitCode> {
             .copied()
             .filter(|v| {
                 k.kind == "hub"
+                    || k.kind == aeris_orchestrator::workflow::BRIDGE_KIND
                     || aeris_roles::runner(k.kind, v).is_some()
                     || sim_runner(k.kind, v).is_some()
             })
@@ -268,6 +281,7 @@ fn main() -> ExitCode {
         Command::Roles => roles(),
         Command::Replay(args) => replay_cmd::run(args).map(|_| ExitCode::SUCCESS),
         Command::Record(args) => record_cmd::run(args).map(|_| ExitCode::SUCCESS),
+        Command::Agent(args) => agent_cmd::run(args).map(|_| ExitCode::SUCCESS),
         Command::Bench(args) => bench_cmd::run(args).map(|_| ExitCode::SUCCESS),
         #[cfg(feature = "sim")]
         Command::Eval(args) => eval_cmd::run(args).map(|_| ExitCode::SUCCESS),

@@ -186,6 +186,8 @@ pub fn attach_spec(
         mission: first.mission.clone(),
         params,
         instance: 0,
+        remote: None,
+        heartbeat_pid: None,
     })
 }
 

@@ -20,6 +20,8 @@ pub fn default_controller_spec() -> RoleSpec {
         mission: w.mission,
         params: Default::default(),
         instance: 0,
+        remote: None,
+        heartbeat_pid: None,
     }
 }
 

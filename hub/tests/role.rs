@@ -48,6 +48,8 @@ fn spec(flight: &str) -> RoleSpec {
         },
         params: Default::default(),
         instance: 0,
+        remote: None,
+        heartbeat_pid: None,
     }
 }
 

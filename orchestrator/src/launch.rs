@@ -5,9 +5,11 @@
 //! starting processes.
 
 use crate::restart::RestartPolicy;
-use crate::workflow::{ExecutorCpus, RECORDER_KIND, Workflow, WorkflowError};
+use crate::workflow::{
+    BRIDGE_KIND, ExecutorCpus, RECORDER_KIND, RoleDecl, Workflow, WorkflowError, remote_cpus,
+};
 use aeris_runtime::affinity::CpuSet;
-use aeris_runtime::spec::RoleSpec;
+use aeris_runtime::spec::{RemoteSpec, RoleSpec};
 use aeris_schemas::topics;
 
 /// One role ready to start.
@@ -58,7 +60,8 @@ pub enum PlanError {
     VehicleLink(std::io::Error),
 }
 
-/// Resolve every executor to a CPU set: `all` is `online`; `auto` executors get one CPU
+/// Resolve every executor of the flight's host to a CPU set (another host's executors are
+/// its agent's to bind): `all` is `online`; `auto` executors get one CPU
 /// each, round-robin over `online` in executor-name order; explicit sets stay as written.
 pub fn resolve_executors(workflow: &Workflow, online: &CpuSet) -> Vec<(String, CpuSet)> {
     let mut next_auto = 0usize;
@@ -66,6 +69,7 @@ pub fn resolve_executors(workflow: &Workflow, online: &CpuSet) -> Vec<(String, C
     workflow
         .executors
         .iter()
+        .filter(|ex| ex.host.is_none())
         .map(|ex| {
             let set = match &ex.cpus {
                 ExecutorCpus::Set(s) => s.clone(),
@@ -82,6 +86,53 @@ pub fn resolve_executors(workflow: &Workflow, online: &CpuSet) -> Vec<(String, C
             (ex.name.clone(), set)
         })
         .collect()
+}
+
+/// The parameter that puts a bridge role on another host (the host's name).
+pub const BRIDGE_HOST_PARAM: &str = "on_host";
+
+/// The bridge roles of `workflow` (kind [`BRIDGE_KIND`], variant `zenoh`), two per other
+/// host that runs a role: `bridge-to-HOST` on the flight's host and `bridge-on-HOST` there,
+/// each told the host's endpoint, what it sends (`export`) and what it receives
+/// (`import`). They start before every other role.
+pub fn bridge_roles(workflow: &Workflow) -> Vec<RoleDecl> {
+    let frame_bytes = workflow.camera.width as u64 * workflow.camera.height as u64 * 3;
+    let mut roles = Vec::new();
+    for plan in workflow.bridge_plans() {
+        let h = &plan.host;
+        let params = |export: &[String], import: &[String], peer: &str| {
+            let mut p = serde_json::Map::new();
+            p.insert("connect".into(), h.endpoint.clone().into());
+            p.insert("export".into(), export.to_vec().into());
+            p.insert("import".into(), import.to_vec().into());
+            p.insert("peer".into(), peer.into());
+            p.insert("frame_bytes".into(), frame_bytes.into());
+            p.insert("link_timeout_ms".into(), h.link_timeout_ms.into());
+            p
+        };
+        let here = params(
+            &plan.to_host,
+            &plan.from_host,
+            &format!("host `{}`", h.name),
+        );
+        roles.push(RoleDecl::new(
+            &format!("bridge-to-{}", h.name),
+            BRIDGE_KIND,
+            "zenoh",
+            None,
+            here,
+        ));
+        let mut there = params(&plan.from_host, &plan.to_host, "the flight's host");
+        there.insert(BRIDGE_HOST_PARAM.into(), h.name.clone().into());
+        roles.push(RoleDecl::new(
+            &format!("bridge-on-{}", h.name),
+            BRIDGE_KIND,
+            "zenoh",
+            None,
+            there,
+        ));
+    }
+    roles
 }
 
 /// A free UDP port on 127.0.0.1 (bind port 0, read it, release it).
@@ -146,16 +197,31 @@ pub fn plan_launch(
     }
     w.validate()?;
     let executors = resolve_executors(&w, online);
-    let roles = w
-        .start_order()
-        .into_iter()
-        .filter_map(|i| w.roles.get(i))
+    let bridges = bridge_roles(&w);
+    let roles = bridges
+        .iter()
+        .chain(w.start_order().into_iter().filter_map(|i| w.roles.get(i)))
         .map(|r| {
-            let cpus = r.executor.as_ref().and_then(|name| {
-                executors
-                    .iter()
-                    .find(|(n, _)| n == name)
-                    .map(|(_, s)| s.clone())
+            let host = w.role_host(r).or_else(|| {
+                // a bridge on another host names it in its params
+                let name = r.param_str(BRIDGE_HOST_PARAM)?;
+                w.hosts.iter().find(|h| h.name == name)
+            });
+            let executor = r.executor.as_ref().and_then(|name| w.executor(name));
+            let cpus = match host {
+                Some(_) => None,
+                None => r.executor.as_ref().and_then(|name| {
+                    executors
+                        .iter()
+                        .find(|(n, _)| n == name)
+                        .map(|(_, s)| s.clone())
+                }),
+            };
+            let remote = host.map(|h| RemoteSpec {
+                host: h.name.clone(),
+                endpoint: h.endpoint.clone(),
+                cpus: executor.map(|e| remote_cpus(&e.cpus)).unwrap_or_default(),
+                link_timeout_ms: h.link_timeout_ms,
             });
             PlannedRole {
                 spec: RoleSpec {
@@ -169,6 +235,8 @@ pub fn plan_launch(
                     mission: w.mission.clone(),
                     params: r.params.clone(),
                     instance: 0,
+                    remote,
+                    heartbeat_pid: None,
                 },
                 cpus,
                 executor: r.executor.clone(),

@@ -11,10 +11,12 @@
 
 mod builtin;
 mod graph;
+mod hosts;
 mod parse;
 mod validate;
 
 pub use builtin::{DEFAULT_WORKFLOW_TOML, MODELS_WORKFLOW_TOML};
+pub use hosts::{BridgePlan, SUPERVISOR_READS, remote_cpus};
 pub use validate::REQUIRED_KINDS;
 
 use crate::restart::RestartPolicy;
@@ -24,6 +26,9 @@ use aeris_schemas::heartbeat::NAME_MAX;
 
 /// Kind of the flight recorder role (`aeris-record`).
 pub const RECORDER_KIND: &str = "recorder";
+
+/// Kind of the role that carries a flight's topics between hosts (`aeris-hosts`).
+pub const BRIDGE_KIND: &str = "bridge";
 
 /// Default restart budget of a role.
 pub const DEFAULT_MAX_RESTARTS: u32 = 5;
@@ -51,13 +56,45 @@ impl core::fmt::Display for ExecutorCpus {
     }
 }
 
-/// A named executor: a CPU set roles are bound to.
+/// A named executor: a CPU set roles are bound to, on the flight's host or another.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Executor {
     /// Executor name (the key under `[executors]`).
     pub name: String,
-    /// Its CPUs.
+    /// Its CPUs (on its host: another host's are not checked here).
     pub cpus: ExecutorCpus,
+    /// The host it is on (a `[hosts.NAME]`); `None`: the flight's own host.
+    pub host: Option<String>,
+}
+
+/// Another host roles may run on (`[hosts.NAME]`): an `aeris agent` listens there.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Host {
+    /// Host name (the key under `[hosts]`).
+    pub name: String,
+    /// Its agent's zenoh endpoint (`tcp/10.0.0.2:7447`).
+    pub endpoint: String,
+    /// The link counts as lost after this long without the host's agent (ms).
+    pub link_timeout_ms: u64,
+}
+
+/// Default time without a host's agent before its link counts as lost (ms).
+pub const DEFAULT_LINK_TIMEOUT_MS: u64 = 1000;
+
+/// Role kinds that never run on another host: the hub and the controller keep the vehicle
+/// flying whatever the link does, and the simulated vehicle and the replay source stand
+/// for the vehicle itself.
+pub const FLIGHT_HOST_KINDS: &[&str] = &["hub", "controller", "vehicle", "replay", RECORDER_KIND];
+
+/// Check that `endpoint` is a zenoh endpoint of the TCP transport: `tcp/HOST:PORT`.
+pub fn check_endpoint(endpoint: &str) -> bool {
+    let Some(rest) = endpoint.strip_prefix("tcp/") else {
+        return false;
+    };
+    let Some((host, port)) = rest.rsplit_once(':') else {
+        return false;
+    };
+    !host.is_empty() && port.parse::<u16>().is_ok_and(|p| p > 0)
 }
 
 /// One role of the workflow, validated against the catalog.
@@ -157,6 +194,8 @@ pub struct Workflow {
     pub mission: MissionSpec,
     /// Executors, sorted by name.
     pub executors: Vec<Executor>,
+    /// Other hosts roles may run on, sorted by name (`[hosts.NAME]`).
+    pub hosts: Vec<Host>,
     /// Roles in declaration order.
     pub roles: Vec<RoleDecl>,
     /// Dynamic scheduling and stall detection (`[scheduling]`).
@@ -266,6 +305,57 @@ pub enum WorkflowError {
         cpus: String,
         /// Why it is unusable.
         source: CpuSetError,
+    },
+    /// An executor names a host that is not declared.
+    #[error("[executors.{executor}] host `{host}` is not declared (declared: {known})")]
+    UnknownHost {
+        /// Executor name.
+        executor: String,
+        /// The host as written.
+        host: String,
+        /// Declared hosts, comma-separated (or "none").
+        known: String,
+    },
+    /// A host's endpoint is not a zenoh TCP endpoint.
+    #[error(
+        "[hosts.{host}] endpoint `{endpoint}` is not a zenoh TCP endpoint (write tcp/ADDRESS:PORT)"
+    )]
+    BadEndpoint {
+        /// Host name.
+        host: String,
+        /// The endpoint as written.
+        endpoint: String,
+    },
+    /// A host name is unusable.
+    #[error("host name `{host}` is invalid: use 1-48 characters of a-z, 0-9, `_`, `-`")]
+    BadHostName {
+        /// The name.
+        host: String,
+    },
+    /// A role that must stay on the flight's host is bound to an executor on another.
+    #[error(
+        "role `{role}` (kind {kind}) must run on the flight's host, but its executor is on host `{host}`"
+    )]
+    RemoteNotAllowed {
+        /// Role name.
+        role: String,
+        /// Its kind.
+        kind: String,
+        /// Its executor's host.
+        host: String,
+    },
+    /// A topic would go from one other host to another: bridges run between the flight's
+    /// host and each other host only.
+    #[error(
+        "topic `{topic}` would go from host `{from}` to host `{to}`: roles on two other hosts cannot talk directly; put one of them on the flight's host"
+    )]
+    HostToHost {
+        /// The topic.
+        topic: String,
+        /// The publisher's host.
+        from: String,
+        /// The subscriber's host.
+        to: String,
     },
     /// More roles than the status board can list.
     #[error("the workflow has {count} roles; at most {max} are supported")]
@@ -485,7 +575,7 @@ impl Workflow {
             "camera" => Some(1000.0 / self.camera.fps.max(1.0)),
             "hub" | "controller" => Some(1000.0 / self.timing.control_rate_hz),
             // off the critical path: no budget, so the scheduler never moves roles for it
-            "vehicle" | RECORDER_KIND => None,
+            "vehicle" | RECORDER_KIND | BRIDGE_KIND => None,
             _ => Some(hb * 0.25),
         }
     }
@@ -527,5 +617,12 @@ impl Workflow {
     /// The executor named `name`.
     pub fn executor(&self, name: &str) -> Option<&Executor> {
         self.executors.iter().find(|e| e.name == name)
+    }
+
+    /// The other host role `role` runs on (`None`: the flight's host).
+    pub fn role_host(&self, role: &RoleDecl) -> Option<&Host> {
+        let ex = self.executor(role.executor.as_deref()?)?;
+        let host = ex.host.as_deref()?;
+        self.hosts.iter().find(|h| h.name == host)
     }
 }

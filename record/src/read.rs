@@ -497,6 +497,8 @@ mod tests {
             },
             params: Default::default(),
             instance: 0,
+            remote: None,
+            heartbeat_pid: None,
         };
         let ours = flight_metadata(&spec);
         let good = dir.path().join("good.mcap");

@@ -40,6 +40,8 @@ fn default_spec() -> RoleSpec {
         mission: w.mission,
         params: Default::default(),
         instance: 0,
+        remote: None,
+        heartbeat_pid: None,
     }
 }
 

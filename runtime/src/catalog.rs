@@ -143,6 +143,17 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         swap_refusal: None,
     },
     RoleKind {
+        kind: "bridge",
+        variants: &["zenoh"],
+        // the topics that cross between two hosts, given in its params by the supervisor
+        subscribes: &[],
+        publishes: &[],
+        summary: "carries the topics that cross between the flight's host and another host over zenoh: exact bytes, schema checked per message (added by the supervisor)",
+        swap_refusal: Some(
+            "a bridge is a flight's link to another host: it restarts, it is not swapped",
+        ),
+    },
+    RoleKind {
         kind: "replay",
         variants: &["mcap"],
         subscribes: &[],

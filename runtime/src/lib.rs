@@ -26,4 +26,4 @@ pub mod stats;
 
 pub use bus::{BusError, FlightBus};
 pub use role::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleHost};
-pub use spec::{MissionSpec, RoleSpec};
+pub use spec::{MissionSpec, RemoteSpec, RoleSpec};

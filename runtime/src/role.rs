@@ -157,7 +157,7 @@ impl RoleHost {
         hb.executor.set(&ctx.spec.cpus);
         // what the kernel says, so a live move by the supervisor shows in the next heartbeat
         let _ = write_task_affinity(0, &mut hb.executor);
-        hb.pid = std::process::id();
+        hb.pid = ctx.spec.heartbeat_pid.unwrap_or_else(std::process::id);
         hb.status = RoleStatus::Starting as u8;
         hb.seq = 1;
         hb.stamp_ns = monotonic_ns();

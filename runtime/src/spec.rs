@@ -267,6 +267,29 @@ pub struct RoleSpec {
     /// tell a newer reasoner from an older one.
     #[serde(default)]
     pub instance: u32,
+    /// Set when the role's executor is on another host: the process the supervisor starts
+    /// for it is then its handle, which has that host's agent run the role.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub remote: Option<RemoteSpec>,
+    /// The pid the role's heartbeats name when it is not its own: a role a host agent
+    /// started names its handle on the flight's host, the process the supervisor knows.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub heartbeat_pid: Option<u32>,
+}
+
+/// Where a role runs when its executor is on another host.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RemoteSpec {
+    /// The host's name (its `[hosts.NAME]` in the workflow).
+    pub host: String,
+    /// Its agent's zenoh endpoint (`tcp/10.0.0.2:7447`).
+    pub endpoint: String,
+    /// The executor's CPU list on that host ("" = wherever the agent runs roles).
+    #[serde(default)]
+    pub cpus: String,
+    /// The link counts as lost after this long without the agent (ms).
+    pub link_timeout_ms: u64,
 }
 
 /// Why a spec could not be loaded.

@@ -224,6 +224,8 @@ pub fn role_spec(
         mission: default_mission(),
         params: params.as_object().cloned().unwrap_or_default(),
         instance: 0,
+        remote: None,
+        heartbeat_pid: None,
     }
 }
 

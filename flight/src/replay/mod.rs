@@ -261,12 +261,14 @@ pub fn replay_workflow(
         .map(|name| Executor {
             name: name.clone(),
             cpus: ExecutorCpus::Auto,
+            host: None,
         })
         .collect();
     if executors.is_empty() {
         executors.push(Executor {
             name: "replay".into(),
             cpus: ExecutorCpus::Auto,
+            host: None,
         });
     }
     executors.sort_by(|a, b| a.name.cmp(&b.name));
@@ -321,6 +323,7 @@ pub fn replay_workflow(
         camera: flight.camera.clone(),
         mission: flight.mission.clone(),
         executors,
+        hosts: Vec::new(),
         roles,
     };
     workflow.validate()?;

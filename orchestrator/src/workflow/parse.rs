@@ -2,8 +2,8 @@
 //! filled in, then validated. Syntax and structure errors carry their line and column.
 
 use super::{
-    DEFAULT_BACKOFF_MS, DEFAULT_MAX_RESTARTS, Executor, ExecutorCpus, RoleDecl, SchedulingSpec,
-    Workflow, WorkflowError, WorkflowFileError,
+    DEFAULT_BACKOFF_MS, DEFAULT_LINK_TIMEOUT_MS, DEFAULT_MAX_RESTARTS, Executor, ExecutorCpus,
+    Host, RoleDecl, SchedulingSpec, Workflow, WorkflowError, WorkflowFileError,
 };
 use crate::restart::RestartPolicy;
 use aeris_runtime::affinity::CpuSet;
@@ -26,6 +26,8 @@ struct RawWorkflow {
     mission: MissionSpec,
     #[serde(default)]
     executors: BTreeMap<String, RawExecutor>,
+    #[serde(default)]
+    hosts: BTreeMap<String, RawHost>,
     #[serde(default)]
     roles: Vec<RawRole>,
     #[serde(default)]
@@ -62,6 +64,14 @@ struct RawFlight {
 struct RawExecutor {
     #[serde(default = "auto")]
     cpus: String,
+    host: Option<String>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawHost {
+    endpoint: String,
+    link_timeout_ms: Option<u64>,
 }
 
 fn auto() -> String {
@@ -182,8 +192,12 @@ impl Workflow {
                 "auto" => ExecutorCpus::Auto,
                 "all" => ExecutorCpus::All,
                 list => {
+                    // another host's CPUs are its agent's to check
                     let set = CpuSet::parse(list)
-                        .and_then(|s| s.check_exists().map(|()| s))
+                        .and_then(|s| match ex.host {
+                            Some(_) => Ok(s),
+                            None => s.check_exists().map(|()| s),
+                        })
                         .map_err(|source| WorkflowError::BadCpuSet {
                             executor: name.clone(),
                             cpus: ex.cpus.clone(),
@@ -192,7 +206,11 @@ impl Workflow {
                     ExecutorCpus::Set(set)
                 }
             };
-            executors.push(Executor { name, cpus });
+            executors.push(Executor {
+                name,
+                cpus,
+                host: ex.host,
+            });
         }
 
         let mut roles = Vec::with_capacity(raw.roles.len());
@@ -246,7 +264,17 @@ impl Workflow {
             adapt_variants: rs.adapt_variants.unwrap_or(d.adapt_variants),
             probe_ticks: rs.probe_ticks.unwrap_or(d.probe_ticks),
         };
+        let hosts = raw
+            .hosts
+            .into_iter()
+            .map(|(name, h)| Host {
+                name,
+                endpoint: h.endpoint,
+                link_timeout_ms: h.link_timeout_ms.unwrap_or(DEFAULT_LINK_TIMEOUT_MS),
+            })
+            .collect();
         let mut workflow = Workflow {
+            hosts,
             timing,
             feedback,
             camera: raw.camera,

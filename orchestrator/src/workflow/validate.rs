@@ -44,6 +44,7 @@ impl Workflow {
                     })?;
             }
         }
+        self.validate_hosts()?;
         self.validate_roles()?;
         self.validate_required()?;
         self.validate_topics()?;

@@ -1,0 +1,504 @@
+//! `aeris agent`: the daemon on every host that may run roles for a flight whose supervisor
+//! runs on another host. It is a zenoh router listening on the endpoint the workflow names
+//! for the host, and it
+//! - says what its host is (`info`: schema, CPUs, its clock for the offset between hosts);
+//! - starts a role process on request (`spawn`), the way the supervisor starts one locally
+//!   (own process group, killed with the agent, bound to the executor's CPUs, log file),
+//!   after checking that the asker speaks its schema;
+//! - stops one on request (`stop`: SIGTERM, SIGKILL after [`STOP_GRACE`]);
+//! - reports every exit (code or signal, log tail) to the role's handle;
+//! - stops a role whose handle is gone (the flight's host died or the link was cut: the
+//!   handle's liveliness token vanished), so no role outlives its flight here either.
+
+use crate::protocol::{
+    AgentReply, ExitReport, HostInfo, SchemaStamp, SpawnRequest, Spawned, StopRequest,
+    agent_request_key, agent_token_key, check_schema, exit_key, handle_token_key,
+};
+use crate::session::{SessionError, open_router};
+use aeris_orchestrator::role_process::{LoadPolicy, spawn_role};
+use aeris_runtime::affinity::CpuSet;
+use aeris_runtime::clock::monotonic_ns;
+use std::collections::HashSet;
+use std::io::{Read, Seek, SeekFrom};
+use std::os::unix::process::ExitStatusExt;
+use std::path::{Path, PathBuf};
+use std::process::Child;
+use std::time::{Duration, Instant};
+use zenoh::handlers::FifoChannelHandler;
+use zenoh::liveliness::LivelinessToken;
+use zenoh::query::{Query, Queryable};
+use zenoh::sample::{Sample, SampleKind};
+use zenoh::{Session, Wait};
+
+/// How long a role asked to stop has before SIGKILL.
+pub const STOP_GRACE: Duration = Duration::from_secs(5);
+
+/// Bytes of a role's log sent back with its exit.
+const LOG_TAIL_BYTES: u64 = 2048;
+
+/// What an agent is started with.
+#[derive(Debug, Clone)]
+pub struct AgentConfig {
+    /// The host's name (what the workflow's `[hosts.NAME]` calls it).
+    pub host: String,
+    /// Endpoints to listen on (`tcp/0.0.0.0:7447`).
+    pub listen: Vec<String>,
+    /// Where role specs and logs go (`DIR/FLIGHT/roles`, `DIR/FLIGHT/logs`).
+    pub run_dir: PathBuf,
+    /// The `aeris` executable that runs roles.
+    pub exe: PathBuf,
+    /// A client silent this long is gone (its roles are stopped).
+    pub lease: Duration,
+}
+
+/// Why the agent could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum AgentError {
+    /// The host name is unusable in a key expression.
+    #[error("host name `{0}` is invalid: use 1-48 characters of a-z, 0-9, `_`, `-`")]
+    HostName(String),
+    /// The zenoh session could not be opened.
+    #[error(transparent)]
+    Session(#[from] SessionError),
+    /// A zenoh declaration failed.
+    #[error("cannot declare {what} on zenoh: {reason}")]
+    Declare {
+        /// What (`the info queryable`).
+        what: String,
+        /// zenoh's reason.
+        reason: String,
+    },
+    /// The run directory could not be created.
+    #[error("cannot create the agent's run directory {path}")]
+    RunDir {
+        /// The directory.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// What the agent did, for its log.
+#[derive(Debug, Clone, PartialEq)]
+pub enum AgentEvent {
+    /// It started a role process.
+    Spawned {
+        /// `FLIGHT/ROLE#INSTANCE`.
+        role: String,
+        /// Its pid.
+        pid: u32,
+        /// Its CPUs ("" = unbound).
+        cpus: String,
+    },
+    /// It refused a request.
+    Refused {
+        /// The request (`spawn FLIGHT/ROLE#N`).
+        request: String,
+        /// Why.
+        reason: String,
+    },
+    /// A role process ended.
+    Exited {
+        /// `FLIGHT/ROLE#INSTANCE`.
+        role: String,
+        /// How (`exit code 0`, `signal 9`).
+        how: String,
+    },
+    /// A role's handle went away (its host died or the link was cut): the role is stopped.
+    HandleGone {
+        /// `FLIGHT/ROLE#INSTANCE`.
+        role: String,
+    },
+}
+
+impl core::fmt::Display for AgentEvent {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            AgentEvent::Spawned { role, pid, cpus } => {
+                let on = if cpus.is_empty() { "unbound" } else { cpus };
+                write!(f, "started {role} as pid {pid} (CPUs {on})")
+            }
+            AgentEvent::Refused { request, reason } => write!(f, "refused {request}: {reason}"),
+            AgentEvent::Exited { role, how } => write!(f, "{role} ended: {how}"),
+            AgentEvent::HandleGone { role } => {
+                write!(
+                    f,
+                    "{role}: its handle is gone (host or link lost): stopping it"
+                )
+            }
+        }
+    }
+}
+
+/// One role process the agent runs.
+struct RoleProcess {
+    flight: String,
+    role: String,
+    instance: u32,
+    child: Child,
+    log: PathBuf,
+    /// SIGTERM sent at (SIGKILL after [`STOP_GRACE`]).
+    stopping: Option<Instant>,
+    /// Its handle's token was seen alive.
+    handle_seen: bool,
+    started: Instant,
+}
+
+impl RoleProcess {
+    fn label(&self) -> String {
+        format!("{}/{}#{}", self.flight, self.role, self.instance)
+    }
+    fn handle_key(&self, host: &str) -> String {
+        handle_token_key(host, &self.flight, &self.role, self.instance)
+    }
+    fn terminate(&mut self) {
+        if self.stopping.is_none() {
+            // SAFETY: kill on the pid of a child not yet reaped (it cannot be reused).
+            unsafe { libc::kill(self.child.id() as libc::pid_t, libc::SIGTERM) };
+            self.stopping = Some(Instant::now());
+        }
+    }
+}
+
+/// The agent of one host.
+pub struct Agent {
+    config: AgentConfig,
+    session: Session,
+    _token: LivelinessToken,
+    info: Queryable<FifoChannelHandler<Query>>,
+    spawn: Queryable<FifoChannelHandler<Query>>,
+    stop: Queryable<FifoChannelHandler<Query>>,
+    handles: zenoh::pubsub::Subscriber<FifoChannelHandler<Sample>>,
+    alive_handles: HashSet<String>,
+    roles: Vec<RoleProcess>,
+    online: CpuSet,
+}
+
+fn declare_error(what: &str) -> impl Fn(zenoh::Error) -> AgentError + '_ {
+    move |e| AgentError::Declare {
+        what: what.to_string(),
+        reason: e.to_string(),
+    }
+}
+
+impl Agent {
+    /// Listen, declare the agent's requests and its liveliness token.
+    pub fn start(config: AgentConfig) -> Result<Agent, AgentError> {
+        if !aeris_schemas::topics::is_valid_flight_name(&config.host) {
+            return Err(AgentError::HostName(config.host.clone()));
+        }
+        std::fs::create_dir_all(&config.run_dir).map_err(|source| AgentError::RunDir {
+            path: config.run_dir.clone(),
+            source,
+        })?;
+        let session = open_router(&config.listen, config.lease)?;
+        let host = config.host.clone();
+        let queryable = |op: &str| {
+            session
+                .declare_queryable(agent_request_key(&host, op))
+                .wait()
+                .map_err(declare_error(&format!("the `{op}` request")))
+        };
+        let info = queryable("info")?;
+        let spawn = queryable("spawn")?;
+        let stop = queryable("stop")?;
+        let handles = session
+            .liveliness()
+            .declare_subscriber(format!("aeris/host/{host}/handle/**"))
+            .history(true)
+            .wait()
+            .map_err(declare_error("the handles' liveliness subscriber"))?;
+        let token = session
+            .liveliness()
+            .declare_token(agent_token_key(&host))
+            .wait()
+            .map_err(declare_error("the agent's liveliness token"))?;
+        let online = CpuSet::available();
+        Ok(Agent {
+            config,
+            session,
+            _token: token,
+            info,
+            spawn,
+            stop,
+            handles,
+            alive_handles: HashSet::new(),
+            roles: Vec::new(),
+            online,
+        })
+    }
+
+    /// The host's name.
+    pub fn host(&self) -> &str {
+        &self.config.host
+    }
+
+    /// Role processes running now.
+    pub fn running(&self) -> usize {
+        self.roles.len()
+    }
+
+    /// Answer requests, follow the handles, reap exits, escalate stops; call every few ms.
+    pub fn step(&mut self) -> Vec<AgentEvent> {
+        let mut events = Vec::new();
+        while let Ok(Some(q)) = self.info.try_recv() {
+            let info = HostInfo {
+                host: self.config.host.clone(),
+                schema: SchemaStamp::current(),
+                cpus: self.online.to_string(),
+                agent_pid: std::process::id(),
+                roles: self.roles.len(),
+                monotonic_ns: monotonic_ns(),
+            };
+            reply(&q, &AgentReply::Ok(info));
+        }
+        while let Ok(Some(q)) = self.spawn.try_recv() {
+            let answer = self.spawn_role(&q, &mut events);
+            reply(&q, &answer);
+        }
+        while let Ok(Some(q)) = self.stop.try_recv() {
+            let answer =
+                match parse::<StopRequest>(&q) {
+                    Ok(r) => match self.roles.iter_mut().find(|p| {
+                        p.flight == r.flight && p.role == r.role && p.instance == r.instance
+                    }) {
+                        Some(p) => {
+                            p.terminate();
+                            AgentReply::Ok(p.child.id())
+                        }
+                        None => AgentReply::Refused(format!(
+                            "no role {}/{}#{} runs here",
+                            r.flight, r.role, r.instance
+                        )),
+                    },
+                    Err(e) => AgentReply::Refused(e),
+                };
+            reply(&q, &answer);
+        }
+        self.follow_handles(&mut events);
+        self.reap(&mut events);
+        events
+    }
+
+    fn spawn_role(&mut self, q: &Query, events: &mut Vec<AgentEvent>) -> AgentReply<Spawned> {
+        let req = match parse::<SpawnRequest>(q) {
+            Ok(r) => r,
+            Err(e) => {
+                events.push(AgentEvent::Refused {
+                    request: "spawn".into(),
+                    reason: e.clone(),
+                });
+                return AgentReply::Refused(e);
+            }
+        };
+        let spec = req.spec;
+        let label = format!("{}/{}#{}", spec.flight, spec.name, spec.instance);
+        let refuse = |events: &mut Vec<AgentEvent>, reason: String| {
+            events.push(AgentEvent::Refused {
+                request: format!("spawn {label}"),
+                reason: reason.clone(),
+            });
+            AgentReply::Refused(reason)
+        };
+        if let Err(e) = check_schema(
+            &format!("the supervisor of flight `{}`", spec.flight),
+            req.schema,
+        ) {
+            return refuse(events, e.to_string());
+        }
+        if !aeris_schemas::topics::is_valid_flight_name(&spec.flight) {
+            return refuse(events, format!("flight name `{}` is invalid", spec.flight));
+        }
+        let cpus = if spec.cpus.is_empty() {
+            None
+        } else {
+            match CpuSet::parse(&spec.cpus) {
+                Ok(set) if set.cpus().iter().all(|c| self.online.cpus().contains(c)) => Some(set),
+                _ => {
+                    return refuse(
+                        events,
+                        format!(
+                            "CPUs `{}` are not all online on host {} (online: {})",
+                            spec.cpus, self.config.host, self.online
+                        ),
+                    );
+                }
+            }
+        };
+        let dir = self.config.run_dir.join(&spec.flight);
+        let spec_path = dir
+            .join("roles")
+            .join(format!("{}-{}.json", spec.name, spec.instance));
+        let log_path = dir.join("logs").join(format!("{}.log", spec.name));
+        let mut spec = spec;
+        spec.heartbeat_pid = Some(req.handle_pid);
+        spec.remote = None;
+        let written = write_spec(&spec_path, &spec);
+        let log = written.and_then(|()| {
+            std::fs::OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(&log_path)
+        });
+        let log = match log {
+            Ok(l) => l,
+            Err(e) => return refuse(events, format!("cannot write {}: {e}", spec_path.display())),
+        };
+        match spawn_role(
+            &self.config.exe,
+            &spec_path,
+            spec.instance,
+            log,
+            cpus.as_ref(),
+            LoadPolicy::Normal,
+        ) {
+            Ok(child) => {
+                let pid = child.id();
+                events.push(AgentEvent::Spawned {
+                    role: label,
+                    pid,
+                    cpus: spec.cpus.clone(),
+                });
+                self.roles.push(RoleProcess {
+                    flight: spec.flight.clone(),
+                    role: spec.name.clone(),
+                    instance: spec.instance,
+                    child,
+                    log: log_path.clone(),
+                    stopping: None,
+                    handle_seen: false,
+                    started: Instant::now(),
+                });
+                AgentReply::Ok(Spawned {
+                    pid,
+                    log: log_path.display().to_string(),
+                })
+            }
+            Err(e) => refuse(
+                events,
+                format!("cannot start {}: {e}", self.config.exe.display()),
+            ),
+        }
+    }
+
+    /// Stop the roles whose handle's token went away (or never came within two leases).
+    fn follow_handles(&mut self, events: &mut Vec<AgentEvent>) {
+        while let Ok(Some(s)) = self.handles.try_recv() {
+            let key = s.key_expr().as_str().to_string();
+            match s.kind() {
+                SampleKind::Put => {
+                    self.alive_handles.insert(key);
+                }
+                SampleKind::Delete => {
+                    self.alive_handles.remove(&key);
+                }
+            }
+        }
+        let host = self.config.host.clone();
+        let never_by = self.config.lease * 2;
+        for p in self.roles.iter_mut().filter(|p| p.stopping.is_none()) {
+            let alive = self.alive_handles.contains(&p.handle_key(&host));
+            p.handle_seen |= alive;
+            if (p.handle_seen && !alive) || (!p.handle_seen && p.started.elapsed() > never_by) {
+                events.push(AgentEvent::HandleGone { role: p.label() });
+                p.terminate();
+            }
+        }
+    }
+
+    /// Reap exited roles (reporting each to its handle) and SIGKILL the ones past their grace.
+    fn reap(&mut self, events: &mut Vec<AgentEvent>) {
+        let mut i = 0;
+        while i < self.roles.len() {
+            let p = &mut self.roles[i];
+            match p.child.try_wait() {
+                Ok(Some(status)) => {
+                    let report = ExitReport {
+                        pid: p.child.id(),
+                        code: status.code(),
+                        signal: status.signal(),
+                        log_tail: log_tail(&p.log),
+                    };
+                    let how = match (report.code, report.signal) {
+                        (Some(c), _) => format!("exit code {c}"),
+                        (None, Some(s)) => format!("signal {s}"),
+                        _ => "unknown".into(),
+                    };
+                    events.push(AgentEvent::Exited {
+                        role: p.label(),
+                        how,
+                    });
+                    let key = exit_key(&self.config.host, &p.flight, &p.role, p.instance);
+                    if let Ok(json) = serde_json::to_vec(&report) {
+                        let _ = self.session.put(key, json).wait();
+                    }
+                    let flight = p.flight.clone();
+                    self.roles.remove(i);
+                    if !self.roles.iter().any(|r| r.flight == flight) {
+                        // the flight's last role here: remove what dead processes left
+                        aeris_runtime::bus::cleanup_dead_nodes();
+                    }
+                }
+                Ok(None) => {
+                    if p.stopping.is_some_and(|t| t.elapsed() > STOP_GRACE) {
+                        let _ = p.child.kill();
+                    }
+                    i += 1;
+                }
+                Err(_) => i += 1,
+            }
+        }
+    }
+
+    /// Stop every role (SIGTERM, SIGKILL after the grace) and wait for them.
+    pub fn shutdown(mut self) -> Vec<AgentEvent> {
+        let mut events = Vec::new();
+        for p in &mut self.roles {
+            p.terminate();
+        }
+        let until = Instant::now() + STOP_GRACE + Duration::from_secs(1);
+        while !self.roles.is_empty() && Instant::now() < until {
+            self.reap(&mut events);
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        events
+    }
+}
+
+fn parse<T: serde::de::DeserializeOwned>(q: &Query) -> Result<T, String> {
+    let bytes = q
+        .payload()
+        .map(|p| p.to_bytes().into_owned())
+        .unwrap_or_default();
+    serde_json::from_slice(&bytes).map_err(|e| format!("unreadable request: {e}"))
+}
+
+fn reply<T: serde::Serialize>(q: &Query, answer: &AgentReply<T>) {
+    if let Ok(json) = serde_json::to_vec(answer) {
+        let _ = q.reply(q.key_expr().clone(), json).wait();
+    }
+}
+
+fn write_spec(path: &Path, spec: &aeris_runtime::RoleSpec) -> std::io::Result<()> {
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir)?;
+    }
+    if let Some(logs) = path.parent().and_then(Path::parent) {
+        std::fs::create_dir_all(logs.join("logs"))?;
+    }
+    let json = serde_json::to_vec_pretty(spec).map_err(std::io::Error::other)?;
+    std::fs::write(path, json)
+}
+
+/// The last [`LOG_TAIL_BYTES`] of `path` (lossy UTF-8).
+fn log_tail(path: &Path) -> String {
+    let Ok(mut f) = std::fs::File::open(path) else {
+        return String::new();
+    };
+    let len = f.metadata().map(|m| m.len()).unwrap_or(0);
+    let _ = f.seek(SeekFrom::Start(len.saturating_sub(LOG_TAIL_BYTES)));
+    let mut buf = Vec::new();
+    let _ = f.read_to_end(&mut buf);
+    String::from_utf8_lossy(&buf).into_owned()
+}

@@ -1,0 +1,356 @@
+//! The bridge role (kind `bridge`, variant `zenoh`): carries the topics that cross between
+//! its host and one other, between iceoryx2 here and zenoh there. The supervisor adds two
+//! per other host (`bridge-to-HOST` on the flight's host, `bridge-on-HOST` there) and tells
+//! each what to send and receive; the rest of the flight does not know it exists.
+//!
+//! - **Exact bytes.** A message crosses as the bytes of its `#[repr(C)]` payload (a frame as
+//!   its header's bytes, then its pixels), with an attachment: the schema stamp (version and
+//!   layout hash), the bridge's own sequence number of the topic, and the header length.
+//!   The receiving bridge publishes those bytes into its own shared memory, so what a role
+//!   reads is bit for bit what was published on the other host; the hub's sequence checks
+//!   on decisions work across hosts as on one.
+//! - **Schema checked per message.** A message stamped with another schema is refused,
+//!   counted, and named once in the log ([`SchemaMismatch`]); nothing of it is published.
+//! - **QoS.** Each topic keeps its iceoryx2 QoS on both hosts (history, buffer). On zenoh
+//!   every message is reliable and ordered per topic; frames are sent at data priority,
+//!   everything else at interactive priority without batching (`express`). Congestion
+//!   drops instead of blocking: a slow or cut link never stalls the bridge, so a role
+//!   reachable only over the link never blocks the flight.
+//! - **No echo.** A topic carried both ways (the heartbeat of two hosts) is not sent back:
+//!   samples the bridge itself published are skipped by their publisher id.
+//!
+//! Parameters: `connect` (the other host's agent endpoint), `export` and `import` (topic
+//! lists), `peer` (who is at the other end, for messages), `frame_bytes` (the first frame
+//! publisher's size), `link_timeout_ms` (zenoh's lease).
+//!
+//! Heartbeat counters: 0 messages sent, 1 received, 2 bytes sent, 3 bytes received,
+//! 4 refused (another schema or a malformed message), 5 dropped (zenoh or iceoryx2 refused
+//! a message), 6 1 while a peer is connected, 7 topics carried. Status `Degraded` while no
+//! peer is connected or after a refusal.
+//!
+//! Unlike the other roles the bridge allocates per message: zenoh takes each message as an
+//! owned buffer.
+
+use crate::protocol::{SchemaStamp, check_schema, data_key};
+use crate::session::{Reach, open_client};
+use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::raw::{
+    Payload, RawPublisher, RawSubscriber, payload_of, raw_publisher, raw_subscriber,
+};
+use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::RoleStatus;
+use core::time::Duration;
+use iceoryx2::identifiers::UniquePublisherId;
+use zenoh::bytes::ZBytes;
+use zenoh::handlers::FifoChannelHandler;
+use zenoh::pubsub::{Publisher, Subscriber};
+use zenoh::qos::{CongestionControl, Priority};
+use zenoh::sample::Sample;
+use zenoh::{Session, Wait};
+
+pub use crate::protocol::SchemaMismatch;
+
+/// How often the bridge moves what is waiting.
+const PERIOD: Duration = Duration::from_millis(1);
+
+/// Messages of one topic moved per cycle at most (a burst is spread over cycles).
+const BURST: usize = 64;
+
+/// How often a working bridge reports a worked cycle (its heartbeat, not each message).
+const REPORT_NS: u64 = 100_000_000;
+
+/// Attachment: schema stamp (12 bytes), sequence number (8), header length (4).
+const ATTACHMENT_LEN: usize = 24;
+
+fn attachment(seq: u64, header_len: usize) -> [u8; ATTACHMENT_LEN] {
+    let mut a = [0u8; ATTACHMENT_LEN];
+    a[..12].copy_from_slice(&SchemaStamp::current().to_bytes());
+    a[12..20].copy_from_slice(&seq.to_le_bytes());
+    a[20..].copy_from_slice(&(header_len as u32).to_le_bytes());
+    a
+}
+
+/// One topic sent to the other host.
+struct Export {
+    topic: String,
+    sub: Box<dyn RawSubscriber>,
+    publisher: Publisher<'static>,
+    seq: u64,
+}
+
+/// One topic received from the other host.
+struct Import {
+    topic: String,
+    payload: Payload,
+    sub: Subscriber<FifoChannelHandler<Sample>>,
+    publisher: Box<dyn RawPublisher>,
+}
+
+/// The bridge role.
+pub struct BridgeRole {
+    session: Session,
+    exports: Vec<Export>,
+    imports: Vec<Import>,
+    /// Publisher ids of this bridge's own imports (never exported back).
+    own: Vec<UniquePublisherId>,
+    peer: String,
+    counters: [u64; 8],
+    refused_logged: bool,
+    connected: bool,
+    last_report_ns: u64,
+    link_checked_ns: u64,
+    buf: Vec<u8>,
+}
+
+fn topics_param(ctx: &RoleContext, key: &str) -> Result<Vec<String>, RoleError> {
+    let Some(v) = ctx.spec.params.get(key) else {
+        return Ok(Vec::new());
+    };
+    let list: Vec<String> = serde_json::from_value(v.clone()).map_err(|e| {
+        RoleError::Config(format!("bridge: params.{key} is not a list of topics: {e}"))
+    })?;
+    for t in &list {
+        if payload_of(t).is_none() {
+            return Err(RoleError::Config(format!(
+                "bridge: params.{key} names `{t}`, which is not a topic"
+            )));
+        }
+    }
+    Ok(list)
+}
+
+impl Role for BridgeRole {
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+        let connect = ctx
+            .spec
+            .param_str("connect")
+            .ok_or_else(|| RoleError::Config("bridge: params.connect is required".into()))?
+            .to_string();
+        let export = topics_param(ctx, "export")?;
+        let import = topics_param(ctx, "import")?;
+        let peer = ctx
+            .spec
+            .param_str("peer")
+            .unwrap_or("the other host")
+            .to_string();
+        let frame_bytes = ctx
+            .spec
+            .params
+            .get("frame_bytes")
+            .and_then(|v| v.as_u64())
+            .unwrap_or(320 * 240 * 3) as usize;
+        let lease = Duration::from_millis(
+            ctx.spec
+                .params
+                .get("link_timeout_ms")
+                .and_then(|v| v.as_u64())
+                .unwrap_or(1000),
+        );
+        let session = open_client(&connect, Reach::Eventually, lease)
+            .map_err(|e| RoleError::step(format!("bridge: connecting to {peer}"), e))?;
+        let flight = ctx.spec.flight.clone();
+        let declare = |what: String| {
+            move |e: zenoh::Error| {
+                RoleError::Io(format!("bridge: cannot declare {what} on zenoh: {e}"))
+            }
+        };
+        let mut imports = Vec::with_capacity(import.len());
+        let mut own = Vec::with_capacity(import.len());
+        for t in import {
+            let payload = payload_of(&t).unwrap_or(Payload::Heartbeat);
+            let publisher = raw_publisher(&ctx.bus, &t, payload, frame_bytes)?;
+            own.push(publisher.id());
+            let sub = session
+                .declare_subscriber(data_key(&flight, &t))
+                .wait()
+                .map_err(declare(format!("the subscriber of `{t}`")))?;
+            imports.push(Import {
+                topic: t,
+                payload,
+                sub,
+                publisher,
+            });
+        }
+        let mut exports = Vec::with_capacity(export.len());
+        for t in export {
+            let payload = payload_of(&t).unwrap_or(Payload::Heartbeat);
+            let sub = raw_subscriber(&ctx.bus, &t, payload)?;
+            let (priority, express) = match payload {
+                Payload::Frame => (Priority::Data, false),
+                _ => (Priority::InteractiveHigh, true),
+            };
+            let publisher = session
+                .declare_publisher(data_key(&flight, &t))
+                .congestion_control(CongestionControl::Drop)
+                .priority(priority)
+                .express(express)
+                .wait()
+                .map_err(declare(format!("the publisher of `{t}`")))?;
+            exports.push(Export {
+                topic: t,
+                sub,
+                publisher,
+                seq: 0,
+            });
+        }
+        println!(
+            "bridge to {peer} at {connect}: sends [{}], receives [{}]",
+            exports
+                .iter()
+                .map(|e| e.topic.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+            imports
+                .iter()
+                .map(|i| i.topic.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        let mut counters = [0u64; 8];
+        counters[7] = (exports.len() + imports.len()) as u64;
+        Ok(BridgeRole {
+            session,
+            exports,
+            imports,
+            own,
+            peer,
+            counters,
+            refused_logged: false,
+            connected: false,
+            last_report_ns: 0,
+            link_checked_ns: 0,
+            buf: Vec::with_capacity(frame_bytes + 512),
+        })
+    }
+
+    fn period(&self) -> Duration {
+        PERIOD
+    }
+
+    fn cycle(
+        &mut self,
+        _ctx: &mut RoleContext,
+        report: &mut CycleReport,
+    ) -> Result<CycleOutcome, RoleError> {
+        let t0 = monotonic_ns();
+        let mut moved = 0u64;
+        for ex in &mut self.exports {
+            for _ in 0..BURST {
+                let mut sent = None;
+                let own = &self.own;
+                let buf = &mut self.buf;
+                let got = ex.sub.next_raw(&mut |bytes, pixels, from| {
+                    if own.contains(&from) {
+                        return;
+                    }
+                    buf.clear();
+                    buf.extend_from_slice(bytes);
+                    buf.extend_from_slice(pixels);
+                    sent = Some(bytes.len());
+                })?;
+                if !got {
+                    break;
+                }
+                let Some(header_len) = sent else { continue };
+                ex.seq += 1;
+                let len = self.buf.len() as u64;
+                let put = ex
+                    .publisher
+                    .put(ZBytes::from(self.buf.clone()))
+                    .attachment(ZBytes::from(attachment(ex.seq, header_len).to_vec()))
+                    .wait();
+                match put {
+                    Ok(()) => {
+                        self.counters[0] += 1;
+                        self.counters[2] += len;
+                        moved += 1;
+                    }
+                    Err(_) => self.counters[5] += 1,
+                }
+            }
+        }
+        for im in &mut self.imports {
+            for _ in 0..BURST {
+                let Ok(Some(sample)) = im.sub.try_recv() else {
+                    break;
+                };
+                let bytes = sample.payload().to_bytes();
+                let att = sample.attachment().map(|a| a.to_bytes());
+                let stamp = att.as_deref().and_then(SchemaStamp::from_bytes);
+                let header_len = att
+                    .as_deref()
+                    .and_then(|a| a.get(20..24))
+                    .and_then(|b| b.try_into().ok())
+                    .map(|b| u32::from_le_bytes(b) as usize);
+                let (Some(stamp), Some(header_len)) = (stamp, header_len) else {
+                    self.counters[4] += 1;
+                    continue;
+                };
+                if let Err(e) = check_schema(&format!("the bridge of {}", self.peer), stamp) {
+                    self.counters[4] += 1;
+                    if !self.refused_logged {
+                        eprintln!("bridge: refused `{}`: {e}", im.topic);
+                        self.refused_logged = true;
+                    }
+                    continue;
+                }
+                let Some((header, pixels)) = bytes.split_at_checked(header_len) else {
+                    self.counters[4] += 1;
+                    continue;
+                };
+                let pixels = if im.payload == Payload::Frame {
+                    pixels
+                } else {
+                    &[]
+                };
+                match im.publisher.publish_raw(header, pixels) {
+                    Ok(()) => {
+                        self.counters[1] += 1;
+                        self.counters[3] += bytes.len() as u64;
+                        moved += 1;
+                    }
+                    Err(_) => self.counters[5] += 1,
+                }
+            }
+        }
+        let now = monotonic_ns();
+        if now.saturating_sub(self.link_checked_ns) >= REPORT_NS {
+            self.link_checked_ns = now;
+            self.check_link();
+        }
+        let connected = self.connected;
+        self.counters[6] = connected as u64;
+        report.counters = self.counters;
+        report.status = if connected && !self.refused_logged {
+            RoleStatus::Running
+        } else {
+            RoleStatus::Degraded
+        };
+        if moved > 0 && now.saturating_sub(self.last_report_ns) >= REPORT_NS {
+            self.last_report_ns = now;
+            report.stage("bridge", now.saturating_sub(t0));
+            return Ok(CycleOutcome::Worked);
+        }
+        Ok(CycleOutcome::Idle)
+    }
+}
+
+impl BridgeRole {
+    /// Whether the other host's router is connected; a change is logged.
+    fn check_link(&mut self) {
+        let connected = self.session.info().routers_zid().wait().next().is_some();
+        if connected != self.connected {
+            self.connected = connected;
+            if connected {
+                println!("bridge: connected to {}", self.peer);
+            } else {
+                eprintln!("bridge: no link to {}", self.peer);
+            }
+        }
+    }
+}
+
+/// Run the bridge role in this process ([`aeris_runtime::RoleHost`]).
+pub fn run(spec: aeris_runtime::RoleSpec) -> Result<(), RoleError> {
+    aeris_runtime::RoleHost::run::<BridgeRole>(spec)
+}

@@ -1,0 +1,23 @@
+//! # aeris-hosts
+//!
+//! Roles on other hosts. A workflow may put an executor on another host
+//! (`[hosts.ground] endpoint = "tcp/10.0.0.2:7447"`, `[executors.gs] host = "ground"`); a
+//! role bound there runs on that host, started by its agent, and talks to the rest of the
+//! flight through a bridge on each host. Everything crosses on zenoh.
+//! - [`protocol`]: key expressions, the schema stamp, the agent's requests and replies;
+//! - [`session`]: zenoh sessions of our processes (no multicast scouting: a host is reached
+//!   at the endpoint the workflow names);
+//! - [`agent`]: `aeris agent`, the daemon on every host that runs role processes for the
+//!   supervisor on another, reports their exits and stops them when their handle goes;
+//! - [`handle`]: the process that stands for a remote role on the flight's host: the
+//!   supervisor starts, watches, restarts and stops it like any role process;
+//! - [`bridge`]: the role (kind `bridge`, variant `zenoh`) that carries a flight's topics
+//!   between iceoryx2 on its host and zenoh, exact bytes, schema checked per message.
+
+#![deny(missing_docs)]
+
+pub mod agent;
+pub mod bridge;
+pub mod handle;
+pub mod protocol;
+pub mod session;

@@ -1,0 +1,231 @@
+//! Other hosts of a workflow: checking `[hosts.NAME]` and the executors on them, and which
+//! topics the bridges carry between the flight's host and each other host.
+
+use super::{
+    BRIDGE_KIND, ExecutorCpus, FLIGHT_HOST_KINDS, Host, Workflow, WorkflowError, check_endpoint,
+};
+use aeris_schemas::topics;
+
+/// Topics the supervisor itself reads on the flight's host (its own subscriptions, beside
+/// the roles'): every role's heartbeat, the hub's reports, telemetry, the autopilot link.
+pub const SUPERVISOR_READS: [&str; 4] = [
+    topics::HEARTBEAT,
+    topics::HUB_REPORT,
+    topics::VEHICLE_TELEMETRY,
+    topics::CONTROLLER_LINK,
+];
+
+/// What the bridges between the flight's host and one other host carry.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BridgePlan {
+    /// The other host.
+    pub host: Host,
+    /// Topics published on the flight's host and read on the other (in [`topics::ALL`]
+    /// order).
+    pub to_host: Vec<String>,
+    /// Topics published on the other host and read on the flight's.
+    pub from_host: Vec<String>,
+}
+
+impl Workflow {
+    /// Check `[hosts]` and the executors on them: names, endpoints, every executor's host
+    /// declared, no hub, controller, vehicle, replay source or recorder on another host, no
+    /// topic between two other hosts.
+    pub(super) fn validate_hosts(&self) -> Result<(), WorkflowError> {
+        for h in &self.hosts {
+            if !topics::is_valid_flight_name(&h.name) {
+                return Err(WorkflowError::BadHostName {
+                    host: h.name.clone(),
+                });
+            }
+            if !check_endpoint(&h.endpoint) {
+                return Err(WorkflowError::BadEndpoint {
+                    host: h.name.clone(),
+                    endpoint: h.endpoint.clone(),
+                });
+            }
+        }
+        for ex in &self.executors {
+            let Some(host) = &ex.host else { continue };
+            if !self.hosts.iter().any(|h| &h.name == host) {
+                let known = if self.hosts.is_empty() {
+                    "none".to_string()
+                } else {
+                    let names: Vec<&str> = self.hosts.iter().map(|h| h.name.as_str()).collect();
+                    names.join(", ")
+                };
+                return Err(WorkflowError::UnknownHost {
+                    executor: ex.name.clone(),
+                    host: host.clone(),
+                    known,
+                });
+            }
+        }
+        for r in &self.roles {
+            if let Some(h) = self.role_host(r)
+                && FLIGHT_HOST_KINDS.contains(&r.kind.as_str())
+            {
+                return Err(WorkflowError::RemoteNotAllowed {
+                    role: r.name.clone(),
+                    kind: r.kind.clone(),
+                    host: h.name.clone(),
+                });
+            }
+        }
+        for topic in topics::ALL {
+            for p in self
+                .roles
+                .iter()
+                .filter(|r| r.publishes.iter().any(|t| t == topic))
+            {
+                for s in self
+                    .roles
+                    .iter()
+                    .filter(|r| r.subscribes.iter().any(|t| t == topic))
+                {
+                    if let (Some(from), Some(to)) = (self.role_host(p), self.role_host(s))
+                        && from.name != to.name
+                    {
+                        return Err(WorkflowError::HostToHost {
+                            topic: topic.to_string(),
+                            from: from.name.clone(),
+                            to: to.name.clone(),
+                        });
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The bridges this flight needs: one per other host that runs a role, with the topics
+    /// that cross each way. Every role publishes its heartbeat, which the supervisor reads
+    /// on the flight's host.
+    pub fn bridge_plans(&self) -> Vec<BridgePlan> {
+        let mut plans = Vec::new();
+        for host in &self.hosts {
+            let on = |r: &&super::RoleDecl| {
+                r.kind != BRIDGE_KIND
+                    && self.role_host(r).map(|h| h.name.as_str()) == Some(host.name.as_str())
+            };
+            let here = |r: &&super::RoleDecl| r.kind != BRIDGE_KIND && self.role_host(r).is_none();
+            if !self.roles.iter().any(|r| on(&r)) {
+                continue;
+            }
+            let publishes = |r: &super::RoleDecl, t: &str| {
+                t == topics::HEARTBEAT || r.publishes.iter().any(|p| p == t)
+            };
+            // (a recorder on the flight's host reads what crosses too)
+            // a reasoner also reads `hub/setpoint` once when it starts, to resume at the
+            // hub's active step (not a declared subscription: it would make a cycle)
+            let reads = |r: &super::RoleDecl, t: &str| {
+                r.subscribes.iter().any(|s| s == t)
+                    || (r.kind == "reasoning" && t == topics::HUB_SETPOINT)
+            };
+            let mut to_host = Vec::new();
+            let mut from_host = Vec::new();
+            for t in topics::ALL {
+                let published_here = self.roles.iter().filter(here).any(|r| publishes(r, t));
+                let read_there = self.roles.iter().filter(on).any(|r| reads(r, t));
+                if published_here && read_there {
+                    to_host.push(t.to_string());
+                }
+                let published_there = self.roles.iter().filter(on).any(|r| publishes(r, t));
+                let read_here = SUPERVISOR_READS.contains(&t)
+                    || self.roles.iter().filter(here).any(|r| reads(r, t));
+                if published_there && read_here {
+                    from_host.push(t.to_string());
+                }
+            }
+            plans.push(BridgePlan {
+                host: host.clone(),
+                to_host,
+                from_host,
+            });
+        }
+        plans
+    }
+}
+
+/// The CPUs of an executor on another host as its agent is asked for them ("" = wherever
+/// the agent runs roles: `all` and `auto` there).
+pub fn remote_cpus(cpus: &ExecutorCpus) -> String {
+    match cpus {
+        ExecutorCpus::Set(s) => s.to_string(),
+        ExecutorCpus::All | ExecutorCpus::Auto => String::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::workflow::{DEFAULT_WORKFLOW_TOML, Workflow, WorkflowError};
+
+    /// The default flight with the reasoner (and, with `perception`, the perception role)
+    /// on host `ground`.
+    fn ground(perception: bool) -> String {
+        let mut toml = DEFAULT_WORKFLOW_TOML.replace(
+            "[executors.perception]",
+            "[hosts.ground]\nendpoint = \"tcp/10.0.0.2:7447\"\n\n[executors.gs]\nhost = \"ground\"\ncpus = \"all\"\n\n[executors.perception]",
+        );
+        toml = toml.replacen(
+            "variants = [\"planner\", \"garbage\"]\nexecutor = \"perception\"",
+            "variants = [\"planner\", \"garbage\"]\nexecutor = \"gs\"",
+            1,
+        );
+        if perception {
+            toml = toml.replacen(
+                "kind = \"perception\"\nvariant = \"geometric\"\nexecutor = \"perception\"",
+                "kind = \"perception\"\nvariant = \"geometric\"\nexecutor = \"gs\"",
+                1,
+            );
+        }
+        toml
+    }
+
+    #[test]
+    fn the_bridges_carry_exactly_the_topics_that_cross() {
+        let w = Workflow::from_toml_str(&ground(false)).unwrap();
+        let reasoner = w.roles.iter().find(|r| r.kind == "reasoning").unwrap();
+        assert_eq!(w.role_host(reasoner).unwrap().name, "ground");
+        let plans = w.bridge_plans();
+        assert_eq!(plans.len(), 1);
+        let p = &plans[0];
+        assert_eq!(p.host.endpoint, "tcp/10.0.0.2:7447");
+        assert_eq!(
+            p.to_host,
+            ["perception/state", "hub/setpoint", "vehicle/telemetry"]
+        );
+        assert_eq!(p.from_host, ["reasoning/decision", "heartbeat"]);
+        // perception there too: frames go, S_t no longer does
+        let w = Workflow::from_toml_str(&ground(true)).unwrap();
+        let p = &w.bridge_plans()[0];
+        assert!(
+            p.to_host.contains(&"camera/rgb".to_string()),
+            "{:?}",
+            p.to_host
+        );
+        assert!(!p.to_host.contains(&"perception/state".to_string()));
+        assert!(p.from_host.contains(&"perception/state".to_string()));
+    }
+
+    #[test]
+    fn hosts_and_their_executors_are_checked() {
+        let text = ground(false);
+        let bad = text.replace("tcp/10.0.0.2:7447", "udp/10.0.0.2");
+        let e = Workflow::from_toml_str(&bad).unwrap_err();
+        assert!(matches!(e, WorkflowError::BadEndpoint { .. }), "{e}");
+        let bad = text.replace("host = \"ground\"", "host = \"air\"");
+        let e = Workflow::from_toml_str(&bad).unwrap_err().to_string();
+        assert!(
+            e.contains("host `air` is not declared (declared: ground)"),
+            "{e}"
+        );
+        let bad = text.replacen(
+            "kind = \"hub\"\nvariant = \"gate\"\nexecutor = \"control\"",
+            "kind = \"hub\"\nvariant = \"gate\"\nexecutor = \"gs\"",
+            1,
+        );
+        let e = Workflow::from_toml_str(&bad).unwrap_err().to_string();
+        assert!(e.contains("must run on the flight's host"), "{e}");
+    }
+}
