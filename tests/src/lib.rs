@@ -1,5 +1,7 @@
 //! Helpers for the end-to-end tests: find the `aeris` binary, name flights uniquely, and
-//! keep spawned processes from outliving a test.
+//! keep spawned processes from outliving a test; [`hosts`]: two hosts as network namespaces.
+
+pub mod hosts;
 
 use std::path::PathBuf;
 use std::process::{Child, Command};

@@ -81,6 +81,13 @@ fn every_kind_of_bad_input_names_its_offender_once() {
     w["executors"]["control"]["cpus"] = toml::Value::String("0-x".into());
     let cpus = write_workflow(d, "cpus", &w);
     let missing_workflow = d.join("no-such-workflow.toml");
+    // another host at an endpoint that is not zenoh's TCP
+    let mut w = default_workflow();
+    let host: toml::Table = "endpoint = \"udp/10.0.0.2:7447\"".parse().unwrap();
+    let mut hosts = toml::Table::new();
+    hosts.insert("ground".into(), toml::Value::Table(host));
+    w.insert("hosts".into(), toml::Value::Table(hosts));
+    let endpoint = write_workflow(d, "endpoint", &w);
 
     // episode files: JSON syntax, a missing field, a missing file
     let episodes_syntax = d.join("episodes-syntax.json");
@@ -114,6 +121,11 @@ fn every_kind_of_bad_input_names_its_offender_once() {
         ));
         cases.push(case("bad CPU list", &[cmd, &path_str(&cpus)], "0-x"));
         cases.push(case(
+            "bad host endpoint",
+            &[cmd, &path_str(&endpoint)],
+            "udp/10.0.0.2:7447",
+        ));
+        cases.push(case(
             "missing workflow",
             &[cmd, &path_str(&missing_workflow)],
             &path_str(&missing_workflow),
@@ -128,6 +140,11 @@ fn every_kind_of_bad_input_names_its_offender_once() {
             &f,
         ));
     }
+    cases.push(case(
+        "agent endpoint",
+        &["agent", "--host", "ground", "--listen", "udp/0.0.0.0:7447"],
+        "udp/0.0.0.0:7447",
+    ));
     cases.push(case(
         "--variant argument",
         &["run", "--variant", "reasoning"],

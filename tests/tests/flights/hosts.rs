@@ -1,0 +1,255 @@
+//! Roles on another host: two hosts as network namespaces (each with a private /dev/shm, so
+//! only the network crosses), `aeris agent` on the ground host, the flight's supervisor on
+//! the vehicle; the reasoner and the perception role run on the ground host, their topics on
+//! the bridges over zenoh.
+
+use aeris_tests::hosts::TwoHosts;
+use aeris_tests::*;
+use std::path::Path;
+use std::process::Stdio;
+use std::time::Duration;
+
+const FLIGHT_BOUND: Duration = Duration::from_secs(600);
+
+/// The default workflow with the reasoner and the perception role on host `ground` at
+/// `endpoint`.
+fn ground_workflow(endpoint: &str) -> String {
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../workflows/default.toml"),
+    )
+    .expect("workflows/default.toml");
+    let text = text.replacen(
+        "[executors.perception]",
+        &format!(
+            "[hosts.ground]\nendpoint = \"{endpoint}\"\n\n[executors.gs]\nhost = \"ground\"\ncpus = \"all\"\n\n[executors.perception]"
+        ),
+        1,
+    );
+    let moved = text
+        .replacen(
+            "variants = [\"planner\", \"garbage\"]\nexecutor = \"perception\"",
+            "variants = [\"planner\", \"garbage\"]\nexecutor = \"gs\"",
+            1,
+        )
+        .replacen(
+            "kind = \"perception\"\nvariant = \"geometric\"\nexecutor = \"perception\"",
+            "kind = \"perception\"\nvariant = \"geometric\"\nexecutor = \"gs\"",
+            1,
+        );
+    assert_eq!(moved.matches("executor = \"gs\"").count(), 2, "{moved}");
+    moved
+}
+
+/// Start `aeris agent --host ground` in the ground namespace; returns once it listens.
+fn start_agent(hosts: &TwoHosts, dir: &Path) -> ChildGuard {
+    let log = dir.join("agent.log");
+    let out = std::fs::File::create(&log).unwrap();
+    let err = out.try_clone().unwrap();
+    let mut cmd = hosts.command(&hosts.ground, &aeris_bin());
+    cmd.args(["agent", "--host", "ground", "--listen"])
+        .arg(hosts.ground_endpoint())
+        .arg("--run-dir")
+        .arg(dir.join("agent"))
+        .stdin(Stdio::null())
+        .stdout(out)
+        .stderr(err);
+    let mut agent = ChildGuard::spawn(&mut cmd).expect("spawn aeris agent");
+    let listening = poll_until(Duration::from_secs(30), || {
+        if let Ok(Some(status)) = agent.0.try_wait() {
+            panic!(
+                "the agent exited ({status}): {}",
+                std::fs::read_to_string(&log).unwrap_or_default()
+            );
+        }
+        std::fs::read_to_string(&log)
+            .ok()
+            .filter(|t| t.contains("listening on"))
+    });
+    assert!(listening.is_some(), "the agent never listened");
+    agent
+}
+
+#[test]
+fn a_flight_with_its_reasoner_and_perception_on_another_host_reaches_its_goal() {
+    let dir = TempDir::new("hosts-goal");
+    let hosts = TwoHosts::new();
+    let _agent = start_agent(&hosts, &dir.0);
+    let workflow = dir.0.join("ground.toml");
+    std::fs::write(&workflow, ground_workflow(&hosts.ground_endpoint())).unwrap();
+    let flight = unique_flight("hosts");
+    let stdout = std::fs::File::create(dir.0.join("run.stdout")).unwrap();
+    let stderr = std::fs::File::create(dir.0.join("run.stderr")).unwrap();
+    let mut cmd = hosts.command(&hosts.vehicle, &aeris_bin());
+    cmd.arg("run")
+        .arg(&workflow)
+        .args(["--json", "--flight", &flight, "--run-dir"])
+        .arg(dir.0.join("run"))
+        .stdin(Stdio::null())
+        .stdout(stdout)
+        .stderr(stderr);
+    let mut run = ChildGuard::spawn(&mut cmd).expect("spawn aeris run");
+    let status = wait_bounded(&mut run.0, FLIGHT_BOUND);
+    let (out, err) = run_output(&dir.0);
+    let agent_log = std::fs::read_to_string(dir.0.join("agent.log")).unwrap_or_default();
+    let context = || {
+        format!(
+            "{err}\n--- agent\n{agent_log}\n{}",
+            run_logs_tail(&dir.0, 15)
+        )
+    };
+    assert!(
+        status.is_some_and(|s| s.success()),
+        "flight failed ({status:?}): {}",
+        context()
+    );
+    let summary = last_json_line(&out);
+    assert_eq!(summary["reached_goal"], true, "{summary}\n{}", context());
+    // every cycle committed a decision that crossed the link, none lost or out of order
+    let cycles = summary["cycles"].as_u64().unwrap();
+    assert!(cycles > 0, "{summary}");
+    assert_eq!(summary["cycles_committed"], cycles, "{summary}");
+    assert_eq!(summary["decisions_rejected"], 0, "{summary}");
+    assert_eq!(summary["sequence_gaps"], 0, "{summary}");
+    assert_eq!(summary["sequence_reorders"], 0, "{summary}");
+    assert_eq!(summary["controller_missed_ticks"], 0, "{summary}");
+    // the two roles ran on the ground host, started by its agent, and ended with the flight
+    for role in ["reasoning", "perception", "bridge-on-ground"] {
+        assert!(
+            agent_log.contains(&format!("started {flight}/{role}#")),
+            "{role} was not started by the agent:\n{agent_log}"
+        );
+        assert!(
+            agent_log.contains(&format!("{flight}/{role}#"))
+                && agent_log
+                    .lines()
+                    .any(|l| l.starts_with(&format!("{flight}/{role}#"))
+                        && l.contains("ended: exit code 0")),
+            "{role} did not end cleanly on the ground host:\n{agent_log}"
+        );
+    }
+    // on the vehicle, each is its handle: the role's log says where it ran
+    let handle_log = std::fs::read_to_string(dir.0.join("run/logs/reasoning.log")).unwrap();
+    assert!(
+        handle_log.contains("role `reasoning` runs on host `ground` as pid"),
+        "{handle_log}"
+    );
+}
+
+/// The conformance peer built beside `aeris` (`tests/src/bin/aeris-zenoh-peer.rs`).
+fn peer_bin() -> std::path::PathBuf {
+    aeris_bin().with_file_name("aeris-zenoh-peer")
+}
+
+/// Wait until `path` holds `needle`; its text.
+fn wait_for_text(path: &Path, needle: &str, what: &str) -> String {
+    poll_until(Duration::from_secs(60), || {
+        std::fs::read_to_string(path)
+            .ok()
+            .filter(|t| t.contains(needle))
+    })
+    .unwrap_or_else(|| {
+        panic!(
+            "{what}: `{needle}` never came:\n{}",
+            std::fs::read_to_string(path).unwrap_or_default()
+        )
+    })
+}
+
+fn logged(cmd: &mut std::process::Command, path: &Path) -> ChildGuard {
+    let out = std::fs::File::create(path).unwrap();
+    let err = out.try_clone().unwrap();
+    cmd.stdin(Stdio::null()).stdout(out).stderr(err);
+    ChildGuard::spawn(cmd).expect("spawn")
+}
+
+#[test]
+fn a_host_or_a_peer_of_another_schema_is_refused_by_name() {
+    let dir = TempDir::new("hosts-schema");
+    let hosts = TwoHosts::new();
+    let ours = aeris_schemas::SCHEMA_VERSION;
+    let theirs = ours - 1;
+    let endpoint = hosts.ground_endpoint();
+
+    // an agent of another schema: the flight's handles refuse its host, the flight does not
+    // start, and the error names the host and both schemas
+    let peer_log = dir.0.join("peer-agent.log");
+    let mut cmd = hosts.command(&hosts.ground, &peer_bin());
+    cmd.args(["agent", &endpoint, "ground"]);
+    let peer_agent = logged(&mut cmd, &peer_log);
+    wait_for_text(&peer_log, "listening", "the peer agent");
+    let workflow = dir.0.join("ground.toml");
+    std::fs::write(&workflow, ground_workflow(&endpoint)).unwrap();
+    let mut cmd = hosts.command(&hosts.vehicle, &aeris_bin());
+    cmd.arg("run")
+        .arg(&workflow)
+        .args(["--flight", &unique_flight("hosts-schema"), "--run-dir"])
+        .arg(dir.0.join("run"));
+    let mut run = logged(&mut cmd, &dir.0.join("run.log"));
+    let status = wait_bounded(&mut run.0, FLIGHT_BOUND).expect("the flight ended");
+    let text = std::fs::read_to_string(dir.0.join("run.log")).unwrap();
+    assert!(!status.success(), "{text}");
+    assert!(
+        text.contains(&format!(
+            "host `ground` speaks schema s{theirs} (layout 0x0123456789abcdef), this build schema s{ours}"
+        )),
+        "{text}"
+    );
+    assert!(
+        text.contains("cannot run role `bridge-on-ground`"),
+        "{text}"
+    );
+    // final: a refused schema is not retried
+    assert!(
+        !text.contains("restart(s)") || text.contains("after 0 restart(s)"),
+        "{text}"
+    );
+    drop(peer_agent);
+
+    // the real agent refuses a supervisor of another schema
+    let _agent = start_agent(&hosts, &dir.0);
+    let out = hosts
+        .command(&hosts.vehicle, &peer_bin())
+        .args(["spawn", &endpoint, "ground", "hosts-schema-spawn"])
+        .output()
+        .expect("run the peer");
+    let answer = String::from_utf8_lossy(&out.stdout);
+    assert!(answer.contains("\"refused\""), "{answer}");
+    assert!(
+        answer.contains(&format!(
+            "the supervisor of flight `hosts-schema-spawn` speaks schema s{theirs}"
+        )) && answer.contains(&format!("this build schema s{ours}")),
+        "{answer}"
+    );
+
+    // a bridge refuses messages of another schema, names the peer and both schemas once,
+    // and publishes nothing of them
+    let flight = unique_flight("hosts-bridge");
+    let spec = role_spec(
+        &flight,
+        "bridge-on-ground",
+        "bridge",
+        "zenoh",
+        serde_json::json!({
+            "connect": endpoint,
+            "import": ["reasoning/decision"],
+            "export": [],
+            "peer": "the test peer",
+        }),
+    );
+    let spec_path = write_spec(&dir.0, &spec);
+    let bridge_log = dir.0.join("bridge.log");
+    let mut cmd = hosts.command(&hosts.ground, &aeris_bin());
+    cmd.arg("role").arg("--spec").arg(&spec_path);
+    let _bridge = logged(&mut cmd, &bridge_log);
+    wait_for_text(&bridge_log, "bridge to the test peer", "the bridge");
+    let mut cmd = hosts.command(&hosts.vehicle, &peer_bin());
+    cmd.args(["publish", &endpoint, &flight, "reasoning/decision"]);
+    let _publisher = logged(&mut cmd, &dir.0.join("publisher.log"));
+    let text = wait_for_text(&bridge_log, "refused", "the bridge");
+    assert!(
+        text.contains(&format!(
+            "bridge: refused `reasoning/decision`: the bridge of the test peer speaks schema s{theirs} (layout 0x0123456789abcdef), this build schema s{ours}"
+        )),
+        "{text}"
+    );
+}
