@@ -310,6 +310,9 @@ fn main() -> ExitCode {
                         aeris_runtime::BusError::Manifest { .. }
                             | aeris_runtime::BusError::IncompatibleSchema { .. }
                     )
+                ) || matches!(
+                    c.downcast_ref::<aeris_hosts::handle::HandleError>(),
+                    Some(aeris_hosts::handle::HandleError::Schema { .. })
                 )
             });
             ExitCode::from(if schema { EXIT_SCHEMA_MISMATCH } else { 1 })

@@ -102,13 +102,42 @@ pub fn validate(path: &Path) -> Result<ExitCode> {
         w.mission.subgoals.len()
     );
     for r in &w.roles {
+        let host = w
+            .role_host(r)
+            .map(|h| format!(" on host {}", h.name))
+            .unwrap_or_default();
         println!(
-            "  {:<18} {:<10} {:<15} executor {}",
+            "  {:<18} {:<10} {:<15} executor {}{host}",
             r.name,
             r.kind,
             r.variant,
             r.executor.as_deref().unwrap_or("-")
         );
+    }
+    if !w.hosts.is_empty() {
+        println!("hosts (an `aeris agent` runs on each):");
+        for h in &w.hosts {
+            println!(
+                "  {:<18} {:<22} link timeout {} ms",
+                h.name, h.endpoint, h.link_timeout_ms
+            );
+        }
+        for b in w.bridge_plans() {
+            println!(
+                "  bridge to {}: sends {}; receives {}",
+                b.host.name,
+                b.to_host.join(", "),
+                b.from_host.join(", ")
+            );
+        }
+        for ex in w.executors.iter().filter(|e| e.host.is_some()) {
+            let host = ex.host.as_deref().unwrap_or_default();
+            println!(
+                "  executor {:<9} CPUs {:<8} on host {host}",
+                ex.name,
+                ex.cpus.to_string()
+            );
+        }
     }
     // the executor registry a flight of it would start with
     let registry = planned_registry(&w).context("resolving the executors")?;

@@ -1,0 +1,88 @@
+#!/usr/bin/env bash
+# Fly a workflow with roles on a second host, both hosts on this machine: two network
+# namespaces joined by a veth pair, each process with a private /dev/shm and iceoryx2 root
+# (nothing but the network crosses), `aeris agent` on the ground host, `aeris run` on the
+# vehicle. Needs root (ip netns, tc) and a built `aeris` (cargo build -p aeris).
+#
+#   scripts/two-hosts.sh [--roles reasoning,perception] [--delay MS] [--loss PCT]
+#                        [--outside-load N] [--release] [-- EXTRA aeris run ARGS]
+#
+# --roles          roles of the default flight moved to the ground host (default: reasoning)
+# --delay, --loss  netem on the link, each way (default: none)
+# --outside-load N N busy threads outside the flight (`yes`), unpinned, for the loaded figure
+# --release        use target/release/aeris
+# The flight's summary (aeris run --json) is the last line of the output.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+roles=reasoning delay="" loss="" load=0 bin=target/debug/aeris
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --roles) roles=$2; shift 2 ;;
+    --delay) delay=$2; shift 2 ;;
+    --loss) loss=$2; shift 2 ;;
+    --outside-load) load=$2; shift 2 ;;
+    --release) bin=target/release/aeris; shift ;;
+    --) shift; break ;;
+    -h|--help) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    *) echo "two-hosts: unknown argument $1 (see --help)" >&2; exit 2 ;;
+  esac
+done
+[ -x "$bin" ] || { echo "two-hosts: $bin is missing: build it first (cargo build -p aeris)" >&2; exit 1; }
+[ "$(id -u)" = 0 ] || { echo "two-hosts: needs root for network namespaces" >&2; exit 1; }
+bin=$(realpath "$bin")
+
+tag=$$ v=aeris-v$$ g=aeris-g$$ dir=$(mktemp -d)
+pids=()
+cleanup() {
+  for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
+  wait 2>/dev/null || true
+  ip netns del "$v" 2>/dev/null || true
+  ip netns del "$g" 2>/dev/null || true
+  rm -rf "$dir"
+}
+trap cleanup EXIT
+echo "two-hosts: vehicle namespace $v (10.99.0.1), ground namespace $g (10.99.0.2)" >&2
+ip netns add "$v"; ip netns add "$g"
+ip link add "av$tag" type veth peer name "ag$tag"
+ip link set "av$tag" netns "$v"; ip link set "ag$tag" netns "$g"
+ip -n "$v" addr add 10.99.0.1/24 dev "av$tag"; ip -n "$g" addr add 10.99.0.2/24 dev "ag$tag"
+for ns in "$v" "$g"; do ip -n "$ns" link set lo up; done
+ip -n "$v" link set "av$tag" up; ip -n "$g" link set "ag$tag" up
+if [ -n "$delay$loss" ]; then
+  netem=(netem ${delay:+delay ${delay}ms} ${loss:+loss ${loss}%})
+  if ! ip netns exec "$v" tc qdisc add dev "av$tag" root "${netem[@]}"; then
+    echo "two-hosts: tc could not add netem: this kernel has no sch_netem (--delay and --loss need it)" >&2
+    exit 1
+  fi
+  ip netns exec "$g" tc qdisc add dev "ag$tag" root "${netem[@]}"
+  echo "two-hosts: link ${netem[*]} each way" >&2
+fi
+private='mount -t tmpfs tmpfs /dev/shm && mkdir -p /tmp/iceoryx2 && mount -t tmpfs tmpfs /tmp/iceoryx2 && exec "$@"'
+
+# the default workflow with the chosen roles on executor `gs` of host `ground`
+python3 - "$roles" > "$dir/two-hosts.toml" <<'PY'
+import sys
+moved = sys.argv[1].split(",")
+text = open("workflows/default.toml").read()
+text = text.replace("[executors.perception]",
+    '[hosts.ground]\nendpoint = "tcp/10.99.0.2:7447"\n\n[executors.gs]\nhost = "ground"\ncpus = "all"\n\n[executors.perception]', 1)
+out, name = [], None
+for line in text.splitlines():
+    if line.startswith("name = "):
+        name = line.split('"')[1]
+    if line.startswith("executor = ") and name in moved:
+        line = 'executor = "gs"'
+    out.append(line)
+print("\n".join(out))
+PY
+
+ip netns exec "$g" sh -c "$private" sh "$bin" agent --host ground --listen tcp/10.99.0.2:7447 \
+  --run-dir "$dir/agent" > "$dir/agent.log" 2>&1 &
+pids+=($!)
+for _ in $(seq 100); do grep -q "listening on" "$dir/agent.log" && break; sleep 0.1; done
+grep -q "listening on" "$dir/agent.log" || { cat "$dir/agent.log" >&2; exit 1; }
+for _ in $(seq "$load"); do yes > /dev/null & pids+=($!); done
+[ "$load" -gt 0 ] && echo "two-hosts: $load busy threads outside the flight" >&2
+ip netns exec "$v" sh -c "$private" sh "$bin" run "$dir/two-hosts.toml" --flight "two-hosts-$tag" \
+  --run-dir "$dir/run" --json "$@"
