@@ -1,13 +1,16 @@
-//! The end-to-end tests that each fly one planner flight, in one test binary: the harness
-//! flies two of them at a time (a planner flight uses about half a core, so two fit the
-//! 2-core CI machine), which keeps the suite inside its time budget. Flights whose
-//! assertions depend on the machine's load (dynamic scheduling, the fault table, model
-//! roles) keep binaries of their own and fly alone.
+//! The end-to-end tests that each fly one flight of the default mission, in one test binary:
+//! the harness flies two of them at a time (a planner flight uses about half a core, so two
+//! fit the 2-core CI machine), which keeps the suite inside its time budget. Flights whose
+//! assertions depend on the machine's load or timing (dynamic scheduling, the fault table's
+//! lost decisions, hot swaps of language models, perception models) keep binaries of their
+//! own and fly alone.
 
 mod ardupilot;
 mod default;
 mod external_autopilot;
+mod faults;
 mod garbage;
 mod hosts;
+mod ladder;
 mod mavproxy;
 mod standby;
