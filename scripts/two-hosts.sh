@@ -5,23 +5,30 @@
 # vehicle. Needs root (ip netns, tc) and a built `aeris` (cargo build -p aeris).
 #
 #   scripts/two-hosts.sh [--roles reasoning,perception] [--delay MS] [--loss PCT]
-#                        [--outside-load N] [--release] [-- EXTRA aeris run ARGS]
+#                        [--outside-load N] [--fallback VARIANT] [--cut-at S [--restore-at S]]
+#                        [--release] [-- EXTRA aeris run ARGS]
 #
 # --roles          roles of the default flight moved to the ground host (default: reasoning)
 # --delay, --loss  netem on the link, each way (default: none)
 # --outside-load N N busy threads outside the flight (`yes`), unpinned, for the loaded figure
+# --fallback V     the reasoner's fallback on the vehicle if the link is lost (executor perception)
+# --cut-at S       cut the link (ip link set down) S seconds after the start; --restore-at S
+#                  brings it back
 # --release        use target/release/aeris
 # The flight's summary (aeris run --json) is the last line of the output.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-roles=reasoning delay="" loss="" load=0 bin=target/debug/aeris
+roles=reasoning delay="" loss="" load=0 bin=target/debug/aeris fallback="" cut="" restore=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --roles) roles=$2; shift 2 ;;
     --delay) delay=$2; shift 2 ;;
     --loss) loss=$2; shift 2 ;;
     --outside-load) load=$2; shift 2 ;;
+    --fallback) fallback=$2; shift 2 ;;
+    --cut-at) cut=$2; shift 2 ;;
+    --restore-at) restore=$2; shift 2 ;;
     --release) bin=target/release/aeris; shift ;;
     --) shift; break ;;
     -h|--help) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
@@ -61,9 +68,10 @@ fi
 private='mount -t tmpfs tmpfs /dev/shm && mkdir -p /tmp/iceoryx2 && mount -t tmpfs tmpfs /tmp/iceoryx2 && exec "$@"'
 
 # the default workflow with the chosen roles on executor `gs` of host `ground`
-python3 - "$roles" > "$dir/two-hosts.toml" <<'PY'
+python3 - "$roles" "$fallback" > "$dir/two-hosts.toml" <<'PY'
 import sys
 moved = sys.argv[1].split(",")
+fallback = sys.argv[2]
 text = open("workflows/default.toml").read()
 text = text.replace("[executors.perception]",
     '[hosts.ground]\nendpoint = "tcp/10.99.0.2:7447"\n\n[executors.gs]\nhost = "ground"\ncpus = "all"\n\n[executors.perception]', 1)
@@ -73,6 +81,8 @@ for line in text.splitlines():
         name = line.split('"')[1]
     if line.startswith("executor = ") and name in moved:
         line = 'executor = "gs"'
+        if name == "reasoning" and fallback:
+            line += f'\nfallback = "{fallback}"\nfallback_executor = "perception"'
     out.append(line)
 print("\n".join(out))
 PY
@@ -84,5 +94,11 @@ for _ in $(seq 100); do grep -q "listening on" "$dir/agent.log" && break; sleep 
 grep -q "listening on" "$dir/agent.log" || { cat "$dir/agent.log" >&2; exit 1; }
 for _ in $(seq "$load"); do yes > /dev/null & pids+=($!); done
 [ "$load" -gt 0 ] && echo "two-hosts: $load busy threads outside the flight" >&2
+if [ -n "$cut" ]; then
+  (sleep "$cut"; echo "two-hosts: cutting the link" >&2; ip -n "$v" link set "av$tag" down
+   if [ -n "$restore" ]; then sleep "$(awk "BEGIN{print $restore - $cut}")"; echo "two-hosts: link restored" >&2
+     ip -n "$v" link set "av$tag" up; fi) &
+  pids+=($!)
+fi
 ip netns exec "$v" sh -c "$private" sh "$bin" run "$dir/two-hosts.toml" --flight "two-hosts-$tag" \
   --run-dir "$dir/run" --json "$@"

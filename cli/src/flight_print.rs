@@ -96,6 +96,7 @@ fn print_supervisor_event(event: &SupervisorEvent) {
         | SupervisorEvent::RoleMigrated(_)
         | SupervisorEvent::MigrationFailed { .. }
         | SupervisorEvent::RoleStalled { .. }
+        | SupervisorEvent::LinkLost { .. }
         | SupervisorEvent::ServiceLost { .. }
         | SupervisorEvent::VariantStepped { .. }
         | SupervisorEvent::BindingProbed { .. }

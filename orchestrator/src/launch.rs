@@ -33,6 +33,20 @@ pub struct PlannedRole {
     pub pool: Vec<String>,
     /// Its variant ladder, most capable first (its workflow `ladder`; empty: none).
     pub ladder: Vec<String>,
+    /// On another host: what replaces it on the flight's host when the link is lost.
+    pub fallback: Option<PlannedFallback>,
+}
+
+/// What replaces a role on another host when the link to it is lost, resolved to the
+/// flight's CPUs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlannedFallback {
+    /// The variant started on the flight's host.
+    pub variant: String,
+    /// Its executor (`None`: unbound).
+    pub executor: Option<String>,
+    /// That executor's CPUs (`None`: the supervisor's).
+    pub cpus: Option<CpuSet>,
 }
 
 /// Every role of a flight, in start order (publishers before subscribers).
@@ -246,6 +260,16 @@ pub fn plan_launch(
                 backoff_ms: r.backoff_ms,
                 pool: r.variants.clone(),
                 ladder: r.ladder.clone(),
+                fallback: r.fallback.as_ref().map(|f| PlannedFallback {
+                    variant: f.variant.clone(),
+                    executor: f.executor.clone(),
+                    cpus: f.executor.as_ref().and_then(|name| {
+                        executors
+                            .iter()
+                            .find(|(n, _)| n == name)
+                            .map(|(_, s)| s.clone())
+                    }),
+                }),
             }
         })
         .collect();

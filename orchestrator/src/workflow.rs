@@ -129,6 +129,19 @@ pub struct RoleDecl {
     pub subscribes: Vec<String>,
     /// Topics it publishes (the catalog's unless overridden; `heartbeat` is implicit).
     pub publishes: Vec<String>,
+    /// For a role on another host: the variant that takes over on the flight's host when the
+    /// link to that host is lost (`fallback`, `fallback_executor`).
+    pub fallback: Option<RoleFallback>,
+}
+
+/// What replaces a role on another host when the link to that host is lost.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RoleFallback {
+    /// The variant started on the flight's host (e.g. the planner for a ground-station
+    /// language model).
+    pub variant: String,
+    /// The flight's executor it runs on (`None`: unbound).
+    pub executor: Option<String>,
 }
 
 impl RoleDecl {
@@ -163,6 +176,7 @@ impl RoleDecl {
             params,
             subscribes: topics(|k| k.subscribes),
             publishes: topics(|k| k.publishes),
+            fallback: None,
         }
     }
 
@@ -343,6 +357,14 @@ pub enum WorkflowError {
         kind: String,
         /// Its executor's host.
         host: String,
+    },
+    /// A role's `fallback` is unusable.
+    #[error("role `{role}`: fallback {reason}")]
+    BadFallback {
+        /// Role name.
+        role: String,
+        /// What is wrong.
+        reason: String,
     },
     /// A topic would go from one other host to another: bridges run between the flight's
     /// host and each other host only.

@@ -138,6 +138,19 @@ pub enum SupervisorEvent {
         /// What gave it away ("stopped (state T)", "no CPU time", "silent").
         why: String,
     },
+    /// A role on another host fell silent for longer than its host's link timeout: the link
+    /// counts as lost. Its fallback (if the workflow names one) starts on the flight's host
+    /// at once; otherwise its handle is stopped and it stays down.
+    LinkLost {
+        /// Role name.
+        name: String,
+        /// The host.
+        host: String,
+        /// Milliseconds since its last heartbeat.
+        silent_ms: u64,
+        /// The fallback variant started, if any.
+        fallback: Option<String>,
+    },
     /// A service of the flight disappeared from under running roles (its files were
     /// removed from outside); the roles registered at it were killed so that their restarts
     /// create a fresh service and join it.
@@ -308,6 +321,21 @@ impl core::fmt::Display for SupervisorEvent {
                 f,
                 "role `{name}` (pid {pid}) stalled: no heartbeat for {silent_ms} ms, {why}; killed"
             ),
+            SupervisorEvent::LinkLost {
+                name,
+                host,
+                silent_ms,
+                fallback,
+            } => match fallback {
+                Some(v) => write!(
+                    f,
+                    "link to host `{host}` lost (role `{name}` silent for {silent_ms} ms): fallback `{v}` starting on the flight's host"
+                ),
+                None => write!(
+                    f,
+                    "link to host `{host}` lost (role `{name}` silent for {silent_ms} ms): no fallback, it stays down"
+                ),
+            },
             SupervisorEvent::MigrationFailed { name, reason } => {
                 write!(f, "role `{name}` could not be moved: {reason}")
             }

@@ -44,6 +44,7 @@ mod events;
 mod exits;
 mod heartbeats;
 mod initial_binding;
+mod links;
 mod logs;
 mod migration;
 mod role_runtime;
@@ -304,6 +305,7 @@ impl Supervisor {
         self.drain_heartbeats(&mut events)?;
         self.reap(&mut events)?;
         self.stalls.check(&mut self.roles, &mut events);
+        self.watch_links(&mut events);
         let before = events.len();
         self.advance_swaps(&mut events);
         self.ladder_follow_swaps(&events[before..]);

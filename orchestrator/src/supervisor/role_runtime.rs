@@ -4,7 +4,7 @@
 
 use super::swap::SwapInProgress;
 use crate::executors::SchedTime;
-use crate::launch::PlannedRole;
+use crate::launch::{PlannedFallback, PlannedRole};
 use crate::restart::{RestartPolicy, RoleExit};
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::stats::LatencyWindow;
@@ -12,7 +12,7 @@ use aeris_schemas::{RoleHeartbeat, RoleStatus};
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 use std::process::Child;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// Heartbeats per role kept for the latency percentiles.
 pub const LATENCY_WINDOW: usize = 256;
@@ -36,6 +36,19 @@ pub enum RoleState {
     Stopped,
     /// Its restart budget is spent.
     GaveUp,
+}
+
+/// A role on another host: the link it depends on.
+#[derive(Debug, Clone)]
+pub(super) struct RemoteLink {
+    /// The host.
+    pub(super) host: String,
+    /// Silent this long: the link counts as lost.
+    pub(super) timeout: Duration,
+    /// What takes over on the flight's host when it is lost.
+    pub(super) fallback: Option<PlannedFallback>,
+    /// The link was lost (counted once; the fallback is under way or failed).
+    pub(super) lost: bool,
 }
 
 /// What the supervisor knows about one role.
@@ -119,6 +132,8 @@ pub struct RoleRuntime {
     pub(super) worked_cycles: u64,
     /// Latency (ms) of the newest worked cycle.
     pub(super) last_cycle_ms: Option<f64>,
+    /// On another host: the link it depends on (`None`: it runs on the flight's host).
+    pub(super) link: Option<RemoteLink>,
 }
 
 impl RoleRuntime {
@@ -232,8 +247,16 @@ impl RoleRuntime {
             backoff_ms,
             pool,
             ladder,
+            fallback,
         } = planned;
+        let link = spec.remote.as_ref().map(|r| RemoteLink {
+            host: r.host.clone(),
+            timeout: Duration::from_millis(r.link_timeout_ms),
+            fallback,
+            lost: false,
+        });
         RoleRuntime {
+            link,
             name: spec.name,
             kind: spec.kind,
             variant: spec.variant,
@@ -364,6 +387,7 @@ mod tests {
 
     fn runtime() -> RoleRuntime {
         RoleRuntime {
+            link: None,
             name: "r".into(),
             kind: "hub".into(),
             variant: "gate".into(),

@@ -63,6 +63,11 @@ impl StallDetector {
                 }
                 continue;
             }
+            // a role on another host falls silent with its link: the link watch decides
+            // (its handle here uses no CPU either way)
+            if role.link.is_some() {
+                continue;
+            }
             let Some(heard) = role.heard_at else {
                 continue;
             };

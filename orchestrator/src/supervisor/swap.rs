@@ -10,6 +10,7 @@ use super::logs::{log_tail, open_log, quote_tail};
 use super::role_runtime::{LATENCY_WINDOW, RoleRuntime, RoleState};
 use super::spawn::{LoadPolicy, may_leave_idle, set_normal_policy};
 use crate::restart::RoleExit;
+use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::stats::LatencyWindow;
 use aeris_schemas::RoleHeartbeat;
@@ -46,6 +47,23 @@ pub(super) struct SwapInProgress {
     pub(super) deadline: Instant,
     /// Its first working heartbeat: it is ready.
     pub(super) ready: Option<RoleHeartbeat>,
+    /// Set when it runs elsewhere than the role ran (a fallback on the flight's host).
+    pub(super) placement: Option<LocalPlacement>,
+}
+
+/// Where a replacement runs when not where the role runs now: on the flight's host, for a
+/// role whose host's link was lost.
+#[derive(Debug, Clone)]
+pub(super) struct LocalPlacement {
+    /// Its CPUs (`None`: the supervisor's).
+    pub(super) cpus: Option<CpuSet>,
+    /// Its executor's name (empty: unbound).
+    pub(super) executor: String,
+    /// Why it runs there (the role's new binding).
+    pub(super) why: String,
+    /// The role's restart policy, back in force once it runs there (a role whose link is
+    /// lost is not restarted behind the link meanwhile).
+    pub(super) policy: crate::restart::RestartPolicy,
 }
 
 /// A replaced process, asked to stop, until it exits.
@@ -147,6 +165,7 @@ impl RoleRuntime {
     /// with a fresh latency window (a new model's latency is a new distribution). Returns
     /// the replaced process.
     fn take_over(&mut self, swap: SwapInProgress, now: Instant) -> (Option<u32>, Option<Child>) {
+        let swap_placement = swap.placement;
         let old_pid = self.pid.take();
         let old_child = self.child.take();
         self.variant = swap.variant;
@@ -164,6 +183,15 @@ impl RoleRuntime {
         self.heard_at = Some(now);
         self.window = LatencyWindow::new(LATENCY_WINDOW);
         self.latency_ms = None;
+        if let Some(p) = swap_placement {
+            // it now runs on the flight's host, no longer behind a link
+            self.cpus = p.cpus.as_ref().map(|c| c.to_string()).unwrap_or_default();
+            self.cpu_set = p.cpus;
+            self.executor = p.executor;
+            self.binding = p.why;
+            self.policy = p.policy;
+            self.link = None;
+        }
         (old_pid, old_child)
     }
 }
@@ -182,20 +210,23 @@ impl Supervisor {
         variant: &str,
         ready_timeout: Duration,
     ) -> Result<u32, SwapError> {
-        self.start_swap(role, variant, ready_timeout, true)
+        self.start_swap(role, variant, ready_timeout, true, None)
     }
 
     /// [`Supervisor::begin_swap`], with the new process loading idle (`load_idle`) or at
     /// the normal policy. The variant ladder loads a lighter variant at the normal policy:
     /// the role it replaces already misses its budget, so the CPUs are saturated, and an
     /// idle load gets no CPU at all (measured: SmolLM2 stepping in for Gemma-3 on 2 busy
-    /// CPUs was not ready within 90 s and the step was rolled back).
-    pub(crate) fn start_swap(
+    /// CPUs was not ready within 90 s and the step was rolled back). With `placement` the
+    /// new process runs there, on the flight's host, whatever the role's pool (a fallback
+    /// the workflow named).
+    pub(super) fn start_swap(
         &mut self,
         role: &str,
         variant: &str,
         ready_timeout: Duration,
         load_idle: bool,
+        placement: Option<LocalPlacement>,
     ) -> Result<u32, SwapError> {
         let Some(i) = self.roles.iter().position(|r| r.name == role) else {
             return Err(SwapError::UnknownRole {
@@ -215,7 +246,7 @@ impl Supervisor {
                 why,
             });
         }
-        if !r.pool.iter().any(|v| v == variant) {
+        if placement.is_none() && !r.pool.iter().any(|v| v == variant) {
             return Err(SwapError::NotInPool {
                 role: r.name.clone(),
                 variant: variant.to_string(),
@@ -242,6 +273,13 @@ impl Supervisor {
         let mut spec = aeris_runtime::RoleSpec::load(&r.spec_path)
             .map_err(|e| prepare(aeris_runtime::error_chain::chain(&e).to_string()))?;
         spec.variant = variant.to_string();
+        if let Some(p) = &placement {
+            spec.remote = None;
+            spec.cpus = p.cpus.as_ref().map(|c| c.to_string()).unwrap_or_default();
+        }
+        let cpus = placement
+            .as_ref()
+            .map_or(r.cpu_set.clone(), |p| p.cpus.clone());
         let dir = r.spec_path.parent().unwrap_or(Path::new("."));
         let spec_path = dir.join(format!("{}.i{instance}.json", r.name));
         let json = serde_json::to_string_pretty(&spec).map_err(|e| prepare(e.to_string()))?;
@@ -250,10 +288,13 @@ impl Supervisor {
         let log_dir = r.log_path.parent().unwrap_or(Path::new("."));
         let log_path = log_dir.join(format!("{}.i{instance}.log", r.name));
         let header = format!(
-            "=== aeris supervisor: hot swap of role `{}` from `{}` to `{variant}`, instance {instance} on CPUs [{}], monotonic {} ns ===",
+            "=== aeris supervisor: {} of role `{}` from `{}` to `{variant}`, instance {instance} on CPUs [{}], monotonic {} ns ===",
+            placement
+                .as_ref()
+                .map_or("hot swap", |_| "fallback on the flight's host"),
             r.name,
             r.variant,
-            r.cpus,
+            cpus.as_ref().map(|c| c.to_string()).unwrap_or_default(),
             monotonic_ns()
         );
         let cleanup = |e: String| {
@@ -269,7 +310,7 @@ impl Supervisor {
         };
         let child = self
             .launcher
-            .spawn(&spec_path, log, r.cpu_set.as_ref(), policy)
+            .spawn(&spec_path, log, cpus.as_ref(), policy)
             .map_err(|e| cleanup(format!("cannot start `{}`: {e}", exe.display())))?;
         let pid = child.id();
         let now = Instant::now();
@@ -283,6 +324,7 @@ impl Supervisor {
             started: now,
             deadline: now + ready_timeout,
             ready: None,
+            placement,
         });
         self.pending.push(SupervisorEvent::SwapStarted {
             name: r.name.clone(),

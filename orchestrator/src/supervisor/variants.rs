@@ -51,7 +51,7 @@ impl Supervisor {
             // down: the running variant already misses its budget on saturated CPUs, where
             // an idle load would never finish; up: the role fits, load on idle time only
             let load_idle = step.direction == StepDirection::Up;
-            match self.start_swap(&name, &to, DEFAULT_SWAP_READY_TIMEOUT, load_idle) {
+            match self.start_swap(&name, &to, DEFAULT_SWAP_READY_TIMEOUT, load_idle, None) {
                 Ok(_) => {
                     self.variant_steps += 1;
                     self.log_variant_step(&name, &from, &to, &step);

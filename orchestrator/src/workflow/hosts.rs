@@ -72,6 +72,37 @@ impl Workflow {
                 });
             }
         }
+        for r in &self.roles {
+            let Some(fb) = &r.fallback else { continue };
+            let bad = |reason: String| WorkflowError::BadFallback {
+                role: r.name.clone(),
+                reason,
+            };
+            if self.role_host(r).is_none() {
+                return Err(bad(
+                    "is only for a role on another host (its executor's `host`)".into(),
+                ));
+            }
+            let known = aeris_runtime::catalog::role_kind(&r.kind)
+                .is_some_and(|k| k.variants.contains(&fb.variant.as_str()));
+            if !known {
+                return Err(bad(format!(
+                    "`{}` is not a variant of kind {}",
+                    fb.variant, r.kind
+                )));
+            }
+            if let Some(ex) = &fb.executor {
+                match self.executor(ex) {
+                    None => return Err(bad(format!("executor `{ex}` is not declared"))),
+                    Some(e) if e.host.is_some() => {
+                        return Err(bad(format!(
+                            "executor `{ex}` is on another host: a fallback runs on the flight's host"
+                        )));
+                    }
+                    Some(_) => {}
+                }
+            }
+        }
         for topic in topics::ALL {
             for p in self
                 .roles
@@ -227,5 +258,34 @@ mod tests {
         );
         let e = Workflow::from_toml_str(&bad).unwrap_err().to_string();
         assert!(e.contains("must run on the flight's host"), "{e}");
+        // a fallback: a variant of the kind, on one of the flight's executors
+        let with = |fallback: &str| {
+            text.replacen(
+                "variants = [\"planner\", \"garbage\"]\nexecutor = \"gs\"",
+                &format!("variants = [\"planner\", \"garbage\"]\nexecutor = \"gs\"\n{fallback}"),
+                1,
+            )
+        };
+        let w = Workflow::from_toml_str(&with(
+            "fallback = \"planner\"\nfallback_executor = \"perception\"",
+        ))
+        .unwrap();
+        let fb = w.role("reasoning").unwrap().fallback.clone().unwrap();
+        assert_eq!(
+            (fb.variant.as_str(), fb.executor.as_deref()),
+            ("planner", Some("perception"))
+        );
+        let e = Workflow::from_toml_str(&with("fallback = \"gpt-9\""))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`gpt-9` is not a variant of kind reasoning"),
+            "{e}"
+        );
+        let e =
+            Workflow::from_toml_str(&with("fallback = \"planner\"\nfallback_executor = \"gs\""))
+                .unwrap_err()
+                .to_string();
+        assert!(e.contains("a fallback runs on the flight's host"), "{e}");
     }
 }

@@ -3,7 +3,7 @@
 
 use super::{
     DEFAULT_BACKOFF_MS, DEFAULT_LINK_TIMEOUT_MS, DEFAULT_MAX_RESTARTS, Executor, ExecutorCpus,
-    Host, RoleDecl, SchedulingSpec, Workflow, WorkflowError, WorkflowFileError,
+    Host, RoleDecl, RoleFallback, SchedulingSpec, Workflow, WorkflowError, WorkflowFileError,
 };
 use crate::restart::RestartPolicy;
 use aeris_runtime::affinity::CpuSet;
@@ -95,6 +95,8 @@ struct RawRole {
     params: serde_json::Map<String, serde_json::Value>,
     subscribes: Option<Vec<String>>,
     publishes: Option<Vec<String>>,
+    fallback: Option<String>,
+    fallback_executor: Option<String>,
 }
 
 /// 1-based (line, column) of byte offset `at` in `text`, without slicing `text`.
@@ -235,7 +237,12 @@ impl Workflow {
             fit_recorders |= r.kind == super::RECORDER_KIND && r.subscribes.is_none();
             let subscribes = r.subscribes.unwrap_or_else(|| catalog(|k| k.subscribes));
             let publishes = r.publishes.unwrap_or_else(|| catalog(|k| k.publishes));
+            let fallback = r.fallback.map(|variant| RoleFallback {
+                variant,
+                executor: r.fallback_executor,
+            });
             roles.push(RoleDecl {
+                fallback,
                 variants: r.variants.unwrap_or_else(|| vec![r.variant.clone()]),
                 ladder: r.ladder.unwrap_or_default(),
                 name: r.name,

@@ -104,10 +104,13 @@ fn a_flight_with_its_reasoner_and_perception_on_another_host_reaches_its_goal() 
     );
     let summary = last_json_line(&out);
     assert_eq!(summary["reached_goal"], true, "{summary}\n{}", context());
-    // every cycle committed a decision that crossed the link, none lost or out of order
-    let cycles = summary["cycles"].as_u64().unwrap();
-    assert!(cycles > 0, "{summary}");
-    assert_eq!(summary["cycles_committed"], cycles, "{summary}");
+    // decisions crossed the link and were committed, none refused, lost or out of order
+    // (a cycle may still reuse a decision when the machine is busy: EER is measured, not
+    // asserted)
+    assert!(
+        summary["cycles_committed"].as_u64().unwrap() > 0,
+        "{summary}"
+    );
     assert_eq!(summary["decisions_rejected"], 0, "{summary}");
     assert_eq!(summary["sequence_gaps"], 0, "{summary}");
     assert_eq!(summary["sequence_reorders"], 0, "{summary}");
@@ -252,4 +255,78 @@ fn a_host_or_a_peer_of_another_schema_is_refused_by_name() {
         )),
         "{text}"
     );
+}
+
+#[test]
+fn a_link_cut_mid_flight_hands_the_reasoner_to_its_fallback_and_the_flight_goes_on() {
+    let dir = TempDir::new("hosts-cut");
+    let hosts = TwoHosts::new();
+    let _agent = start_agent(&hosts, &dir.0);
+    // only the reasoner on the ground host, the on-board planner as its fallback
+    let text = ground_workflow(&hosts.ground_endpoint()).replacen(
+        "kind = \"perception\"\nvariant = \"geometric\"\nexecutor = \"gs\"",
+        "kind = \"perception\"\nvariant = \"geometric\"\nexecutor = \"perception\"",
+        1,
+    );
+    let text = text.replacen(
+        "variants = [\"planner\", \"garbage\"]\nexecutor = \"gs\"",
+        "variants = [\"planner\", \"garbage\"]\nexecutor = \"gs\"\nfallback = \"planner\"\nfallback_executor = \"perception\"",
+        1,
+    );
+    let workflow = dir.0.join("cut.toml");
+    std::fs::write(&workflow, text).unwrap();
+    let flight = unique_flight("hosts-cut");
+    let stdout = std::fs::File::create(dir.0.join("run.stdout")).unwrap();
+    let stderr = std::fs::File::create(dir.0.join("run.stderr")).unwrap();
+    let mut cmd = hosts.command(&hosts.vehicle, &aeris_bin());
+    cmd.arg("run")
+        .arg(&workflow)
+        .args(["--json", "--flight", &flight, "--run-dir"])
+        .arg(dir.0.join("run"))
+        .stdin(Stdio::null())
+        .stdout(stdout)
+        .stderr(stderr);
+    let mut run = ChildGuard::spawn(&mut cmd).expect("spawn aeris run");
+    // the reasoner on the ground host has been flying the mission for a while: cut the link
+    wait_for_text(
+        &dir.0.join("run.stderr"),
+        "step 2/4",
+        "the flight's progress",
+    );
+    hosts.set_link(false);
+    let cut = wait_for_text(
+        &dir.0.join("run.stderr"),
+        "fallback `planner` starting",
+        "the cut",
+    );
+    assert!(
+        cut.contains("link to host `ground` lost (role `reasoning` silent for"),
+        "{cut}"
+    );
+    // the fallback took over on the flight's host: then the link comes back
+    wait_for_text(
+        &dir.0.join("run.stderr"),
+        "role `reasoning`: `planner` (pid",
+        "the fallback's readiness",
+    );
+    hosts.set_link(true);
+    let status = wait_bounded(&mut run.0, FLIGHT_BOUND);
+    let (out, err) = run_output(&dir.0);
+    assert!(
+        status.is_some_and(|s| s.success()),
+        "flight failed ({status:?}): {err}\n{}",
+        run_logs_tail(&dir.0, 15)
+    );
+    let summary = last_json_line(&out);
+    assert_eq!(summary["reached_goal"], true, "{summary}\n{err}");
+    // the vehicle never went without setpoints, none was refused
+    assert_eq!(summary["controller_missed_ticks"], 0, "{summary}");
+    assert_eq!(summary["controller_refused_setpoints"], 0, "{summary}");
+    // the hub switched to the fallback's decisions
+    assert!(
+        summary["source_switches"].as_u64().unwrap() >= 1,
+        "{summary}"
+    );
+    // one loss of the reasoner's link, no flapping when the link came back
+    assert_eq!(err.matches("lost (role `reasoning`").count(), 1, "{err}");
 }
