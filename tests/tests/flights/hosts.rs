@@ -69,6 +69,22 @@ fn start_agent(hosts: &TwoHosts, dir: &Path) -> ChildGuard {
     agent
 }
 
+/// `aeris run WORKFLOW --json --flight FLIGHT` on the vehicle host, its stdout and stderr in
+/// `dir/run.stdout` and `dir/run.stderr` ([`run_output`]).
+fn fly_on_the_vehicle(hosts: &TwoHosts, dir: &Path, workflow: &Path, flight: &str) -> ChildGuard {
+    let stdout = std::fs::File::create(dir.join("run.stdout")).unwrap();
+    let stderr = std::fs::File::create(dir.join("run.stderr")).unwrap();
+    let mut cmd = hosts.command(&hosts.vehicle, &aeris_bin());
+    cmd.arg("run")
+        .arg(workflow)
+        .args(["--json", "--flight", flight, "--run-dir"])
+        .arg(dir.join("run"))
+        .stdin(Stdio::null())
+        .stdout(stdout)
+        .stderr(stderr);
+    ChildGuard::spawn(&mut cmd).expect("spawn aeris run")
+}
+
 #[test]
 fn a_flight_with_its_reasoner_and_perception_on_another_host_reaches_its_goal() {
     let dir = TempDir::new("hosts-goal");
@@ -77,17 +93,7 @@ fn a_flight_with_its_reasoner_and_perception_on_another_host_reaches_its_goal() 
     let workflow = dir.0.join("ground.toml");
     std::fs::write(&workflow, ground_workflow(&hosts.ground_endpoint())).unwrap();
     let flight = unique_flight("hosts");
-    let stdout = std::fs::File::create(dir.0.join("run.stdout")).unwrap();
-    let stderr = std::fs::File::create(dir.0.join("run.stderr")).unwrap();
-    let mut cmd = hosts.command(&hosts.vehicle, &aeris_bin());
-    cmd.arg("run")
-        .arg(&workflow)
-        .args(["--json", "--flight", &flight, "--run-dir"])
-        .arg(dir.0.join("run"))
-        .stdin(Stdio::null())
-        .stdout(stdout)
-        .stderr(stderr);
-    let mut run = ChildGuard::spawn(&mut cmd).expect("spawn aeris run");
+    let mut run = fly_on_the_vehicle(&hosts, &dir.0, &workflow, &flight);
     let status = wait_bounded(&mut run.0, FLIGHT_BOUND);
     let (out, err) = run_output(&dir.0);
     let agent_log = std::fs::read_to_string(dir.0.join("agent.log")).unwrap_or_default();
@@ -276,17 +282,7 @@ fn a_link_cut_mid_flight_hands_the_reasoner_to_its_fallback_and_the_flight_goes_
     let workflow = dir.0.join("cut.toml");
     std::fs::write(&workflow, text).unwrap();
     let flight = unique_flight("hosts-cut");
-    let stdout = std::fs::File::create(dir.0.join("run.stdout")).unwrap();
-    let stderr = std::fs::File::create(dir.0.join("run.stderr")).unwrap();
-    let mut cmd = hosts.command(&hosts.vehicle, &aeris_bin());
-    cmd.arg("run")
-        .arg(&workflow)
-        .args(["--json", "--flight", &flight, "--run-dir"])
-        .arg(dir.0.join("run"))
-        .stdin(Stdio::null())
-        .stdout(stdout)
-        .stderr(stderr);
-    let mut run = ChildGuard::spawn(&mut cmd).expect("spawn aeris run");
+    let mut run = fly_on_the_vehicle(&hosts, &dir.0, &workflow, &flight);
     // the reasoner on the ground host has been flying the mission for a while: cut the link
     wait_for_text(
         &dir.0.join("run.stderr"),
