@@ -99,7 +99,6 @@ pub struct BridgeRole {
     connected: bool,
     last_report_ns: u64,
     link_checked_ns: u64,
-    buf: Vec<u8>,
 }
 
 fn topics_param(ctx: &RoleContext, key: &str) -> Result<Vec<String>, RoleError> {
@@ -219,7 +218,6 @@ impl Role for BridgeRole {
             connected: false,
             last_report_ns: 0,
             link_checked_ns: 0,
-            buf: Vec::with_capacity(frame_bytes + 512),
         })
     }
 
@@ -236,27 +234,29 @@ impl Role for BridgeRole {
         let mut moved = 0u64;
         for ex in &mut self.exports {
             for _ in 0..BURST {
-                let mut sent = None;
+                // the message as zenoh takes it: one owned copy out of shared memory
+                let mut sent: Option<(Vec<u8>, usize)> = None;
                 let own = &self.own;
-                let buf = &mut self.buf;
                 let got = ex.sub.next_raw(&mut |bytes, pixels, from| {
                     if own.contains(&from) {
                         return;
                     }
-                    buf.clear();
-                    buf.extend_from_slice(bytes);
-                    buf.extend_from_slice(pixels);
-                    sent = Some(bytes.len());
+                    let mut message = Vec::with_capacity(bytes.len() + pixels.len());
+                    message.extend_from_slice(bytes);
+                    message.extend_from_slice(pixels);
+                    sent = Some((message, bytes.len()));
                 })?;
                 if !got {
                     break;
                 }
-                let Some(header_len) = sent else { continue };
+                let Some((message, header_len)) = sent else {
+                    continue;
+                };
                 ex.seq += 1;
-                let len = self.buf.len() as u64;
+                let len = message.len() as u64;
                 let put = ex
                     .publisher
-                    .put(ZBytes::from(self.buf.clone()))
+                    .put(ZBytes::from(message))
                     .attachment(ZBytes::from(attachment(ex.seq, header_len).to_vec()))
                     .wait();
                 match put {
