@@ -18,6 +18,13 @@
 //!   reachable only over the link never blocks the flight.
 //! - **No echo.** A topic carried both ways (the heartbeat of two hosts) is not sent back:
 //!   samples the bridge itself published are skipped by their publisher id.
+//! - **Frames only where they are read.** The bridges of a host carry the topics of every
+//!   role that may run there (a role can be moved there during the flight), but a frame
+//!   (hundreds of KB) crosses only while a role on the receiving host reads it: the
+//!   receiving bridge subscribes to it on zenoh only while its topic has a reader there, and
+//!   the sending bridge copies a frame out of shared memory only while zenoh reports a
+//!   matching subscriber. Every other topic is small and always carried, so a role that
+//!   starts on the other host finds the latest sample in its history.
 //!
 //! Parameters: `connect` (the other host's agent endpoint), `export` and `import` (topic
 //! lists), `peer` (who is at the other end, for messages), `frame_bytes` (the first frame
@@ -73,21 +80,29 @@ fn attachment(seq: u64, header_len: usize) -> [u8; ATTACHMENT_LEN] {
 /// One topic sent to the other host.
 struct Export {
     topic: String,
+    payload: Payload,
     sub: Box<dyn RawSubscriber>,
     publisher: Publisher<'static>,
     seq: u64,
+    /// A subscriber on the other host wants it (frames: checked every [`REPORT_NS`];
+    /// every other topic is always sent).
+    wanted: bool,
 }
 
 /// One topic received from the other host.
 struct Import {
     topic: String,
     payload: Payload,
-    sub: Subscriber<FifoChannelHandler<Sample>>,
+    /// Its zenoh subscriber (frames: only while the topic has a reader on this host).
+    sub: Option<Subscriber<FifoChannelHandler<Sample>>>,
     publisher: Box<dyn RawPublisher>,
+    /// This bridge also subscribes to the topic here (it sends it the other way too).
+    exported: bool,
 }
 
 /// The bridge role.
 pub struct BridgeRole {
+    flight: String,
     session: Session,
     exports: Vec<Export>,
     imports: Vec<Import>,
@@ -159,11 +174,18 @@ impl Role for BridgeRole {
             let payload = payload_of(&t).unwrap_or(Payload::Heartbeat);
             let publisher = raw_publisher(&ctx.bus, &t, payload, frame_bytes)?;
             own.push(publisher.id());
-            let sub = session
-                .declare_subscriber(data_key(&flight, &t))
-                .wait()
-                .map_err(declare(format!("the subscriber of `{t}`")))?;
+            // frames: subscribed once a reader appears here ([`BridgeRole::follow_readers`])
+            let sub = match payload {
+                Payload::Frame => None,
+                _ => Some(
+                    session
+                        .declare_subscriber(data_key(&flight, &t))
+                        .wait()
+                        .map_err(declare(format!("the subscriber of `{t}`")))?,
+                ),
+            };
             imports.push(Import {
+                exported: export.contains(&t),
                 topic: t,
                 payload,
                 sub,
@@ -187,9 +209,11 @@ impl Role for BridgeRole {
                 .map_err(declare(format!("the publisher of `{t}`")))?;
             exports.push(Export {
                 topic: t,
+                payload,
                 sub,
                 publisher,
                 seq: 0,
+                wanted: payload != Payload::Frame,
             });
         }
         println!(
@@ -208,6 +232,7 @@ impl Role for BridgeRole {
         let mut counters = [0u64; 8];
         counters[7] = (exports.len() + imports.len()) as u64;
         Ok(BridgeRole {
+            flight,
             session,
             exports,
             imports,
@@ -237,8 +262,9 @@ impl Role for BridgeRole {
                 // the message as zenoh takes it: one owned copy out of shared memory
                 let mut sent: Option<(Vec<u8>, usize)> = None;
                 let own = &self.own;
+                let wanted = ex.wanted;
                 let got = ex.sub.next_raw(&mut |bytes, pixels, from| {
-                    if own.contains(&from) {
+                    if !wanted || own.contains(&from) {
                         return;
                     }
                     let mut message = Vec::with_capacity(bytes.len() + pixels.len());
@@ -270,8 +296,11 @@ impl Role for BridgeRole {
             }
         }
         for im in &mut self.imports {
+            let Some(sub) = im.sub.as_ref() else {
+                continue;
+            };
             for _ in 0..BURST {
-                let Ok(Some(sample)) = im.sub.try_recv() else {
+                let Ok(Some(sample)) = sub.try_recv() else {
                     break;
                 };
                 let bytes = sample.payload().to_bytes();
@@ -317,6 +346,7 @@ impl Role for BridgeRole {
         if now.saturating_sub(self.link_checked_ns) >= REPORT_NS {
             self.link_checked_ns = now;
             self.check_link();
+            self.follow_readers();
         }
         let connected = self.connected;
         self.counters[6] = connected as u64;
@@ -336,6 +366,56 @@ impl Role for BridgeRole {
 }
 
 impl BridgeRole {
+    /// Frames cross only where they are read: subscribe to an imported frame topic on
+    /// zenoh while it has a reader on this host (besides this bridge), and send an
+    /// exported one while zenoh has a subscriber for it on the other host.
+    fn follow_readers(&mut self) {
+        for im in self
+            .imports
+            .iter_mut()
+            .filter(|i| i.payload == Payload::Frame)
+        {
+            let ours = usize::from(im.exported);
+            let read_here = im.publisher.subscribers().is_some_and(|n| n > ours);
+            if read_here == im.sub.is_some() {
+                continue;
+            }
+            if !read_here {
+                im.sub = None;
+                println!(
+                    "bridge: `{}` has no reader here: not receiving it",
+                    im.topic
+                );
+                continue;
+            }
+            match self
+                .session
+                .declare_subscriber(data_key(&self.flight, &im.topic))
+                .wait()
+            {
+                Ok(sub) => {
+                    im.sub = Some(sub);
+                    println!("bridge: `{}` is read here: receiving it", im.topic);
+                }
+                Err(e) => {
+                    self.counters[5] += 1;
+                    eprintln!("bridge: cannot subscribe to `{}` on zenoh: {e}", im.topic);
+                }
+            }
+        }
+        for ex in self
+            .exports
+            .iter_mut()
+            .filter(|e| e.payload == Payload::Frame)
+        {
+            ex.wanted = ex
+                .publisher
+                .matching_status()
+                .wait()
+                .is_ok_and(|m| m.matching());
+        }
+    }
+
     /// Whether the other host's router is connected; a change is logged.
     fn check_link(&mut self) {
         let connected = self.session.info().routers_zid().wait().next().is_some();

@@ -572,6 +572,7 @@ impl FlightBus {
             .map_err(port_error(&name))?;
         Ok(FramePublisher {
             publisher,
+            port_factory: service,
             service: name,
         })
     }
@@ -876,6 +877,7 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> TypedSubscriber<T> {
 /// A publisher of frames.
 pub struct FramePublisher {
     publisher: Publisher<Ipc, [u8], FrameHeader>,
+    port_factory: PubSubService<[u8], FrameHeader>,
     service: String,
 }
 
@@ -910,6 +912,11 @@ impl FramePublisher {
     /// This publisher's port id (what its subscribers see as a sample's publisher).
     pub fn publisher_id(&self) -> iceoryx2::identifiers::UniquePublisherId {
         self.publisher.id()
+    }
+
+    /// How many subscribers the topic has now, in every process of this host.
+    pub fn subscribers(&self) -> usize {
+        self.port_factory.dynamic_config().number_of_subscribers()
     }
 
     /// The service name.

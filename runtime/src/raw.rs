@@ -202,6 +202,11 @@ pub trait RawPublisher {
     fn publish_raw(&self, bytes: &[u8], pixels: &[u8]) -> Result<(), RawPublishError>;
     /// This publisher's port id (what its subscribers see as a sample's publisher).
     fn id(&self) -> UniquePublisherId;
+    /// How many subscribers its topic has on this host (`None`: not counted, for topics
+    /// that are always carried).
+    fn subscribers(&self) -> Option<usize> {
+        None
+    }
 }
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> RawPublisher for TypedPublisher<T> {
@@ -220,6 +225,9 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> RawPublisher for TypedPublisher<T
 }
 
 impl RawPublisher for FramePublisher {
+    fn subscribers(&self) -> Option<usize> {
+        Some(FramePublisher::subscribers(self))
+    }
     fn publish_raw(&self, bytes: &[u8], pixels: &[u8]) -> Result<(), RawPublishError> {
         let header = read::<FrameHeader>(bytes).ok_or(RawPublishError::Length {
             type_name: type_name_of::<FrameHeader>(),
