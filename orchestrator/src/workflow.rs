@@ -16,7 +16,7 @@ mod parse;
 mod validate;
 
 pub use builtin::{DEFAULT_WORKFLOW_TOML, MODELS_WORKFLOW_TOML};
-pub use hosts::{BridgePlan, SUPERVISOR_READS, remote_cpus};
+pub use hosts::{BridgePlan, SUPERVISOR_READS, movable_across_hosts, remote_cpus};
 pub use validate::REQUIRED_KINDS;
 
 use crate::restart::RestartPolicy;

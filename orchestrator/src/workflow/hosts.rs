@@ -129,20 +129,24 @@ impl Workflow {
         Ok(())
     }
 
-    /// The bridges this flight needs: one per other host that runs a role, with the topics
-    /// that cross each way. Every role publishes its heartbeat, which the supervisor reads
-    /// on the flight's host.
+    /// The bridges this flight needs: one pair per declared host, carrying the topics that
+    /// cross between the flight's host and it for the roles that run there **or may be
+    /// moved there** during the flight ([`movable_across_hosts`]): a move needs no new
+    /// bridge. Every role publishes its heartbeat, which the supervisor reads on the
+    /// flight's host. (Frames cross only while read there: the bridge follows its readers.)
     pub fn bridge_plans(&self) -> Vec<BridgePlan> {
         let mut plans = Vec::new();
         for host in &self.hosts {
-            let on = |r: &&super::RoleDecl| {
-                r.kind != BRIDGE_KIND
-                    && self.role_host(r).map(|h| h.name.as_str()) == Some(host.name.as_str())
+            let placed_there = |r: &super::RoleDecl| {
+                self.role_host(r).map(|h| h.name.as_str()) == Some(host.name.as_str())
             };
-            let here = |r: &&super::RoleDecl| r.kind != BRIDGE_KIND && self.role_host(r).is_none();
-            if !self.roles.iter().any(|r| on(&r)) {
-                continue;
-            }
+            let may_be_there = |r: &&super::RoleDecl| {
+                r.kind != BRIDGE_KIND && (placed_there(r) || movable_across_hosts(&r.kind))
+            };
+            let may_be_here = |r: &&super::RoleDecl| {
+                r.kind != BRIDGE_KIND
+                    && (self.role_host(r).is_none() || movable_across_hosts(&r.kind))
+            };
             let publishes = |r: &super::RoleDecl, t: &str| {
                 t == topics::HEARTBEAT || r.publishes.iter().any(|p| p == t)
             };
@@ -156,14 +160,22 @@ impl Workflow {
             let mut to_host = Vec::new();
             let mut from_host = Vec::new();
             for t in topics::ALL {
-                let published_here = self.roles.iter().filter(here).any(|r| publishes(r, t));
-                let read_there = self.roles.iter().filter(on).any(|r| reads(r, t));
+                let published_here = self
+                    .roles
+                    .iter()
+                    .filter(may_be_here)
+                    .any(|r| publishes(r, t));
+                let read_there = self.roles.iter().filter(may_be_there).any(|r| reads(r, t));
                 if published_here && read_there {
                     to_host.push(t.to_string());
                 }
-                let published_there = self.roles.iter().filter(on).any(|r| publishes(r, t));
+                let published_there = self
+                    .roles
+                    .iter()
+                    .filter(may_be_there)
+                    .any(|r| publishes(r, t));
                 let read_here = SUPERVISOR_READS.contains(&t)
-                    || self.roles.iter().filter(here).any(|r| reads(r, t));
+                    || self.roles.iter().filter(may_be_here).any(|r| reads(r, t));
                 if published_there && read_here {
                     from_host.push(t.to_string());
                 }
@@ -176,6 +188,15 @@ impl Workflow {
         }
         plans
     }
+}
+
+/// Whether a role of `kind` may run on another host than the flight's and be moved there
+/// and back during the flight: a kind the hub, the controller and the autopilot link do
+/// not depend on being local (not [`FLIGHT_HOST_KINDS`]) and that may run twice for a
+/// moment (make-before-break: its catalog entry allows a hot swap).
+pub fn movable_across_hosts(kind: &str) -> bool {
+    !FLIGHT_HOST_KINDS.contains(&kind)
+        && aeris_runtime::catalog::role_kind(kind).is_some_and(|k| k.swap_refusal.is_none())
 }
 
 /// The CPUs of an executor on another host as its agent is asked for them ("" = wherever
@@ -222,21 +243,39 @@ mod tests {
         assert_eq!(plans.len(), 1);
         let p = &plans[0];
         assert_eq!(p.host.endpoint, "tcp/10.0.0.2:7447");
+        // the reasoner's inputs; the perception role may be moved there too, so its
+        // frames are planned (they cross only while read there)
         assert_eq!(
             p.to_host,
-            ["perception/state", "hub/setpoint", "vehicle/telemetry"]
+            [
+                "camera/rgb",
+                "camera/depth",
+                "perception/state",
+                "hub/setpoint",
+                "vehicle/telemetry"
+            ]
         );
-        assert_eq!(p.from_host, ["reasoning/decision", "heartbeat"]);
-        // perception there too: frames go, S_t no longer does
-        let w = Workflow::from_toml_str(&ground(true)).unwrap();
-        let p = &w.bridge_plans()[0];
-        assert!(
-            p.to_host.contains(&"camera/rgb".to_string()),
-            "{:?}",
-            p.to_host
+        assert_eq!(
+            p.from_host,
+            ["perception/state", "reasoning/decision", "heartbeat"]
         );
-        assert!(!p.to_host.contains(&"perception/state".to_string()));
-        assert!(p.from_host.contains(&"perception/state".to_string()));
+        // the same with the perception role there from the start
+        let w2 = Workflow::from_toml_str(&ground(true)).unwrap();
+        assert_eq!(w2.bridge_plans(), plans);
+        // a host with no role on it at the start still gets its bridges: roles may be
+        // moved there; the hub, the controller and the vehicle never
+        let toml = ground(false).replacen(
+            "variants = [\"planner\", \"garbage\"]\nexecutor = \"gs\"",
+            "variants = [\"planner\", \"garbage\"]\nexecutor = \"perception\"",
+            1,
+        );
+        let w3 = Workflow::from_toml_str(&toml).unwrap();
+        assert!(w3.roles.iter().all(|r| w3.role_host(r).is_none()));
+        assert_eq!(w3.bridge_plans(), plans);
+        assert!(!p.from_host.contains(&"hub/setpoint".to_string()));
+        assert!(super::movable_across_hosts("reasoning"));
+        assert!(!super::movable_across_hosts("hub"));
+        assert!(!super::movable_across_hosts("camera"));
     }
 
     #[test]
