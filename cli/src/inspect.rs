@@ -358,28 +358,54 @@ pub fn swap(
     Ok(())
 }
 
-/// `aeris migrate ROLE CPUS`.
-pub fn migrate(flight: Option<String>, role: &str, cpus: &str, json: bool) -> Result<()> {
+/// `aeris migrate ROLE TARGET`: live on the flight's host, make-before-break between hosts
+/// (each stage printed as it comes).
+pub fn migrate(flight: Option<String>, role: &str, target: &str, json: bool) -> Result<()> {
     let flight = resolve_flight(flight)?;
     let bus = tool_bus(&flight, "migrate")?;
-    let outcome = aeris_orchestrator::control::request_migrate(&bus, role, cpus);
+    let mut steps = Vec::new();
+    let outcome = aeris_orchestrator::control::request_migrate(&bus, role, target, |r| {
+        let stage = r.stage();
+        // the final reply is printed below; a refusal is the error
+        if !json
+            && !matches!(
+                stage,
+                Some(aeris_schemas::ReplyStage::Failed | aeris_schemas::ReplyStage::Done)
+            )
+        {
+            eprintln!("[{:>6} ms] {}", r.elapsed_ms, r.message.as_str_lossy());
+        }
+        steps.push(serde_json::json!({
+            "elapsed_ms": r.elapsed_ms,
+            "old_pid": r.old_pid,
+            "new_pid": r.new_pid,
+            "message": r.message.as_str_lossy(),
+        }));
+    });
     if json {
-        let (ok, error, message, pid) = match &outcome {
-            Ok(r) => (true, None, r.message.as_str_lossy().to_string(), r.new_pid),
-            Err(e) => (false, Some(e.to_string()), String::new(), 0),
+        let (ok, error, message, pid, elapsed_ms) = match &outcome {
+            Ok(r) => (
+                true,
+                None,
+                r.message.as_str_lossy().to_string(),
+                r.new_pid,
+                r.elapsed_ms,
+            ),
+            Err(e) => (false, Some(e.to_string()), String::new(), 0, 0),
         };
         println!(
             "{}",
             serde_json::json!({
-                "flight": flight, "role": role, "target": cpus, "ok": ok, "error": error,
-                "pid": pid, "message": message,
+                "flight": flight, "role": role, "target": target, "ok": ok, "error": error,
+                "pid": pid, "elapsed_ms": elapsed_ms, "message": message, "steps": steps,
             })
         );
     }
-    let done = outcome
-        .with_context(|| format!("moving role `{role}` to `{cpus}` in flight `{flight}` failed"))?;
+    let done = outcome.with_context(|| {
+        format!("moving role `{role}` to `{target}` in flight `{flight}` failed")
+    })?;
     if !json {
-        println!("{}", done.message.as_str_lossy());
+        println!("{} [{} ms]", done.message.as_str_lossy(), done.elapsed_ms);
     }
     Ok(())
 }

@@ -73,13 +73,16 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Move a running role's process, live, to another executor or CPU list: every thread
-    /// is re-bound, the pid stays, nothing restarts. Later restarts start there too.
+    /// Move a running role to another executor, CPU list or host. On the flight's host the
+    /// move is live: every thread is re-bound, the pid stays, nothing restarts. To another
+    /// host (`HOST:EXECUTOR`) and back it is make-before-break: the role starts there, takes
+    /// over with its first heartbeat, and the old process stops. Later restarts start there.
     Migrate {
         /// Role name (see `aeris status`).
         role: String,
-        /// An executor of the workflow, `cpuN` for one CPU, or a CPU list such as `0-1`.
-        cpus: String,
+        /// An executor of the workflow, `cpuN` for one CPU, a CPU list such as `0-1`, or
+        /// `HOST:EXECUTOR` for an executor on another host (`[hosts]` of the workflow).
+        target: String,
         /// Flight (default: the only one running).
         #[arg(long)]
         flight: Option<String>,
@@ -273,10 +276,10 @@ fn main() -> ExitCode {
         } => inspect::swap(flight, &role, &variant, timeout, json).map(|_| ExitCode::SUCCESS),
         Command::Migrate {
             role,
-            cpus,
+            target,
             flight,
             json,
-        } => inspect::migrate(flight, &role, &cpus, json).map(|_| ExitCode::SUCCESS),
+        } => inspect::migrate(flight, &role, &target, json).map(|_| ExitCode::SUCCESS),
         Command::Validate { workflow } => run_cmd::validate(&workflow),
         Command::Roles => roles(),
         Command::Replay(args) => replay_cmd::run(args).map(|_| ExitCode::SUCCESS),

@@ -55,19 +55,21 @@ pub fn request_swap(
     )
 }
 
-/// Ask the flight's supervisor to move `role`, live, to `target` (an executor name or a CPU
-/// list) and wait for the outcome. Returns the final reply (its message says from where to
-/// where, how many threads, how long).
+/// Ask the flight's supervisor to move `role` to `target` (an executor name, a CPU list, or
+/// `HOST:EXECUTOR` on another host) and wait for the outcome; `on_reply` sees every reply
+/// as it arrives (a move between hosts answers per stage, like a swap). Returns the final
+/// reply (its message says from where to where and how long).
 pub fn request_migrate(
     bus: &FlightBus,
     role: &str,
     target: &str,
+    on_reply: impl FnMut(&SupervisorReply),
 ) -> Result<SupervisorReply, ControlError> {
     request(
         bus,
         &SupervisorCommand::migrate(role, target),
-        SLACK,
-        |_| {},
+        crate::supervisor::DEFAULT_SWAP_READY_TIMEOUT + crate::supervisor::RETIRE_GRACE + SLACK,
+        on_reply,
     )
 }
 

@@ -6,7 +6,8 @@
 
 use crate::restart::RestartPolicy;
 use crate::workflow::{
-    BRIDGE_KIND, ExecutorCpus, RECORDER_KIND, RoleDecl, Workflow, WorkflowError, remote_cpus,
+    BRIDGE_KIND, Executor, ExecutorCpus, RECORDER_KIND, RoleDecl, Workflow, WorkflowError,
+    remote_cpus,
 };
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::spec::{RemoteSpec, RoleSpec};
@@ -56,6 +57,8 @@ pub struct LaunchPlan {
     pub roles: Vec<PlannedRole>,
     /// Executor name -> resolved CPU set.
     pub executors: Vec<(String, CpuSet)>,
+    /// The executors on other hosts: where a role moved there runs (name, host and CPUs).
+    pub remote_executors: Vec<(String, RemoteSpec)>,
     /// UDP port of the built-in vehicle link, when the built-in vehicle flies.
     pub vehicle_port: Option<u16>,
 }
@@ -106,7 +109,7 @@ pub fn resolve_executors(workflow: &Workflow, online: &CpuSet) -> Vec<(String, C
 pub const BRIDGE_HOST_PARAM: &str = "on_host";
 
 /// The bridge roles of `workflow` (kind [`BRIDGE_KIND`], variant `zenoh`), two per other
-/// host that runs a role: `bridge-to-HOST` on the flight's host and `bridge-on-HOST` there,
+/// host ([`Workflow::bridge_plans`]): `bridge-to-HOST` on the flight's host and `bridge-on-HOST` there,
 /// each told the host's endpoint, what it sends (`export`) and what it receives
 /// (`import`). They start before every other role.
 pub fn bridge_roles(workflow: &Workflow) -> Vec<RoleDecl> {
@@ -147,6 +150,17 @@ pub fn bridge_roles(workflow: &Workflow) -> Vec<RoleDecl> {
         ));
     }
     roles
+}
+
+/// Where a role on `host` runs: its agent's endpoint, the link's timeout, and the CPUs of
+/// `executor` there.
+fn remote_spec(host: &crate::workflow::Host, executor: Option<&Executor>) -> RemoteSpec {
+    RemoteSpec {
+        host: host.name.clone(),
+        endpoint: host.endpoint.clone(),
+        cpus: executor.map(|e| remote_cpus(&e.cpus)).unwrap_or_default(),
+        link_timeout_ms: host.link_timeout_ms,
+    }
 }
 
 /// A free UDP port on 127.0.0.1 (bind port 0, read it, release it).
@@ -231,12 +245,7 @@ pub fn plan_launch(
                         .map(|(_, s)| s.clone())
                 }),
             };
-            let remote = host.map(|h| RemoteSpec {
-                host: h.name.clone(),
-                endpoint: h.endpoint.clone(),
-                cpus: executor.map(|e| remote_cpus(&e.cpus)).unwrap_or_default(),
-                link_timeout_ms: h.link_timeout_ms,
-            });
+            let remote = host.map(|h| remote_spec(h, executor));
             PlannedRole {
                 spec: RoleSpec {
                     flight: flight.to_string(),
@@ -273,9 +282,18 @@ pub fn plan_launch(
             }
         })
         .collect();
+    let remote_executors = w
+        .executors
+        .iter()
+        .filter_map(|ex| {
+            let host = w.hosts.iter().find(|h| Some(&h.name) == ex.host.as_ref())?;
+            Some((ex.name.clone(), remote_spec(host, Some(ex))))
+        })
+        .collect();
     Ok(LaunchPlan {
         roles,
         executors,
+        remote_executors,
         vehicle_port,
     })
 }

@@ -101,6 +101,16 @@ impl TwoHosts {
         cmd
     }
 
+    /// `program args..` beside process `pid` (started by [`TwoHosts::command`]): in its
+    /// network and mount namespaces, so it sees that process's `/dev/shm` (a tool such as
+    /// `aeris migrate` joining its flight).
+    pub fn command_beside(&self, pid: u32, program: &std::path::Path) -> Command {
+        let mut cmd = Command::new("nsenter");
+        cmd.args(["-t", &pid.to_string(), "-m", "-n", "--"])
+            .arg(program);
+        cmd
+    }
+
     /// Cut (`false`) or restore (`true`) the link, on the vehicle's side.
     pub fn set_link(&self, up: bool) {
         let state = if up { "up" } else { "down" };

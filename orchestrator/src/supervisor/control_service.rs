@@ -1,6 +1,7 @@
 //! The `supervisor/control` request-response service: `aeris swap` and `aeris migrate` ask
-//! for a hot swap or a live move; a swap's request is answered with a reply per stage
-//! (started, ready, done or failed), a move's with one final reply.
+//! for a hot swap or a move; a swap's request and a move between hosts are answered with a
+//! reply per stage (started, ready, done or failed), a live move on the flight's host with
+//! one final reply.
 
 use super::role_runtime::RoleRuntime;
 use super::swap::DEFAULT_SWAP_READY_TIMEOUT;
@@ -53,6 +54,7 @@ impl ControlService {
                     old_pid,
                     new_pid,
                     instance,
+                    ..
                 } => {
                     let mut r = SupervisorReply::new(
                         ReplyStage::Started,
@@ -140,8 +142,14 @@ impl Supervisor {
                         Err(e) => SupervisorReply::new(ReplyStage::Failed, &e.to_string()),
                     }
                 }
-                Some(CommandKind::Migrate) => match self.migrate(&role, &variant) {
-                    Ok(m) => {
+                Some(CommandKind::Migrate) => match self.move_role(&role, &variant) {
+                    Ok(super::RoleMove::Started { .. }) => {
+                        // a move between hosts is a swap in place: its events answer it
+                        events.append(&mut self.pending);
+                        self.control.follow(role, request);
+                        continue;
+                    }
+                    Ok(super::RoleMove::Live(m)) => {
                         let mut r = SupervisorReply::new(
                             ReplyStage::Done,
                             &SupervisorEvent::RoleMigrated(m.clone()).to_string(),

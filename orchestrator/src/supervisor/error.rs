@@ -243,6 +243,59 @@ pub enum MigrateError {
         /// Role name.
         role: String,
     },
+    /// `HOST:EXECUTOR` names a host the workflow does not declare, or an executor not on it.
+    #[error("`{target}` is not an executor on another host (declared: {known})")]
+    UnknownRemoteExecutor {
+        /// The target as given.
+        target: String,
+        /// The executors on other hosts, as `HOST:EXECUTOR`, comma-separated.
+        known: String,
+    },
+    /// The role's kind must stay on the flight's host (or cannot run twice for a moment,
+    /// which a make-before-break move needs).
+    #[error(
+        "role `{role}` (kind {kind}) cannot move to another host: it runs on the flight's host"
+    )]
+    NotMovable {
+        /// Role name.
+        role: String,
+        /// Its kind.
+        kind: String,
+    },
+    /// The role already runs there.
+    #[error("role `{role}` already runs on {place}")]
+    AlreadyThere {
+        /// Role name.
+        role: String,
+        /// Where it runs.
+        place: String,
+    },
+    /// There, the role would exchange a topic with a role on a third host: topics cross
+    /// only between the flight's host and one other.
+    #[error(
+        "role `{role}` cannot move to host `{host}`: it would exchange `{topic}` with role `{other}` on host `{other_host}` (topics cross only between the flight's host and one other)"
+    )]
+    HostToHost {
+        /// Role name.
+        role: String,
+        /// The target host.
+        host: String,
+        /// The topic.
+        topic: String,
+        /// The role on the third host.
+        other: String,
+        /// The third host.
+        other_host: String,
+    },
+    /// The new process of a move between hosts could not be started.
+    #[error("cannot move role `{role}`")]
+    Start {
+        /// Role name.
+        role: String,
+        /// Why.
+        #[source]
+        source: SwapError,
+    },
     /// The kernel refused the affinity (CPUs outside the supervisor's cpuset, no permission).
     #[error("cannot move role `{role}` (pid {pid}) to CPUs {cpus}: {reason}")]
     Affinity {

@@ -70,6 +70,9 @@ pub enum SupervisorEvent {
         new_pid: u32,
         /// Its instance number.
         instance: u32,
+        /// Where it runs, when it moves the role to another host or back (`None`: a hot
+        /// swap where the role runs).
+        place: Option<String>,
     },
     /// The new process loaded, warmed up and sent its first heartbeat: it is the role now
     /// (its normal scheduling restored), and the old one was asked to stop.
@@ -86,6 +89,8 @@ pub enum SupervisorEvent {
         instance: u32,
         /// Milliseconds from the start of the swap to the new process's first heartbeat.
         ready_ms: u64,
+        /// Where it runs, when it moved the role to another host or back.
+        place: Option<String>,
     },
     /// The old process of a swap exited: the swap is complete.
     SwapDone {
@@ -97,6 +102,8 @@ pub enum SupervisorEvent {
         old_pid: Option<u32>,
         /// How it ended (`None`: there was none).
         exit: Option<RoleExit>,
+        /// Where the role runs now, when it moved to another host or back.
+        place: Option<String>,
     },
     /// The new process failed to come up; it was stopped and the old one keeps running.
     SwapFailed {
@@ -259,33 +266,48 @@ impl core::fmt::Display for SupervisorEvent {
                 variant,
                 new_pid,
                 instance,
+                place,
                 ..
-            } => write!(
-                f,
-                "role `{name}`: swap to `{variant}` started (pid {new_pid}, instance {instance})"
-            ),
+            } => match place {
+                Some(place) => write!(
+                    f,
+                    "role `{name}`: moving `{variant}` to {place} (pid {new_pid}, instance {instance})"
+                ),
+                None => write!(
+                    f,
+                    "role `{name}`: swap to `{variant}` started (pid {new_pid}, instance {instance})"
+                ),
+            },
             SupervisorEvent::SwapReady {
                 name,
                 variant,
                 new_pid,
                 ready_ms,
+                place,
                 ..
-            } => write!(
-                f,
-                "role `{name}`: `{variant}` (pid {new_pid}) is ready after {ready_ms} ms; stopping the old process"
-            ),
+            } => {
+                write!(f, "role `{name}`: `{variant}` (pid {new_pid}) ")?;
+                if let Some(place) = place {
+                    write!(f, "on {place} ")?;
+                }
+                write!(f, "is ready after {ready_ms} ms; stopping the old process")
+            }
             SupervisorEvent::SwapDone {
                 name,
                 variant,
                 old_pid,
                 exit,
-            } => match (old_pid, exit) {
-                (Some(pid), Some(e)) => write!(
-                    f,
-                    "role `{name}`: swap to `{variant}` done (old pid {pid} {e})"
-                ),
-                _ => write!(f, "role `{name}`: swap to `{variant}` done"),
-            },
+                place,
+            } => {
+                match place {
+                    Some(place) => write!(f, "role `{name}`: move of `{variant}` to {place} done")?,
+                    None => write!(f, "role `{name}`: swap to `{variant}` done")?,
+                }
+                match (old_pid, exit) {
+                    (Some(pid), Some(e)) => write!(f, " (old pid {pid} {e})"),
+                    _ => Ok(()),
+                }
+            }
             SupervisorEvent::SwapFailed {
                 name,
                 variant,

@@ -10,7 +10,7 @@
 use super::Supervisor;
 use super::events::SupervisorEvent;
 use super::role_runtime::RoleState;
-use super::swap::{DEFAULT_SWAP_READY_TIMEOUT, LocalPlacement};
+use super::swap::{DEFAULT_SWAP_READY_TIMEOUT, Placement};
 use crate::restart::RestartPolicy;
 use std::time::Instant;
 
@@ -41,11 +41,15 @@ impl Supervisor {
             let policy = core::mem::replace(&mut r.policy, RestartPolicy::Never);
             let silent_ms = silent.as_millis() as u64;
             let started = fallback.as_ref().and_then(|fb| {
-                let placement = LocalPlacement {
+                let executor = fb.executor.clone().unwrap_or_default();
+                let placement = Placement {
                     cpus: fb.cpus.clone(),
-                    executor: fb.executor.clone().unwrap_or_default(),
+                    place: flight_host_place(&executor),
+                    executor,
+                    remote: None,
+                    link_fallback: None,
                     why: format!("fallback: the link to host `{host}` was lost"),
-                    policy,
+                    policy: Some(policy),
                 };
                 match self.start_swap(
                     &name,
@@ -79,5 +83,14 @@ impl Supervisor {
                 fallback: started,
             });
         }
+    }
+}
+
+/// The flight's host, and the executor there, for messages.
+pub(super) fn flight_host_place(executor: &str) -> String {
+    if executor.is_empty() {
+        "the flight's host".to_string()
+    } else {
+        format!("the flight's host (executor {executor})")
     }
 }

@@ -1,15 +1,22 @@
 //! Live migration: moving a role's running process to another executor (every thread, same
 //! pid, checked), by hand (`aeris migrate`) or for the scheduling policy, and the move's line
-//! in `RUN_DIR/scheduling.jsonl`.
+//! in `RUN_DIR/scheduling.jsonl`; and moving a role to another host and back
+//! ([`Supervisor::move_role`]), make-before-break through the hot-swap path.
 
 use super::Supervisor;
 use super::error::MigrateError;
 use super::events::{Migration, MigrationTrigger, SupervisorEvent};
+use super::links::flight_host_place;
 use super::role_runtime::{RECENT_CYCLES, RoleState};
+use super::swap::{DEFAULT_SWAP_READY_TIMEOUT, Placement};
 use crate::executors::process_threads;
+use crate::launch::PlannedFallback;
+use crate::workflow::movable_across_hosts;
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::spec::RemoteSpec;
 use aeris_runtime::stats::LatencyWindow;
+use aeris_schemas::topics;
 use std::fs::OpenOptions;
 use std::io::Write as _;
 use std::time::Instant;
@@ -38,7 +45,202 @@ pub(super) fn bind_all_threads(pid: u32, set: &CpuSet) -> Result<usize, String> 
     ))
 }
 
+/// How a move asked for goes ([`Supervisor::move_role`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum RoleMove {
+    /// Moved live between executors of the flight's host: same pid, done.
+    Live(Migration),
+    /// Moving to another host or back, make-before-break: the new process (`new_pid`, on
+    /// the flight's host the role's handle when the role goes to another host) is starting
+    /// at `place`; [`SupervisorEvent::SwapReady`] and [`SupervisorEvent::SwapDone`] (or
+    /// [`SupervisorEvent::SwapFailed`], the role staying where it was) follow.
+    Started {
+        /// The new process.
+        new_pid: u32,
+        /// Where it runs.
+        place: String,
+    },
+}
+
 impl Supervisor {
+    /// Move role `role` to `target`, by hand (`aeris migrate`):
+    /// - an executor or CPU list of the flight's host, for a role there: live, same pid
+    ///   ([`Supervisor::migrate`]);
+    /// - `HOST:EXECUTOR` (or the name of an executor on another host): make-before-break
+    ///   through the hot-swap path: the same variant starts there, becomes the role with its
+    ///   first heartbeat (the hub follows its first decision), and the old process stops.
+    ///   If the link to that host is lost later, the workflow's `fallback` takes over on the
+    ///   flight's host, or else the role as it ran before the move;
+    /// - an executor or CPU list of the flight's host, for a role on another host: back,
+    ///   make-before-break too.
+    pub fn move_role(&mut self, role: &str, target: &str) -> Result<RoleMove, MigrateError> {
+        let Some(i) = self.roles.iter().position(|r| r.name == role) else {
+            return Err(MigrateError::UnknownRole {
+                role: role.to_string(),
+                known: self.role_names(),
+            });
+        };
+        let remote = self.resolve_remote(target)?;
+        let r = &self.roles[i];
+        if remote.is_none() && r.link.is_none() {
+            return self.migrate(role, target).map(RoleMove::Live);
+        }
+        if r.swap.is_some() {
+            return Err(MigrateError::SwapInProgress {
+                role: r.name.clone(),
+            });
+        }
+        if r.pid.is_none() || r.state != super::role_runtime::RoleState::Running {
+            return Err(MigrateError::NotRunning {
+                role: r.name.clone(),
+                state: r.describe_state(),
+            });
+        }
+        let placement = match remote {
+            Some((executor, spec)) => self.remote_placement(i, executor, spec)?,
+            None => {
+                let (executor, set) = self.resolve_target(target)?;
+                let r = &self.roles[i];
+                let from = r.link.as_ref().map(|l| l.host.clone()).unwrap_or_default();
+                let executor = if self.registry.by_name(&executor).is_some() {
+                    executor
+                } else {
+                    String::new()
+                };
+                Placement {
+                    place: flight_host_place(&executor),
+                    cpus: Some(set),
+                    executor,
+                    remote: None,
+                    link_fallback: None,
+                    why: format!("moved by hand from host `{from}`"),
+                    policy: None,
+                }
+            }
+        };
+        let place = placement.place.clone();
+        let variant = self.roles[i].variant.clone();
+        let new_pid = self
+            .start_swap(
+                role,
+                &variant,
+                DEFAULT_SWAP_READY_TIMEOUT,
+                true,
+                Some(placement),
+            )
+            .map_err(|source| MigrateError::Start {
+                role: role.to_string(),
+                source,
+            })?;
+        Ok(RoleMove::Started { new_pid, place })
+    }
+
+    /// The executor on another host that `target` names (`HOST:EXECUTOR`, or an executor
+    /// name that is on another host); `None` when `target` is of the flight's host.
+    fn resolve_remote(&self, target: &str) -> Result<Option<(String, RemoteSpec)>, MigrateError> {
+        let found = match target.split_once(':') {
+            Some((host, executor)) => self
+                .remote_executors
+                .iter()
+                .find(|(name, spec)| name == executor && spec.host == host),
+            None => {
+                return Ok(self
+                    .remote_executors
+                    .iter()
+                    .find(|(name, _)| name == target)
+                    .cloned());
+            }
+        };
+        match found {
+            Some(f) => Ok(Some(f.clone())),
+            None => Err(MigrateError::UnknownRemoteExecutor {
+                target: target.to_string(),
+                known: if self.remote_executors.is_empty() {
+                    "none".to_string()
+                } else {
+                    self.remote_executors
+                        .iter()
+                        .map(|(name, spec)| format!("{}:{name}", spec.host))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                },
+            }),
+        }
+    }
+
+    /// Where role `i` runs on `executor` of another host, checked: a kind that may move,
+    /// not there already, no topic with a role on a third host.
+    fn remote_placement(
+        &self,
+        i: usize,
+        executor: String,
+        spec: RemoteSpec,
+    ) -> Result<Placement, MigrateError> {
+        let r = &self.roles[i];
+        if !movable_across_hosts(&r.kind) {
+            return Err(MigrateError::NotMovable {
+                role: r.name.clone(),
+                kind: r.kind.clone(),
+            });
+        }
+        let place = format!("host `{}` (executor {executor})", spec.host);
+        if r.link.as_ref().is_some_and(|l| l.host == spec.host) && r.executor == executor {
+            return Err(MigrateError::AlreadyThere {
+                role: r.name.clone(),
+                place,
+            });
+        }
+        let kind = aeris_runtime::catalog::role_kind(&r.kind);
+        for o in &self.roles {
+            let Some(other_host) = o.link.as_ref().map(|l| &l.host) else {
+                continue;
+            };
+            if o.name == r.name || *other_host == spec.host {
+                continue;
+            }
+            let (Some(k), Some(ok)) = (kind, aeris_runtime::catalog::role_kind(&o.kind)) else {
+                continue;
+            };
+            let shared = k
+                .publishes
+                .iter()
+                .filter(|t| ok.subscribes.contains(t))
+                .chain(k.subscribes.iter().filter(|t| ok.publishes.contains(t)))
+                .find(|t| **t != topics::HEARTBEAT);
+            if let Some(topic) = shared {
+                return Err(MigrateError::HostToHost {
+                    role: r.name.clone(),
+                    host: spec.host.clone(),
+                    topic: topic.to_string(),
+                    other: o.name.clone(),
+                    other_host: other_host.clone(),
+                });
+            }
+        }
+        // lost link: the workflow's fallback, else the role as it runs here now
+        let link_fallback = r.declared_fallback.clone().or_else(|| match &r.link {
+            Some(l) => l.fallback.clone(),
+            None => Some(PlannedFallback {
+                variant: r.variant.clone(),
+                executor: (!r.executor.is_empty()).then(|| r.executor.clone()),
+                cpus: r.cpu_set.clone(),
+            }),
+        });
+        let from = match &r.link {
+            Some(l) => format!("host `{}`", l.host),
+            None => "the flight's host".to_string(),
+        };
+        Ok(Placement {
+            cpus: None,
+            executor,
+            why: format!("moved by hand from {from}"),
+            place,
+            remote: Some(spec),
+            link_fallback,
+            policy: None,
+        })
+    }
+
     /// Move role `role`'s running process, live, to `target`: an executor name or a CPU
     /// list. Every thread is bound (passes repeat until every thread, new ones included,
     /// reports the new affinity); the pid stays, nothing restarts, no port closes. Later

@@ -59,6 +59,7 @@ mod variants;
 pub use error::{MigrateError, SilentRole, SupervisorError, SwapError};
 pub use events::{Migration, MigrationTrigger, SupervisorEvent};
 pub use logs::{LOG_TAIL_LINES, log_tail};
+pub use migration::RoleMove;
 pub use role_runtime::{LATENCY_WINDOW, RoleRuntime, RoleState};
 pub use shutdown::{ShutdownEntry, ShutdownOutcome, ShutdownReport};
 pub use swap::{DEFAULT_SWAP_READY_TIMEOUT, RETIRE_GRACE};
@@ -148,6 +149,8 @@ pub struct Supervisor {
     migrations: u32,
     /// The audit of the flight's services.
     services: ServiceAudit,
+    /// The executors on other hosts (where `aeris migrate ROLE HOST:EXECUTOR` sends a role).
+    remote_executors: Vec<(String, aeris_runtime::spec::RemoteSpec)>,
 }
 
 impl core::fmt::Debug for Supervisor {
@@ -249,6 +252,7 @@ impl Supervisor {
             initial: InitialCheck::default(),
             migrations: 0,
             services: ServiceAudit::new(),
+            remote_executors: plan.remote_executors,
         };
         for planned in plan.roles {
             sup.add_role(planned, &roles_dir, &logs_dir)?;

@@ -134,6 +134,8 @@ pub struct RoleRuntime {
     pub(super) last_cycle_ms: Option<f64>,
     /// On another host: the link it depends on (`None`: it runs on the flight's host).
     pub(super) link: Option<RemoteLink>,
+    /// The workflow's fallback for it (`fallback`), for whenever it runs on another host.
+    pub(super) declared_fallback: Option<PlannedFallback>,
 }
 
 impl RoleRuntime {
@@ -252,11 +254,12 @@ impl RoleRuntime {
         let link = spec.remote.as_ref().map(|r| RemoteLink {
             host: r.host.clone(),
             timeout: Duration::from_millis(r.link_timeout_ms),
-            fallback,
+            fallback: fallback.clone(),
             lost: false,
         });
         RoleRuntime {
             link,
+            declared_fallback: fallback,
             name: spec.name,
             kind: spec.kind,
             variant: spec.variant,
@@ -388,6 +391,7 @@ mod tests {
     fn runtime() -> RoleRuntime {
         RoleRuntime {
             link: None,
+            declared_fallback: None,
             name: "r".into(),
             kind: "hub".into(),
             variant: "gate".into(),

@@ -7,11 +7,13 @@ use super::Supervisor;
 use super::error::SwapError;
 use super::events::SupervisorEvent;
 use super::logs::{log_tail, open_log, quote_tail};
-use super::role_runtime::{LATENCY_WINDOW, RoleRuntime, RoleState};
+use super::role_runtime::{LATENCY_WINDOW, RemoteLink, RoleRuntime, RoleState};
 use super::spawn::{LoadPolicy, may_leave_idle, set_normal_policy};
+use crate::launch::PlannedFallback;
 use crate::restart::RoleExit;
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::spec::RemoteSpec;
 use aeris_runtime::stats::LatencyWindow;
 use aeris_schemas::RoleHeartbeat;
 use std::path::{Path, PathBuf};
@@ -47,23 +49,31 @@ pub(super) struct SwapInProgress {
     pub(super) deadline: Instant,
     /// Its first working heartbeat: it is ready.
     pub(super) ready: Option<RoleHeartbeat>,
-    /// Set when it runs elsewhere than the role ran (a fallback on the flight's host).
-    pub(super) placement: Option<LocalPlacement>,
+    /// Set when it runs elsewhere than the role ran (a move between hosts, a fallback).
+    pub(super) placement: Option<Placement>,
 }
 
-/// Where a replacement runs when not where the role runs now: on the flight's host, for a
-/// role whose host's link was lost.
+/// Where a replacement runs when not where the role runs now: on another host (a move
+/// there, `aeris migrate ROLE HOST:EXECUTOR`), or back on the flight's host (a move back, or
+/// the fallback of a role whose host's link was lost).
 #[derive(Debug, Clone)]
-pub(super) struct LocalPlacement {
-    /// Its CPUs (`None`: the supervisor's).
+pub(super) struct Placement {
+    /// Its CPUs on the flight's host (`None`: the supervisor's; always for another host,
+    /// where its handle runs unbound).
     pub(super) cpus: Option<CpuSet>,
     /// Its executor's name (empty: unbound).
     pub(super) executor: String,
+    /// On another host: that host, its agent and the CPUs there (`None`: the flight's host).
+    pub(super) remote: Option<RemoteSpec>,
+    /// What takes over on the flight's host if the link to `remote` is lost.
+    pub(super) link_fallback: Option<PlannedFallback>,
+    /// Where it runs, for messages ("host `ground` (executor gs)").
+    pub(super) place: String,
     /// Why it runs there (the role's new binding).
     pub(super) why: String,
     /// The role's restart policy, back in force once it runs there (a role whose link is
-    /// lost is not restarted behind the link meanwhile).
-    pub(super) policy: crate::restart::RestartPolicy,
+    /// lost is not restarted behind the link meanwhile); `None`: unchanged.
+    pub(super) policy: Option<crate::restart::RestartPolicy>,
 }
 
 /// A replaced process, asked to stop, until it exits.
@@ -73,6 +83,8 @@ struct Retiring {
     name: String,
     /// The variant it was swapped to.
     variant: String,
+    /// Where the new process runs, when it moved.
+    place: Option<String>,
     /// The replaced process's pid.
     pid: u32,
     /// The replaced process.
@@ -96,6 +108,7 @@ impl RetiringProcesses {
         &mut self,
         name: &str,
         variant: String,
+        place: Option<String>,
         mut old: Child,
         now: Instant,
         events: &mut Vec<SupervisorEvent>,
@@ -110,6 +123,7 @@ impl RetiringProcesses {
             Ok(None) => self.processes.push(Retiring {
                 name: name.to_string(),
                 variant,
+                place,
                 pid,
                 child: old,
                 since: now,
@@ -119,6 +133,7 @@ impl RetiringProcesses {
                 variant,
                 old_pid: Some(pid),
                 exit: exited.ok().flatten().map(RoleExit::from_status),
+                place,
             }),
         }
     }
@@ -145,6 +160,7 @@ impl RetiringProcesses {
                         variant: r.variant,
                         old_pid: Some(r.pid),
                         exit: Some(exit),
+                        place: r.place,
                     });
                 }
             }
@@ -184,13 +200,24 @@ impl RoleRuntime {
         self.window = LatencyWindow::new(LATENCY_WINDOW);
         self.latency_ms = None;
         if let Some(p) = swap_placement {
-            // it now runs on the flight's host, no longer behind a link
-            self.cpus = p.cpus.as_ref().map(|c| c.to_string()).unwrap_or_default();
+            // it now runs there: behind that host's link, or on the flight's host
+            self.cpus = match &p.remote {
+                Some(r) => r.cpus.clone(),
+                None => p.cpus.as_ref().map(|c| c.to_string()).unwrap_or_default(),
+            };
             self.cpu_set = p.cpus;
             self.executor = p.executor;
             self.binding = p.why;
-            self.policy = p.policy;
-            self.link = None;
+            if let Some(policy) = p.policy {
+                self.policy = policy;
+            }
+            self.link = p.remote.map(|r| RemoteLink {
+                host: r.host,
+                timeout: Duration::from_millis(r.link_timeout_ms),
+                fallback: p.link_fallback,
+                lost: false,
+            });
+            self.migrations += 1;
         }
         (old_pid, old_child)
     }
@@ -218,15 +245,15 @@ impl Supervisor {
     /// the role it replaces already misses its budget, so the CPUs are saturated, and an
     /// idle load gets no CPU at all (measured: SmolLM2 stepping in for Gemma-3 on 2 busy
     /// CPUs was not ready within 90 s and the step was rolled back). With `placement` the
-    /// new process runs there, on the flight's host, whatever the role's pool (a fallback
-    /// the workflow named).
+    /// new process runs there (another host, or the flight's host for a role behind a
+    /// link), whatever the role's pool.
     pub(super) fn start_swap(
         &mut self,
         role: &str,
         variant: &str,
         ready_timeout: Duration,
         load_idle: bool,
-        placement: Option<LocalPlacement>,
+        placement: Option<Placement>,
     ) -> Result<u32, SwapError> {
         let Some(i) = self.roles.iter().position(|r| r.name == role) else {
             return Err(SwapError::UnknownRole {
@@ -274,7 +301,7 @@ impl Supervisor {
             .map_err(|e| prepare(aeris_runtime::error_chain::chain(&e).to_string()))?;
         spec.variant = variant.to_string();
         if let Some(p) = &placement {
-            spec.remote = None;
+            spec.remote = p.remote.clone();
             spec.cpus = p.cpus.as_ref().map(|c| c.to_string()).unwrap_or_default();
         }
         let cpus = placement
@@ -287,11 +314,12 @@ impl Supervisor {
             .map_err(|e| prepare(format!("{}: {e}", spec_path.display())))?;
         let log_dir = r.log_path.parent().unwrap_or(Path::new("."));
         let log_path = log_dir.join(format!("{}.i{instance}.log", r.name));
+        let what = placement.as_ref().map_or_else(
+            || "hot swap".to_string(),
+            |p| format!("{} to {}", p.why, p.place),
+        );
         let header = format!(
-            "=== aeris supervisor: {} of role `{}` from `{}` to `{variant}`, instance {instance} on CPUs [{}], monotonic {} ns ===",
-            placement
-                .as_ref()
-                .map_or("hot swap", |_| "fallback on the flight's host"),
+            "=== aeris supervisor: {what} of role `{}` from `{}` to `{variant}`, instance {instance} on CPUs [{}], monotonic {} ns ===",
             r.name,
             r.variant,
             cpus.as_ref().map(|c| c.to_string()).unwrap_or_default(),
@@ -314,6 +342,7 @@ impl Supervisor {
             .map_err(|e| cleanup(format!("cannot start `{}`: {e}", exe.display())))?;
         let pid = child.id();
         let now = Instant::now();
+        let place = placement.as_ref().map(|p| p.place.clone());
         r.swap = Some(SwapInProgress {
             variant: variant.to_string(),
             spec_path,
@@ -332,6 +361,7 @@ impl Supervisor {
             old_pid: r.pid,
             new_pid: pid,
             instance,
+            place,
         });
         Ok(pid)
     }
@@ -378,6 +408,7 @@ impl Supervisor {
             // commit: the new process is the role (normal policy back, on every thread)
             set_normal_policy(swap.pid);
             let (variant, new_pid, instance) = (swap.variant.clone(), swap.pid, swap.instance);
+            let place = swap.placement.as_ref().map(|p| p.place.clone());
             let ready_ms = swap.started.elapsed().as_millis() as u64;
             let (old_pid, old_child) = role.take_over(swap, now);
             events.push(SupervisorEvent::SwapReady {
@@ -387,6 +418,7 @@ impl Supervisor {
                 new_pid,
                 instance,
                 ready_ms,
+                place: place.clone(),
             });
             // then stop the old one; the swap is done when it has exited
             let Some(old) = old_child else {
@@ -395,11 +427,13 @@ impl Supervisor {
                     variant,
                     old_pid: None,
                     exit: None,
+                    place,
                 });
                 continue;
             };
             role.old_pids.push(old.id());
-            self.retiring.retire(&role.name, variant, old, now, events);
+            self.retiring
+                .retire(&role.name, variant, place, old, now, events);
         }
     }
 

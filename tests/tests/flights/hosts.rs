@@ -85,15 +85,53 @@ fn fly_on_the_vehicle(hosts: &TwoHosts, dir: &Path, workflow: &Path, flight: &st
     ChildGuard::spawn(&mut cmd).expect("spawn aeris run")
 }
 
+/// `aeris migrate ROLE TARGET --json` against `flight`, beside its `aeris run` (`run`): its
+/// JSON.
+fn migrate(
+    hosts: &TwoHosts,
+    run: &ChildGuard,
+    flight: &str,
+    role: &str,
+    target: &str,
+) -> serde_json::Value {
+    let out = hosts
+        .command_beside(run.0.id(), &aeris_bin())
+        .args(["migrate", role, target, "--json", "--flight", flight])
+        .output()
+        .expect("run aeris migrate");
+    let text = String::from_utf8_lossy(&out.stdout);
+    let answer = last_json_line(&text);
+    assert!(
+        out.status.success() && answer["ok"] == true,
+        "aeris migrate {role} {target}: {answer}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    answer
+}
+
 #[test]
-fn a_flight_with_its_reasoner_and_perception_on_another_host_reaches_its_goal() {
+fn a_flight_with_roles_on_another_host_and_its_reasoner_moved_there_and_back_reaches_its_goal() {
     let dir = TempDir::new("hosts-goal");
     let hosts = TwoHosts::new();
     let _agent = start_agent(&hosts, &dir.0);
+    // the perception role on the ground host from the start, the reasoner on board
+    let text = ground_workflow(&hosts.ground_endpoint()).replacen(
+        "variants = [\"planner\", \"garbage\"]\nexecutor = \"gs\"",
+        "variants = [\"planner\", \"garbage\"]\nexecutor = \"perception\"",
+        1,
+    );
     let workflow = dir.0.join("ground.toml");
-    std::fs::write(&workflow, ground_workflow(&hosts.ground_endpoint())).unwrap();
+    std::fs::write(&workflow, text).unwrap();
     let flight = unique_flight("hosts");
     let mut run = fly_on_the_vehicle(&hosts, &dir.0, &workflow, &flight);
+    // the reasoner moves to the ground host while flying, then back on board
+    wait_for_text(
+        &dir.0.join("run.stderr"),
+        "step 2/4",
+        "the flight's progress",
+    );
+    let there = migrate(&hosts, &run, &flight, "reasoning", "ground:gs");
+    let back = migrate(&hosts, &run, &flight, "reasoning", "perception");
     let status = wait_bounded(&mut run.0, FLIGHT_BOUND);
     let (out, err) = run_output(&dir.0);
     let agent_log = std::fs::read_to_string(dir.0.join("agent.log")).unwrap_or_default();
@@ -121,25 +159,45 @@ fn a_flight_with_its_reasoner_and_perception_on_another_host_reaches_its_goal() 
     assert_eq!(summary["sequence_gaps"], 0, "{summary}");
     assert_eq!(summary["sequence_reorders"], 0, "{summary}");
     assert_eq!(summary["controller_missed_ticks"], 0, "{summary}");
-    // the two roles ran on the ground host, started by its agent, and ended with the flight
+    // each move: the new process took over and the old one stopped; the hub followed
+    assert!(
+        there["message"]
+            .as_str()
+            .unwrap()
+            .contains("move of `planner` to host `ground` (executor gs) done"),
+        "{there}"
+    );
+    assert!(
+        back["message"]
+            .as_str()
+            .unwrap()
+            .contains("move of `planner` to the flight's host (executor perception) done"),
+        "{back}"
+    );
+    assert_ne!(there["pid"], back["pid"], "{there}\n{back}");
+    assert!(
+        summary["source_switches"].as_u64().unwrap() >= 2,
+        "{summary}"
+    );
+    // the roles ran on the ground host, started by its agent, and ended cleanly (the
+    // reasoner when it moved back, the others with the flight)
     for role in ["reasoning", "perception", "bridge-on-ground"] {
         assert!(
             agent_log.contains(&format!("started {flight}/{role}#")),
             "{role} was not started by the agent:\n{agent_log}"
         );
         assert!(
-            agent_log.contains(&format!("{flight}/{role}#"))
-                && agent_log
-                    .lines()
-                    .any(|l| l.starts_with(&format!("{flight}/{role}#"))
-                        && l.contains("ended: exit code 0")),
+            agent_log
+                .lines()
+                .any(|l| l.starts_with(&format!("{flight}/{role}#"))
+                    && l.contains("ended: exit code 0")),
             "{role} did not end cleanly on the ground host:\n{agent_log}"
         );
     }
-    // on the vehicle, each is its handle: the role's log says where it ran
-    let handle_log = std::fs::read_to_string(dir.0.join("run/logs/reasoning.log")).unwrap();
+    // on the vehicle, a role on the ground host is its handle: its log says where it ran
+    let handle_log = std::fs::read_to_string(dir.0.join("run/logs/perception.log")).unwrap();
     assert!(
-        handle_log.contains("role `reasoning` runs on host `ground` as pid"),
+        handle_log.contains("role `perception` runs on host `ground` as pid"),
         "{handle_log}"
     );
 }
