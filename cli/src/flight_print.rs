@@ -97,6 +97,7 @@ fn print_supervisor_event(event: &SupervisorEvent) {
         | SupervisorEvent::MigrationFailed { .. }
         | SupervisorEvent::RoleStalled { .. }
         | SupervisorEvent::LinkLost { .. }
+        | SupervisorEvent::LinkBack { .. }
         | SupervisorEvent::ServiceLost { .. }
         | SupervisorEvent::VariantStepped { .. }
         | SupervisorEvent::BindingProbed { .. }

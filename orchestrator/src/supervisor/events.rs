@@ -158,6 +158,19 @@ pub enum SupervisorEvent {
         /// The fallback variant started, if any.
         fallback: Option<String>,
     },
+    /// A lost link to another host is back: a role lost with it starts there again
+    /// (`variant: None`), or a role that fell back returns there, make-before-break
+    /// (`variant: Some`; its `SwapStarted` .. `SwapDone` follow).
+    LinkBack {
+        /// The host.
+        host: String,
+        /// Role name.
+        name: String,
+        /// Its new process (on the flight's host: its handle).
+        pid: Option<u32>,
+        /// The variant it returns with.
+        variant: Option<String>,
+    },
     /// A service of the flight disappeared from under running roles (its files were
     /// removed from outside); the roles registered at it were killed so that their restarts
     /// create a fresh service and join it.
@@ -343,6 +356,24 @@ impl core::fmt::Display for SupervisorEvent {
                 f,
                 "role `{name}` (pid {pid}) stalled: no heartbeat for {silent_ms} ms, {why}; killed"
             ),
+            SupervisorEvent::LinkBack {
+                host,
+                name,
+                pid,
+                variant,
+            } => {
+                match variant {
+                    Some(v) => write!(
+                        f,
+                        "link to host `{host}` back: role `{name}` returns there as `{v}`"
+                    )?,
+                    None => write!(f, "link to host `{host}` back: role `{name}` restarted")?,
+                }
+                match pid {
+                    Some(pid) => write!(f, " (pid {pid})"),
+                    None => Ok(()),
+                }
+            }
             SupervisorEvent::LinkLost {
                 name,
                 host,

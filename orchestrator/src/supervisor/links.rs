@@ -1,18 +1,40 @@
 //! The links to other hosts. A role on another host is heard through its host's link: when
 //! its heartbeats stop for longer than the host's `link_timeout_ms`, the link counts as
-//! lost. The role's fallback variant, when the workflow names one, starts on the flight's
-//! host at once, through the hot-swap path but without waiting for the silent side (it
-//! becomes the role with its first heartbeat, and the hub follows its first decision);
-//! without a fallback the role is lost with its host: its handle is killed and it stays
-//! down (its host's bridge too), never failing the flight. The hub
-//! and the controller never wait for any of this: they run on the flight's host.
+//! lost. The role's fallback variant (the workflow's `fallback`, or for a role moved there
+//! by hand the role as it ran before the move) starts on the flight's host at once, through
+//! the hot-swap path but without waiting for the silent side (it becomes the role with its
+//! first heartbeat, and the hub follows its first decision); without a fallback the role is
+//! lost with its host: its handle is killed and it stays down (its host's bridge too),
+//! never failing the flight. The hub and the controller never wait for any of this: they
+//! run on the flight's host.
+//!
+//! When the link returns (the host's bridge on the flight's host reports its agent
+//! connected again), the host's own bridge restarts there, and once the link has held for
+//! [`LINK_RETURN_HYSTERESIS`] every role that fell back returns, make-before-break, to the
+//! executor and variant it ran there. A link that fades in and out never moves a role
+//! twice within the hysteresis.
 
 use super::Supervisor;
 use super::events::SupervisorEvent;
-use super::role_runtime::RoleState;
+use super::role_runtime::{ReturnTo, RoleState};
 use super::swap::{DEFAULT_SWAP_READY_TIMEOUT, Placement};
 use crate::restart::RestartPolicy;
-use std::time::Instant;
+use std::time::{Duration, Instant};
+
+/// How long a lost link must be back, continuously, before the roles that fell back return
+/// to its host.
+pub const LINK_RETURN_HYSTERESIS: Duration = Duration::from_secs(5);
+
+/// The name of the bridge role on the flight's host for `host` (it connects to that host's
+/// agent and reports whether it is connected: heartbeat counter 6).
+fn bridge_here(host: &str) -> String {
+    format!("bridge-to-{host}")
+}
+
+/// The name of the bridge role on `host`.
+fn bridge_there(host: &str) -> String {
+    format!("bridge-on-{host}")
+}
 
 impl Supervisor {
     /// Count the links whose roles fell silent as lost, and start their fallbacks.
@@ -39,6 +61,15 @@ impl Supervisor {
             // not restarted behind a lost link: its handle may exit before the fallback is
             // ready (the fallback restores the policy when it takes over)
             let policy = core::mem::replace(&mut r.policy, RestartPolicy::Never);
+            let returns = self
+                .remote_executors
+                .iter()
+                .find(|(ex, spec)| *ex == r.executor && spec.host == host)
+                .map(|(ex, spec)| ReturnTo {
+                    executor: ex.clone(),
+                    spec: spec.clone(),
+                    variant: r.variant.clone(),
+                });
             let silent_ms = silent.as_millis() as u64;
             let started = fallback.as_ref().and_then(|fb| {
                 let executor = fb.executor.clone().unwrap_or_default();
@@ -69,10 +100,17 @@ impl Supervisor {
                     }
                 }
             });
-            if started.is_none() {
+            let r = &mut self.roles[i];
+            if started.is_some() {
+                r.returns_to = returns;
+            } else {
                 // no fallback: the role is lost with its host and stays down (its handle
-                // is stopped); a role reachable only over the link never fails the flight
-                if let Some(child) = self.roles[i].child.as_mut() {
+                // is stopped) until the link returns; a role reachable only over the link
+                // never fails the flight
+                if let Some(link) = r.link.as_mut() {
+                    link.held_policy = Some(policy);
+                }
+                if let Some(child) = r.child.as_mut() {
                     let _ = child.kill();
                 }
             }
@@ -82,6 +120,144 @@ impl Supervisor {
                 silent_ms,
                 fallback: started,
             });
+        }
+        self.watch_returns(now, events);
+    }
+
+    /// Whether the bridge on the flight's host for `host` runs and reports that host's
+    /// agent connected.
+    fn link_connected(&self, host: &str) -> bool {
+        let name = bridge_here(host);
+        self.roles.iter().any(|r| {
+            r.name == name
+                && r.state == RoleState::Running
+                && r.last_heartbeat.is_some_and(|hb| hb.counters[6] == 1)
+        })
+    }
+
+    /// Bring back what a lost link took: the host's bridge there as soon as the link is
+    /// back, then, after [`LINK_RETURN_HYSTERESIS`], the roles that fell back.
+    fn watch_returns(&mut self, now: Instant, events: &mut Vec<SupervisorEvent>) {
+        let mut hosts: Vec<String> = Vec::new();
+        for r in &self.roles {
+            let waiting = r
+                .returns_to
+                .as_ref()
+                .map(|t| t.spec.host.clone())
+                .or_else(|| {
+                    r.link
+                        .as_ref()
+                        .filter(|l| l.lost && l.held_policy.is_some())
+                        .map(|l| l.host.clone())
+                });
+            if let Some(h) = waiting
+                && !hosts.contains(&h)
+            {
+                hosts.push(h);
+            }
+        }
+        self.links_up_since.retain(|(h, _)| hosts.contains(h));
+        for host in hosts {
+            if !self.link_connected(&host) {
+                self.links_up_since.retain(|(h, _)| *h != host);
+                continue;
+            }
+            let since = match self.links_up_since.iter().find(|(h, _)| *h == host) {
+                Some((_, t)) => *t,
+                None => {
+                    self.links_up_since.push((host.clone(), now));
+                    now
+                }
+            };
+            // roles lost with the host (its bridge there first) start again at once
+            self.restart_lost_with(&host, events);
+            let there = bridge_there(&host);
+            let bridge_ready = self
+                .roles
+                .iter()
+                .find(|r| r.name == there)
+                .is_none_or(|r| r.state == RoleState::Running && r.running);
+            if !bridge_ready || now.saturating_duration_since(since) < LINK_RETURN_HYSTERESIS {
+                continue;
+            }
+            self.return_roles(&host, now.saturating_duration_since(since), events);
+        }
+    }
+
+    /// Start again the roles that stayed down with `host`'s link (no fallback: its bridge).
+    fn restart_lost_with(&mut self, host: &str, events: &mut Vec<SupervisorEvent>) {
+        for i in 0..self.roles.len() {
+            let r = &mut self.roles[i];
+            let Some(link) = r.link.as_mut() else {
+                continue;
+            };
+            if link.host != host || !link.lost || r.child.is_some() {
+                continue;
+            }
+            let Some(policy) = link.held_policy.take() else {
+                continue;
+            };
+            link.lost = false;
+            r.policy = policy;
+            r.heard_at = None;
+            let name = r.name.clone();
+            match self.spawn(i, "link back: restart") {
+                Ok(pid) => events.push(SupervisorEvent::LinkBack {
+                    host: host.to_string(),
+                    name,
+                    pid: Some(pid),
+                    variant: None,
+                }),
+                Err(e) => events.push(SupervisorEvent::RestartFailed {
+                    name,
+                    reason: aeris_runtime::error_chain::chain(&e).to_string(),
+                }),
+            }
+        }
+    }
+
+    /// Move every role that fell back from `host` back there, make-before-break.
+    fn return_roles(&mut self, host: &str, up: Duration, events: &mut Vec<SupervisorEvent>) {
+        for i in 0..self.roles.len() {
+            let r = &self.roles[i];
+            let Some(to) = r.returns_to.clone().filter(|t| t.spec.host == host) else {
+                continue;
+            };
+            if r.state != RoleState::Running || r.swap.is_some() {
+                continue;
+            }
+            self.roles[i].returns_to = None;
+            let name = self.roles[i].name.clone();
+            let started = self
+                .remote_placement(i, to.executor, to.spec)
+                .map_err(|e| aeris_runtime::error_chain::chain(&e).to_string())
+                .and_then(|mut placement| {
+                    placement.why = format!(
+                        "back on host `{host}`: its link held for {} ms",
+                        up.as_millis()
+                    );
+                    self.start_swap(
+                        &name,
+                        &to.variant,
+                        DEFAULT_SWAP_READY_TIMEOUT,
+                        true,
+                        Some(placement),
+                    )
+                    .map_err(|e| aeris_runtime::error_chain::chain(&e).to_string())
+                });
+            match started {
+                Ok(pid) => events.push(SupervisorEvent::LinkBack {
+                    host: host.to_string(),
+                    name,
+                    pid: Some(pid),
+                    variant: Some(to.variant),
+                }),
+                Err(reason) => events.push(SupervisorEvent::SwapFailed {
+                    name,
+                    variant: to.variant,
+                    reason,
+                }),
+            }
         }
     }
 }

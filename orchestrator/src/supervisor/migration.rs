@@ -170,7 +170,7 @@ impl Supervisor {
 
     /// Where role `i` runs on `executor` of another host, checked: a kind that may move,
     /// not there already, no topic with a role on a third host.
-    fn remote_placement(
+    pub(super) fn remote_placement(
         &self,
         i: usize,
         executor: String,

@@ -151,6 +151,8 @@ pub struct Supervisor {
     services: ServiceAudit,
     /// The executors on other hosts (where `aeris migrate ROLE HOST:EXECUTOR` sends a role).
     remote_executors: Vec<(String, aeris_runtime::spec::RemoteSpec)>,
+    /// Lost links that are back, and since when (roles return after the hysteresis).
+    links_up_since: Vec<(String, Instant)>,
 }
 
 impl core::fmt::Debug for Supervisor {
@@ -253,6 +255,7 @@ impl Supervisor {
             migrations: 0,
             services: ServiceAudit::new(),
             remote_executors: plan.remote_executors,
+            links_up_since: Vec::new(),
         };
         for planned in plan.roles {
             sup.add_role(planned, &roles_dir, &logs_dir)?;

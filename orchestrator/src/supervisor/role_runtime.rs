@@ -49,6 +49,20 @@ pub(super) struct RemoteLink {
     pub(super) fallback: Option<PlannedFallback>,
     /// The link was lost (counted once; the fallback is under way or failed).
     pub(super) lost: bool,
+    /// The role's restart policy, held while its link is lost and no fallback runs (a
+    /// bridge on that host), back in force when the link returns.
+    pub(super) held_policy: Option<crate::restart::RestartPolicy>,
+}
+
+/// Where a role ran before its link was lost: it returns there when the link is back.
+#[derive(Debug, Clone)]
+pub(super) struct ReturnTo {
+    /// The executor on the other host.
+    pub(super) executor: String,
+    /// That host, its agent and the CPUs there.
+    pub(super) spec: aeris_runtime::spec::RemoteSpec,
+    /// The variant it ran there.
+    pub(super) variant: String,
 }
 
 /// What the supervisor knows about one role.
@@ -136,6 +150,8 @@ pub struct RoleRuntime {
     pub(super) link: Option<RemoteLink>,
     /// The workflow's fallback for it (`fallback`), for whenever it runs on another host.
     pub(super) declared_fallback: Option<PlannedFallback>,
+    /// Running its fallback since its link was lost: where it returns when the link is back.
+    pub(super) returns_to: Option<ReturnTo>,
 }
 
 impl RoleRuntime {
@@ -256,9 +272,11 @@ impl RoleRuntime {
             timeout: Duration::from_millis(r.link_timeout_ms),
             fallback: fallback.clone(),
             lost: false,
+            held_policy: None,
         });
         RoleRuntime {
             link,
+            returns_to: None,
             declared_fallback: fallback,
             name: spec.name,
             kind: spec.kind,
@@ -391,6 +409,7 @@ mod tests {
     fn runtime() -> RoleRuntime {
         RoleRuntime {
             link: None,
+            returns_to: None,
             declared_fallback: None,
             name: "r".into(),
             kind: "hub".into(),

@@ -216,6 +216,7 @@ impl RoleRuntime {
                 timeout: Duration::from_millis(r.link_timeout_ms),
                 fallback: p.link_fallback,
                 lost: false,
+                held_policy: None,
             });
             self.migrations += 1;
         }

@@ -322,7 +322,8 @@ fn a_host_or_a_peer_of_another_schema_is_refused_by_name() {
 }
 
 #[test]
-fn a_link_cut_mid_flight_hands_the_reasoner_to_its_fallback_and_the_flight_goes_on() {
+fn a_link_cut_mid_flight_hands_the_reasoner_to_its_fallback_which_hands_it_back_when_the_link_returns()
+ {
     let dir = TempDir::new("hosts-cut");
     let hosts = TwoHosts::new();
     let _agent = start_agent(&hosts, &dir.0);
@@ -364,6 +365,20 @@ fn a_link_cut_mid_flight_hands_the_reasoner_to_its_fallback_and_the_flight_goes_
         "the fallback's readiness",
     );
     hosts.set_link(true);
+    // the link held: the ground host's bridge restarted there, and the reasoner returns to
+    // the ground host, make-before-break
+    let back = wait_for_text(
+        &dir.0.join("run.stderr"),
+        "move of `planner` to host `ground` (executor gs) done",
+        "the reasoner's return",
+    );
+    assert!(
+        back.contains("link to host `ground` back: role `bridge-on-ground` restarted")
+            && back.contains(
+                "link to host `ground` back: role `reasoning` returns there as `planner`"
+            ),
+        "{back}"
+    );
     let status = wait_bounded(&mut run.0, FLIGHT_BOUND);
     let (out, err) = run_output(&dir.0);
     assert!(
@@ -381,6 +396,11 @@ fn a_link_cut_mid_flight_hands_the_reasoner_to_its_fallback_and_the_flight_goes_
         summary["source_switches"].as_u64().unwrap() >= 1,
         "{summary}"
     );
-    // one loss of the reasoner's link, no flapping when the link came back
+    // one loss of the reasoner's link, one return, no flapping
     assert_eq!(err.matches("lost (role `reasoning`").count(), 1, "{err}");
+    assert_eq!(
+        err.matches("role `reasoning` returns there").count(),
+        1,
+        "{err}"
+    );
 }
