@@ -12,6 +12,8 @@
 //! - [`flights`]: benchmarks that fly the pipeline end to end as supervised flights
 //!   (`aeris-flight`): cycle time and EER, hot swaps, the fault table, dynamic scheduling
 //!   under a CPU hog.
+//! - [`hosts`]: the default flight with roles on a second host (network namespaces): CT
+//!   across the link vs local, frames across, moves there and back, a link cut.
 //!
 //! Every benchmark returns a report struct (serde `Serialize`); printing is the caller's job.
 
@@ -22,6 +24,7 @@ pub mod control;
 pub mod error;
 pub mod flights;
 pub mod gate;
+pub mod hosts;
 pub mod ipc;
 pub mod models;
 

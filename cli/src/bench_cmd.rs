@@ -42,6 +42,10 @@ pub enum BenchCommand {
     /// What recording costs: the default (and --models the model) flight without and with
     /// the recorder: controller missed ticks, CT, EER, recorder CPU, MB per minute.
     Record(crate::bench_flight::RecordArgs),
+    /// Roles on a second host (two network namespaces on this machine; needs root): CT of
+    /// the default flight with the reasoner and perception there vs on board, per link
+    /// delay (netem), frames across; the reasoner moved there and back; a link cut.
+    Hosts(crate::bench_hosts::HostsArgs),
     /// One model of `bench models` (started by it).
     #[command(name = "model-probe", hide = true)]
     ModelProbe(crate::bench_models::ModelProbeArgs),
@@ -157,6 +161,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         BenchCommand::Ds(a) => crate::bench_ds::ds(a),
         BenchCommand::Faults(a) => crate::bench_faults::faults(a),
         BenchCommand::Record(a) => crate::bench_flight::record(a),
+        BenchCommand::Hosts(a) => crate::bench_hosts::run(a),
         BenchCommand::ModelProbe(a) => crate::bench_models::probe(a),
         BenchCommand::IpcPong(a) => {
             let spec = PongSpec::from_json(&a.spec).context("bench ipc-pong: bad --spec")?;

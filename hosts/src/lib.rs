@@ -12,12 +12,15 @@
 //! - [`handle`]: the process that stands for a remote role on the flight's host: the
 //!   supervisor starts, watches, restarts and stops it like any role process;
 //! - [`bridge`]: the role (kind `bridge`, variant `zenoh`) that carries a flight's topics
-//!   between iceoryx2 on its host and zenoh, exact bytes, schema checked per message.
+//!   between iceoryx2 on its host and zenoh, exact bytes, schema checked per message;
+//! - [`netns`]: two hosts on one machine (network namespaces, private `/dev/shm`), for the
+//!   tests and `aeris bench hosts`.
 
 #![deny(missing_docs)]
 
 pub mod agent;
 pub mod bridge;
 pub mod handle;
+pub mod netns;
 pub mod protocol;
 pub mod session;

@@ -3,7 +3,7 @@
 //! the vehicle; the reasoner and the perception role run on the ground host, their topics on
 //! the bridges over zenoh.
 
-use aeris_tests::hosts::TwoHosts;
+use aeris_tests::hosts::{TwoHosts, two_hosts};
 use aeris_tests::*;
 use std::path::Path;
 use std::process::Stdio;
@@ -112,7 +112,7 @@ fn migrate(
 #[test]
 fn a_flight_with_roles_on_another_host_and_its_reasoner_moved_there_and_back_reaches_its_goal() {
     let dir = TempDir::new("hosts-goal");
-    let hosts = TwoHosts::new();
+    let hosts = two_hosts();
     let _agent = start_agent(&hosts, &dir.0);
     // the perception role on the ground host from the start, the reasoner on board
     let text = ground_workflow(&hosts.ground_endpoint()).replacen(
@@ -232,7 +232,7 @@ fn logged(cmd: &mut std::process::Command, path: &Path) -> ChildGuard {
 #[test]
 fn a_host_or_a_peer_of_another_schema_is_refused_by_name() {
     let dir = TempDir::new("hosts-schema");
-    let hosts = TwoHosts::new();
+    let hosts = two_hosts();
     let ours = aeris_schemas::SCHEMA_VERSION;
     let theirs = ours - 1;
     let endpoint = hosts.ground_endpoint();
@@ -325,7 +325,7 @@ fn a_host_or_a_peer_of_another_schema_is_refused_by_name() {
 fn a_link_cut_mid_flight_hands_the_reasoner_to_its_fallback_which_hands_it_back_when_the_link_returns()
  {
     let dir = TempDir::new("hosts-cut");
-    let hosts = TwoHosts::new();
+    let hosts = two_hosts();
     let _agent = start_agent(&hosts, &dir.0);
     // only the reasoner on the ground host, the on-board planner as its fallback
     let text = ground_workflow(&hosts.ground_endpoint()).replacen(
@@ -348,7 +348,7 @@ fn a_link_cut_mid_flight_hands_the_reasoner_to_its_fallback_which_hands_it_back_
         "step 2/4",
         "the flight's progress",
     );
-    hosts.set_link(false);
+    hosts.set_link(false).expect("cut the link");
     let cut = wait_for_text(
         &dir.0.join("run.stderr"),
         "fallback `planner` starting",
@@ -364,7 +364,7 @@ fn a_link_cut_mid_flight_hands_the_reasoner_to_its_fallback_which_hands_it_back_
         "role `reasoning`: `planner` (pid",
         "the fallback's readiness",
     );
-    hosts.set_link(true);
+    hosts.set_link(true).expect("restore the link");
     // the link held: the ground host's bridge restarted there, and the reasoner returns to
     // the ground host, make-before-break
     let back = wait_for_text(

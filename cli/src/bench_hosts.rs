@@ -1,0 +1,121 @@
+//! `aeris bench hosts`: roles on a second host, measured ([`aeris_bench::hosts`]).
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+
+/// Arguments of `aeris bench hosts`.
+#[derive(Debug, Args)]
+pub struct HostsArgs {
+    /// Link delays (ms, each way, tc netem) of the flights across the link; 0 is the bare
+    /// link. A delay this kernel cannot emulate (no sch_netem) is reported as skipped.
+    #[arg(long, value_delimiter = ',', default_value = "0,20,100")]
+    pub delays: Vec<u32>,
+    /// Packet loss (%, each way) of one more flight across the link (0: none).
+    #[arg(long, default_value_t = 1.0)]
+    pub loss: f64,
+    /// Busy threads started outside the flight (unpinned, normal priority) for the run.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub outside_load: usize,
+    /// Print one JSON object on the last line of stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `aeris bench hosts`.
+pub fn run(a: HostsArgs) -> Result<()> {
+    if !(0.0..=100.0).contains(&a.loss) {
+        bail!("--loss must be a percentage from 0 to 100, got {}", a.loss);
+    }
+    let work = tempfile_dir()?;
+    let config = aeris_bench::hosts::HostsBenchConfig {
+        aeris: std::env::current_exe().context("cannot find the aeris executable")?,
+        delays_ms: a.delays.clone(),
+        loss_percent: a.loss,
+        outside_load: a.outside_load,
+        work_dir: work.clone(),
+    };
+    let report = aeris_bench::hosts::run(&config, &mut |line| eprintln!("bench hosts: {line}"));
+    let _ = std::fs::remove_dir_all(&work);
+    let report = report.context("bench hosts failed")?;
+    println!(
+        "roles on a second host (network namespaces on this machine), {} busy threads outside the flight",
+        report.outside_load
+    );
+    println!(
+        "  {:<26} {:>6} {:>6} {:>5} {:>8} {:>8} {:>6} {:>7} {:>7} {:>10} {:>9}",
+        "roles there",
+        "delay",
+        "loss",
+        "goal",
+        "CT mean",
+        "CT p95",
+        "EER",
+        "missed",
+        "frames",
+        "bytes/fr",
+        "frames/s"
+    );
+    for r in &report.rows {
+        let there = if r.roles_there.is_empty() {
+            "none (all on board)".to_string()
+        } else {
+            r.roles_there.join(",")
+        };
+        if let Some(why) = &r.skipped {
+            println!(
+                "  {there:<26} {:>4}ms {:>5}% skipped: {why}",
+                r.delay_ms, r.loss_percent
+            );
+            continue;
+        }
+        let f = |v: Option<f64>, p: usize, unit: &str| {
+            v.map_or_else(|| "-".to_string(), |x| format!("{x:.p$}{unit}"))
+        };
+        let n = |v: Option<u64>| v.map_or_else(|| "-".to_string(), |x| x.to_string());
+        println!(
+            "  {there:<26} {:>4}ms {:>5}% {:>5} {:>8} {:>8} {:>6} {:>7} {:>7} {:>10} {:>9}",
+            r.delay_ms,
+            r.loss_percent,
+            r.reached_goal.map_or("-", |g| if g { "yes" } else { "no" }),
+            f(r.ct_mean_s, 3, "s"),
+            f(r.ct_p95_s, 3, "s"),
+            f(r.eer.map(|e| e * 100.0), 1, "%"),
+            n(r.controller_missed_ticks),
+            n(r.frames_across),
+            f(r.bytes_per_frame, 0, ""),
+            f(r.frames_per_s, 1, ""),
+        );
+    }
+    let m = &report.moves;
+    println!(
+        "  reasoner moved to the ground host: ready {} ms, done {} ms; back: ready {} ms, done {} ms; decisions reused over the flight {}, missed ticks {}, goal {}",
+        m.there_ready_ms,
+        m.there_done_ms,
+        m.back_ready_ms,
+        m.back_done_ms,
+        m.decisions_reused,
+        m.controller_missed_ticks,
+        m.reached_goal
+    );
+    let c = &report.cut;
+    println!(
+        "  link cut: loss noticed after {} ms, on-board fallback ready after {} ms; restored: reasoner back on the ground host after {} ms (5 s hysteresis included); decisions reused {}, missed ticks {}, goal {}",
+        c.loss_noticed_ms,
+        c.fallback_ready_ms,
+        c.returned_ms,
+        c.decisions_reused,
+        c.controller_missed_ticks,
+        c.reached_goal
+    );
+    if a.json {
+        println!("{}", serde_json::to_string(&report)?);
+    }
+    Ok(())
+}
+
+/// A fresh directory for the flights' run directories.
+fn tempfile_dir() -> Result<std::path::PathBuf> {
+    let dir = std::env::temp_dir().join(format!("aeris-bench-hosts-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    Ok(dir)
+}

@@ -1,0 +1,189 @@
+//! Two hosts on one machine, for the multi-host tests and `aeris bench hosts`: two network
+//! namespaces joined by a veth pair, every process started in one of them with a private
+//! `/dev/shm` and iceoryx2 root (`ip netns exec` gives it a mount namespace of its own), so
+//! nothing but the network crosses between them. Needs root (CAP_NET_ADMIN and
+//! CAP_SYS_ADMIN), `ip` (iproute2) and `nsenter` (util-linux); `tc` for netem.
+
+use std::path::Path;
+use std::process::Command;
+use std::sync::atomic::{AtomicU32, Ordering};
+
+/// Why the two hosts could not be set up or changed.
+#[derive(Debug, thiserror::Error)]
+pub enum NetnsError {
+    /// A tool could not be started.
+    #[error("cannot run `{tool}`")]
+    Spawn {
+        /// The tool.
+        tool: &'static str,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A command failed (not root, a name taken, a kernel feature missing).
+    #[error("`{command}` failed: {stderr}")]
+    Failed {
+        /// The command line.
+        command: String,
+        /// What it printed.
+        stderr: String,
+    },
+    /// The kernel has no netem queueing discipline (`sch_netem`): no delay or loss.
+    #[error("this kernel has no netem (sch_netem), so no link delay or loss (tc: {0})")]
+    NoNetem(String),
+}
+
+/// Two network namespaces, `vehicle` (the flight's host, 10.X.Y.1) and `ground` (10.X.Y.2),
+/// removed on drop.
+#[derive(Debug)]
+pub struct TwoHosts {
+    /// The flight's host namespace.
+    pub vehicle: String,
+    /// The other host's namespace.
+    pub ground: String,
+    /// The ground host's address on the link.
+    pub ground_ip: String,
+    /// The vehicle's end of the link (in `vehicle`).
+    pub vehicle_if: String,
+    /// The ground's end of the link (in `ground`).
+    pub ground_if: String,
+}
+
+fn run(tool: &'static str, args: &[&str]) -> Result<(), NetnsError> {
+    let out = Command::new(tool)
+        .args(args)
+        .output()
+        .map_err(|source| NetnsError::Spawn { tool, source })?;
+    if out.status.success() {
+        Ok(())
+    } else {
+        Err(NetnsError::Failed {
+            command: format!("{tool} {}", args.join(" ")),
+            stderr: String::from_utf8_lossy(&out.stderr).trim().to_string(),
+        })
+    }
+}
+
+impl TwoHosts {
+    /// Create the namespaces and the link between them (names and subnet unique to this
+    /// process and call); what exists already is removed again on failure.
+    pub fn new() -> Result<Self, NetnsError> {
+        static NEXT: AtomicU32 = AtomicU32::new(0);
+        let n = NEXT.fetch_add(1, Ordering::Relaxed);
+        let pid = std::process::id();
+        let tag = format!("{pid}{n}");
+        let subnet = format!("10.{}.{}", 100 + (pid % 100), (pid / 100 % 200) + n);
+        let hosts = TwoHosts {
+            vehicle: format!("aeris-v{tag}"),
+            ground: format!("aeris-g{tag}"),
+            ground_ip: format!("{subnet}.2"),
+            vehicle_if: format!("av{tag}"),
+            ground_if: format!("ag{tag}"),
+        };
+        run("ip", &["netns", "add", &hosts.vehicle])?;
+        // from here on, drop removes what was made
+        run("ip", &["netns", "add", &hosts.ground])?;
+        run(
+            "ip",
+            &[
+                "link",
+                "add",
+                &hosts.vehicle_if,
+                "type",
+                "veth",
+                "peer",
+                "name",
+                &hosts.ground_if,
+            ],
+        )?;
+        run(
+            "ip",
+            &["link", "set", &hosts.vehicle_if, "netns", &hosts.vehicle],
+        )?;
+        run(
+            "ip",
+            &["link", "set", &hosts.ground_if, "netns", &hosts.ground],
+        )?;
+        for (ns, dev, addr) in [
+            (&hosts.vehicle, &hosts.vehicle_if, format!("{subnet}.1/24")),
+            (&hosts.ground, &hosts.ground_if, format!("{subnet}.2/24")),
+        ] {
+            run("ip", &["-n", ns, "addr", "add", &addr, "dev", dev])?;
+            run("ip", &["-n", ns, "link", "set", dev, "up"])?;
+            run("ip", &["-n", ns, "link", "set", "lo", "up"])?;
+        }
+        Ok(hosts)
+    }
+
+    /// The ground host's agent endpoint.
+    pub fn ground_endpoint(&self) -> String {
+        format!("tcp/{}:7447", self.ground_ip)
+    }
+
+    /// `program args..` to run in namespace `ns` with a private `/dev/shm` and iceoryx2
+    /// root.
+    pub fn command(&self, ns: &str, program: &Path) -> Command {
+        let mut cmd = Command::new("ip");
+        cmd.args(["netns", "exec", ns, "sh", "-c"])
+            .arg(
+                "mount -t tmpfs tmpfs /dev/shm && mkdir -p /tmp/iceoryx2 && \
+                 mount -t tmpfs tmpfs /tmp/iceoryx2 && exec \"$@\"",
+            )
+            .arg("sh")
+            .arg(program);
+        cmd
+    }
+
+    /// `program args..` beside process `pid` (started by [`TwoHosts::command`]): in its
+    /// network and mount namespaces, so it sees that process's `/dev/shm` (a tool such as
+    /// `aeris migrate` joining its flight).
+    pub fn command_beside(&self, pid: u32, program: &Path) -> Command {
+        let mut cmd = Command::new("nsenter");
+        cmd.args(["-t", &pid.to_string(), "-m", "-n", "--"])
+            .arg(program);
+        cmd
+    }
+
+    /// Cut (`false`) or restore (`true`) the link, on the vehicle's side.
+    pub fn set_link(&self, up: bool) -> Result<(), NetnsError> {
+        let state = if up { "up" } else { "down" };
+        run(
+            "ip",
+            &["-n", &self.vehicle, "link", "set", &self.vehicle_if, state],
+        )
+    }
+
+    /// Delay every packet by `delay_ms` and lose `loss_percent` of them, each way (tc
+    /// netem on both ends of the link).
+    pub fn set_netem(&self, delay_ms: u32, loss_percent: f64) -> Result<(), NetnsError> {
+        let delay = format!("{delay_ms}ms");
+        let loss = format!("{loss_percent}%");
+        for (ns, dev) in [
+            (&self.vehicle, &self.vehicle_if),
+            (&self.ground, &self.ground_if),
+        ] {
+            let args = [
+                "-n", ns, "qdisc", "replace", "dev", dev, "root", "netem", "delay", &delay, "loss",
+                &loss,
+            ];
+            match run("tc", &args) {
+                Err(NetnsError::Failed { stderr, .. })
+                    if stderr.contains("Specified qdisc") || stderr.contains("netem") =>
+                {
+                    let said = stderr.trim_start_matches("Error: ").to_string();
+                    return Err(NetnsError::NoNetem(said));
+                }
+                other => other?,
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Drop for TwoHosts {
+    fn drop(&mut self) {
+        // deleting a namespace removes its end of the veth pair, and so the pair
+        let _ = run("ip", &["netns", "del", &self.vehicle]);
+        let _ = run("ip", &["netns", "del", &self.ground]);
+    }
+}
