@@ -5,10 +5,13 @@
 //!
 //! - **Exact bytes.** A message crosses as the bytes of its `#[repr(C)]` payload (a frame as
 //!   its header's bytes, then its pixels), with an attachment: the schema stamp (version and
-//!   layout hash), the bridge's own sequence number of the topic, and the header length.
-//!   The receiving bridge publishes those bytes into its own shared memory, so what a role
-//!   reads is bit for bit what was published on the other host; the hub's sequence checks
-//!   on decisions work across hosts as on one.
+//!   layout hash), the bridge's own sequence number of the topic, the header length and the
+//!   frame coding. The receiving bridge publishes those bytes into its own shared memory, so
+//!   what a role reads is bit for bit what was published on the other host; the hub's
+//!   sequence checks on decisions work across hosts as on one. The one exception is an RGB
+//!   frame's pixels: by default they cross as JPEG ([`crate::frames`]; `frames = "raw"`
+//!   sends them exact), decoded back into shared memory on the other host; the header and
+//!   depth frames stay exact.
 //! - **Schema checked per message.** A message stamped with another schema is refused,
 //!   counted, and named once in the log ([`SchemaMismatch`]); nothing of it is published.
 //! - **QoS.** Each topic keeps its iceoryx2 QoS on both hosts (history, buffer). On zenoh
@@ -28,7 +31,8 @@
 //!
 //! Parameters: `connect` (the other host's agent endpoint), `export` and `import` (topic
 //! lists), `peer` (who is at the other end, for messages), `frame_bytes` (the first frame
-//! publisher's size), `link_timeout_ms` (zenoh's lease).
+//! publisher's size), `link_timeout_ms` (zenoh's lease), `frames` (`jpeg`, the default, or
+//! `raw`) and `jpeg_quality` (85).
 //!
 //! When it stops it prints what crossed, per topic (`bridge: sent `camera/rgb`: N messages,
 //! B bytes`).
@@ -41,13 +45,15 @@
 //! Unlike the other roles the bridge allocates per message: zenoh takes each message as an
 //! owned buffer.
 
+use crate::frames::{CODING_JPEG, CODING_RAW, DEFAULT_JPEG_QUALITY, FrameCoding, decode};
 use crate::protocol::{SchemaStamp, check_schema, data_key};
 use crate::session::{Reach, open_client};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::raw::{
-    Payload, RawPublisher, RawSubscriber, payload_of, raw_publisher, raw_subscriber,
+    Payload, RawPublisher, RawSubscriber, payload_of, raw_publisher, raw_subscriber, read,
 };
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::FrameHeader;
 use aeris_schemas::RoleStatus;
 use core::time::Duration;
 use iceoryx2::identifiers::UniquePublisherId;
@@ -69,14 +75,16 @@ const BURST: usize = 64;
 /// How often a working bridge reports a worked cycle (its heartbeat, not each message).
 const REPORT_NS: u64 = 100_000_000;
 
-/// Attachment: schema stamp (12 bytes), sequence number (8), header length (4).
-const ATTACHMENT_LEN: usize = 24;
+/// Attachment: schema stamp (12 bytes), sequence number (8), header length (4), frame
+/// coding (1: [`CODING_RAW`] or [`CODING_JPEG`]; absent means raw).
+const ATTACHMENT_LEN: usize = 25;
 
-fn attachment(seq: u64, header_len: usize) -> [u8; ATTACHMENT_LEN] {
+fn attachment(seq: u64, header_len: usize, coding: u8) -> [u8; ATTACHMENT_LEN] {
     let mut a = [0u8; ATTACHMENT_LEN];
     a[..12].copy_from_slice(&SchemaStamp::current().to_bytes());
     a[12..20].copy_from_slice(&seq.to_le_bytes());
-    a[20..].copy_from_slice(&(header_len as u32).to_le_bytes());
+    a[20..24].copy_from_slice(&(header_len as u32).to_le_bytes());
+    a[24] = coding;
     a
 }
 
@@ -89,6 +97,9 @@ struct Export {
     seq: u64,
     /// Messages and bytes sent.
     sent: (u64, u64),
+    /// Bytes before coding, and nanoseconds spent encoding.
+    raw_bytes: u64,
+    encode_ns: u64,
     /// A subscriber on the other host wants it (frames: checked every [`REPORT_NS`];
     /// every other topic is always sent).
     wanted: bool,
@@ -105,11 +116,17 @@ struct Import {
     exported: bool,
     /// Messages and bytes received and published here.
     received: (u64, u64),
+    /// Nanoseconds spent decoding.
+    decode_ns: u64,
 }
 
 /// The bridge role.
 pub struct BridgeRole {
     flight: String,
+    /// How frames are sent.
+    frames: FrameCoding,
+    /// Decoded pixels of the frame being received (reused).
+    pixels: Vec<u8>,
     session: Session,
     exports: Vec<Export>,
     imports: Vec<Import>,
@@ -167,6 +184,15 @@ impl Role for BridgeRole {
                 .and_then(|v| v.as_u64())
                 .unwrap_or(1000),
         );
+        let frames = FrameCoding::parse(
+            ctx.spec.param_str("frames").unwrap_or("jpeg"),
+            ctx.spec
+                .params
+                .get("jpeg_quality")
+                .and_then(|v| v.as_u64())
+                .unwrap_or(DEFAULT_JPEG_QUALITY as u64),
+        )
+        .map_err(|e| RoleError::Config(format!("bridge: {e}")))?;
         let session = open_client(&connect, Reach::Eventually, lease)
             .map_err(|e| RoleError::step(format!("bridge: connecting to {peer}"), e))?;
         let flight = ctx.spec.flight.clone();
@@ -193,6 +219,7 @@ impl Role for BridgeRole {
             };
             imports.push(Import {
                 received: (0, 0),
+                decode_ns: 0,
                 exported: export.contains(&t),
                 topic: t,
                 payload,
@@ -222,6 +249,8 @@ impl Role for BridgeRole {
                 publisher,
                 seq: 0,
                 sent: (0, 0),
+                raw_bytes: 0,
+                encode_ns: 0,
                 wanted: payload != Payload::Frame,
             });
         }
@@ -242,6 +271,8 @@ impl Role for BridgeRole {
         counters[7] = (exports.len() + imports.len()) as u64;
         Ok(BridgeRole {
             flight,
+            frames,
+            pixels: Vec::new(),
             session,
             exports,
             imports,
@@ -268,31 +299,60 @@ impl Role for BridgeRole {
         let mut moved = 0u64;
         for ex in &mut self.exports {
             for _ in 0..BURST {
-                // the message as zenoh takes it: one owned copy out of shared memory
-                let mut sent: Option<(Vec<u8>, usize)> = None;
+                // the message as zenoh takes it: one owned copy out of shared memory (a
+                // frame encoded straight into it)
+                let mut sent: Option<(Vec<u8>, usize, usize, u8)> = None;
+                let mut failed = None;
                 let own = &self.own;
-                let wanted = ex.wanted;
+                let (wanted, frames, is_frame) =
+                    (ex.wanted, self.frames, ex.payload == Payload::Frame);
+                let t_encode = monotonic_ns();
                 let got = ex.sub.next_raw(&mut |bytes, pixels, from| {
                     if !wanted || own.contains(&from) {
                         return;
                     }
                     let mut message = Vec::with_capacity(bytes.len() + pixels.len());
                     message.extend_from_slice(bytes);
-                    message.extend_from_slice(pixels);
-                    sent = Some((message, bytes.len()));
+                    let coding = match read::<FrameHeader>(bytes).filter(|_| is_frame) {
+                        Some(header) => match frames.encode(&header, pixels, &mut message) {
+                            Ok(c) => c,
+                            Err(e) => {
+                                failed = Some(e);
+                                return;
+                            }
+                        },
+                        None => {
+                            message.extend_from_slice(pixels);
+                            CODING_RAW
+                        }
+                    };
+                    sent = Some((message, bytes.len(), bytes.len() + pixels.len(), coding));
                 })?;
                 if !got {
                     break;
                 }
-                let Some((message, header_len)) = sent else {
+                if let Some(e) = failed {
+                    self.counters[5] += 1;
+                    if !self.refused_logged {
+                        eprintln!("bridge: cannot send `{}`: {e}", ex.topic);
+                        self.refused_logged = true;
+                    }
+                    continue;
+                }
+                let Some((message, header_len, raw_len, coding)) = sent else {
                     continue;
                 };
+                if coding == CODING_JPEG {
+                    ex.encode_ns += monotonic_ns().saturating_sub(t_encode);
+                }
                 ex.seq += 1;
                 let len = message.len() as u64;
                 let put = ex
                     .publisher
                     .put(ZBytes::from(message))
-                    .attachment(ZBytes::from(attachment(ex.seq, header_len).to_vec()))
+                    .attachment(ZBytes::from(
+                        attachment(ex.seq, header_len, coding).to_vec(),
+                    ))
                     .wait();
                 match put {
                     Ok(()) => {
@@ -300,6 +360,7 @@ impl Role for BridgeRole {
                         self.counters[2] += len;
                         ex.sent.0 += 1;
                         ex.sent.1 += len;
+                        ex.raw_bytes += raw_len as u64;
                         moved += 1;
                     }
                     Err(_) => self.counters[5] += 1,
@@ -338,10 +399,25 @@ impl Role for BridgeRole {
                     self.counters[4] += 1;
                     continue;
                 };
-                let pixels = if im.payload == Payload::Frame {
-                    pixels
-                } else {
-                    &[]
+                let coding = att.as_deref().and_then(|a| a.get(24)).copied();
+                let pixels = match (im.payload, read::<FrameHeader>(header)) {
+                    (Payload::Frame, Some(h)) if coding.is_some_and(|c| c != CODING_RAW) => {
+                        let t = monotonic_ns();
+                        let decoded =
+                            decode(coding.unwrap_or(CODING_RAW), &h, pixels, &mut self.pixels);
+                        im.decode_ns += monotonic_ns().saturating_sub(t);
+                        if let Err(e) = decoded {
+                            self.counters[4] += 1;
+                            if !self.refused_logged {
+                                eprintln!("bridge: refused `{}`: {e}", im.topic);
+                                self.refused_logged = true;
+                            }
+                            continue;
+                        }
+                        &self.pixels[..]
+                    }
+                    (Payload::Frame, _) => pixels,
+                    _ => &[],
                 };
                 match im.publisher.publish_raw(header, pixels) {
                     Ok(()) => {
@@ -446,17 +522,33 @@ impl BridgeRole {
 impl Drop for BridgeRole {
     /// What crossed, per topic, for the log (`aeris bench hosts` reads it).
     fn drop(&mut self) {
+        let per_message = |ns: u64, n: u64| ns as f64 / 1e6 / n.max(1) as f64;
         for ex in &self.exports {
-            println!(
+            print!(
                 "bridge: sent `{}`: {} messages, {} bytes",
                 ex.topic, ex.sent.0, ex.sent.1
             );
+            if ex.raw_bytes != ex.sent.1 {
+                print!(
+                    " ({} bytes before coding; encoding {:.2} ms per message)",
+                    ex.raw_bytes,
+                    per_message(ex.encode_ns, ex.sent.0)
+                );
+            }
+            println!();
         }
         for im in &self.imports {
-            println!(
+            print!(
                 "bridge: received `{}`: {} messages, {} bytes",
                 im.topic, im.received.0, im.received.1
             );
+            if im.decode_ns > 0 {
+                print!(
+                    " (decoding {:.2} ms per message)",
+                    per_message(im.decode_ns, im.received.0)
+                );
+            }
+            println!();
         }
     }
 }

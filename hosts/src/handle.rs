@@ -28,6 +28,9 @@ const POLL: Duration = Duration::from_millis(20);
 
 /// How long a stopped role has to report its exit before the handle gives up on it.
 const STOP_WAIT: Duration = Duration::from_secs(7);
+/// The least time the handle gives itself to reach the host's agent before it fails naming
+/// the host (the link's timeout when that is longer).
+const CONNECT_BUDGET: Duration = Duration::from_secs(5);
 
 /// Why a remote role could not be run or was lost.
 #[derive(Debug, thiserror::Error)]
@@ -170,14 +173,16 @@ pub fn run_remote(spec: RoleSpec) -> Result<RemoteExit, HandleError> {
     let host = remote.host.clone();
     let timeout = Duration::from_millis(remote.link_timeout_ms.max(100));
     let _ = signals::install_termination_handlers();
-    let session =
-        open_client(&remote.endpoint, Reach::Within(timeout), timeout).map_err(|source| {
-            HandleError::Unreachable {
-                host: host.clone(),
-                endpoint: remote.endpoint.clone(),
-                source,
-            }
-        })?;
+    // reaching the agent (TCP and zenoh's handshake) is given more than the link's timeout:
+    // on a loaded machine a debug build took over a second
+    let reach = Reach::Within(timeout.max(CONNECT_BUDGET));
+    let session = open_client(&remote.endpoint, reach, timeout).map_err(|source| {
+        HandleError::Unreachable {
+            host: host.clone(),
+            endpoint: remote.endpoint.clone(),
+            source,
+        }
+    })?;
     let declare = |what: &str| {
         let what = what.to_string();
         move |e: zenoh::Error| HandleError::Declare {

@@ -13,6 +13,7 @@
 //!   supervisor starts, watches, restarts and stops it like any role process;
 //! - [`bridge`]: the role (kind `bridge`, variant `zenoh`) that carries a flight's topics
 //!   between iceoryx2 on its host and zenoh, exact bytes, schema checked per message;
+//! - [`frames`]: how frames cross (JPEG or raw);
 //! - [`netns`]: two hosts on one machine (network namespaces, private `/dev/shm`), for the
 //!   tests and `aeris bench hosts`.
 
@@ -20,6 +21,7 @@
 
 pub mod agent;
 pub mod bridge;
+pub mod frames;
 pub mod handle;
 pub mod netns;
 pub mod protocol;

@@ -125,6 +125,8 @@ pub fn bridge_roles(workflow: &Workflow) -> Vec<RoleDecl> {
             p.insert("peer".into(), peer.into());
             p.insert("frame_bytes".into(), frame_bytes.into());
             p.insert("link_timeout_ms".into(), h.link_timeout_ms.into());
+            p.insert("frames".into(), h.frames.clone().into());
+            p.insert("jpeg_quality".into(), h.jpeg_quality.into());
             p
         };
         let here = params(

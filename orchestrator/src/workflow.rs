@@ -76,7 +76,14 @@ pub struct Host {
     pub endpoint: String,
     /// The link counts as lost after this long without the host's agent (ms).
     pub link_timeout_ms: u64,
+    /// How RGB frames cross to and from it: `jpeg` (the default) or `raw`.
+    pub frames: String,
+    /// JPEG quality of those frames (1-100).
+    pub jpeg_quality: u8,
 }
+
+/// Default JPEG quality of frames between hosts.
+pub const DEFAULT_JPEG_QUALITY: u8 = 85;
 
 /// Default time without a host's agent before its link counts as lost (ms).
 pub const DEFAULT_LINK_TIMEOUT_MS: u64 = 1000;
@@ -339,6 +346,18 @@ pub enum WorkflowError {
         host: String,
         /// The endpoint as written.
         endpoint: String,
+    },
+    /// A host's frame coding is unknown or its JPEG quality out of range.
+    #[error(
+        "[hosts.{host}] frames = `{frames}`, jpeg_quality = {quality}: use `jpeg` (quality 1-100) or `raw`"
+    )]
+    BadFrames {
+        /// Host name.
+        host: String,
+        /// The coding as written.
+        frames: String,
+        /// The quality as written (or the default).
+        quality: u8,
     },
     /// A host name is unusable.
     #[error("host name `{host}` is invalid: use 1-48 characters of a-z, 0-9, `_`, `-`")]

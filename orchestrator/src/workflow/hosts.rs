@@ -44,6 +44,14 @@ impl Workflow {
                     endpoint: h.endpoint.clone(),
                 });
             }
+            if !matches!(h.frames.as_str(), "jpeg" | "raw") || !(1..=100).contains(&h.jpeg_quality)
+            {
+                return Err(WorkflowError::BadFrames {
+                    host: h.name.clone(),
+                    frames: h.frames.clone(),
+                    quality: h.jpeg_quality,
+                });
+            }
         }
         for ex in &self.executors {
             let Some(host) = &ex.host else { continue };
@@ -284,6 +292,20 @@ mod tests {
         let bad = text.replace("tcp/10.0.0.2:7447", "udp/10.0.0.2");
         let e = Workflow::from_toml_str(&bad).unwrap_err();
         assert!(matches!(e, WorkflowError::BadEndpoint { .. }), "{e}");
+        let w = Workflow::from_toml_str(&text).unwrap();
+        assert_eq!(
+            (w.hosts[0].frames.as_str(), w.hosts[0].jpeg_quality),
+            ("jpeg", 85)
+        );
+        let bad = text.replace(
+            "endpoint = \"tcp/10.0.0.2:7447\"",
+            "endpoint = \"tcp/10.0.0.2:7447\"\nframes = \"h264\"",
+        );
+        let e = Workflow::from_toml_str(&bad).unwrap_err().to_string();
+        assert!(
+            e.contains("[hosts.ground] frames = `h264`, jpeg_quality = 85: use `jpeg`"),
+            "{e}"
+        );
         let bad = text.replace("host = \"ground\"", "host = \"air\"");
         let e = Workflow::from_toml_str(&bad).unwrap_err().to_string();
         assert!(

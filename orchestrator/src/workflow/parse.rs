@@ -2,8 +2,9 @@
 //! filled in, then validated. Syntax and structure errors carry their line and column.
 
 use super::{
-    DEFAULT_BACKOFF_MS, DEFAULT_LINK_TIMEOUT_MS, DEFAULT_MAX_RESTARTS, Executor, ExecutorCpus,
-    Host, RoleDecl, RoleFallback, SchedulingSpec, Workflow, WorkflowError, WorkflowFileError,
+    DEFAULT_BACKOFF_MS, DEFAULT_JPEG_QUALITY, DEFAULT_LINK_TIMEOUT_MS, DEFAULT_MAX_RESTARTS,
+    Executor, ExecutorCpus, Host, RoleDecl, RoleFallback, SchedulingSpec, Workflow, WorkflowError,
+    WorkflowFileError,
 };
 use crate::restart::RestartPolicy;
 use aeris_runtime::affinity::CpuSet;
@@ -72,6 +73,8 @@ struct RawExecutor {
 struct RawHost {
     endpoint: String,
     link_timeout_ms: Option<u64>,
+    frames: Option<String>,
+    jpeg_quality: Option<u8>,
 }
 
 fn auto() -> String {
@@ -278,6 +281,8 @@ impl Workflow {
                 name,
                 endpoint: h.endpoint,
                 link_timeout_ms: h.link_timeout_ms.unwrap_or(DEFAULT_LINK_TIMEOUT_MS),
+                frames: h.frames.unwrap_or_else(|| "jpeg".to_string()),
+                jpeg_quality: h.jpeg_quality.unwrap_or(DEFAULT_JPEG_QUALITY),
             })
             .collect();
         let mut workflow = Workflow {
