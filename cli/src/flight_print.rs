@@ -98,6 +98,7 @@ fn print_supervisor_event(event: &SupervisorEvent) {
         | SupervisorEvent::RoleStalled { .. }
         | SupervisorEvent::LinkLost { .. }
         | SupervisorEvent::LinkBack { .. }
+        | SupervisorEvent::HostUnreachable { .. }
         | SupervisorEvent::ServiceLost { .. }
         | SupervisorEvent::VariantStepped { .. }
         | SupervisorEvent::BindingProbed { .. }

@@ -319,7 +319,19 @@ fn main() -> ExitCode {
                     Some(aeris_hosts::handle::HandleError::Schema { .. })
                 )
             });
-            ExitCode::from(if schema { EXIT_SCHEMA_MISMATCH } else { 1 })
+            let unreachable = e.chain().any(|c| {
+                matches!(
+                    c.downcast_ref::<aeris_hosts::handle::HandleError>(),
+                    Some(aeris_hosts::handle::HandleError::Unreachable { .. })
+                )
+            });
+            ExitCode::from(if schema {
+                EXIT_SCHEMA_MISMATCH
+            } else if unreachable {
+                aeris_orchestrator::restart::EXIT_HOST_UNREACHABLE as u8
+            } else {
+                1
+            })
         }
     }
 }

@@ -57,6 +57,9 @@ use aeris_schemas::FrameHeader;
 use aeris_schemas::RoleStatus;
 use core::time::Duration;
 use iceoryx2::identifiers::UniquePublisherId;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::Receiver;
 use zenoh::bytes::ZBytes;
 use zenoh::handlers::FifoChannelHandler;
 use zenoh::pubsub::{Publisher, Subscriber};
@@ -65,6 +68,9 @@ use zenoh::sample::Sample;
 use zenoh::{Session, Wait};
 
 pub use crate::protocol::SchemaMismatch;
+
+/// The pause between tries to reach the other host while it does not answer.
+const OPEN_RETRY: Duration = Duration::from_secs(1);
 
 /// How often the bridge moves what is waiting.
 const PERIOD: Duration = Duration::from_millis(1);
@@ -93,7 +99,8 @@ struct Export {
     topic: String,
     payload: Payload,
     sub: Box<dyn RawSubscriber>,
-    publisher: Publisher<'static>,
+    /// Its zenoh publisher (`None` until the other host is first reached).
+    publisher: Option<Publisher<'static>>,
     seq: u64,
     /// Messages and bytes sent.
     sent: (u64, u64),
@@ -127,7 +134,12 @@ pub struct BridgeRole {
     frames: FrameCoding,
     /// Decoded pixels of the frame being received (reused).
     pixels: Vec<u8>,
-    session: Session,
+    /// The zenoh session (`None` until the other host is first reached).
+    session: Option<Session>,
+    /// The session being opened in the background while the other host does not answer.
+    opening: Option<Receiver<Session>>,
+    /// Tells that background opener to give up (the bridge stopped).
+    stop_opening: Arc<AtomicBool>,
     exports: Vec<Export>,
     imports: Vec<Import>,
     /// Publisher ids of this bridge's own imports (never exported back).
@@ -193,37 +205,22 @@ impl Role for BridgeRole {
                 .unwrap_or(DEFAULT_JPEG_QUALITY as u64),
         )
         .map_err(|e| RoleError::Config(format!("bridge: {e}")))?;
-        let session = open_client(&connect, Reach::Eventually, lease)
-            .map_err(|e| RoleError::step(format!("bridge: connecting to {peer}"), e))?;
         let flight = ctx.spec.flight.clone();
-        let declare = |what: String| {
-            move |e: zenoh::Error| {
-                RoleError::Io(format!("bridge: cannot declare {what} on zenoh: {e}"))
-            }
-        };
         let mut imports = Vec::with_capacity(import.len());
         let mut own = Vec::with_capacity(import.len());
         for t in import {
             let payload = payload_of(&t).unwrap_or(Payload::Heartbeat);
             let publisher = raw_publisher(&ctx.bus, &t, payload, frame_bytes)?;
             own.push(publisher.id());
-            // frames: subscribed once a reader appears here ([`BridgeRole::follow_readers`])
-            let sub = match payload {
-                Payload::Frame => None,
-                _ => Some(
-                    session
-                        .declare_subscriber(data_key(&flight, &t))
-                        .wait()
-                        .map_err(declare(format!("the subscriber of `{t}`")))?,
-                ),
-            };
+            // subscribed on zenoh once the session is open ([`BridgeRole::attach`]); frames
+            // once a reader appears here too ([`BridgeRole::follow_readers`])
             imports.push(Import {
                 received: (0, 0),
                 decode_ns: 0,
                 exported: export.contains(&t),
                 topic: t,
                 payload,
-                sub,
+                sub: None,
                 publisher,
             });
         }
@@ -231,22 +228,11 @@ impl Role for BridgeRole {
         for t in export {
             let payload = payload_of(&t).unwrap_or(Payload::Heartbeat);
             let sub = raw_subscriber(&ctx.bus, &t, payload)?;
-            let (priority, express) = match payload {
-                Payload::Frame => (Priority::Data, false),
-                _ => (Priority::InteractiveHigh, true),
-            };
-            let publisher = session
-                .declare_publisher(data_key(&flight, &t))
-                .congestion_control(CongestionControl::Drop)
-                .priority(priority)
-                .express(express)
-                .wait()
-                .map_err(declare(format!("the publisher of `{t}`")))?;
             exports.push(Export {
                 topic: t,
                 payload,
                 sub,
-                publisher,
+                publisher: None,
                 seq: 0,
                 sent: (0, 0),
                 raw_bytes: 0,
@@ -269,11 +255,13 @@ impl Role for BridgeRole {
         );
         let mut counters = [0u64; 8];
         counters[7] = (exports.len() + imports.len()) as u64;
-        Ok(BridgeRole {
+        let mut bridge = BridgeRole {
             flight,
             frames,
             pixels: Vec::new(),
-            session,
+            session: None,
+            opening: None,
+            stop_opening: Arc::new(AtomicBool::new(false)),
             exports,
             imports,
             own,
@@ -283,7 +271,24 @@ impl Role for BridgeRole {
             connected: false,
             last_report_ns: 0,
             link_checked_ns: 0,
-        })
+        };
+        match open_client(&connect, Reach::Eventually, lease) {
+            Ok(session) => bridge.attach(session)?,
+            Err(e) => {
+                // the other host does not answer yet: the bridge runs without it (the
+                // flight never waits for a link) and keeps trying in the background
+                eprintln!(
+                    "bridge: {} not reachable yet ({e}); trying every second",
+                    bridge.peer
+                );
+                bridge.opening = Some(open_in_background(
+                    connect,
+                    lease,
+                    bridge.stop_opening.clone(),
+                ));
+            }
+        }
+        Ok(bridge)
     }
 
     fn period(&self) -> Duration {
@@ -297,6 +302,10 @@ impl Role for BridgeRole {
     ) -> Result<CycleOutcome, RoleError> {
         let t0 = monotonic_ns();
         let mut moved = 0u64;
+        if let Some(session) = self.opening.as_ref().and_then(|rx| rx.try_recv().ok()) {
+            self.opening = None;
+            self.attach(session)?;
+        }
         for ex in &mut self.exports {
             for _ in 0..BURST {
                 // the message as zenoh takes it: one owned copy out of shared memory (a
@@ -304,8 +313,11 @@ impl Role for BridgeRole {
                 let mut sent: Option<(Vec<u8>, usize, usize, u8)> = None;
                 let mut failed = None;
                 let own = &self.own;
-                let (wanted, frames, is_frame) =
-                    (ex.wanted, self.frames, ex.payload == Payload::Frame);
+                let (wanted, frames, is_frame) = (
+                    ex.wanted && ex.publisher.is_some(),
+                    self.frames,
+                    ex.payload == Payload::Frame,
+                );
                 let t_encode = monotonic_ns();
                 let got = ex.sub.next_raw(&mut |bytes, pixels, from| {
                     if !wanted || own.contains(&from) {
@@ -345,10 +357,12 @@ impl Role for BridgeRole {
                 if coding == CODING_JPEG {
                     ex.encode_ns += monotonic_ns().saturating_sub(t_encode);
                 }
+                let Some(publisher) = ex.publisher.as_ref() else {
+                    continue;
+                };
                 ex.seq += 1;
                 let len = message.len() as u64;
-                let put = ex
-                    .publisher
+                let put = publisher
                     .put(ZBytes::from(message))
                     .attachment(ZBytes::from(
                         attachment(ex.seq, header_len, coding).to_vec(),
@@ -454,7 +468,68 @@ impl Role for BridgeRole {
     }
 }
 
+/// Open the session to `connect` on a thread of its own, trying every second until it
+/// opens or `stop` is set; the session arrives on the returned channel.
+fn open_in_background(
+    connect: String,
+    lease: Duration,
+    stop: Arc<AtomicBool>,
+) -> Receiver<Session> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        while !stop.load(Ordering::Relaxed) {
+            match open_client(&connect, Reach::Eventually, lease) {
+                Ok(session) => {
+                    let _ = tx.send(session);
+                    return;
+                }
+                Err(_) => std::thread::sleep(OPEN_RETRY),
+            }
+        }
+    });
+    rx
+}
+
 impl BridgeRole {
+    /// Declare every topic on the newly opened `session`: a publisher per exported topic,
+    /// a subscriber per imported one (frames: once read here).
+    fn attach(&mut self, session: Session) -> Result<(), RoleError> {
+        let declare = |what: String| {
+            move |e: zenoh::Error| {
+                RoleError::Io(format!("bridge: cannot declare {what} on zenoh: {e}"))
+            }
+        };
+        for im in self
+            .imports
+            .iter_mut()
+            .filter(|i| i.payload != Payload::Frame)
+        {
+            im.sub = Some(
+                session
+                    .declare_subscriber(data_key(&self.flight, &im.topic))
+                    .wait()
+                    .map_err(declare(format!("the subscriber of `{}`", im.topic)))?,
+            );
+        }
+        for ex in &mut self.exports {
+            let (priority, express) = match ex.payload {
+                Payload::Frame => (Priority::Data, false),
+                _ => (Priority::InteractiveHigh, true),
+            };
+            ex.publisher = Some(
+                session
+                    .declare_publisher(data_key(&self.flight, &ex.topic))
+                    .congestion_control(CongestionControl::Drop)
+                    .priority(priority)
+                    .express(express)
+                    .wait()
+                    .map_err(declare(format!("the publisher of `{}`", ex.topic)))?,
+            );
+        }
+        self.session = Some(session);
+        Ok(())
+    }
+
     /// Frames cross only where they are read: subscribe to an imported frame topic on
     /// zenoh while it has a reader on this host (besides this bridge), and send an
     /// exported one while zenoh has a subscriber for it on the other host.
@@ -477,8 +552,10 @@ impl BridgeRole {
                 );
                 continue;
             }
-            match self
-                .session
+            let Some(session) = self.session.as_ref() else {
+                continue;
+            };
+            match session
                 .declare_subscriber(data_key(&self.flight, &im.topic))
                 .wait()
             {
@@ -499,15 +576,17 @@ impl BridgeRole {
         {
             ex.wanted = ex
                 .publisher
-                .matching_status()
-                .wait()
-                .is_ok_and(|m| m.matching());
+                .as_ref()
+                .is_some_and(|p| p.matching_status().wait().is_ok_and(|m| m.matching()));
         }
     }
 
     /// Whether the other host's router is connected; a change is logged.
     fn check_link(&mut self) {
-        let connected = self.session.info().routers_zid().wait().next().is_some();
+        let connected = self
+            .session
+            .as_ref()
+            .is_some_and(|s| s.info().routers_zid().wait().next().is_some());
         if connected != self.connected {
             self.connected = connected;
             if connected {
@@ -522,6 +601,7 @@ impl BridgeRole {
 impl Drop for BridgeRole {
     /// What crossed, per topic, for the log (`aeris bench hosts` reads it).
     fn drop(&mut self) {
+        self.stop_opening.store(true, Ordering::Relaxed);
         let per_message = |ns: u64, n: u64| ns as f64 / 1e6 / n.max(1) as f64;
         for ex in &self.exports {
             print!(

@@ -158,6 +158,16 @@ pub enum SupervisorEvent {
         /// The fallback variant started, if any.
         fallback: Option<String>,
     },
+    /// A role's handle could not reach its host's agent (at the start or a restart): the
+    /// link counts as lost; the fallback starts in its place, or it waits for the link.
+    HostUnreachable {
+        /// Role name.
+        name: String,
+        /// The host.
+        host: String,
+        /// The fallback variant started, if any.
+        fallback: Option<String>,
+    },
     /// A lost link to another host is back: a role lost with it starts there again
     /// (`variant: None`), or a role that fell back returns there, make-before-break
     /// (`variant: Some`; its `SwapStarted` .. `SwapDone` follow).
@@ -356,6 +366,20 @@ impl core::fmt::Display for SupervisorEvent {
                 f,
                 "role `{name}` (pid {pid}) stalled: no heartbeat for {silent_ms} ms, {why}; killed"
             ),
+            SupervisorEvent::HostUnreachable {
+                name,
+                host,
+                fallback,
+            } => match fallback {
+                Some(v) => write!(
+                    f,
+                    "host `{host}` unreachable (role `{name}` could not reach its agent): fallback `{v}` starting on the flight's host"
+                ),
+                None => write!(
+                    f,
+                    "host `{host}` unreachable (role `{name}` could not reach its agent): it waits for the link"
+                ),
+            },
             SupervisorEvent::LinkBack {
                 host,
                 name,

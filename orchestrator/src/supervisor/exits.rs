@@ -6,7 +6,9 @@ use super::Supervisor;
 use super::error::SupervisorError;
 use super::events::SupervisorEvent;
 use super::role_runtime::RoleState;
-use crate::restart::{RestartDecision, RestartPolicy, RoleExit, restart_decision};
+use crate::restart::{
+    EXIT_HOST_UNREACHABLE, RestartDecision, RestartPolicy, RoleExit, restart_decision,
+};
 use std::time::Instant;
 
 impl Supervisor {
@@ -18,7 +20,8 @@ impl Supervisor {
     ) -> Result<(), SupervisorError> {
         let now = Instant::now();
         let mut exited = false;
-        for role in &mut self.roles {
+        let mut unreachable = Vec::new();
+        for (i, role) in self.roles.iter_mut().enumerate() {
             let Some(child) = role.child.as_mut() else {
                 continue;
             };
@@ -46,6 +49,14 @@ impl Supervisor {
                 name: role.name.clone(),
                 status: exit,
             });
+            // its handle could not reach the host: the link is lost, not the role
+            if exit == RoleExit::Code(EXIT_HOST_UNREACHABLE)
+                && role.link.as_ref().is_some_and(|l| !l.lost)
+            {
+                role.state = RoleState::Stopped;
+                unreachable.push(i);
+                continue;
+            }
             role.state = match restart_decision(
                 role.policy,
                 exit,
@@ -67,6 +78,9 @@ impl Supervisor {
             // a dead process cannot remove its own iceoryx2 node and ports: do it now, not
             // only when its replacement starts (a role kept down has none)
             aeris_runtime::bus::cleanup_dead_nodes();
+        }
+        for i in unreachable {
+            self.host_unreachable(i, events);
         }
         Ok(())
     }

@@ -124,6 +124,68 @@ impl Supervisor {
         self.watch_returns(now, events);
     }
 
+    /// Role `i`'s handle could not reach its host (at the start, or at a restart): its
+    /// link counts as lost. Its fallback starts in its place on the flight's host (as a
+    /// start, not a swap: nothing runs to swap with), to return when the link is back;
+    /// without one the role waits for the link, down, and the flight goes on without it.
+    pub(super) fn host_unreachable(&mut self, i: usize, events: &mut Vec<SupervisorEvent>) {
+        let r = &mut self.roles[i];
+        let Some(link) = r.link.as_mut() else { return };
+        link.lost = true;
+        let host = link.host.clone();
+        let fallback = link.fallback.clone();
+        let policy = core::mem::replace(&mut r.policy, RestartPolicy::Never);
+        let name = r.name.clone();
+        let Some(fb) = fallback else {
+            link.held_policy = Some(policy);
+            events.push(SupervisorEvent::HostUnreachable {
+                name,
+                host,
+                fallback: None,
+            });
+            return;
+        };
+        let returns = self
+            .remote_executors
+            .iter()
+            .find(|(ex, spec)| *ex == r.executor && spec.host == host)
+            .map(|(ex, spec)| ReturnTo {
+                executor: ex.clone(),
+                spec: spec.clone(),
+                variant: r.variant.clone(),
+            });
+        let cpus = fb.cpus.as_ref().map(|c| c.to_string()).unwrap_or_default();
+        // the role's spec from now on: the fallback, on the flight's host
+        if let Ok(mut spec) = aeris_runtime::RoleSpec::load(&r.spec_path) {
+            spec.remote = None;
+            spec.variant = fb.variant.clone();
+            spec.cpus = cpus.clone();
+            if let Ok(json) = serde_json::to_string_pretty(&spec) {
+                let _ = std::fs::write(&r.spec_path, json);
+            }
+        }
+        r.variant = fb.variant.clone();
+        r.cpus = cpus;
+        r.cpu_set = fb.cpus.clone();
+        r.executor = fb.executor.clone().unwrap_or_default();
+        r.binding = format!("fallback: host `{host}` unreachable");
+        r.policy = policy;
+        r.link = None;
+        r.returns_to = returns;
+        events.push(SupervisorEvent::HostUnreachable {
+            name: name.clone(),
+            host,
+            fallback: Some(fb.variant.clone()),
+        });
+        match self.spawn(i, "fallback (its host unreachable): start") {
+            Ok(pid) => events.push(SupervisorEvent::RoleStarted { name, pid }),
+            Err(e) => events.push(SupervisorEvent::RestartFailed {
+                name,
+                reason: aeris_runtime::error_chain::chain(&e).to_string(),
+            }),
+        }
+    }
+
     /// Whether the bridge on the flight's host for `host` runs and reports that host's
     /// agent connected.
     fn link_connected(&self, host: &str) -> bool {

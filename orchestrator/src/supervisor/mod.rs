@@ -349,8 +349,12 @@ impl Supervisor {
         loop {
             let events = self.step()?;
             self.pending.extend(events);
+            // a role waiting for its host's link never holds the flight back
+            let waits_for_link = |r: &RoleRuntime| r.link.as_ref().is_some_and(|l| l.lost);
             if let Some(role) = self.roles.iter().find(|r| {
-                !r.has_heartbeat() && matches!(r.state, RoleState::GaveUp | RoleState::Stopped)
+                !r.has_heartbeat()
+                    && !waits_for_link(r)
+                    && matches!(r.state, RoleState::GaveUp | RoleState::Stopped)
             }) {
                 return Err(SupervisorError::RoleDown {
                     role: role.name.clone(),
@@ -359,7 +363,11 @@ impl Supervisor {
                     log_tail: log_tail(&role.log_path, LOG_TAIL_LINES),
                 });
             }
-            if self.roles.iter().all(RoleRuntime::has_heartbeat) {
+            if self
+                .roles
+                .iter()
+                .all(|r| r.has_heartbeat() || waits_for_link(r))
+            {
                 return Ok(());
             }
             if Instant::now() >= deadline {

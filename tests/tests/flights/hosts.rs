@@ -404,3 +404,70 @@ fn a_link_cut_mid_flight_hands_the_reasoner_to_its_fallback_which_hands_it_back_
         "{err}"
     );
 }
+
+#[test]
+fn a_host_unreachable_at_the_start_never_holds_the_flight_back_and_gets_its_role_when_it_comes() {
+    // no agent on the ground host yet: the reasoner's fallback flies, the bridge there
+    // waits for the link; then the agent starts, and the reasoner goes to the ground host
+    let dir = TempDir::new("hosts-unreachable");
+    let hosts = two_hosts();
+    let text = ground_workflow(&hosts.ground_endpoint())
+        .replacen(
+            "kind = \"perception\"\nvariant = \"geometric\"\nexecutor = \"gs\"",
+            "kind = \"perception\"\nvariant = \"geometric\"\nexecutor = \"perception\"",
+            1,
+        )
+        .replacen(
+            "variants = [\"planner\", \"garbage\"]\nexecutor = \"gs\"",
+            "variants = [\"planner\", \"garbage\"]\nexecutor = \"gs\"\nfallback = \"planner\"\nfallback_executor = \"perception\"",
+            1,
+        );
+    let workflow = dir.0.join("unreachable.toml");
+    std::fs::write(&workflow, text).unwrap();
+    let stdout = std::fs::File::create(dir.0.join("run.stdout")).unwrap();
+    let stderr = std::fs::File::create(dir.0.join("run.stderr")).unwrap();
+    let mut cmd = hosts.command(&hosts.vehicle, &aeris_bin());
+    cmd.arg("run")
+        .arg(&workflow)
+        .args(["--json", "--max-duration", "30", "--flight"])
+        .arg(unique_flight("hosts-unreachable"))
+        .arg("--run-dir")
+        .arg(dir.0.join("run"))
+        .stdin(Stdio::null())
+        .stdout(stdout)
+        .stderr(stderr);
+    let mut run = ChildGuard::spawn(&mut cmd).expect("spawn aeris run");
+    let started = wait_for_text(&dir.0.join("run.stderr"), "step 1/4", "the flight's start");
+    assert!(
+        started.contains("host `ground` unreachable (role `reasoning` could not reach its agent): fallback `planner` starting on the flight's host")
+            && started.contains("host `ground` unreachable (role `bridge-on-ground` could not reach its agent): it waits for the link"),
+        "{started}"
+    );
+    let _agent = start_agent(&hosts, &dir.0);
+    let back = wait_for_text(
+        &dir.0.join("run.stderr"),
+        "move of `planner` to host `ground` (executor gs) done",
+        "the reasoner's move to the ground host",
+    );
+    assert!(
+        back.contains("link to host `ground` back: role `bridge-on-ground` restarted")
+            && back.contains(
+                "link to host `ground` back: role `reasoning` returns there as `planner`"
+            ),
+        "{back}"
+    );
+    wait_bounded(&mut run.0, FLIGHT_BOUND).expect("the flight ended");
+    let (out, err) = run_output(&dir.0);
+    let summary = last_json_line(&out);
+    // it flew on the fallback's decisions, then on the ground host's
+    assert!(
+        summary["cycles_committed"].as_u64().unwrap_or(0) > 0,
+        "{summary}\n{err}"
+    );
+    assert!(
+        summary["source_switches"].as_u64().unwrap_or(0) >= 1,
+        "{summary}"
+    );
+    assert_eq!(summary["decisions_rejected"], 0, "{summary}");
+    assert_eq!(summary["controller_missed_ticks"], 0, "{summary}");
+}
