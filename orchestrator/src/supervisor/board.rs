@@ -6,6 +6,7 @@ use super::role_runtime::RoleRuntime;
 use aeris_runtime::bus::StatusBoardWriter;
 use aeris_runtime::clock::monotonic_ns;
 use aeris_schemas::{FixedText, MAX_ROLES, RoleStatusEntry, SupervisorStatus};
+use std::io::Write as _;
 
 /// The flight's status board and the last status written to it.
 pub(super) struct StatusBoard {
@@ -41,6 +42,17 @@ impl StatusBoard {
         s.role_count = roles.len().min(MAX_ROLES) as u32;
         for (entry, role) in s.roles.iter_mut().zip(roles.iter()) {
             let hb = role.last_heartbeat.as_ref();
+            // a role on another host shows it: `HOST:EXECUTOR` (no allocation per publish)
+            let mut place = [0u8; 96];
+            let executor = match &role.link {
+                Some(link) => {
+                    let mut out = std::io::Cursor::new(&mut place[..]);
+                    let _ = write!(out, "{}:{}", link.host, role.executor);
+                    let n = out.position() as usize;
+                    core::str::from_utf8(&place[..n]).unwrap_or(&role.executor)
+                }
+                None => role.executor.as_str(),
+            };
             let lat = role.latency_ms.unwrap_or([0.0; 3]);
             *entry = RoleStatusEntry {
                 name: FixedText::from_str_truncated(&role.name),
@@ -54,7 +66,7 @@ impl StatusBoard {
                 latency_ms: [lat[0] as f32, lat[1] as f32, lat[2] as f32],
                 restarts: role.restarts,
                 heartbeat_gaps: role.heartbeat_gaps.min(u32::MAX as u64) as u32,
-                executor: FixedText::from_str_truncated(&role.executor),
+                executor: FixedText::from_str_truncated(executor),
                 budget_ms: role.budget_ms.unwrap_or(0.0) as f32,
                 migrations: role.migrations,
                 stalls: role.stalls,

@@ -302,7 +302,7 @@ impl Supervisor {
                         &name,
                         &to.variant,
                         DEFAULT_SWAP_READY_TIMEOUT,
-                        true,
+                        false,
                         Some(placement),
                     )
                     .map_err(|e| aeris_runtime::error_chain::chain(&e).to_string())

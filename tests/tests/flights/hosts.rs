@@ -131,6 +131,25 @@ fn a_flight_with_roles_on_another_host_and_its_reasoner_moved_there_and_back_rea
         "the flight's progress",
     );
     let there = migrate(&hosts, &run, &flight, "reasoning", "ground:gs");
+    // `aeris status` shows where each role runs: the host with the executor there
+    let status = hosts
+        .command_beside(run.0.id(), &aeris_bin())
+        .args(["status", "--json", "--flight", &flight])
+        .output()
+        .expect("run aeris status");
+    let status = last_json_line(&String::from_utf8_lossy(&status.stdout));
+    let executor_of = |role: &str| {
+        status["roles"]
+            .as_array()
+            .and_then(|roles| roles.iter().find(|r| r["name"] == role))
+            .map(|r| r["executor"].clone())
+    };
+    assert_eq!(
+        executor_of("reasoning"),
+        Some("ground:gs".into()),
+        "{status}"
+    );
+    assert_eq!(executor_of("hub"), Some("control".into()), "{status}");
     let back = migrate(&hosts, &run, &flight, "reasoning", "perception");
     let status = wait_bounded(&mut run.0, FLIGHT_BOUND);
     let (out, err) = run_output(&dir.0);
