@@ -1,9 +1,11 @@
 //! The end-to-end tests that each fly one flight of the default mission, in one test binary:
 //! the harness flies two of them at a time (a planner flight uses about half a core, so two
-//! fit the 2-core CI machine), which keeps the suite inside its time budget. Flights whose
-//! assertions depend on the machine's load or timing (dynamic scheduling, the fault table's
-//! lost decisions, hot swaps of language models, perception models) keep binaries of their
-//! own and fly alone.
+//! fit the 2-core CI machine), which keeps the suite inside its time budget. The video
+//! flights (decoded H.264, a video file without depth) are here too: they flew two at a
+//! time in their own binaries already, and here a planner flight is their usual partner.
+//! Flights whose assertions depend on the machine's load or timing (dynamic scheduling, the
+//! fault table's lost decisions, hot swaps of language models) keep binaries of their own
+//! and fly alone.
 
 mod ardupilot;
 mod default;
@@ -13,4 +15,6 @@ mod garbage;
 mod hosts;
 mod ladder;
 mod mavproxy;
+mod no_depth;
 mod standby;
+mod video;
