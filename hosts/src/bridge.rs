@@ -47,7 +47,7 @@
 
 use crate::frames::{CODING_JPEG, CODING_RAW, DEFAULT_JPEG_QUALITY, FrameCoding, decode};
 use crate::protocol::{SchemaStamp, check_schema, data_key};
-use crate::session::{Reach, open_client};
+use crate::session::{Reach, SessionError, open_client};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::raw::{
     Payload, RawPublisher, RawSubscriber, payload_of, raw_publisher, raw_subscriber, read,
@@ -274,6 +274,9 @@ impl Role for BridgeRole {
         };
         match open_client(&connect, Reach::Eventually, lease) {
             Ok(session) => bridge.attach(session)?,
+            Err(e @ SessionError::Endpoint { .. }) => {
+                return Err(RoleError::Config(format!("bridge: {e}")));
+            }
             Err(e) => {
                 // the other host does not answer yet: the bridge runs without it (the
                 // flight never waits for a link) and keeps trying in the background
@@ -318,21 +321,31 @@ impl Role for BridgeRole {
                     self.frames,
                     ex.payload == Payload::Frame,
                 );
-                let t_encode = monotonic_ns();
+                let mut encode_ns = 0u64;
                 let got = ex.sub.next_raw(&mut |bytes, pixels, from| {
                     if !wanted || own.contains(&from) {
                         return;
                     }
-                    let mut message = Vec::with_capacity(bytes.len() + pixels.len());
+                    // a JPEG frame is a few percent of its pixels: reserve accordingly
+                    let room = match frames {
+                        FrameCoding::Jpeg { .. } if is_frame => pixels.len() / 8,
+                        _ => pixels.len(),
+                    };
+                    let mut message = Vec::with_capacity(bytes.len() + room);
                     message.extend_from_slice(bytes);
                     let coding = match read::<FrameHeader>(bytes).filter(|_| is_frame) {
-                        Some(header) => match frames.encode(&header, pixels, &mut message) {
-                            Ok(c) => c,
-                            Err(e) => {
-                                failed = Some(e);
-                                return;
+                        Some(header) => {
+                            let t = monotonic_ns();
+                            let coded = frames.encode(&header, pixels, &mut message);
+                            encode_ns = monotonic_ns().saturating_sub(t);
+                            match coded {
+                                Ok(c) => c,
+                                Err(e) => {
+                                    failed = Some(e);
+                                    return;
+                                }
                             }
-                        },
+                        }
                         None => {
                             message.extend_from_slice(pixels);
                             CODING_RAW
@@ -355,7 +368,7 @@ impl Role for BridgeRole {
                     continue;
                 };
                 if coding == CODING_JPEG {
-                    ex.encode_ns += monotonic_ns().saturating_sub(t_encode);
+                    ex.encode_ns += encode_ns;
                 }
                 let Some(publisher) = ex.publisher.as_ref() else {
                     continue;

@@ -63,6 +63,21 @@ pub enum FrameCodingError {
         /// Height decoded.
         got_height: u32,
     },
+    /// An RGB frame's pixels are not as long as its header says.
+    #[error("a {width}x{height} RGB frame has {got} bytes of pixels, not {expected}")]
+    Length {
+        /// Frame width.
+        width: u32,
+        /// Frame height.
+        height: u32,
+        /// Bytes the header implies.
+        expected: usize,
+        /// Bytes it has.
+        got: usize,
+    },
+    /// A JPEG frame decodes to another colour type than RGB.
+    #[error("a JPEG frame decodes to {0:?}, not 8-bit RGB")]
+    Colour(image::ColorType),
     /// The attachment names a coding this build does not know.
     #[error("unknown frame coding {0}")]
     UnknownCoding(u8),
@@ -95,6 +110,16 @@ impl FrameCoding {
             FrameCoding::Jpeg { quality }
                 if FrameFormat::from_u8(header.format) == Some(FrameFormat::Rgb8) =>
             {
+                // the encoder asserts the length: check it here
+                let expected = header.width as usize * header.height as usize * 3;
+                if pixels.len() != expected {
+                    return Err(FrameCodingError::Length {
+                        width: header.width,
+                        height: header.height,
+                        expected,
+                        got: pixels.len(),
+                    });
+                }
                 JpegEncoder::new_with_quality(&mut *out, quality)
                     .encode(
                         pixels,
@@ -141,9 +166,10 @@ pub fn decode(
             };
             let decoder = JpegDecoder::new(std::io::Cursor::new(bytes)).map_err(jpeg)?;
             let (w, h) = decoder.dimensions();
-            if (w, h) != (header.width, header.height)
-                || decoder.color_type() != image::ColorType::Rgb8
-            {
+            if decoder.color_type() != image::ColorType::Rgb8 {
+                return Err(FrameCodingError::Colour(decoder.color_type()));
+            }
+            if (w, h) != (header.width, header.height) {
                 return Err(FrameCodingError::Size {
                     width: header.width,
                     height: header.height,
@@ -218,6 +244,12 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("decodes to 64x48, its header says 32x48"), "{e}");
+        // pixels shorter than the header says: refused, not a panic in the encoder
+        let e = coding
+            .encode(&rgb, &pixels[..10], &mut Vec::new())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("has 10 bytes of pixels, not 9216"), "{e}");
         assert!(FrameCoding::parse("h264", 85).is_err());
         assert!(FrameCoding::parse("jpeg", 0).is_err());
         assert_eq!(FrameCoding::parse("raw", 0).unwrap(), FrameCoding::Raw);

@@ -91,8 +91,10 @@ pub fn open_router(listen: &[String], lease: Duration) -> Result<Session, Sessio
 pub enum Reach {
     /// Fail when the router does not answer within this time (a handle asking for a role).
     Within(Duration),
-    /// Open at once and keep trying in the background (a bridge: the flight never waits
-    /// for a link).
+    /// Do not wait for the router: try once, at once, and keep retrying the link in the
+    /// background once it was made (a bridge: the flight never waits for a link). zenoh
+    /// cannot open a client session while no router answers at all: the bridge retries
+    /// that itself.
     Eventually,
 }
 

@@ -139,7 +139,10 @@ impl Supervisor {
                             self.control.follow(role, request);
                             continue;
                         }
-                        Err(e) => SupervisorReply::new(ReplyStage::Failed, &e.to_string()),
+                        Err(e) => SupervisorReply::new(
+                            ReplyStage::Failed,
+                            &aeris_runtime::error_chain::chain(&e).to_string(),
+                        ),
                     }
                 }
                 Some(CommandKind::Migrate) => match self.move_role(&role, &variant) {
@@ -160,7 +163,10 @@ impl Supervisor {
                         events.append(&mut self.pending);
                         r
                     }
-                    Err(e) => SupervisorReply::new(ReplyStage::Failed, &e.to_string()),
+                    Err(e) => SupervisorReply::new(
+                        ReplyStage::Failed,
+                        &aeris_runtime::error_chain::chain(&e).to_string(),
+                    ),
                 },
             };
             self.control.reply(&request, &reply);

@@ -287,8 +287,9 @@ pub enum MigrateError {
         /// The third host.
         other_host: String,
     },
-    /// The new process of a move between hosts could not be started.
-    #[error("cannot move role `{role}`")]
+    /// The new process of a move between hosts could not be started (the source names the
+    /// role).
+    #[error("the move could not start")]
     Start {
         /// Role name.
         role: String,

@@ -81,6 +81,7 @@ impl Supervisor {
                     link_fallback: None,
                     why: format!("fallback: the link to host `{host}` was lost"),
                     policy: Some(policy),
+                    returning: None,
                 };
                 match self.start_swap(
                     &name,
@@ -290,6 +291,7 @@ impl Supervisor {
             }
             self.roles[i].returns_to = None;
             let name = self.roles[i].name.clone();
+            let returning = to.clone();
             let started = self
                 .remote_placement(i, to.executor, to.spec)
                 .map_err(|e| aeris_runtime::error_chain::chain(&e).to_string())
@@ -298,6 +300,7 @@ impl Supervisor {
                         "back on host `{host}`: its link held for {} ms",
                         up.as_millis()
                     );
+                    placement.returning = Some(returning);
                     self.start_swap(
                         &name,
                         &to.variant,

@@ -83,7 +83,10 @@ impl Supervisor {
         let remote = self.resolve_remote(target)?;
         let r = &self.roles[i];
         if remote.is_none() && r.link.is_none() {
-            return self.migrate(role, target).map(RoleMove::Live);
+            let moved = self.migrate(role, target).map(RoleMove::Live)?;
+            // sent by hand: it no longer waits to return where a lost link took it from
+            self.roles[i].returns_to = None;
+            return Ok(moved);
         }
         if r.swap.is_some() {
             return Err(MigrateError::SwapInProgress {
@@ -115,6 +118,7 @@ impl Supervisor {
                     link_fallback: None,
                     why: format!("moved by hand from host `{from}`"),
                     policy: None,
+                    returning: None,
                 }
             }
         };
@@ -134,6 +138,8 @@ impl Supervisor {
                 role: role.to_string(),
                 source,
             })?;
+        // sent by hand: it no longer waits to return where a lost link took it from
+        self.roles[i].returns_to = None;
         Ok(RoleMove::Started { new_pid, place })
     }
 
@@ -240,6 +246,7 @@ impl Supervisor {
             remote: Some(spec),
             link_fallback,
             policy: None,
+            returning: None,
         })
     }
 

@@ -7,7 +7,7 @@ use super::Supervisor;
 use super::error::SwapError;
 use super::events::SupervisorEvent;
 use super::logs::{log_tail, open_log, quote_tail};
-use super::role_runtime::{LATENCY_WINDOW, RemoteLink, RoleRuntime, RoleState};
+use super::role_runtime::{LATENCY_WINDOW, RemoteLink, ReturnTo, RoleRuntime, RoleState};
 use super::spawn::{LoadPolicy, may_leave_idle, set_normal_policy};
 use crate::launch::PlannedFallback;
 use crate::restart::RoleExit;
@@ -74,6 +74,9 @@ pub(super) struct Placement {
     /// The role's restart policy, back in force once it runs there (a role whose link is
     /// lost is not restarted behind the link meanwhile); `None`: unchanged.
     pub(super) policy: Option<crate::restart::RestartPolicy>,
+    /// A return to a host whose link came back: if it fails, the role waits to return
+    /// again (after another hysteresis).
+    pub(super) returning: Option<ReturnTo>,
 }
 
 /// A replaced process, asked to stop, until it exits.
@@ -371,6 +374,7 @@ impl Supervisor {
     /// timed out.
     pub(super) fn advance_swaps(&mut self, events: &mut Vec<SupervisorEvent>) {
         let now = Instant::now();
+        let mut returns_failed = Vec::new();
         for role in &mut self.roles {
             let Some(swap) = role.swap.as_mut() else {
                 continue;
@@ -395,6 +399,24 @@ impl Supervisor {
                 let mut child = swap.child;
                 let _ = child.kill();
                 let _ = child.wait();
+                if let Some(p) = swap.placement {
+                    if let Some(policy) = p.policy {
+                        // a fallback that never took over: the role waits, down, for its
+                        // link (restarted when it is back, its policy restored then)
+                        if let Some(link) = role.link.as_mut() {
+                            link.held_policy = Some(policy);
+                        }
+                        if let Some(old) = role.child.as_mut() {
+                            let _ = old.kill();
+                        }
+                        role.returns_to = None;
+                    }
+                    if let Some(back) = p.returning {
+                        // a return that failed: tried again after another hysteresis
+                        returns_failed.push(back.spec.host.clone());
+                        role.returns_to = Some(back);
+                    }
+                }
                 role.old_pids.push(swap.pid);
                 let _ = std::fs::remove_file(&swap.spec_path);
                 let mut reason = format!("{why}; its log {}:", swap.log_path.display());
@@ -436,6 +458,8 @@ impl Supervisor {
             self.retiring
                 .retire(&role.name, variant, place, old, now, events);
         }
+        self.links_up_since
+            .retain(|(host, _)| !returns_failed.contains(host));
     }
 
     /// Kill the new sides of unfinished swaps and the replaced processes still exiting.

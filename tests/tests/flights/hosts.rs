@@ -130,6 +130,27 @@ fn a_flight_with_roles_on_another_host_and_its_reasoner_moved_there_and_back_rea
         "step 2/4",
         "the flight's progress",
     );
+    // refused by name: a role that stays on the flight's host, a host not declared
+    for (role, target, why) in [
+        (
+            "hub",
+            "ground:gs",
+            "role `hub` (kind hub) cannot move to another host: it runs on the flight's host",
+        ),
+        (
+            "reasoning",
+            "air:gs",
+            "`air:gs` is not an executor on another host (declared: ground:gs)",
+        ),
+    ] {
+        let out = hosts
+            .command_beside(run.0.id(), &aeris_bin())
+            .args(["migrate", role, target, "--flight", &flight])
+            .output()
+            .expect("run aeris migrate");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(why), "{err}");
+    }
     let there = migrate(&hosts, &run, &flight, "reasoning", "ground:gs");
     // `aeris status` shows where each role runs: the host with the executor there
     let status = hosts
@@ -448,7 +469,7 @@ fn a_host_unreachable_at_the_start_never_holds_the_flight_back_and_gets_its_role
     let mut cmd = hosts.command(&hosts.vehicle, &aeris_bin());
     cmd.arg("run")
         .arg(&workflow)
-        .args(["--json", "--max-duration", "30", "--flight"])
+        .args(["--json", "--max-duration", "20", "--flight"])
         .arg(unique_flight("hosts-unreachable"))
         .arg("--run-dir")
         .arg(dir.0.join("run"))
