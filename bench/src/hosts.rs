@@ -453,6 +453,19 @@ fn setting(
     })
 }
 
+impl Setting {
+    /// Start the flight `name` of this setting on its vehicle host.
+    fn fly(&self, config: &HostsBenchConfig, name: &str) -> Result<Flight, HostsBenchError> {
+        Flight::start(
+            &self.hosts,
+            &config.aeris,
+            &self.workflow,
+            name,
+            &self.dir.join("run"),
+        )
+    }
+}
+
 fn flight_name(tag: &str) -> String {
     format!("bench-hosts-{tag}-{}", std::process::id())
 }
@@ -496,13 +509,7 @@ fn link_row(
         }
     }
     let name = flight_name(&tag);
-    let flight = Flight::start(
-        &s.hosts,
-        &config.aeris,
-        &s.workflow,
-        &name,
-        &s.dir.join("run"),
-    )?;
+    let flight = s.fly(config, &name)?;
     let (summary, run_dir) = flight.finish()?;
     row.reached_goal = summary["reached_goal"].as_bool();
     row.cycles = summary["cycles"].as_u64();
@@ -526,13 +533,7 @@ fn link_row(
 fn moves(config: &HostsBenchConfig) -> Result<MoveFigures, HostsBenchError> {
     let s = setting(config, "moves", &["perception"], false)?;
     let name = flight_name("moves");
-    let mut flight = Flight::start(
-        &s.hosts,
-        &config.aeris,
-        &s.workflow,
-        &name,
-        &s.dir.join("run"),
-    )?;
+    let mut flight = s.fly(config, &name)?;
     flight.wait_line("step 2/4")?;
     let (there_ready_ms, there_done_ms) =
         migrate(&s.hosts, &config.aeris, &flight, "reasoning", "ground:gs")?;
@@ -554,13 +555,7 @@ fn moves(config: &HostsBenchConfig) -> Result<MoveFigures, HostsBenchError> {
 fn cut(config: &HostsBenchConfig) -> Result<CutFigures, HostsBenchError> {
     let s = setting(config, "cut", &["reasoning"], true)?;
     let name = flight_name("cut");
-    let mut flight = Flight::start(
-        &s.hosts,
-        &config.aeris,
-        &s.workflow,
-        &name,
-        &s.dir.join("run"),
-    )?;
+    let mut flight = s.fly(config, &name)?;
     flight.wait_line("step 2/4")?;
     let cut_at = Instant::now();
     s.hosts.set_link(false)?;

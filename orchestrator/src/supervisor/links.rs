@@ -61,15 +61,7 @@ impl Supervisor {
             // not restarted behind a lost link: its handle may exit before the fallback is
             // ready (the fallback restores the policy when it takes over)
             let policy = core::mem::replace(&mut r.policy, RestartPolicy::Never);
-            let returns = self
-                .remote_executors
-                .iter()
-                .find(|(ex, spec)| *ex == r.executor && spec.host == host)
-                .map(|(ex, spec)| ReturnTo {
-                    executor: ex.clone(),
-                    spec: spec.clone(),
-                    variant: r.variant.clone(),
-                });
+            let returns = return_to(&self.remote_executors, r, &host);
             let silent_ms = silent.as_millis() as u64;
             let started = fallback.as_ref().and_then(|fb| {
                 let executor = fb.executor.clone().unwrap_or_default();
@@ -146,15 +138,7 @@ impl Supervisor {
             });
             return;
         };
-        let returns = self
-            .remote_executors
-            .iter()
-            .find(|(ex, spec)| *ex == r.executor && spec.host == host)
-            .map(|(ex, spec)| ReturnTo {
-                executor: ex.clone(),
-                spec: spec.clone(),
-                variant: r.variant.clone(),
-            });
+        let returns = return_to(&self.remote_executors, r, &host);
         let cpus = fb.cpus.as_ref().map(|c| c.to_string()).unwrap_or_default();
         // the role's spec from now on: the fallback, on the flight's host
         if let Ok(mut spec) = aeris_runtime::RoleSpec::load(&r.spec_path) {
@@ -325,6 +309,23 @@ impl Supervisor {
             }
         }
     }
+}
+
+/// Where role `r`, running on `host`, returns when that host's lost link is back: its
+/// executor there and its variant.
+fn return_to(
+    remote_executors: &[(String, aeris_runtime::spec::RemoteSpec)],
+    r: &super::role_runtime::RoleRuntime,
+    host: &str,
+) -> Option<ReturnTo> {
+    remote_executors
+        .iter()
+        .find(|(ex, spec)| *ex == r.executor && spec.host == host)
+        .map(|(ex, spec)| ReturnTo {
+            executor: ex.clone(),
+            spec: spec.clone(),
+            variant: r.variant.clone(),
+        })
 }
 
 /// The flight's host, and the executor there, for messages.
