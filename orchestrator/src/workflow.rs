@@ -398,6 +398,14 @@ pub enum WorkflowError {
         /// The subscriber's host.
         to: String,
     },
+    /// More other hosts than the status board can list.
+    #[error("the workflow names {count} other hosts; at most {max} are supported")]
+    TooManyHosts {
+        /// Hosts declared.
+        count: usize,
+        /// The limit.
+        max: usize,
+    },
     /// More roles than the status board can list.
     #[error("the workflow has {count} roles; at most {max} are supported")]
     TooManyRoles {
@@ -622,13 +630,15 @@ impl Workflow {
     }
 
     /// Fit every recorder role (kind [`RECORDER_KIND`]) to what the flight publishes: its
-    /// `subscribes` become every topic another role publishes, and `heartbeat`, in the
+    /// `subscribes` become every topic another role publishes, `heartbeat`, and
+    /// `hosts/link` when the flight names other hosts (its bridges measure them), in the
     /// order of [`topics::ALL`](aeris_schemas::topics::ALL).
     pub fn fit_recorders(&mut self) {
         let published: Vec<String> = aeris_schemas::topics::ALL
             .iter()
             .filter(|t| {
                 **t == aeris_schemas::topics::HEARTBEAT
+                    || (**t == aeris_schemas::topics::HOSTS_LINK && !self.hosts.is_empty())
                     || self
                         .roles
                         .iter()

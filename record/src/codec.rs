@@ -4,8 +4,8 @@
 
 use aeris_schemas::{
     AutopilotLinkStatus, BoundSetpoint, ControllerLease, Cue, Decision, Detection, FrameHeader,
-    HubReport, MAX_CUES, MAX_DETECTIONS, MAX_SUBGOALS, PerceptionState, RoleHeartbeat,
-    SCHEMA_LAYOUT_HASH, SCHEMA_VERSION, VehicleTelemetry,
+    HostLinkStatus, HubReport, MAX_CUES, MAX_DETECTIONS, MAX_SUBGOALS, PerceptionState,
+    RoleHeartbeat, SCHEMA_LAYOUT_HASH, SCHEMA_VERSION, VehicleTelemetry,
 };
 use serde_json::{Map, Value, json};
 
@@ -60,6 +60,7 @@ impl PayloadCodec for Payload {
             Payload::Telemetry => read::<VehicleTelemetry>(bytes)?.stamp_ns,
             Payload::Lease => read::<ControllerLease>(bytes)?.stamp_ns,
             Payload::Link => read::<AutopilotLinkStatus>(bytes)?.stamp_ns,
+            Payload::HostLink => read::<HostLinkStatus>(bytes)?.stamp_ns,
             Payload::Heartbeat => read::<RoleHeartbeat>(bytes)?.stamp_ns,
         })
     }
@@ -84,6 +85,7 @@ impl PayloadCodec for Payload {
             Payload::Telemetry => telemetry_json(&read(bytes)?),
             Payload::Lease => lease_json(&read(bytes)?),
             Payload::Link => link_json(&read(bytes)?),
+            Payload::HostLink => host_link_json(&read(bytes)?),
             Payload::Heartbeat => heartbeat_json(&read(bytes)?),
         })
     }
@@ -108,6 +110,7 @@ impl PayloadCodec for Payload {
             Payload::Telemetry => telemetry_json(&VehicleTelemetry::default()),
             Payload::Lease => lease_json(&ControllerLease::default()),
             Payload::Link => link_json(&AutopilotLinkStatus::default()),
+            Payload::HostLink => host_link_json(&HostLinkStatus::default()),
             Payload::Heartbeat => heartbeat_json(&RoleHeartbeat::default()),
         };
         document_schema(&self.json_schema_name(), &example)
@@ -477,6 +480,16 @@ fn link_json(l: &AutopilotLinkStatus) -> Value {
         "foreign_autopilot": l.foreign_autopilot, "signing": l.signing,
         "url": l.url.as_str_lossy(), "last_refusal": l.last_refusal.as_str_lossy(),
         "foreign": l.foreign.as_str_lossy(),
+    })
+}
+
+fn host_link_json(l: &HostLinkStatus) -> Value {
+    json!({
+        "host": l.host.as_str_lossy(), "probes": l.probes, "answered": l.answered,
+        "stamp_ns": l.stamp_ns, "rtt_ns": l.rtt_ns, "rtt_smoothed_ns": l.rtt_smoothed_ns,
+        "clock_offset_ns": l.clock_offset_ns, "frame_coding_ns": l.frame_coding_ns,
+        "busy_milli": l.busy_milli, "cpus": l.cpus, "loss_permille": l.loss_permille,
+        "connected": l.connected,
     })
 }
 

@@ -8,8 +8,8 @@ use crate::bus::{
     BusError, FlightBus, FramePublisher, FrameSubscriber, TypedPublisher, TypedSubscriber,
 };
 use aeris_schemas::{
-    AutopilotLinkStatus, BoundSetpoint, ControllerLease, Decision, FrameHeader, HubReport,
-    PerceptionState, RoleHeartbeat, VehicleTelemetry, ZeroCopySend, topics,
+    AutopilotLinkStatus, BoundSetpoint, ControllerLease, Decision, FrameHeader, HostLinkStatus,
+    HubReport, PerceptionState, RoleHeartbeat, VehicleTelemetry, ZeroCopySend, topics,
 };
 use core::fmt::Debug;
 use iceoryx2::identifiers::UniquePublisherId;
@@ -33,6 +33,8 @@ pub enum Payload {
     Lease,
     /// [`AutopilotLinkStatus`].
     Link,
+    /// [`HostLinkStatus`].
+    HostLink,
     /// [`RoleHeartbeat`].
     Heartbeat,
 }
@@ -52,6 +54,7 @@ pub fn payload_of(topic: &str) -> Option<Payload> {
         topics::VEHICLE_TELEMETRY => Payload::Telemetry,
         topics::CONTROLLER_LEASE => Payload::Lease,
         topics::CONTROLLER_LINK => Payload::Link,
+        topics::HOSTS_LINK => Payload::HostLink,
         topics::HEARTBEAT => Payload::Heartbeat,
         _ => return None,
     })
@@ -82,7 +85,7 @@ fn type_name_of<T: ZeroCopySend>() -> &'static str {
 }
 
 impl Payload {
-    /// The iceoryx2 type name (`aeris::Decision@s6`).
+    /// The iceoryx2 type name (`aeris::Decision@s7`).
     pub fn type_name(self) -> &'static str {
         match self {
             Payload::Frame => type_name_of::<FrameHeader>(),
@@ -93,6 +96,7 @@ impl Payload {
             Payload::Telemetry => type_name_of::<VehicleTelemetry>(),
             Payload::Lease => type_name_of::<ControllerLease>(),
             Payload::Link => type_name_of::<AutopilotLinkStatus>(),
+            Payload::HostLink => type_name_of::<HostLinkStatus>(),
             Payload::Heartbeat => type_name_of::<RoleHeartbeat>(),
         }
     }
@@ -111,6 +115,7 @@ impl Payload {
             Payload::Telemetry => l::<VehicleTelemetry>(),
             Payload::Lease => l::<ControllerLease>(),
             Payload::Link => l::<AutopilotLinkStatus>(),
+            Payload::HostLink => l::<HostLinkStatus>(),
             Payload::Heartbeat => l::<RoleHeartbeat>(),
         }
     }
@@ -173,6 +178,7 @@ pub fn raw_subscriber(
         Payload::Telemetry => Box::new(bus.subscriber::<VehicleTelemetry>(topic)?),
         Payload::Lease => Box::new(bus.subscriber::<ControllerLease>(topic)?),
         Payload::Link => Box::new(bus.subscriber::<AutopilotLinkStatus>(topic)?),
+        Payload::HostLink => Box::new(bus.subscriber::<HostLinkStatus>(topic)?),
         Payload::Heartbeat => Box::new(bus.subscriber::<RoleHeartbeat>(topic)?),
     })
 }
@@ -259,6 +265,7 @@ pub fn raw_publisher(
         Payload::Telemetry => Box::new(bus.publisher::<VehicleTelemetry>(topic)?),
         Payload::Lease => Box::new(bus.publisher::<ControllerLease>(topic)?),
         Payload::Link => Box::new(bus.publisher::<AutopilotLinkStatus>(topic)?),
+        Payload::HostLink => Box::new(bus.publisher::<HostLinkStatus>(topic)?),
         Payload::Heartbeat => Box::new(bus.publisher::<RoleHeartbeat>(topic)?),
     })
 }

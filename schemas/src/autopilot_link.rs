@@ -85,7 +85,7 @@ impl AutopilotKind {
 /// What the lease-holding controller knows of its autopilot link, every control tick.
 /// Counters count from the controller process's start.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("aeris::AutopilotLinkStatus@s6")]
+#[type_name("aeris::AutopilotLinkStatus@s7")]
 #[repr(C)]
 pub struct AutopilotLinkStatus {
     /// Publisher sequence number.

@@ -20,6 +20,7 @@ pub mod control;
 pub mod decision;
 pub mod frame;
 pub mod heartbeat;
+pub mod host_link;
 pub mod hub_report;
 pub mod lease;
 pub mod setpoint;
@@ -39,6 +40,7 @@ pub use decision::{
 };
 pub use frame::{FrameError, FrameFormat, FrameHeader};
 pub use heartbeat::{HeartbeatError, MAX_STAGES, RoleHeartbeat, RoleStatus, StageTiming};
+pub use host_link::{HostLinkStatus, LINK_LOSS_WINDOW, LINK_PROBE_PERIOD_MS, MAX_HOSTS};
 pub use hub_report::{HubReport, HubReportError, clamp};
 pub use lease::{ControllerLease, LEASE_HAS_HOLD, LEASE_HAS_REFERENCE};
 pub use setpoint::{BoundSetpoint, SetpointError};

@@ -1,6 +1,7 @@
 //! The supervisor's status board, read by `aeris status`.
 
 use crate::heartbeat::NAME_MAX;
+use crate::host_link::{HostLinkStatus, MAX_HOSTS};
 use crate::text::FixedText;
 use iceoryx2_bb_derive_macros::ZeroCopySend;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
@@ -53,7 +54,7 @@ pub const BINDING_TEXT_MAX: usize = 96;
 
 /// The whole board (`aeris/{flight}/supervisor`, a blackboard entry).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("aeris::SupervisorStatus@s6")]
+#[type_name("aeris::SupervisorStatus@s7")]
 #[repr(C)]
 pub struct SupervisorStatus {
     /// Board update counter.
@@ -76,6 +77,13 @@ pub struct SupervisorStatus {
     pub ct_mean_s: f32,
     /// One line per role.
     pub roles: [RoleStatusEntry; MAX_ROLES],
+    /// Number of valid entries in `links`.
+    pub link_count: u32,
+    /// Reserved, zero.
+    pub reserved: u32,
+    /// The links to the flight's other hosts, as last measured (one per host, in the
+    /// workflow's order; `probes` 0 = not measured yet).
+    pub links: [HostLinkStatus; MAX_HOSTS],
 }
 
 impl Default for SupervisorStatus {
@@ -91,6 +99,9 @@ impl Default for SupervisorStatus {
             distance_to_goal_m: -1.0,
             ct_mean_s: 0.0,
             roles: [RoleStatusEntry::default(); MAX_ROLES],
+            link_count: 0,
+            reserved: 0,
+            links: [HostLinkStatus::default(); MAX_HOSTS],
         }
     }
 }
@@ -99,5 +110,10 @@ impl SupervisorStatus {
     /// The valid role entries.
     pub fn roles(&self) -> &[RoleStatusEntry] {
         &self.roles[..(self.role_count as usize).min(MAX_ROLES)]
+    }
+
+    /// The valid link entries.
+    pub fn links(&self) -> &[HostLinkStatus] {
+        &self.links[..(self.link_count as usize).min(MAX_HOSTS)]
     }
 }

@@ -31,6 +31,8 @@ pub const CONTROLLER_LEASE: &str = "controller/lease";
 /// The autopilot link as the lease-holding controller sees it:
 /// [`crate::AutopilotLinkStatus`].
 pub const CONTROLLER_LINK: &str = "controller/link";
+/// Links to other hosts as the flight's host measures them: [`crate::HostLinkStatus`].
+pub const HOSTS_LINK: &str = "hosts/link";
 /// Role heartbeats: [`crate::RoleHeartbeat`].
 pub const HEARTBEAT: &str = "heartbeat";
 
@@ -39,7 +41,7 @@ pub const HEARTBEAT: &str = "heartbeat";
 pub const SUPERVISOR_CONTROL: &str = "supervisor/control";
 
 /// Every versioned topic, for listing and validation.
-pub const ALL: [&str; 14] = [
+pub const ALL: [&str; 15] = [
     CAMERA_RGB,
     CAMERA_DEPTH,
     PERCEPTION_STATE,
@@ -53,6 +55,7 @@ pub const ALL: [&str; 14] = [
     VEHICLE_TELEMETRY,
     CONTROLLER_LEASE,
     CONTROLLER_LINK,
+    HOSTS_LINK,
     HEARTBEAT,
 ];
 

@@ -9,15 +9,15 @@
 //!    hashes differ, instead of silently finding no peers.
 
 use crate::{
-    AutopilotLinkStatus, BoundSetpoint, ControllerLease, Decision, FrameHeader, HubReport,
-    PerceptionState, RoleHeartbeat, SupervisorCommand, SupervisorReply, SupervisorStatus,
-    VehicleTelemetry,
+    AutopilotLinkStatus, BoundSetpoint, ControllerLease, Decision, FrameHeader, HostLinkStatus,
+    HubReport, PerceptionState, RoleHeartbeat, SupervisorCommand, SupervisorReply,
+    SupervisorStatus, VehicleTelemetry,
 };
 use iceoryx2_bb_derive_macros::ZeroCopySend;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
 /// Version of the message schema. Bump on any change of a payload type.
-pub const SCHEMA_VERSION: u32 = 6;
+pub const SCHEMA_VERSION: u32 = 7;
 
 const fn fnv1a(mut h: u64, v: u64) -> u64 {
     let mut i = 0;
@@ -55,6 +55,8 @@ const fn layout_hash() -> u64 {
         core::mem::align_of::<ControllerLease>(),
         core::mem::size_of::<AutopilotLinkStatus>(),
         core::mem::align_of::<AutopilotLinkStatus>(),
+        core::mem::size_of::<HostLinkStatus>(),
+        core::mem::align_of::<HostLinkStatus>(),
     ];
     let mut h = fnv1a(0xcbf2_9ce4_8422_2325, SCHEMA_VERSION as u64);
     let mut i = 0;

@@ -4,7 +4,7 @@
 use super::{
     BRIDGE_KIND, ExecutorCpus, FLIGHT_HOST_KINDS, Host, Workflow, WorkflowError, check_endpoint,
 };
-use aeris_schemas::topics;
+use aeris_schemas::{MAX_HOSTS, topics};
 
 /// Topics the supervisor itself reads on the flight's host (its own subscriptions, beside
 /// the roles'): every role's heartbeat, the hub's reports, telemetry, the autopilot link.
@@ -29,9 +29,15 @@ pub struct BridgePlan {
 
 impl Workflow {
     /// Check `[hosts]` and the executors on them: names, endpoints, every executor's host
-    /// declared, no hub, controller, vehicle, replay source or recorder on another host, no
+    /// declared (at most [`MAX_HOSTS`] hosts), no hub, controller, vehicle, replay source or recorder on another host, no
     /// topic between two other hosts.
     pub(super) fn validate_hosts(&self) -> Result<(), WorkflowError> {
+        if self.hosts.len() > MAX_HOSTS {
+            return Err(WorkflowError::TooManyHosts {
+                count: self.hosts.len(),
+                max: MAX_HOSTS,
+            });
+        }
         for h in &self.hosts {
             if !topics::is_valid_flight_name(&h.name) {
                 return Err(WorkflowError::BadHostName {
