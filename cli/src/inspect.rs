@@ -3,8 +3,8 @@
 use aeris_runtime::bus::{self, FlightBus};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_schemas::{
-    AutopilotLinkStatus, BoundSetpoint, ControllerLease, Decision, HubReport, PerceptionState,
-    RoleHeartbeat, RoleStatus, VehicleTelemetry, ZeroCopySend, topics,
+    AutopilotLinkStatus, BoundSetpoint, ControllerLease, Decision, HostLinkStatus, HubReport,
+    PerceptionState, RoleHeartbeat, RoleStatus, VehicleTelemetry, ZeroCopySend, topics,
 };
 use anyhow::{Context, Result, bail};
 use core::fmt::Debug;
@@ -70,6 +70,26 @@ pub fn status(flight: Option<String>, json: bool) -> Result<()> {
             })
         })
         .collect();
+    let links: Vec<serde_json::Value> = board
+        .links()
+        .iter()
+        .map(|l| {
+            let measured = l.probes > 0;
+            serde_json::json!({
+                "host": l.host.as_str_lossy(),
+                "connected": measured.then_some(l.connected == 1),
+                "rtt_ms": l.rtt_ms(),
+                "rtt_last_ms": (l.answered > 0).then(|| l.rtt_ns as f64 / 1e6),
+                "loss": measured.then(|| l.loss()),
+                "probes": l.probes,
+                "answered": l.answered,
+                "clock_offset_ms": (l.answered > 0).then(|| l.clock_offset_ns as f64 / 1e6),
+                "busy_cores": (l.cpus > 0).then(|| l.busy_cores()),
+                "cpus": l.cpus,
+                "frame_coding_ms": (l.frame_coding_ns > 0).then(|| l.frame_coding_ns as f64 / 1e6),
+            })
+        })
+        .collect();
     if json {
         let out = serde_json::json!({
             "flight": flight,
@@ -80,6 +100,7 @@ pub fn status(flight: Option<String>, json: bool) -> Result<()> {
             "ct_mean_s": board.ct_mean_s,
             "migrations": board.migrations,
             "roles": roles,
+            "links": links,
         });
         println!("{out}");
         return Ok(());
@@ -146,7 +167,56 @@ pub fn status(flight: Option<String>, json: bool) -> Result<()> {
             r["binding"].as_str().unwrap_or("")
         );
     }
+    if !links.is_empty() {
+        print_links(&links);
+    }
     Ok(())
+}
+
+/// The links to other hosts (`aeris status`).
+fn print_links(links: &[serde_json::Value]) {
+    let ms = |v: &serde_json::Value, digits: usize| {
+        v.as_f64()
+            .map(|x| format!("{x:.digits$}"))
+            .unwrap_or_else(|| "-".into())
+    };
+    println!(
+        "{:<12} {:<9} {:>8} {:>8} {:>6} {:>13} {:>11} {:>12}",
+        "LINK",
+        "CONNECTED",
+        "RTT ms",
+        "LAST ms",
+        "LOSS",
+        "CLOCK OFF ms",
+        "BUSY CORES",
+        "FRAME ENC ms"
+    );
+    for l in links {
+        let connected = match l["connected"].as_bool() {
+            Some(true) => "yes",
+            Some(false) => "no",
+            None => "-",
+        };
+        let loss = l["loss"]
+            .as_f64()
+            .map(|x| format!("{:.0} %", x * 100.0))
+            .unwrap_or_else(|| "-".into());
+        let busy = match (l["busy_cores"].as_f64(), l["cpus"].as_u64()) {
+            (Some(b), Some(c)) => format!("{b:.2}/{c}"),
+            _ => "-".into(),
+        };
+        println!(
+            "{:<12} {:<9} {:>8} {:>8} {:>6} {:>13} {:>11} {:>12}",
+            l["host"].as_str().unwrap_or(""),
+            connected,
+            ms(&l["rtt_ms"], 3),
+            ms(&l["rtt_last_ms"], 3),
+            loss,
+            ms(&l["clock_offset_ms"], 3),
+            busy,
+            ms(&l["frame_coding_ms"], 2),
+        );
+    }
 }
 
 fn type_of(topic: &str) -> &'static str {
@@ -163,6 +233,7 @@ fn type_of(topic: &str) -> &'static str {
         topics::VEHICLE_TELEMETRY => "VehicleTelemetry",
         topics::CONTROLLER_LEASE => "ControllerLease",
         topics::CONTROLLER_LINK => "AutopilotLinkStatus",
+        topics::HOSTS_LINK => "HostLinkStatus",
         topics::HEARTBEAT => "RoleHeartbeat",
         "supervisor" => "SupervisorStatus (blackboard)",
         _ => "?",
@@ -225,6 +296,7 @@ fn each_sample(
         topics::VEHICLE_TELEMETRY => typed::<VehicleTelemetry>(bus, topic)?,
         topics::CONTROLLER_LEASE => typed::<ControllerLease>(bus, topic)?,
         topics::CONTROLLER_LINK => typed::<AutopilotLinkStatus>(bus, topic)?,
+        topics::HOSTS_LINK => typed::<HostLinkStatus>(bus, topic)?,
         topics::HEARTBEAT => typed::<RoleHeartbeat>(bus, topic)?,
         other => bail!(
             "unknown topic `{other}`; known topics: {}",

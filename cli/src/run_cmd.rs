@@ -276,6 +276,21 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
         summary.autopilot_link_losses,
         summary.autopilot_commands_refused
     );
+    for l in &summary.links {
+        println!(
+            "  link to host `{}`: round trip {}, loss {:.0} % of the last probes ({} of {} answered){}",
+            l.host,
+            l.rtt_ms
+                .map(|r| format!("{r:.3} ms"))
+                .unwrap_or_else(|| "never measured".into()),
+            l.loss * 100.0,
+            l.answered,
+            l.probes,
+            l.frame_coding_ms
+                .map(|f| format!(", a frame encoded in {f:.2} ms"))
+                .unwrap_or_default()
+        );
+    }
     if let Some(s) = summary.first_decision_on_video_s {
         println!("  first decision on the video {s:.2} s after its first frame");
     }

@@ -63,6 +63,6 @@ pub use event::{
 };
 pub use handle::{Flight, FlightBuilder, FlightError, FlightOutcome};
 pub use hook::{FnHook, HookError, NoHook, StepContext, StepHook};
-pub use monitor::{CycleTrace, FlightMonitor, FlightSummary, StageMeans};
+pub use monitor::{CycleTrace, FlightMonitor, FlightSummary, LinkSummary, StageMeans};
 pub use overrides::{OverrideError, Overrides, VariantChoice};
 pub use recording::{RecordError, RecordingSummary};

@@ -106,6 +106,42 @@ pub struct FlightSummary {
     pub first_decision_on_video_s: Option<f64>,
     /// The recording, when the flight was recorded ([`crate::FlightBuilder::record`]).
     pub recording: Option<crate::RecordingSummary>,
+    /// The links to other hosts as last measured (empty for a flight on one host).
+    pub links: Vec<LinkSummary>,
+}
+
+/// A link to another host at the end of a flight, as its bridge measured it.
+#[derive(Debug, Clone, Serialize)]
+pub struct LinkSummary {
+    /// The other host.
+    pub host: String,
+    /// Smoothed round trip (ms; `None`: never answered).
+    pub rtt_ms: Option<f64>,
+    /// Probes sent and answered within the link timeout.
+    pub probes: u64,
+    /// Probes answered.
+    pub answered: u64,
+    /// Probes lost over the last window (fraction).
+    pub loss: f64,
+    /// The other host's clock minus this host's (ms).
+    pub clock_offset_ms: Option<f64>,
+    /// Mean time to encode a frame for the link (ms; `None`: none encoded).
+    pub frame_coding_ms: Option<f64>,
+}
+
+impl LinkSummary {
+    /// The summary of `link`.
+    pub fn of(link: &aeris_schemas::HostLinkStatus) -> Self {
+        LinkSummary {
+            host: link.host.as_str_lossy().to_string(),
+            rtt_ms: link.rtt_ms(),
+            probes: link.probes,
+            answered: link.answered,
+            loss: link.loss(),
+            clock_offset_ms: (link.answered > 0).then(|| link.clock_offset_ns as f64 / 1e6),
+            frame_coding_ms: (link.frame_coding_ns > 0).then(|| link.frame_coding_ns as f64 / 1e6),
+        }
+    }
 }
 
 /// Mean stage durations.
@@ -542,6 +578,7 @@ impl FlightMonitor {
             no_occupancy_clamps: self.no_occupancy_clamps,
             first_decision_on_video_s: self.video_start.seconds(),
             recording: None,
+            links: Vec::new(),
         }
     }
 }

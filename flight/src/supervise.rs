@@ -7,7 +7,7 @@ use crate::event::{
 use crate::executors::{accelerator_line, onnx_accelerators};
 use crate::handle::{FlightError, FlightOutcome};
 use crate::hook::{StepContext, StepHook};
-use crate::monitor::{CycleTrace, FlightMonitor};
+use crate::monitor::{CycleTrace, FlightMonitor, LinkSummary};
 use crate::recording::RecordingSummary;
 use aeris_orchestrator::supervisor::{RoleState, Supervisor, SupervisorEvent, SupervisorOptions};
 use aeris_orchestrator::workflow::Workflow;
@@ -246,6 +246,7 @@ pub(crate) fn supervise<H: StepHook>(
     summary.stalls = sup.roles().iter().map(|r| u64::from(r.stalls())).sum();
     summary.swaps_done = swaps_done;
     summary.swaps_failed = swaps_failed;
+    summary.links = sup.status().links().iter().map(LinkSummary::of).collect();
     let recorder_heartbeat = record.as_ref().and_then(|(_, role)| {
         sup.roles()
             .iter()

@@ -1,7 +1,8 @@
 //! `aeris agent`: the daemon on every host that may run roles for a flight whose supervisor
 //! runs on another host. It is a zenoh router listening on the endpoint the workflow names
 //! for the host, and it
-//! - says what its host is (`info`: schema, CPUs, its clock for the offset between hosts);
+//! - says what its host is (`info`: schema, CPUs and how busy they are, its clock for the
+//!   offset between hosts); the flight's bridge asks every 250 ms, which measures the link;
 //! - starts a role process on request (`spawn`), the way the supervisor starts one locally
 //!   (own process group, killed with the agent, bound to the executor's CPUs, log file),
 //!   after checking that the asker speaks its schema;
@@ -15,10 +16,11 @@ use crate::protocol::{
     agent_request_key, agent_token_key, check_schema, exit_key, handle_token_key,
 };
 use crate::session::{SessionError, open_router};
+use aeris_orchestrator::executors::{CpuTicks, busy_cores, read_proc_stat};
 use aeris_orchestrator::role_process::{LoadPolicy, spawn_role};
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::clock::monotonic_ns;
-use std::collections::HashSet;
+use std::collections::{BTreeMap, HashSet};
 use std::io::{Read, Seek, SeekFrom};
 use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
@@ -161,6 +163,41 @@ impl RoleProcess {
     }
 }
 
+/// The least time between two load samples of the host's CPUs (`info` asked more often
+/// answers the last figure).
+pub const LOAD_INTERVAL: Duration = Duration::from_millis(200);
+
+/// The load of the host's CPUs, sampled when `info` is asked.
+struct HostLoad {
+    /// The last `/proc/stat` sample and when it was taken.
+    ticks: BTreeMap<usize, CpuTicks>,
+    at: Instant,
+    /// Busy cores between the last two samples.
+    busy: f64,
+}
+
+impl HostLoad {
+    fn new() -> Self {
+        HostLoad {
+            ticks: read_proc_stat(),
+            at: Instant::now(),
+            busy: 0.0,
+        }
+    }
+
+    /// Busy cores of `cpus`, sampled again when the last sample is older than
+    /// [`LOAD_INTERVAL`].
+    fn busy(&mut self, cpus: &CpuSet) -> f64 {
+        if self.at.elapsed() >= LOAD_INTERVAL {
+            let now = read_proc_stat();
+            self.busy = busy_cores(&self.ticks, &now, cpus.cpus());
+            self.ticks = now;
+            self.at = Instant::now();
+        }
+        self.busy
+    }
+}
+
 /// The agent of one host.
 pub struct Agent {
     config: AgentConfig,
@@ -173,6 +210,7 @@ pub struct Agent {
     alive_handles: HashSet<String>,
     roles: Vec<RoleProcess>,
     online: CpuSet,
+    load: HostLoad,
 }
 
 fn declare_error(what: &str) -> impl Fn(zenoh::Error) -> AgentError + '_ {
@@ -226,6 +264,7 @@ impl Agent {
             alive_handles: HashSet::new(),
             roles: Vec::new(),
             online,
+            load: HostLoad::new(),
         })
     }
 
@@ -250,6 +289,8 @@ impl Agent {
                 agent_pid: std::process::id(),
                 roles: self.roles.len(),
                 monotonic_ns: monotonic_ns(),
+                busy_cores: self.load.busy(&self.online),
+                cpu_count: self.online.cpus().len() as u32,
             };
             reply(&q, &AgentReply::Ok(info));
         }

@@ -34,6 +34,13 @@
 //! publisher's size), `link_timeout_ms` (zenoh's lease), `frames` (`jpeg`, the default, or
 //! `raw`) and `jpeg_quality` (85).
 //!
+//! The bridge on the flight's host (`probe` names the other host) also measures the link:
+//! it asks the other host's agent for its `info` every 250 ms and publishes the round
+//! trip, the loss, the clock offset, the other host's load and the cost of encoding a frame
+//! on `hosts/link` ([`crate::probe`]). While no frame crosses it still encodes one frame a
+//! second (and sends nothing), so the cost of sending frames there is known before a role
+//! that reads them moves there.
+//!
 //! When it stops it prints what crossed, per topic (`bridge: sent `camera/rgb`: N messages,
 //! B bytes`).
 //!
@@ -46,6 +53,7 @@
 //! owned buffer.
 
 use crate::frames::{CODING_JPEG, CODING_RAW, DEFAULT_JPEG_QUALITY, FrameCoding, decode};
+use crate::probe::LinkProbe;
 use crate::protocol::{SchemaStamp, check_schema, data_key};
 use crate::session::{Reach, SessionError, open_client};
 use aeris_runtime::clock::monotonic_ns;
@@ -80,6 +88,9 @@ const BURST: usize = 64;
 
 /// How often a working bridge reports a worked cycle (its heartbeat, not each message).
 const REPORT_NS: u64 = 100_000_000;
+
+/// How often a frame that does not cross is encoded anyway, to measure the cost (ns).
+const CODING_SAMPLE_NS: u64 = 1_000_000_000;
 
 /// Attachment: schema stamp (12 bytes), sequence number (8), header length (4), frame
 /// coding (1: [`CODING_RAW`] or [`CODING_JPEG`]; absent means raw).
@@ -150,6 +161,10 @@ pub struct BridgeRole {
     connected: bool,
     last_report_ns: u64,
     link_checked_ns: u64,
+    /// The link's measurement (the bridge on the flight's host only).
+    probe: Option<LinkProbe>,
+    /// When a frame that does not cross was last encoded to measure the cost.
+    coding_sampled_ns: u64,
 }
 
 fn topics_param(ctx: &RoleContext, key: &str) -> Result<Vec<String>, RoleError> {
@@ -206,6 +221,10 @@ impl Role for BridgeRole {
         )
         .map_err(|e| RoleError::Config(format!("bridge: {e}")))?;
         let flight = ctx.spec.flight.clone();
+        let probe = match ctx.spec.param_str("probe") {
+            Some(host) => Some(LinkProbe::new(&ctx.bus, host, lease)?),
+            None => None,
+        };
         let mut imports = Vec::with_capacity(import.len());
         let mut own = Vec::with_capacity(import.len());
         for t in import {
@@ -271,6 +290,8 @@ impl Role for BridgeRole {
             connected: false,
             last_report_ns: 0,
             link_checked_ns: 0,
+            probe,
+            coding_sampled_ns: 0,
         };
         match open_client(&connect, Reach::Eventually, lease) {
             Ok(session) => bridge.attach(session)?,
@@ -321,9 +342,27 @@ impl Role for BridgeRole {
                     self.frames,
                     ex.payload == Payload::Frame,
                 );
+                // a frame that does not cross is encoded once a second all the same (the
+                // probing bridge only): the link's frame cost is known before it is paid
+                let sample_coding = !wanted
+                    && is_frame
+                    && self.probe.is_some()
+                    && t0.saturating_sub(self.coding_sampled_ns) >= CODING_SAMPLE_NS;
+                let scratch = &mut self.pixels;
                 let mut encode_ns = 0u64;
+                let mut sampled = false;
                 let got = ex.sub.next_raw(&mut |bytes, pixels, from| {
-                    if !wanted || own.contains(&from) {
+                    if own.contains(&from) {
+                        return;
+                    }
+                    if !wanted {
+                        if let (true, Some(header)) = (sample_coding, read::<FrameHeader>(bytes)) {
+                            scratch.clear();
+                            let t = monotonic_ns();
+                            sampled =
+                                matches!(frames.encode(&header, pixels, scratch), Ok(CODING_JPEG));
+                            encode_ns = monotonic_ns().saturating_sub(t);
+                        }
                         return;
                     }
                     // a JPEG frame is a few percent of its pixels: reserve accordingly
@@ -356,6 +395,12 @@ impl Role for BridgeRole {
                 if !got {
                     break;
                 }
+                if sampled {
+                    self.coding_sampled_ns = t0;
+                    if let Some(p) = self.probe.as_mut() {
+                        p.frame_coded(encode_ns);
+                    }
+                }
                 if let Some(e) = failed {
                     self.counters[5] += 1;
                     if !self.refused_logged {
@@ -369,6 +414,9 @@ impl Role for BridgeRole {
                 };
                 if coding == CODING_JPEG {
                     ex.encode_ns += encode_ns;
+                    if let Some(p) = self.probe.as_mut() {
+                        p.frame_coded(encode_ns);
+                    }
                 }
                 let Some(publisher) = ex.publisher.as_ref() else {
                     continue;
@@ -465,6 +513,9 @@ impl Role for BridgeRole {
             self.follow_readers();
         }
         let connected = self.connected;
+        if let Some(p) = self.probe.as_mut() {
+            p.step(self.session.as_ref(), connected, now);
+        }
         self.counters[6] = connected as u64;
         report.counters = self.counters;
         report.status = if connected && !self.refused_logged {

@@ -14,6 +14,8 @@
 //! - [`bridge`]: the role (kind `bridge`, variant `zenoh`) that carries a flight's topics
 //!   between iceoryx2 on its host and zenoh, exact bytes, schema checked per message;
 //! - [`frames`]: how frames cross (JPEG or raw);
+//! - [`probe`]: the link's round trip, loss, clock offset and the other host's load, as
+//!   the bridge on the flight's host measures them (`hosts/link`);
 //! - [`netns`]: two hosts on one machine (network namespaces, private `/dev/shm`), for the
 //!   tests and `aeris bench hosts`.
 
@@ -24,5 +26,6 @@ pub mod bridge;
 pub mod frames;
 pub mod handle;
 pub mod netns;
+pub mod probe;
 pub mod protocol;
 pub mod session;

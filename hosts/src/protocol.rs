@@ -123,6 +123,13 @@ pub struct HostInfo {
     /// Its CLOCK_MONOTONIC when it answered (ns): with the asker's clock at the request and
     /// the reply, the offset between the two hosts' clocks.
     pub monotonic_ns: u64,
+    /// Busy cores of its CPUs (`cpus`) over the last [`crate::agent::LOAD_INTERVAL`] or so
+    /// (all work there, roles and outside work alike).
+    #[serde(default)]
+    pub busy_cores: f64,
+    /// How many CPUs `cpus` names.
+    #[serde(default)]
+    pub cpu_count: u32,
 }
 
 /// Start a role on the agent's host (`spawn`).

@@ -207,6 +207,23 @@ pub fn process_threads(pid: u32) -> std::io::Result<Vec<i32>> {
     Ok(out)
 }
 
+/// Busy cores of `cpus` between two `/proc/stat` samples ([`read_proc_stat`]); a CPU
+/// missing from either sample counts as idle.
+pub fn busy_cores(
+    before: &BTreeMap<usize, CpuTicks>,
+    after: &BTreeMap<usize, CpuTicks>,
+    cpus: &[usize],
+) -> f64 {
+    cpus.iter()
+        .filter_map(|c| {
+            let (a, b) = (before.get(c)?, after.get(c)?);
+            let total = b.total.checked_sub(a.total)?;
+            let busy = b.busy.checked_sub(a.busy)?;
+            (total > 0).then(|| busy as f64 / total as f64)
+        })
+        .sum()
+}
+
 /// Executors and their load.
 #[derive(Debug, Clone)]
 pub struct ExecutorRegistry {
@@ -302,17 +319,7 @@ impl ExecutorRegistry {
 
     fn apply(&mut self, now: &BTreeMap<usize, CpuTicks>) {
         for e in &mut self.executors {
-            e.busy = e
-                .cpus
-                .cpus()
-                .iter()
-                .filter_map(|c| {
-                    let (a, b) = (self.last.get(c)?, now.get(c)?);
-                    let total = b.total.checked_sub(a.total)?;
-                    let busy = b.busy.checked_sub(a.busy)?;
-                    (total > 0).then(|| busy as f64 / total as f64)
-                })
-                .sum();
+            e.busy = busy_cores(&self.last, now, e.cpus.cpus());
         }
     }
 }

@@ -129,11 +129,13 @@ pub fn bridge_roles(workflow: &Workflow) -> Vec<RoleDecl> {
             p.insert("jpeg_quality".into(), h.jpeg_quality.into());
             p
         };
-        let here = params(
+        let mut here = params(
             &plan.to_host,
             &plan.from_host,
             &format!("host `{}`", h.name),
         );
+        // the bridge on the flight's host measures the link (`hosts/link`)
+        here.insert("probe".into(), h.name.clone().into());
         roles.push(RoleDecl::new(
             &format!("bridge-to-{}", h.name),
             BRIDGE_KIND,

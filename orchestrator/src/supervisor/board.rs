@@ -5,7 +5,9 @@
 use super::role_runtime::RoleRuntime;
 use aeris_runtime::bus::StatusBoardWriter;
 use aeris_runtime::clock::monotonic_ns;
-use aeris_schemas::{FixedText, MAX_ROLES, RoleStatusEntry, SupervisorStatus};
+use aeris_schemas::{
+    FixedText, HostLinkStatus, MAX_HOSTS, MAX_ROLES, RoleStatusEntry, SupervisorStatus,
+};
 use std::io::Write as _;
 
 /// The flight's status board and the last status written to it.
@@ -34,8 +36,14 @@ impl StatusBoard {
         &self.status
     }
 
-    /// Write the status of `roles` and the flight's `migrations` so far.
-    pub(super) fn publish(&mut self, roles: &[RoleRuntime], migrations: u32) {
+    /// Write the status of `roles`, the flight's `migrations` so far and its `links` to
+    /// other hosts.
+    pub(super) fn publish(
+        &mut self,
+        roles: &[RoleRuntime],
+        migrations: u32,
+        links: &[HostLinkStatus],
+    ) {
         let s = &mut self.status;
         s.seq += 1;
         s.stamp_ns = monotonic_ns();
@@ -75,6 +83,10 @@ impl StatusBoard {
             };
         }
         s.migrations = migrations;
+        s.link_count = links.len().min(MAX_HOSTS) as u32;
+        for (entry, link) in s.links.iter_mut().zip(links) {
+            *entry = *link;
+        }
         self.writer.update(&self.status);
     }
 

@@ -43,6 +43,7 @@ mod error;
 mod events;
 mod exits;
 mod heartbeats;
+mod host_links;
 mod initial_binding;
 mod links;
 mod logs;
@@ -75,6 +76,7 @@ use aeris_schemas::{RoleHeartbeat, SupervisorStatus, topics};
 use board::StatusBoard;
 use control_service::ControlService;
 use heartbeats::HeartbeatIntake;
+use host_links::HostLinks;
 use initial_binding::InitialCheck;
 use scheduling::rebind_config;
 use service_audit::ServiceAudit;
@@ -153,6 +155,8 @@ pub struct Supervisor {
     remote_executors: Vec<(String, aeris_runtime::spec::RemoteSpec)>,
     /// Lost links that are back, and since when (roles return after the hysteresis).
     links_up_since: Vec<(String, Instant)>,
+    /// The links to the other hosts as their bridges measure them.
+    host_links: HostLinks,
 }
 
 impl core::fmt::Debug for Supervisor {
@@ -222,6 +226,8 @@ impl Supervisor {
             .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
             .map_err(bus_err)?;
         let board = bus.create_status_board().map_err(bus_err)?;
+        let hosts: Vec<String> = workflow.hosts.iter().map(|h| h.name.clone()).collect();
+        let host_links = HostLinks::new(&bus, &hosts).map_err(bus_err)?;
         let control = bus.control_server().map_err(bus_err)?;
 
         let roles_dir = run_dir.join("roles");
@@ -256,6 +262,7 @@ impl Supervisor {
             services: ServiceAudit::new(),
             remote_executors: plan.remote_executors,
             links_up_since: Vec::new(),
+            host_links,
         };
         for planned in plan.roles {
             sup.add_role(planned, &roles_dir, &logs_dir)?;
@@ -333,12 +340,16 @@ impl Supervisor {
     ) -> Result<(), SupervisorError> {
         self.heartbeats
             .drain(&mut self.roles, events)
+            .map_err(|source| self.bus_error(source))?;
+        self.host_links
+            .drain()
             .map_err(|source| self.bus_error(source))
     }
 
     /// Write the status board.
     fn publish_board(&mut self) {
-        self.board.publish(&self.roles, self.migrations);
+        self.board
+            .publish(&self.roles, self.migrations, self.host_links.all());
     }
 
     /// Step until every role has sent a heartbeat from its current process. Events seen

@@ -171,6 +171,15 @@ fn a_flight_with_roles_on_another_host_and_its_reasoner_moved_there_and_back_rea
         "{status}"
     );
     assert_eq!(executor_of("hub"), Some("control".into()), "{status}");
+    // and the link, as its bridge measures it: answered probes, a round trip, the ground
+    // host's CPUs
+    let link = &status["links"][0];
+    assert_eq!(link["host"], "ground", "{status}");
+    assert_eq!(link["connected"], true, "{status}");
+    assert!(link["answered"].as_u64().unwrap() > 0, "{status}");
+    assert!(link["rtt_ms"].as_f64().unwrap() > 0.0, "{status}");
+    assert!(link["loss"].as_f64().unwrap() < 1.0, "{status}");
+    assert!(link["cpus"].as_u64().unwrap() > 0, "{status}");
     let back = migrate(&hosts, &run, &flight, "reasoning", "perception");
     let status = wait_bounded(&mut run.0, FLIGHT_BOUND);
     let (out, err) = run_output(&dir.0);
@@ -199,6 +208,12 @@ fn a_flight_with_roles_on_another_host_and_its_reasoner_moved_there_and_back_rea
     assert_eq!(summary["sequence_gaps"], 0, "{summary}");
     assert_eq!(summary["sequence_reorders"], 0, "{summary}");
     assert_eq!(summary["controller_missed_ticks"], 0, "{summary}");
+    // the run summary ends with the link's figures
+    assert_eq!(summary["links"][0]["host"], "ground", "{summary}");
+    assert!(
+        summary["links"][0]["answered"].as_u64().unwrap() > 0,
+        "{summary}"
+    );
     // each move: the new process took over and the old one stopped; the hub followed
     assert!(
         there["message"]
