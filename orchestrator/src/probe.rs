@@ -126,11 +126,7 @@ mod tests {
 
     fn executors(n: usize) -> Vec<ExecutorLoad> {
         (0..n)
-            .map(|i| ExecutorLoad {
-                name: format!("e{i}"),
-                capacity: 1.0,
-                busy: 0.0,
-            })
+            .map(|i| ExecutorLoad::local(&format!("e{i}"), 1.0, 0.0))
             .collect()
     }
 

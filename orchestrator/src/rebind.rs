@@ -26,6 +26,18 @@
 //! budget where no move helps must not delay the answer to a hog landing later. Together with the margin this keeps noise around a
 //! budget from moving roles back and forth.
 //!
+//! Other hosts. An executor may be on another host ([`ExecutorLoad::host`]); a role placed
+//! there pays the link on every cycle: its state goes there and its output comes back (the
+//! link's measured round trip, [`ExecutorLoad::link_ms`]), and a role that reads frames
+//! waits for each to be encoded for the link too ([`ExecutorLoad::frame_ms`]). A role's
+//! latency on such an executor is its own cycle (its load model as above, with that host's
+//! busy cores) plus that cost; only roles that may run on another host
+//! ([`RoleLoad::crosses_hosts`]) are placed there, only while the link is up
+//! ([`ExecutorLoad::reachable`]), and a role goes from one host to another only through the
+//! flight's host. A role on another host is seen through its handle on the flight's host,
+//! so its CPU demand there is not measured (0): the planner may underestimate the load a
+//! role brings back.
+//!
 //! Relief is rate-limited per role: a role that a relief plan moved stays put twice as long
 //! after each further relief move (up to [`MAX_RELIEF_BACKOFF`] times the cooldown), until
 //! it has stayed within its budget for a whole cooldown. A role that fits nowhere (a language
@@ -52,7 +64,8 @@ pub struct RoleLoad {
     /// Its latency budget (ms); roles without one are never over budget.
     pub budget_ms: Option<f64>,
     /// Its recent latency (ms): the larger of the windowed p95 and the latency its current
-    /// scheduler slowdown predicts; `None` before it has worked.
+    /// scheduler slowdown predicts, plus the link's cost when it runs on another host
+    /// ([`link_cost`]); `None` before it has worked.
     pub latency_ms: Option<f64>,
     /// Measured slowdown `(run + wait) / run` (>= 1).
     pub slowdown: f64,
@@ -62,6 +75,10 @@ pub struct RoleLoad {
     pub waiting: f64,
     /// `false` pins the role where it is.
     pub movable: bool,
+    /// It may run on another host (not a kind that stays on the flight's host).
+    pub crosses_hosts: bool,
+    /// It reads frames (a role on another host waits for each to be encoded for the link).
+    pub reads_frames: bool,
 }
 
 impl RoleLoad {
@@ -87,6 +104,42 @@ pub struct ExecutorLoad {
     pub capacity: f64,
     /// Busy cores over the last interval (all tasks, ours included).
     pub busy: f64,
+    /// The other host it is on (`None`: the flight's host).
+    pub host: Option<String>,
+    /// What a role there pays per cycle for the link (ms): its measured round trip; 0 on
+    /// the flight's host.
+    pub link_ms: f64,
+    /// What a role there that reads frames pays on top (ms): encoding a frame for the
+    /// link, as measured; 0 on the flight's host.
+    pub frame_ms: f64,
+    /// Roles may be moved here: always on the flight's host; on another host while its
+    /// link is up and measured.
+    pub reachable: bool,
+}
+
+impl ExecutorLoad {
+    /// An executor of the flight's host.
+    pub fn local(name: &str, capacity: f64, busy: f64) -> Self {
+        ExecutorLoad {
+            name: name.to_string(),
+            capacity,
+            busy,
+            host: None,
+            link_ms: 0.0,
+            frame_ms: 0.0,
+            reachable: true,
+        }
+    }
+}
+
+/// What `role` pays per cycle for the link of `executor` (ms; 0 on the flight's host).
+pub fn link_cost(role: &RoleLoad, executor: &ExecutorLoad) -> f64 {
+    executor.link_ms
+        + if role.reads_frames {
+            executor.frame_ms
+        } else {
+            0.0
+        }
 }
 
 /// One move of a plan.

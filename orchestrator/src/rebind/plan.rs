@@ -2,7 +2,7 @@
 //! ([`predict`]), and the fewest moves that restore every budget, or failing that relieve the
 //! worst ([`plan_fewest_moves`]). Pure functions of one tick's figures.
 
-use super::{ExecutorLoad, Move, RebindPlan, RoleLoad};
+use super::{ExecutorLoad, Move, RebindPlan, RoleLoad, link_cost};
 
 /// Load (cores) on each executor that is not ours: busy beyond our roles' demand, plus the
 /// wait our roles saw there.
@@ -57,11 +57,14 @@ pub fn predict(
         .map(|(r, &e)| {
             let latency = r.latency_ms?;
             let s_then = *then.get(e)?;
+            // the role's own cycle, without the link it pays now
+            let paid = executors.get(r.executor).map_or(0.0, |ex| link_cost(r, ex));
+            let cycle = (latency - paid).max(0.0);
             Some(if e == r.executor {
-                // stays: the measured latency, scaled by the change of its executor
-                latency * s_then / now[e]
+                // stays: the measured cycle, scaled by the change of its executor
+                cycle * s_then / now[e] + paid
             } else {
-                latency / r.slowdown.max(1.0) * s_then
+                cycle / r.slowdown.max(1.0) * s_then + link_cost(r, &executors[e])
             })
         })
         .collect()
@@ -133,6 +136,12 @@ pub fn plan_fewest_moves(
                         to,
                     });
                 }
+                if !moves
+                    .iter()
+                    .all(|m| allowed(&roles[m.role], executors.get(m.from), &executors[m.to]))
+                {
+                    continue;
+                }
                 let predicted = predict(roles, executors, &assignment);
                 let Some((worst, restores)) = judge(&predicted) else {
                     continue;
@@ -164,6 +173,16 @@ pub fn plan_fewest_moves(
         predicted_ms,
         restores: false,
     })
+}
+
+/// Whether `role` may go from `from` to `to`: there only while its link is up, to another
+/// host only a role that may run there, and between two other hosts only through the
+/// flight's host.
+fn allowed(role: &RoleLoad, from: Option<&ExecutorLoad>, to: &ExecutorLoad) -> bool {
+    let from_host = from.and_then(|e| e.host.as_ref());
+    to.reachable
+        && (to.host.is_none() || role.crosses_hosts)
+        && (from_host.is_none() || to.host.is_none())
 }
 
 /// Index subsets of `0..n` of size `k`, in lexicographic order.
@@ -314,6 +333,113 @@ mod tests {
                 .unwrap()
                 .restores
         );
+    }
+
+    /// The hog case with a free executor on another host whose link costs `rtt` ms a
+    /// cycle and `frame` ms a frame; the flight's control executor is saturated too.
+    fn ground_case(rtt: f64, frame: f64) -> (Vec<RoleLoad>, Vec<ExecutorLoad>) {
+        let (mut roles, mut executors) = hog_case();
+        executors[0].busy = 1.0;
+        for r in roles.iter_mut().filter(|r| r.executor == 0) {
+            r.waiting = 1.0;
+        }
+        executors.push(ExecutorLoad {
+            host: Some("ground".into()),
+            link_ms: rtt,
+            frame_ms: frame,
+            ..ExecutorLoad::local("gs", 2.0, 0.1)
+        });
+        (roles, executors)
+    }
+
+    #[test]
+    fn a_role_goes_to_another_host_when_the_link_costs_less_than_the_slowdown() {
+        let (roles, executors) = ground_case(5.0, 0.0);
+        let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]).expect("a plan");
+        assert_eq!(
+            plan.moves,
+            [Move {
+                role: 4,
+                from: 1,
+                to: 2
+            }]
+        );
+        // its own cycle (1800 / 3) there, plus the round trip
+        assert!((plan.predicted_ms[4].unwrap() - 605.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_slow_link_keeps_the_role_on_the_flights_host() {
+        // 600 ms of cycle plus 500 ms of link is over the 1000 ms budget: no cure there
+        // (at most relief)
+        let (roles, executors) = ground_case(500.0, 0.0);
+        let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]);
+        assert!(plan.as_ref().is_none_or(|p| !p.restores), "{plan:?}");
+        // the same link at 5 ms cures it
+        let (roles, executors) = ground_case(5.0, 0.0);
+        assert!(plan_fewest_moves(&roles, &executors, 0.2, 3, &[]).is_some_and(|p| p.restores));
+    }
+
+    #[test]
+    fn a_role_that_reads_frames_pays_their_coding_there() {
+        let (mut roles, executors) = ground_case(5.0, 450.0);
+        roles[4].reads_frames = true;
+        // 600 + 5 + 450 > 1000 * 0.8: not a cure
+        let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]);
+        assert!(plan.is_none_or(|p| !p.restores), "frames were not counted");
+        roles[4].reads_frames = false;
+        assert!(
+            plan_fewest_moves(&roles, &executors, 0.2, 3, &[])
+                .expect("a plan")
+                .restores
+        );
+    }
+
+    #[test]
+    fn no_role_goes_where_it_may_not_or_over_a_link_that_is_down() {
+        let (mut roles, mut executors) = ground_case(5.0, 0.0);
+        roles[4].crosses_hosts = false;
+        let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]);
+        assert!(
+            plan.is_none_or(|p| p.moves.iter().all(|m| m.to != 2)),
+            "a flight-host role was sent to another host"
+        );
+        roles[4].crosses_hosts = true;
+        executors[2].reachable = false;
+        let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]);
+        assert!(
+            plan.is_none_or(|p| p.moves.iter().all(|m| m.to != 2)),
+            "a role was sent over a link that is down"
+        );
+    }
+
+    #[test]
+    fn a_role_on_another_host_comes_back_when_its_link_slows_down() {
+        // the reasoner runs on the ground: 600 ms of cycle plus a link that now costs
+        // 700 ms; the flight's executors are free
+        let (_, mut executors) = hog_case();
+        executors[1].busy = 0.1;
+        executors.push(ExecutorLoad {
+            host: Some("ground".into()),
+            link_ms: 700.0,
+            ..ExecutorLoad::local("gs", 2.0, 0.1)
+        });
+        let mut reasoning = role("reasoning", 2, 1000.0, 1300.0, 0.0);
+        reasoning.slowdown = 1.0;
+        let roles = vec![role("hub", 0, 20.0, 0.5, 0.05), reasoning];
+        let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]).expect("a plan");
+        assert_eq!(plan.moves.len(), 1);
+        assert_eq!(plan.moves[0].role, 1);
+        assert!(executors[plan.moves[0].to].host.is_none());
+        // its cycle without the link it paid
+        assert!((plan.predicted_ms[1].unwrap() - 600.0).abs() < 1e-6);
+        // and never straight to a third host
+        executors.push(ExecutorLoad {
+            host: Some("cloud".into()),
+            ..ExecutorLoad::local("big", 8.0, 0.0)
+        });
+        let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]).expect("a plan");
+        assert!(plan.moves.iter().all(|m| executors[m.to].host.is_none()));
     }
 
     #[test]

@@ -20,16 +20,14 @@ pub(super) fn role(
         demand,
         waiting: 0.0,
         movable: true,
+        crosses_hosts: true,
+        reads_frames: false,
     }
 }
 
 /// A one-core executor `busy` cores busy.
 pub(super) fn ex(name: &str, busy: f64) -> ExecutorLoad {
-    ExecutorLoad {
-        name: name.into(),
-        capacity: 1.0,
-        busy,
-    }
+    ExecutorLoad::local(name, 1.0, busy)
 }
 
 /// Two CPUs; a hog saturates CPU 1 where the reasoner, the camera and perception run.

@@ -190,6 +190,16 @@ pub enum SupervisorEvent {
         /// The roles killed, with the pids they had.
         roles: Vec<(String, u32)>,
     },
+    /// The scheduling policy moved a role to or from another host (make-before-break: its
+    /// `SwapStarted` .. `SwapDone`/`SwapFailed` follow), for the figures in `trigger`.
+    MoveAcrossHosts {
+        /// Role name.
+        name: String,
+        /// Where it goes (`HOST:EXECUTOR`, or an executor of the flight's host).
+        place: String,
+        /// The latency that triggered it and the one predicted there (the link included).
+        trigger: MigrationTrigger,
+    },
     /// An automatic move could not be made; the role stays where it was.
     MigrationFailed {
         /// Role name.
@@ -413,6 +423,24 @@ impl core::fmt::Display for SupervisorEvent {
                     "link to host `{host}` lost (role `{name}` silent for {silent_ms} ms): no fallback, it stays down"
                 ),
             },
+            SupervisorEvent::MoveAcrossHosts {
+                name,
+                place,
+                trigger,
+            } => {
+                write!(
+                    f,
+                    "{} moves `{name}` to {place}: {:.0} ms against its budget of {:.0} ms, {:.0} ms predicted there (the link included)",
+                    if trigger.initial {
+                        "initial binding"
+                    } else {
+                        "re-binding"
+                    },
+                    trigger.latency_ms,
+                    trigger.budget_ms,
+                    trigger.predicted_ms
+                )
+            }
             SupervisorEvent::MigrationFailed { name, reason } => {
                 write!(f, "role `{name}` could not be moved: {reason}")
             }

@@ -213,8 +213,10 @@ impl Supervisor {
             .iter()
             .enumerate()
             .flat_map(|(k, p)| {
+                // probes move live: the executors of the flight's host (one on another host
+                // is judged by the re-binding policy from its load and its link)
                 (0..executors.len())
-                    .filter(move |&e| e != p.home)
+                    .filter(move |&e| e != p.home && executors[e].host.is_none())
                     .map(move |e| (k, e))
             })
             .collect();

@@ -2,15 +2,24 @@
 //! samples executor load and every role's scheduler time, builds the policy's view of the
 //! flight ([`RoleLoad`], [`ExecutorLoad`]), and makes the moves the policy plans
 //! ([`crate::rebind`]); the initial binding and the variant ladder are checked from the same
-//! tick.
+//! tick. Executors on other hosts are part of that view (their host's load and their
+//! link's round trip, from `hosts/link`); a move to or from one is make-before-break
+//! ([`Supervisor::move_role`]), a move on the flight's host is live.
 
 use super::Supervisor;
 use super::events::{MigrationTrigger, SupervisorEvent};
 use super::role_runtime::{RoleState, SCHED_SAMPLES};
 use crate::executors::{SchedTime, process_sched_time};
-use crate::rebind::{ExecutorLoad, RebindConfig, RebindPlan, RoleLoad};
+use crate::rebind::{ExecutorLoad, RebindConfig, RebindPlan, RoleLoad, link_cost};
 use crate::workflow::SchedulingSpec;
+use crate::workflow::movable_across_hosts;
+use aeris_runtime::affinity::CpuSet;
+use aeris_runtime::catalog::role_kind;
+use aeris_schemas::topics;
 use std::time::{Duration, Instant};
+
+/// A link losing this share of its probes or more takes no role (a fading radio link).
+const MAX_LOSS_TO_PLACE: f64 = 0.2;
 
 /// Below this much CPU time in a window, a role's slowdown is not measured (ms of run time).
 const MIN_RUN_FOR_SLOWDOWN_NS: u64 = 2_000_000;
@@ -105,40 +114,102 @@ impl Supervisor {
                 predicted_ms: plan.predicted_ms[m.role].unwrap_or(0.0),
                 initial,
             };
-            let to = &executors[m.to].name;
-            match self.migrate_with(&role.name, to, Some(trigger)) {
-                Ok(_) => moved = true,
+            let to = &executors[m.to];
+            let across =
+                to.host.is_some() || executors.get(m.from).is_some_and(|e| e.host.is_some());
+            let result = if across {
+                // to or from another host: make-before-break through the hot-swap path
+                let target = match &to.host {
+                    Some(host) => format!("{host}:{}", to.name),
+                    None => to.name.clone(),
+                };
+                self.move_role(&role.name, &target).map(|_| {
+                    self.pending.push(SupervisorEvent::MoveAcrossHosts {
+                        name: role.name.clone(),
+                        place: target,
+                        trigger,
+                    });
+                })
+            } else {
+                self.migrate_with(&role.name, &to.name, Some(trigger))
+                    .map(|_| ())
+            };
+            match result {
+                Ok(()) => moved = true,
                 Err(e) => events.push(SupervisorEvent::MigrationFailed {
                     name: role.name.clone(),
-                    reason: format!("re-binding to {to}: {e}"),
+                    reason: format!("re-binding to {}: {e}", to.name),
                 }),
             }
         }
         moved
     }
 
+    /// The executors on other hosts as the policy sees them: their CPUs, their host's load
+    /// and the link's cost, from the link's last measurement.
+    fn remote_executor_loads(&self) -> Vec<ExecutorLoad> {
+        self.remote_executors
+            .iter()
+            .map(|(name, spec)| {
+                let link = self.host_links.get(&spec.host);
+                let host_cpus = link.map_or(0, |l| l.cpus) as f64;
+                let capacity = match CpuSet::parse(&spec.cpus) {
+                    Ok(set) if !spec.cpus.is_empty() => set.cpus().len() as f64,
+                    _ => host_cpus,
+                };
+                // the agent measures its host's role CPUs as a whole: an executor's share
+                let busy = link.map_or(0.0, |l| {
+                    l.busy_cores() * capacity / host_cpus.max(capacity).max(1.0)
+                });
+                let lost = self.roles.iter().any(|r| {
+                    r.link
+                        .as_ref()
+                        .is_some_and(|k| k.lost && k.host == spec.host)
+                });
+                ExecutorLoad {
+                    name: name.clone(),
+                    capacity: capacity.max(1.0),
+                    busy,
+                    host: Some(spec.host.clone()),
+                    link_ms: link.and_then(|l| l.rtt_ms()).unwrap_or(0.0),
+                    frame_ms: link.map_or(0.0, |l| l.frame_coding_ns as f64 / 1e6),
+                    reachable: !lost
+                        && link.is_some_and(|l| {
+                            l.connected == 1 && l.rtt_ms().is_some() && l.loss() < MAX_LOSS_TO_PLACE
+                        }),
+                }
+            })
+            .collect()
+    }
+
     /// The policy's view of the flight now.
     fn observe(&mut self) -> (Vec<RoleLoad>, Vec<ExecutorLoad>) {
-        let registry = &self.registry;
-        let executors: Vec<ExecutorLoad> = self
+        let mut executors: Vec<ExecutorLoad> = self
             .registry
             .executors()
             .iter()
-            .map(|e| ExecutorLoad {
-                name: e.name.clone(),
-                capacity: e.capacity(),
-                busy: e.busy,
-            })
+            .map(|e| ExecutorLoad::local(&e.name, e.capacity(), e.busy))
             .collect();
+        let local = executors.len();
+        executors.extend(self.remote_executor_loads());
+        let registry = &self.registry;
+        let remote = &self.remote_executors;
         let roles = self
             .roles
             .iter_mut()
             .map(|r| {
-                let executor = r
-                    .cpu_set
-                    .as_ref()
-                    .and_then(|set| registry.executors().iter().position(|e| &e.cpus == set))
-                    .unwrap_or(usize::MAX);
+                let executor = match &r.link {
+                    // on another host: the executor it runs on there
+                    Some(link) => remote
+                        .iter()
+                        .position(|(name, spec)| *name == r.executor && spec.host == link.host)
+                        .map(|j| local + j),
+                    None => r
+                        .cpu_set
+                        .as_ref()
+                        .and_then(|set| registry.executors().iter().position(|e| &e.cpus == set)),
+                }
+                .unwrap_or(usize::MAX);
                 let n = r.sched.len();
                 // the whole window for demand, the last two samples for slowdown and wait
                 let slow = (n >= 2)
@@ -152,20 +223,29 @@ impl Supervisor {
                 let percentiles = r.recent.percentiles([50.0, 95.0]);
                 // a slowdown that just grew stretches the cycles that are still running:
                 // the signal does not wait for them to finish
-                let latency_ms = percentiles
-                    .map(|[p50, p95]| p95.max(p50 * (fast_s / slow_s.max(1.0)).max(1.0)));
-                RoleLoad {
+                let mut load = RoleLoad {
                     name: r.name.clone(),
                     executor,
                     budget_ms: r.budget_ms,
-                    latency_ms,
+                    latency_ms: None,
                     slowdown: fast_s,
                     demand,
                     waiting,
+                    // a role that fell back with its link returns there by itself
                     movable: executor != usize::MAX
                         && r.state == RoleState::Running
-                        && r.swap.is_none(),
-                }
+                        && r.swap.is_none()
+                        && r.returns_to.is_none()
+                        && !r.link.as_ref().is_some_and(|l| l.lost),
+                    crosses_hosts: movable_across_hosts(&r.kind),
+                    reads_frames: role_kind(&r.kind)
+                        .is_some_and(|k| k.subscribes.contains(&topics::CAMERA_RGB)),
+                };
+                // on another host its heartbeats give its own cycle: the link comes on top
+                let paid = executors.get(executor).map_or(0.0, |e| link_cost(&load, e));
+                load.latency_ms = percentiles
+                    .map(|[p50, p95]| p95.max(p50 * (fast_s / slow_s.max(1.0)).max(1.0)) + paid);
+                load
             })
             .collect();
         (roles, executors)
