@@ -182,6 +182,8 @@ fn run_role(spec: PathBuf, instance: Option<u32>) -> anyhow::Result<ExitCode> {
         spec.instance = n;
     }
     let name = spec.name.clone();
+    // a role on another host stamps in the flight's host's clock
+    aeris_runtime::clock::set_flight_clock_offset_ns(spec.flight_clock_offset_ns);
     if spec.remote.is_some() {
         // on another host: this process is the role's handle there
         let exit = aeris_hosts::handle::run_remote(spec)

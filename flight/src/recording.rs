@@ -188,6 +188,7 @@ pub fn attach_spec(
         instance: 0,
         remote: None,
         heartbeat_pid: None,
+        flight_clock_offset_ns: 0,
     })
 }
 

@@ -22,6 +22,7 @@ pub fn default_controller_spec() -> RoleSpec {
         instance: 0,
         remote: None,
         heartbeat_pid: None,
+        flight_clock_offset_ns: 0,
     }
 }
 

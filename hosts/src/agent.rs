@@ -19,7 +19,7 @@ use crate::session::{SessionError, open_router};
 use aeris_orchestrator::executors::{CpuTicks, busy_cores, read_proc_stat};
 use aeris_orchestrator::role_process::{LoadPolicy, spawn_role};
 use aeris_runtime::affinity::CpuSet;
-use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::clock::host_monotonic_ns;
 use std::collections::{BTreeMap, HashSet};
 use std::io::{Read, Seek, SeekFrom};
 use std::os::unix::process::ExitStatusExt;
@@ -288,7 +288,7 @@ impl Agent {
                 cpus: self.online.to_string(),
                 agent_pid: std::process::id(),
                 roles: self.roles.len(),
-                monotonic_ns: monotonic_ns(),
+                monotonic_ns: host_monotonic_ns(),
                 busy_cores: self.load.busy(&self.online),
                 cpu_count: self.online.cpus().len() as u32,
             };

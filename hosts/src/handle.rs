@@ -122,6 +122,16 @@ impl RemoteExit {
     }
 }
 
+/// Answers asked of the agent to measure the offset between the two hosts' clocks.
+const CLOCK_PROBES: usize = 5;
+
+/// The other host's clock minus ours (ns): its reading `theirs_ns`, taken between our
+/// readings `t0_ns` and `t1_ns`, against our clock at their midpoint.
+pub fn clock_offset_ns(t0_ns: u64, t1_ns: u64, theirs_ns: u64) -> i64 {
+    let mid = (t0_ns as i128 + t1_ns as i128) / 2;
+    (theirs_ns as i128 - mid).clamp(i64::MIN as i128, i64::MAX as i128) as i64
+}
+
 /// Ask `host`'s agent for `op` with `payload`; the typed answer.
 fn ask<T: serde::de::DeserializeOwned>(
     session: &Session,
@@ -190,18 +200,35 @@ pub fn run_remote(spec: RoleSpec) -> Result<RemoteExit, HandleError> {
             reason: e.to_string(),
         }
     };
-    let t0 = monotonic_ns();
-    let info: HostInfo = ask(&session, &host, "info", Vec::new(), timeout)?;
-    let t1 = monotonic_ns();
-    check_schema(&format!("host `{host}`"), info.schema).map_err(|source| HandleError::Schema {
-        host: host.clone(),
-        role: spec.name.clone(),
-        source,
-    })?;
-    let offset = info.monotonic_ns as i128 - ((t0 as i128 + t1 as i128) / 2);
+    // the offset between the two hosts' clocks from the fastest of a few answers (the
+    // least time between the agent's read of its clock and ours)
+    let mut best: Option<(u64, i64, HostInfo)> = None;
+    for _ in 0..CLOCK_PROBES {
+        let t0 = monotonic_ns();
+        let info: HostInfo = ask(&session, &host, "info", Vec::new(), timeout)?;
+        let t1 = monotonic_ns();
+        check_schema(&format!("host `{host}`"), info.schema).map_err(|source| {
+            HandleError::Schema {
+                host: host.clone(),
+                role: spec.name.clone(),
+                source,
+            }
+        })?;
+        let rtt = t1.saturating_sub(t0);
+        if best.as_ref().is_none_or(|b| rtt < b.0) {
+            best = Some((rtt, clock_offset_ns(t0, t1, info.monotonic_ns), info));
+        }
+    }
+    let Some((rtt, offset, info)) = best else {
+        return Err(HandleError::NoAnswer {
+            host,
+            op: "info".into(),
+            waited_ms: timeout.as_millis() as u64,
+        });
+    };
     println!(
-        "host `{host}` answers in {:.1} ms (agent pid {}, CPUs {}, clock offset {:.3} s)",
-        (t1 - t0) as f64 / 1e6,
+        "host `{host}` answers in {:.1} ms (agent pid {}, CPUs {}, its clock {:+.6} s from ours: the role stamps in ours)",
+        rtt as f64 / 1e6,
         info.agent_pid,
         info.cpus,
         offset as f64 / 1e9
@@ -229,6 +256,8 @@ pub fn run_remote(spec: RoleSpec) -> Result<RemoteExit, HandleError> {
     let mut remote_spec = spec.clone();
     remote_spec.cpus = remote.cpus.clone();
     remote_spec.remote = None;
+    // there, the role reads the flight's clock: its host's, less the offset
+    remote_spec.flight_clock_offset_ns = offset.saturating_neg();
     let request = SpawnRequest {
         schema: SchemaStamp::current(),
         spec: remote_spec,

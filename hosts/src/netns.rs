@@ -1,12 +1,18 @@
 //! Two hosts on one machine, for the multi-host tests and `aeris bench hosts`: two network
 //! namespaces joined by a veth pair, every process started in one of them with a private
 //! `/dev/shm` and iceoryx2 root (`ip netns exec` gives it a mount namespace of its own), so
-//! nothing but the network crosses between them. Needs root (CAP_NET_ADMIN and
-//! CAP_SYS_ADMIN), `ip` (iproute2) and `nsenter` (util-linux); `tc` for netem.
+//! nothing but the network crosses between them. The ground host's processes also run in
+//! a time namespace whose CLOCK_MONOTONIC is [`GROUND_CLOCK_AHEAD_S`] ahead, as two
+//! machines' clocks differ (each counts from its own boot): what one host stamps must be
+//! read on the other through the offset their link measured. Needs root (CAP_NET_ADMIN and
+//! CAP_SYS_ADMIN), `ip` (iproute2), `unshare` and `nsenter` (util-linux); `tc` for netem.
 
 use std::path::Path;
 use std::process::Command;
 use std::sync::atomic::{AtomicU32, Ordering};
+
+/// How far the ground host's CLOCK_MONOTONIC runs ahead of the vehicle's (s).
+pub const GROUND_CLOCK_AHEAD_S: u64 = 3600;
 
 /// Why the two hosts could not be set up or changed.
 #[derive(Debug, thiserror::Error)]
@@ -121,10 +127,22 @@ impl TwoHosts {
     }
 
     /// `program args..` to run in namespace `ns` with a private `/dev/shm` and iceoryx2
-    /// root.
+    /// root; on the ground host with its clock [`GROUND_CLOCK_AHEAD_S`] ahead.
     pub fn command(&self, ns: &str, program: &Path) -> Command {
         let mut cmd = Command::new("ip");
-        cmd.args(["netns", "exec", ns, "sh", "-c"])
+        cmd.args(["netns", "exec", ns]);
+        if ns == self.ground {
+            let ahead = format!("--monotonic={GROUND_CLOCK_AHEAD_S}");
+            // the child ends with `unshare` (killed or stopped, it stops its program too)
+            cmd.args([
+                "unshare",
+                "--time",
+                &ahead,
+                "--fork",
+                "--kill-child=SIGTERM",
+            ]);
+        }
+        cmd.args(["sh", "-c"])
             .arg(
                 "mount -t tmpfs tmpfs /dev/shm && mkdir -p /tmp/iceoryx2 && \
                  mount -t tmpfs tmpfs /tmp/iceoryx2 && exec \"$@\"",

@@ -50,6 +50,7 @@ fn spec(flight: &str) -> RoleSpec {
         instance: 0,
         remote: None,
         heartbeat_pid: None,
+        flight_clock_offset_ns: 0,
     }
 }
 

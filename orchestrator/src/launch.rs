@@ -264,6 +264,7 @@ pub fn plan_launch(
                     instance: 0,
                     remote,
                     heartbeat_pid: None,
+                    flight_clock_offset_ns: 0,
                 },
                 cpus,
                 executor: r.executor.clone(),

@@ -499,6 +499,7 @@ mod tests {
             instance: 0,
             remote: None,
             heartbeat_pid: None,
+            flight_clock_offset_ns: 0,
         };
         let ours = flight_metadata(&spec);
         let good = dir.path().join("good.mcap");

@@ -42,6 +42,7 @@ fn default_spec() -> RoleSpec {
         instance: 0,
         remote: None,
         heartbeat_pid: None,
+        flight_clock_offset_ns: 0,
     }
 }
 

@@ -275,6 +275,15 @@ pub struct RoleSpec {
     /// started names its handle on the flight's host, the process the supervisor knows.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub heartbeat_pid: Option<u32>,
+    /// What the role adds to its host's CLOCK_MONOTONIC to read the flight's clock (ns): 0
+    /// on the flight's host; for a role on another host, the offset its handle measured
+    /// between the two hosts ([`crate::clock`]).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub flight_clock_offset_ns: i64,
+}
+
+fn is_zero(v: &i64) -> bool {
+    *v == 0
 }
 
 /// Where a role runs when its executor is on another host.

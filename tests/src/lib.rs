@@ -228,6 +228,7 @@ pub fn role_spec(
         instance: 0,
         remote: None,
         heartbeat_pid: None,
+        flight_clock_offset_ns: 0,
     }
 }
 

@@ -3,6 +3,7 @@
 //! the vehicle; the reasoner and the perception role run on the ground host, their topics on
 //! the bridges over zenoh.
 
+use aeris_hosts::netns::GROUND_CLOCK_AHEAD_S;
 use aeris_tests::hosts::{TwoHosts, two_hosts};
 use aeris_tests::*;
 use std::path::Path;
@@ -180,6 +181,13 @@ fn a_flight_with_roles_on_another_host_and_its_reasoner_moved_there_and_back_rea
     assert!(link["rtt_ms"].as_f64().unwrap() > 0.0, "{status}");
     assert!(link["loss"].as_f64().unwrap() < 1.0, "{status}");
     assert!(link["cpus"].as_u64().unwrap() > 0, "{status}");
+    // the ground host's clock runs an hour ahead (a time namespace): the link sees it, and
+    // the roles there stamp in the vehicle's clock (else every decision would be late)
+    let offset_s = link["clock_offset_ms"].as_f64().unwrap() / 1e3;
+    assert!(
+        (offset_s - GROUND_CLOCK_AHEAD_S as f64).abs() < 1.0,
+        "{status}"
+    );
     let back = migrate(&hosts, &run, &flight, "reasoning", "perception");
     let status = wait_bounded(&mut run.0, FLIGHT_BOUND);
     let (out, err) = run_output(&dir.0);
@@ -208,6 +216,13 @@ fn a_flight_with_roles_on_another_host_and_its_reasoner_moved_there_and_back_rea
     assert_eq!(summary["sequence_gaps"], 0, "{summary}");
     assert_eq!(summary["sequence_reorders"], 0, "{summary}");
     assert_eq!(summary["controller_missed_ticks"], 0, "{summary}");
+    // stamps taken on the ground host are in the vehicle's clock: no stage of a cycle
+    // (perception there, reasoning there or on board) lasts longer than the whole flight
+    let duration_s = summary["duration_s"].as_f64().unwrap();
+    for stage in ["perception", "reasoning", "routing"] {
+        let s = summary["stages_mean_s"][stage].as_f64().unwrap();
+        assert!((0.0..duration_s).contains(&s), "{stage}: {summary}");
+    }
     // the run summary ends with the link's figures
     assert_eq!(summary["links"][0]["host"], "ground", "{summary}");
     assert!(
