@@ -99,6 +99,14 @@ pub struct LinkRow {
     pub bytes_per_frame: Option<f64>,
     /// Frames per second of flight.
     pub frames_per_s: Option<f64>,
+    /// The link's round trip as its bridge measured it at the end of the flight (ms,
+    /// smoothed): what a decision across the link pays at least. Measured in every row: the
+    /// bridges run whatever runs there.
+    pub link_rtt_ms: Option<f64>,
+    /// Probes the link lost over the last window (fraction).
+    pub link_loss: Option<f64>,
+    /// Mean time to encode a frame for the link (ms).
+    pub frame_coding_ms: Option<f64>,
 }
 
 /// The reasoner moved to the ground host and back during a flight.
@@ -491,6 +499,9 @@ fn link_row(
         frames_across: None,
         bytes_per_frame: None,
         frames_per_s: None,
+        link_rtt_ms: None,
+        link_loss: None,
+        frame_coding_ms: None,
     };
     let tag = format!(
         "{}-{delay_ms}ms-{}loss",
@@ -517,6 +528,10 @@ fn link_row(
     row.ct_p95_s = summary["ct_p95_s"].as_f64();
     row.eer = summary["eer"].as_f64();
     row.controller_missed_ticks = summary["controller_missed_ticks"].as_u64();
+    let link = &summary["links"][0];
+    row.link_rtt_ms = link["rtt_ms"].as_f64();
+    row.link_loss = link["loss"].as_f64();
+    row.frame_coding_ms = link["frame_coding_ms"].as_f64();
     if let Some((frames, bytes)) = bridge_sent(&run_dir, "bridge-to-ground", "camera/rgb") {
         row.frames_across = Some(frames);
         row.bytes_per_frame = (frames > 0).then(|| bytes as f64 / frames as f64);

@@ -42,7 +42,7 @@ pub fn run(a: HostsArgs) -> Result<()> {
         report.outside_load
     );
     println!(
-        "  {:<26} {:>6} {:>6} {:>5} {:>8} {:>8} {:>6} {:>7} {:>7} {:>10} {:>9}",
+        "  {:<26} {:>6} {:>6} {:>5} {:>8} {:>8} {:>6} {:>7} {:>7} {:>10} {:>9} {:>8} {:>9} {:>8}",
         "roles there",
         "delay",
         "loss",
@@ -53,7 +53,10 @@ pub fn run(a: HostsArgs) -> Result<()> {
         "missed",
         "frames",
         "bytes/fr",
-        "frames/s"
+        "frames/s",
+        "RTT ms",
+        "link loss",
+        "enc ms"
     );
     for r in &report.rows {
         let there = if r.roles_there.is_empty() {
@@ -73,7 +76,7 @@ pub fn run(a: HostsArgs) -> Result<()> {
         };
         let n = |v: Option<u64>| v.map_or_else(|| "-".to_string(), |x| x.to_string());
         println!(
-            "  {there:<26} {:>4}ms {:>5}% {:>5} {:>8} {:>8} {:>6} {:>7} {:>7} {:>10} {:>9}",
+            "  {there:<26} {:>4}ms {:>5}% {:>5} {:>8} {:>8} {:>6} {:>7} {:>7} {:>10} {:>9} {:>8} {:>9} {:>8}",
             r.delay_ms,
             r.loss_percent,
             r.reached_goal.map_or("-", |g| if g { "yes" } else { "no" }),
@@ -84,6 +87,9 @@ pub fn run(a: HostsArgs) -> Result<()> {
             n(r.frames_across),
             f(r.bytes_per_frame, 0, ""),
             f(r.frames_per_s, 1, ""),
+            f(r.link_rtt_ms, 3, ""),
+            f(r.link_loss.map(|l| l * 100.0), 0, "%"),
+            f(r.frame_coding_ms, 2, ""),
         );
     }
     let m = &report.moves;
