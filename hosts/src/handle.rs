@@ -16,6 +16,7 @@ use crate::protocol::{
     StopRequest, agent_request_key, agent_token_key, check_schema, exit_key, handle_token_key,
 };
 use crate::session::{Reach, SessionError, open_client};
+use aeris_orchestrator::restart::EXIT_HOST_UNREACHABLE;
 use aeris_runtime::RoleSpec;
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::signals;
@@ -112,9 +113,12 @@ pub struct RemoteExit {
 }
 
 impl RemoteExit {
-    /// The handle's own exit code: the role's, or 128 + its signal.
+    /// The handle's own exit code: the role's, or 128 + its signal. A role's own code
+    /// [`EXIT_HOST_UNREACHABLE`] reads as 1: that code is the handle's, for a host it
+    /// could not reach, and the supervisor answers it with the role's fallback.
     pub fn exit_code(&self) -> u8 {
         match (self.code, self.signal) {
+            (Some(EXIT_HOST_UNREACHABLE), _) => 1,
             (Some(c), _) => c.clamp(0, 255) as u8,
             (None, Some(s)) => (128 + s).clamp(0, 255) as u8,
             _ => 1,
@@ -331,5 +335,26 @@ pub fn run_remote(spec: RoleSpec) -> Result<RemoteExit, HandleError> {
             }
         }
         std::thread::sleep(POLL);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_handle_exits_as_its_role_did_but_never_as_an_unreachable_host() {
+        let exit = |code, signal| RemoteExit { code, signal }.exit_code();
+        assert_eq!(exit(Some(0), None), 0);
+        assert_eq!(exit(Some(3), None), 3);
+        assert_eq!(exit(None, Some(9)), 137);
+        assert_eq!(exit(Some(EXIT_HOST_UNREACHABLE), None), 1);
+        assert_eq!(exit(None, None), 1);
+    }
+
+    #[test]
+    fn the_clock_offset_is_theirs_against_our_midpoint() {
+        assert_eq!(clock_offset_ns(100, 300, 1_200), 1_000);
+        assert_eq!(clock_offset_ns(1_000, 1_000, 0), -1_000);
     }
 }
