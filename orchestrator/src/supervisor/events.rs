@@ -113,6 +113,8 @@ pub enum SupervisorEvent {
         variant: String,
         /// Why, with the tail of the new process's log.
         reason: String,
+        /// Where it was going, when it was a move to another host or back.
+        place: Option<String>,
     },
     /// A role's process was moved, live, to another executor: every thread, same pid.
     RoleMigrated(Migration),
@@ -345,10 +347,17 @@ impl core::fmt::Display for SupervisorEvent {
                 name,
                 variant,
                 reason,
-            } => write!(
-                f,
-                "role `{name}`: swap to `{variant}` rolled back, the old process keeps running: {reason}"
-            ),
+                place,
+            } => match place {
+                Some(place) => write!(
+                    f,
+                    "role `{name}`: move of `{variant}` to {place} failed, the role stays where it was: {reason}"
+                ),
+                None => write!(
+                    f,
+                    "role `{name}`: swap to `{variant}` rolled back, the old process keeps running: {reason}"
+                ),
+            },
             SupervisorEvent::RoleMigrated(m) => {
                 write!(
                     f,

@@ -65,9 +65,10 @@ impl Supervisor {
             let silent_ms = silent.as_millis() as u64;
             let started = fallback.as_ref().and_then(|fb| {
                 let executor = fb.executor.clone().unwrap_or_default();
+                let place = flight_host_place(&executor);
                 let placement = Placement {
                     cpus: fb.cpus.clone(),
-                    place: flight_host_place(&executor),
+                    place: place.clone(),
                     executor,
                     remote: None,
                     link_fallback: None,
@@ -88,6 +89,7 @@ impl Supervisor {
                             name: name.clone(),
                             variant: fb.variant.clone(),
                             reason: aeris_runtime::error_chain::chain(&e).to_string(),
+                            place: Some(place),
                         });
                         None
                     }
@@ -305,6 +307,7 @@ impl Supervisor {
                     name,
                     variant: to.variant,
                     reason,
+                    place: Some(format!("host `{host}`")),
                 }),
             }
         }

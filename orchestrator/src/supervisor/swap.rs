@@ -396,6 +396,7 @@ impl Supervisor {
                 continue;
             };
             if let Some(why) = failure {
+                let place = swap.placement.as_ref().map(|p| p.place.clone());
                 let mut child = swap.child;
                 let _ = child.kill();
                 let _ = child.wait();
@@ -425,6 +426,7 @@ impl Supervisor {
                     name: role.name.clone(),
                     variant: swap.variant,
                     reason,
+                    place,
                 });
                 continue;
             }

@@ -72,6 +72,7 @@ impl Supervisor {
                         name,
                         variant: to,
                         reason: format!("variant ladder: {e}"),
+                        place: None,
                     });
                 }
             }
