@@ -1,0 +1,676 @@
+//! The iceoryx2 transport of one flight.
+//!
+//! A [`FlightBus`] is one process's iceoryx2 node in one flight. Every service it opens is
+//! named `aeris/s{SCHEMA_VERSION}/{flight}/{topic}`, so flights never cross-talk and a build
+//! with another schema never connects. Each topic's quality of service comes from one table
+//! ([`qos`]) so every process opens a service with identical settings.
+//!
+//! - [`ports`]: the publishers and subscribers of typed messages and frames;
+//! - [`supervisor_services`]: the supervisor's status board and its control service;
+//! - [`census`]: what exists on this host (flights, their services and nodes) and the
+//!   clean-up after dead processes.
+
+use aeris_schemas::topics;
+use aeris_schemas::{
+    FlightManifest, FrameHeader, SCHEMA_VERSION, SupervisorCommand, SupervisorReply,
+    SupervisorStatus, ZeroCopySend,
+};
+use core::fmt::Debug;
+use core::time::Duration;
+use iceoryx2::port::reader::Reader;
+use iceoryx2::prelude::*;
+use iceoryx2::service::builder::blackboard::BlackboardOpenError;
+use iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenError;
+use iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenOrCreateError;
+use iceoryx2::service::builder::request_response::{
+    RequestResponseOpenError, RequestResponseOpenOrCreateError,
+};
+
+pub mod census;
+pub mod ports;
+pub mod supervisor_services;
+
+pub use census::*;
+pub use ports::*;
+pub use supervisor_services::*;
+
+/// The iceoryx2 service flavour AERIS uses between processes.
+pub type Ipc = ipc::Service;
+
+/// The iceoryx2 configuration of every AERIS process: iceoryx2's global configuration (an
+/// `iceoryx2.toml` where iceoryx2 looks for one, else its built-in defaults), set up once and
+/// quietly. Every node of ours is built with it, and iceoryx2's own paths that take the global
+/// configuration (the clean-up of a dead node whose details are gone) find it set up: no
+/// process logs iceoryx2's "No config file was loaded" warning, which said nothing
+/// actionable in every role and test log.
+pub fn iceoryx_config() -> &'static Config {
+    static QUIET_SETUP: std::sync::Once = std::sync::Once::new();
+    QUIET_SETUP.call_once(|| {
+        let level = iceoryx2_log::get_log_level();
+        if level < LogLevel::Error as u8 {
+            set_log_level(LogLevel::Error);
+        }
+        let _ = Config::global_config();
+        set_log_level(log_level_from(level));
+    });
+    Config::global_config()
+}
+
+/// The [`LogLevel`] whose number is `level` (iceoryx2 reports its level as a number).
+fn log_level_from(level: u8) -> LogLevel {
+    match level {
+        0 => LogLevel::Trace,
+        1 => LogLevel::Debug,
+        2 => LogLevel::Info,
+        3 => LogLevel::Warn,
+        4 => LogLevel::Error,
+        _ => LogLevel::Fatal,
+    }
+}
+
+/// Why a bus operation failed. Every variant names the service involved.
+#[derive(Debug, thiserror::Error)]
+pub enum BusError {
+    /// The flight or node name is not usable as an iceoryx2 name.
+    #[error("invalid name `{0}`")]
+    InvalidName(String),
+    /// The iceoryx2 node could not be created.
+    #[error("cannot create iceoryx2 node `{name}`: {reason}")]
+    Node {
+        /// Node name.
+        name: String,
+        /// iceoryx2's reason.
+        reason: String,
+    },
+    /// The service exists with another payload type, size or alignment: the other side was
+    /// built with a different schema.
+    #[error(
+        "service `{service}` exists with an incompatible message layout: the process that created it was \
+         built with another schema version (this binary speaks s{SCHEMA_VERSION}); rebuild every AERIS binary \
+         from the same source"
+    )]
+    IncompatibleSchema {
+        /// Service name.
+        service: String,
+    },
+    /// The service exists with other quality-of-service settings.
+    #[error("service `{service}` exists with incompatible settings: {reason}")]
+    IncompatibleSettings {
+        /// Service name.
+        service: String,
+        /// iceoryx2's reason.
+        reason: String,
+    },
+    /// The service could not be opened or created for another reason.
+    #[error("cannot open service `{service}`: {reason}")]
+    Service {
+        /// Service name.
+        service: String,
+        /// iceoryx2's reason.
+        reason: String,
+    },
+    /// The service does not exist (only for open-only operations).
+    #[error("service `{service}` does not exist (is the flight running?)")]
+    NotFound {
+        /// Service name.
+        service: String,
+    },
+    /// A port (publisher, subscriber, reader, writer) could not be created.
+    #[error("cannot create a port on `{service}`: {reason}")]
+    Port {
+        /// Service name.
+        service: String,
+        /// iceoryx2's reason.
+        reason: String,
+    },
+    /// Loaning, sending or receiving a sample failed.
+    #[error("transfer on `{service}` failed: {reason}")]
+    Transfer {
+        /// Service name.
+        service: String,
+        /// iceoryx2's reason.
+        reason: String,
+    },
+    /// The flight's manifest says it runs another schema.
+    #[error("cannot join flight `{flight}`")]
+    Manifest {
+        /// Flight.
+        flight: String,
+        /// Why.
+        source: aeris_schemas::ManifestError,
+    },
+}
+
+/// Quality of service of one topic.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Qos {
+    /// Samples a late subscriber receives on connect.
+    pub history: usize,
+    /// Samples buffered per subscriber (oldest overwritten).
+    pub buffer: usize,
+    /// Maximum simultaneous publishers (2+ allows make-before-break swaps).
+    pub max_publishers: usize,
+    /// Maximum simultaneous subscribers.
+    pub max_subscribers: usize,
+}
+
+/// The one QoS table: every process opens a topic with these settings.
+pub fn qos(topic: &str) -> Qos {
+    let q = |history, buffer, max_publishers, max_subscribers| Qos {
+        history,
+        buffer,
+        max_publishers,
+        max_subscribers,
+    };
+    // every max_subscribers holds one more for the flight recorder (`aeris-record`), which
+    // subscribes to every topic of a recorded flight
+    match topic {
+        topics::CAMERA_RGB | topics::CAMERA_DEPTH => q(1, 2, 4, 9),
+        topics::PERCEPTION_STATE
+        | topics::PERCEPTION_TEXT
+        | topics::PERCEPTION_DETECTIONS
+        | topics::PERCEPTION_CUES
+        | topics::PERCEPTION_OCCUPANCY => q(1, 4, 4, 9),
+        topics::REASONING_DECISION => q(0, 32, 4, 9),
+        topics::HUB_SETPOINT => q(1, 8, 4, 9),
+        topics::HUB_REPORT => q(1, 64, 4, 9),
+        topics::VEHICLE_TELEMETRY => q(1, 64, 4, 13),
+        // no history: a lease is only evidence while it is fresh
+        topics::CONTROLLER_LEASE => q(0, 16, 4, 9),
+        // history 1: a watcher that joins late sees where the link is
+        topics::CONTROLLER_LINK => q(1, 16, 4, 9),
+        topics::HEARTBEAT => q(0, 1024, 32, 9),
+        _ => q(1, 16, 4, 9),
+    }
+}
+
+/// Maximum iceoryx2 nodes per service (roles, restarts in flight, tools).
+const MAX_NODES: usize = 48;
+
+/// Builder of a [`FlightBus`].
+#[derive(Debug)]
+pub struct FlightBusBuilder {
+    flight: String,
+    node_name: String,
+    cleanup_dead_nodes: bool,
+    join: bool,
+}
+
+impl FlightBusBuilder {
+    /// Name of this process's node inside the flight (e.g. the role name).
+    pub fn node_name(mut self, name: &str) -> Self {
+        self.node_name = name.to_string();
+        self
+    }
+
+    /// Remove iceoryx2 resources of dead processes at creation (default: on).
+    pub fn cleanup_dead_nodes(mut self, on: bool) -> Self {
+        self.cleanup_dead_nodes = on;
+        self
+    }
+
+    /// Read (or, if first, publish) the flight manifest and refuse another schema
+    /// (default: on). Tools that only list services turn it off.
+    pub fn join_manifest(mut self, on: bool) -> Self {
+        self.join = on;
+        self
+    }
+
+    /// Create the node, clean up after dead processes, and join the flight.
+    pub fn create(self) -> Result<FlightBus, BusError> {
+        if !topics::is_valid_flight_name(&self.flight) {
+            return Err(BusError::InvalidName(self.flight));
+        }
+        let full = format!("{}/{}", self.flight, self.node_name);
+        let node_name = NodeName::new(&full).map_err(|_| BusError::InvalidName(full.clone()))?;
+        let node = NodeBuilder::new()
+            .config(iceoryx_config())
+            .name(&node_name)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<Ipc>()
+            .map_err(|e| BusError::Node {
+                name: full.clone(),
+                reason: format!("{e:?}"),
+            })?;
+        let cleaned = if self.cleanup_dead_nodes {
+            node.try_cleanup_dead_nodes().cleanups
+        } else {
+            0
+        };
+        let mut bus = FlightBus {
+            node,
+            flight: self.flight,
+            cleaned_dead_nodes: cleaned,
+            manifest: None,
+        };
+        if self.join {
+            bus.join_flight()?;
+        }
+        Ok(bus)
+    }
+}
+
+/// The port factory of a publish-subscribe service.
+pub(super) type PubSubService<P, H> =
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<Ipc, P, H>;
+
+/// A publish-subscribe service builder.
+type PubSubBuilder<P, H> = iceoryx2::service::builder::publish_subscribe::Builder<P, H, Ipc>;
+
+/// Apply the QoS of `topic` (from [`qos`]) to a service builder.
+fn with_qos<P, H>(builder: PubSubBuilder<P, H>, topic: &str) -> PubSubBuilder<P, H>
+where
+    P: Debug + iceoryx2::prelude::IceoryxSend + ?Sized,
+    H: Debug + ZeroCopySend,
+{
+    let q = qos(topic);
+    builder
+        .history_size(q.history)
+        .subscriber_max_buffer_size(q.buffer)
+        .max_publishers(q.max_publishers)
+        .max_subscribers(q.max_subscribers)
+        .max_nodes(MAX_NODES)
+        .enable_safe_overflow(true)
+}
+
+/// Maps a port-creation failure on `service` to [`BusError::Port`].
+fn port_error<E: Debug>(service: &str) -> impl Fn(E) -> BusError + '_ {
+    move |e| BusError::Port {
+        service: service.to_string(),
+        reason: format!("{e:?}"),
+    }
+}
+
+type ManifestService = iceoryx2::service::port_factory::blackboard::PortFactory<Ipc, u64>;
+
+/// One process's node in one flight.
+pub struct FlightBus {
+    node: Node<Ipc>,
+    flight: String,
+    cleaned_dead_nodes: u64,
+    manifest: Option<ManifestService>,
+}
+
+impl Debug for FlightBus {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("FlightBus")
+            .field("flight", &self.flight)
+            .finish()
+    }
+}
+
+fn ps_open_error(service: &str, e: PublishSubscribeOpenOrCreateError) -> BusError {
+    let service = service.to_string();
+    match e {
+        PublishSubscribeOpenOrCreateError::PublishSubscribeOpenError(
+            PublishSubscribeOpenError::IncompatibleTypes,
+        ) => BusError::IncompatibleSchema { service },
+        PublishSubscribeOpenOrCreateError::PublishSubscribeOpenError(
+            o @ (PublishSubscribeOpenError::IncompatibleAttributes
+            | PublishSubscribeOpenError::IncompatibleMessagingPattern
+            | PublishSubscribeOpenError::IncompatibleOverflowBehavior),
+        ) => BusError::IncompatibleSettings {
+            service,
+            reason: format!("{o:?}"),
+        },
+        other => BusError::Service {
+            service,
+            reason: format!("{other:?}"),
+        },
+    }
+}
+
+impl FlightBus {
+    /// Start building the node of this process in `flight`.
+    pub fn builder(flight: &str) -> FlightBusBuilder {
+        FlightBusBuilder {
+            flight: flight.to_string(),
+            node_name: format!("pid{}", std::process::id()),
+            cleanup_dead_nodes: true,
+            join: true,
+        }
+    }
+
+    /// The flight name (namespace prefix).
+    pub fn flight(&self) -> &str {
+        &self.flight
+    }
+
+    /// Dead nodes whose resources were removed when this bus was created.
+    pub fn cleaned_dead_nodes(&self) -> u64 {
+        self.cleaned_dead_nodes
+    }
+
+    /// The underlying iceoryx2 node.
+    pub fn node(&self) -> &Node<Ipc> {
+        &self.node
+    }
+
+    /// The full iceoryx2 service name of `topic` in this flight.
+    pub fn service_name(&self, topic: &str) -> String {
+        service_name(&self.flight, topic)
+    }
+
+    fn iox_name(name: &str) -> Result<ServiceName, BusError> {
+        ServiceName::new(name).map_err(|_| BusError::InvalidName(name.to_string()))
+    }
+
+    fn join_flight(&mut self) -> Result<(), BusError> {
+        let name = manifest_service_name(&self.flight);
+        let iox = Self::iox_name(&name)?;
+        // Either the supervisor (or the first process) created the manifest, or we do.
+        for _ in 0..100 {
+            match self
+                .node
+                .service_builder(&iox)
+                .blackboard_opener::<u64>()
+                // the manifest's settings are whatever its creator chose: require nothing
+                .max_nodes(1)
+                .max_readers(1)
+                .open()
+            {
+                Ok(service) => {
+                    let reader = service
+                        .reader_builder()
+                        .create()
+                        .map_err(port_error(&name))?;
+                    let entry = reader.entry::<FlightManifest>(&0).map_err(|_| {
+                        BusError::IncompatibleSchema {
+                            service: name.clone(),
+                        }
+                    })?;
+                    let manifest = *entry.get();
+                    manifest
+                        .check_compatible()
+                        .map_err(|source| BusError::Manifest {
+                            flight: self.flight.clone(),
+                            source,
+                        })?;
+                    drop(entry);
+                    drop(reader);
+                    self.manifest = Some(service);
+                    return Ok(());
+                }
+                Err(BlackboardOpenError::DoesNotExist) => {
+                    match self
+                        .node
+                        .service_builder(&iox)
+                        .blackboard_creator::<u64>()
+                        .max_nodes(MAX_NODES)
+                        .max_readers(MAX_NODES)
+                        .add::<FlightManifest>(0, FlightManifest::current(std::process::id()))
+                        .create()
+                    {
+                        Ok(service) => {
+                            self.manifest = Some(service);
+                            return Ok(());
+                        }
+                        // someone created it between our open and create: open again
+                        Err(_) => std::thread::sleep(Duration::from_millis(5)),
+                    }
+                }
+                Err(BlackboardOpenError::IncompatibleKeys) => {
+                    return Err(BusError::IncompatibleSchema { service: name });
+                }
+                // being created right now by another process
+                Err(BlackboardOpenError::InternalFailure)
+                | Err(BlackboardOpenError::IsMarkedForDestruction)
+                | Err(BlackboardOpenError::ServiceInCorruptedState) => {
+                    std::thread::sleep(Duration::from_millis(5))
+                }
+                Err(e) => {
+                    return Err(BusError::Service {
+                        service: name,
+                        reason: format!("{e:?}"),
+                    });
+                }
+            }
+        }
+        Err(BusError::Service {
+            service: name,
+            reason: "the flight manifest could not be opened or created".into(),
+        })
+    }
+
+    /// Open (or create) the fixed-size publish-subscribe service of `topic`.
+    fn open_fixed<T>(&self, topic: &str) -> Result<(String, PubSubService<T, ()>), BusError>
+    where
+        T: Debug + ZeroCopySend + Copy + 'static,
+    {
+        let name = self.service_name(topic);
+        let builder = self
+            .node
+            .service_builder(&Self::iox_name(&name)?)
+            .publish_subscribe::<T>();
+        let service = with_qos(builder, topic)
+            .open_or_create()
+            .map_err(|e| ps_open_error(&name, e))?;
+        Ok((name, service))
+    }
+
+    /// Open (or create) the frame service (`[u8]` + [`FrameHeader`]) of `topic`.
+    fn open_frames(
+        &self,
+        topic: &str,
+    ) -> Result<(String, PubSubService<[u8], FrameHeader>), BusError> {
+        let name = self.service_name(topic);
+        let builder = self
+            .node
+            .service_builder(&Self::iox_name(&name)?)
+            .publish_subscribe::<[u8]>()
+            .user_header::<FrameHeader>();
+        let service = with_qos(builder, topic)
+            .open_or_create()
+            .map_err(|e| ps_open_error(&name, e))?;
+        Ok((name, service))
+    }
+
+    /// A publisher of fixed-size `T` on `topic`.
+    pub fn publisher<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        topic: &str,
+    ) -> Result<TypedPublisher<T>, BusError> {
+        let (name, service) = self.open_fixed::<T>(topic)?;
+        let publisher = service
+            .publisher_builder()
+            .create()
+            .map_err(port_error(&name))?;
+        Ok(TypedPublisher {
+            publisher,
+            service: name,
+        })
+    }
+
+    /// A subscriber of fixed-size `T` on `topic`.
+    pub fn subscriber<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        topic: &str,
+    ) -> Result<TypedSubscriber<T>, BusError> {
+        let (name, service) = self.open_fixed::<T>(topic)?;
+        let subscriber = service
+            .subscriber_builder()
+            .create()
+            .map_err(port_error(&name))?;
+        Ok(TypedSubscriber {
+            subscriber,
+            service: name,
+        })
+    }
+
+    fn control_builder(&self) -> Result<(String, ControlBuilder), BusError> {
+        let name = self.service_name(aeris_schemas::topics::SUPERVISOR_CONTROL);
+        let builder = self
+            .node
+            .service_builder(&Self::iox_name(&name)?)
+            .request_response::<SupervisorCommand, SupervisorReply>()
+            .max_servers(1)
+            .max_clients(CONTROL_CLIENTS)
+            .max_active_requests_per_client(2)
+            .max_response_buffer_size(CONTROL_REPLY_BUFFER)
+            .max_nodes(MAX_NODES)
+            .enable_safe_overflow_for_responses(true);
+        Ok((name, builder))
+    }
+
+    /// The supervisor's end of the flight's control service (`supervisor/control`).
+    pub fn control_server(&self) -> Result<ControlServer, BusError> {
+        let (name, builder) = self.control_builder()?;
+        let service = builder.open_or_create().map_err(|e| match e {
+            RequestResponseOpenOrCreateError::RequestResponseOpenError(
+                RequestResponseOpenError::IncompatibleRequestOrResponseType,
+            ) => BusError::IncompatibleSchema {
+                service: name.clone(),
+            },
+            other => BusError::Service {
+                service: name.clone(),
+                reason: format!("{other:?}"),
+            },
+        })?;
+        let server = service
+            .server_builder()
+            .create()
+            .map_err(port_error(&name))?;
+        Ok(ControlServer {
+            server,
+            service: name,
+        })
+    }
+
+    /// A client of the flight's control service (what `aeris swap` uses). Fails with
+    /// [`BusError::NotFound`] when no supervisor runs the flight.
+    pub fn control_client(&self) -> Result<ControlClient, BusError> {
+        let (name, builder) = self.control_builder()?;
+        let service = builder.open().map_err(|e| match e {
+            RequestResponseOpenError::DoesNotExist => BusError::NotFound {
+                service: name.clone(),
+            },
+            RequestResponseOpenError::IncompatibleRequestOrResponseType => {
+                BusError::IncompatibleSchema {
+                    service: name.clone(),
+                }
+            }
+            other => BusError::Service {
+                service: name.clone(),
+                reason: format!("{other:?}"),
+            },
+        })?;
+        let client = service
+            .client_builder()
+            .create()
+            .map_err(port_error(&name))?;
+        Ok(ControlClient {
+            client,
+            service: name,
+        })
+    }
+
+    /// A publisher of frames (byte slices of up to `max_bytes`, with a [`FrameHeader`]).
+    pub fn frame_publisher(
+        &self,
+        topic: &str,
+        max_bytes: usize,
+    ) -> Result<FramePublisher, BusError> {
+        let (name, service) = self.open_frames(topic)?;
+        let publisher = service
+            .publisher_builder()
+            .initial_max_slice_len(max_bytes.max(1))
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+            .map_err(port_error(&name))?;
+        Ok(FramePublisher {
+            publisher,
+            port_factory: service,
+            service: name,
+        })
+    }
+
+    /// A subscriber of frames.
+    pub fn frame_subscriber(&self, topic: &str) -> Result<FrameSubscriber, BusError> {
+        let (name, service) = self.open_frames(topic)?;
+        let subscriber = service
+            .subscriber_builder()
+            .create()
+            .map_err(port_error(&name))?;
+        Ok(FrameSubscriber {
+            subscriber,
+            service: name,
+        })
+    }
+
+    /// Create the supervisor's status board (only the supervisor does this).
+    pub fn create_status_board(&self) -> Result<StatusBoardWriter, BusError> {
+        let name = status_service_name(&self.flight);
+        let service = self
+            .node
+            .service_builder(&Self::iox_name(&name)?)
+            .blackboard_creator::<u64>()
+            .max_nodes(MAX_NODES)
+            .max_readers(MAX_NODES)
+            .add::<SupervisorStatus>(0, SupervisorStatus::default())
+            .create()
+            .map_err(|e| BusError::Service {
+                service: name.clone(),
+                reason: format!("{e:?}"),
+            })?;
+        let writer = service
+            .writer_builder()
+            .create()
+            .map_err(port_error(&name))?;
+        let entry = writer
+            .entry::<SupervisorStatus>(&0)
+            .map_err(port_error(&name))?;
+        Ok(StatusBoardWriter {
+            entry,
+            _writer: writer,
+            _service: service,
+        })
+    }
+
+    /// Read the supervisor's status board of this flight once.
+    pub fn read_status_board(&self) -> Result<SupervisorStatus, BusError> {
+        let name = status_service_name(&self.flight);
+        let service = match self
+            .node
+            .service_builder(&Self::iox_name(&name)?)
+            .blackboard_opener::<u64>()
+            .open()
+        {
+            Ok(s) => s,
+            Err(BlackboardOpenError::DoesNotExist) => {
+                return Err(BusError::NotFound { service: name });
+            }
+            Err(BlackboardOpenError::IncompatibleKeys) => {
+                return Err(BusError::IncompatibleSchema { service: name });
+            }
+            Err(e) => {
+                return Err(BusError::Service {
+                    service: name,
+                    reason: format!("{e:?}"),
+                });
+            }
+        };
+        let reader: Reader<Ipc, u64> = service
+            .reader_builder()
+            .create()
+            .map_err(port_error(&name))?;
+        let entry = reader
+            .entry::<SupervisorStatus>(&0)
+            .map_err(|_| BusError::IncompatibleSchema { service: name })?;
+        Ok(*entry.get())
+    }
+}
+
+/// `aeris/s{V}/{flight}/{topic}`.
+pub fn service_name(flight: &str, topic: &str) -> String {
+    format!("aeris/s{SCHEMA_VERSION}/{flight}/{topic}")
+}
+
+/// `aeris/{flight}/manifest` (unversioned on purpose).
+pub fn manifest_service_name(flight: &str) -> String {
+    format!("aeris/{flight}/manifest")
+}
+
+/// `aeris/s{V}/{flight}/supervisor`.
+pub fn status_service_name(flight: &str) -> String {
+    service_name(flight, "supervisor")
+}
