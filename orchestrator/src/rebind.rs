@@ -33,8 +33,8 @@
 //! latency on such an executor is its own cycle (its load model as above, with that host's
 //! busy cores) plus that cost; only roles that may run on another host
 //! ([`RoleLoad::crosses_hosts`]) are placed there, only while the link is up
-//! ([`ExecutorLoad::reachable`]), and a role goes from one host to another only through the
-//! flight's host. A role on another host is seen through its handle on the flight's host,
+//! ([`ExecutorLoad::reachable`]), and a role goes from one other host to a different one
+//! only through the flight's host (between executors of one other host it may move). A role on another host is seen through its handle on the flight's host,
 //! so its CPU demand there is not measured (0): the planner may underestimate the load a
 //! role brings back.
 //!

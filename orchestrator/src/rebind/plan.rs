@@ -176,13 +176,13 @@ pub fn plan_fewest_moves(
 }
 
 /// Whether `role` may go from `from` to `to`: there only while its link is up, to another
-/// host only a role that may run there, and between two other hosts only through the
-/// flight's host.
+/// host only a role that may run there, and from one other host to a different one only
+/// through the flight's host.
 fn allowed(role: &RoleLoad, from: Option<&ExecutorLoad>, to: &ExecutorLoad) -> bool {
     let from_host = from.and_then(|e| e.host.as_ref());
     to.reachable
         && (to.host.is_none() || role.crosses_hosts)
-        && (from_host.is_none() || to.host.is_none())
+        && (from_host.is_none() || to.host.is_none() || from_host == to.host.as_ref())
 }
 
 /// Index subsets of `0..n` of size `k`, in lexicographic order.
@@ -440,6 +440,29 @@ mod tests {
         });
         let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]).expect("a plan");
         assert!(plan.moves.iter().all(|m| executors[m.to].host.is_none()));
+    }
+
+    #[test]
+    fn a_role_moves_between_executors_of_its_own_host() {
+        // the reasoner on the ground host's `gs`, hogged there (slowdown 3); the flight's
+        // executors are saturated; `gs2` on the same host is free
+        let ground = |name: &str, busy: f64| ExecutorLoad {
+            host: Some("ground".into()),
+            link_ms: 5.0,
+            ..ExecutorLoad::local(name, 1.0, busy)
+        };
+        let executors = vec![
+            ExecutorLoad::local("control", 1.0, 2.0),
+            ExecutorLoad::local("perception", 1.0, 2.0),
+            ground("gs", 3.0),
+            ground("gs2", 0.0),
+        ];
+        let mut reasoning = role("reasoning", 2, 1000.0, 5.0 + 600.0 * 3.0, 0.0);
+        reasoning.slowdown = 3.0;
+        let plan = plan_fewest_moves(&[reasoning], &executors, 0.2, 3, &[]).expect("a plan");
+        assert_eq!(plan.moves.len(), 1);
+        assert_eq!(executors[plan.moves[0].to].name, "gs2", "{plan:?}");
+        assert!((plan.predicted_ms[0].unwrap() - 605.0).abs() < 1e-6);
     }
 
     #[test]
