@@ -5,8 +5,10 @@
 //! the hot-swap path but without waiting for the silent side (it becomes the role with its
 //! first heartbeat, and the hub follows its first decision); without a fallback the role is
 //! lost with its host: its handle is killed and it stays down (its host's bridge too),
-//! never failing the flight. The hub and the controller never wait for any of this: they
-//! run on the flight's host.
+//! never failing the flight. A swap of the role under way when its link goes silent, whose
+//! new side is behind the same link, is rolled back at once rather than waiting out its
+//! ready timeout (90 s), and the fallback follows. The hub and the controller never wait
+//! for any of this: they run on the flight's host.
 //!
 //! When the link returns (the host's bridge on the flight's host reports its agent
 //! connected again), the host's own bridge restarts there, and once the link has held for
@@ -47,12 +49,28 @@ impl Supervisor {
             };
             // only a role that has worked is judged: one still starting is the handle's
             // and the agent's business (they fail with the host's name)
-            if link.lost || r.state != RoleState::Running || r.swap.is_some() || !r.running {
+            if link.lost || r.state != RoleState::Running || !r.running {
                 continue;
             }
             let Some(heard) = r.heard_at else { continue };
             let silent = now.saturating_duration_since(heard);
             if silent < link.timeout {
+                continue;
+            }
+            if let Some(swap) = r.swap.as_mut() {
+                // a swap under way whose new side is behind the same link cannot finish
+                // either: it ends now (rolled back), and the fallback takes over next step
+                let behind_link = swap
+                    .placement
+                    .as_ref()
+                    .is_none_or(|p| p.remote.as_ref().is_some_and(|s| s.host == link.host));
+                if behind_link && swap.abort.is_none() {
+                    swap.abort = Some(format!(
+                        "the link to host `{}` was lost (the role silent for {} ms)",
+                        link.host,
+                        silent.as_millis()
+                    ));
+                }
                 continue;
             }
             link.lost = true;

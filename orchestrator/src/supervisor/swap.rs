@@ -51,6 +51,8 @@ pub(super) struct SwapInProgress {
     pub(super) ready: Option<RoleHeartbeat>,
     /// Set when it runs elsewhere than the role ran (a move between hosts, a fallback).
     pub(super) placement: Option<Placement>,
+    /// Set to end the swap at the next step, and why (its host's link was lost).
+    pub(super) abort: Option<String>,
 }
 
 /// Where a replacement runs when not where the role runs now: on another host (a move
@@ -358,6 +360,7 @@ impl Supervisor {
             deadline: now + ready_timeout,
             ready: None,
             placement,
+            abort: None,
         });
         self.pending.push(SupervisorEvent::SwapStarted {
             name: r.name.clone(),
@@ -380,6 +383,7 @@ impl Supervisor {
                 continue;
             };
             let failure = match swap.child.try_wait() {
+                _ if swap.abort.is_some() => swap.abort.take(),
                 Ok(Some(status)) => Some(format!(
                     "the new process exited ({}) before it was ready",
                     RoleExit::from_status(status)
