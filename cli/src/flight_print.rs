@@ -94,6 +94,7 @@ fn print_supervisor_event(event: &SupervisorEvent) {
         | SupervisorEvent::SwapDone { .. }
         | SupervisorEvent::SwapFailed { .. }
         | SupervisorEvent::RoleMigrated(_)
+        | SupervisorEvent::MoveAcrossHosts { .. }
         | SupervisorEvent::MigrationFailed { .. }
         | SupervisorEvent::RoleStalled { .. }
         | SupervisorEvent::LinkLost { .. }

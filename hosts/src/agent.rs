@@ -25,6 +25,8 @@ use std::io::{Read, Seek, SeekFrom};
 use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
 use std::process::Child;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use zenoh::handlers::FifoChannelHandler;
 use zenoh::liveliness::LivelinessToken;
@@ -198,19 +200,49 @@ impl HostLoad {
     }
 }
 
+/// What `info` answers, shared with the queryable's callback: `info` is answered at once
+/// on zenoh's thread, not at the agent's next step, so the link's probes measure the link
+/// and not the agent's step period.
+struct HostState {
+    host: String,
+    online: CpuSet,
+    load: Mutex<HostLoad>,
+    /// Role processes running now.
+    roles: AtomicUsize,
+}
+
+impl HostState {
+    fn info(&self) -> HostInfo {
+        let busy_cores = match self.load.lock() {
+            Ok(mut load) => load.busy(&self.online),
+            Err(poisoned) => poisoned.into_inner().busy(&self.online),
+        };
+        HostInfo {
+            host: self.host.clone(),
+            schema: SchemaStamp::current(),
+            cpus: self.online.to_string(),
+            agent_pid: std::process::id(),
+            roles: self.roles.load(Ordering::Relaxed),
+            monotonic_ns: host_monotonic_ns(),
+            busy_cores,
+            cpu_count: self.online.cpus().len() as u32,
+        }
+    }
+}
+
 /// The agent of one host.
 pub struct Agent {
     config: AgentConfig,
     session: Session,
     _token: LivelinessToken,
-    info: Queryable<FifoChannelHandler<Query>>,
+    _info: Queryable<()>,
+    state: Arc<HostState>,
     spawn: Queryable<FifoChannelHandler<Query>>,
     stop: Queryable<FifoChannelHandler<Query>>,
     handles: zenoh::pubsub::Subscriber<FifoChannelHandler<Sample>>,
     alive_handles: HashSet<String>,
     roles: Vec<RoleProcess>,
     online: CpuSet,
-    load: HostLoad,
 }
 
 fn declare_error(what: &str) -> impl Fn(zenoh::Error) -> AgentError + '_ {
@@ -238,7 +270,19 @@ impl Agent {
                 .wait()
                 .map_err(declare_error(&format!("the `{op}` request")))
         };
-        let info = queryable("info")?;
+        let online = CpuSet::available();
+        let state = Arc::new(HostState {
+            host: host.clone(),
+            online: online.clone(),
+            load: Mutex::new(HostLoad::new()),
+            roles: AtomicUsize::new(0),
+        });
+        let answering = state.clone();
+        let info = session
+            .declare_queryable(agent_request_key(&host, "info"))
+            .callback(move |q| reply(&q, &AgentReply::Ok(answering.info())))
+            .wait()
+            .map_err(declare_error("the `info` request"))?;
         let spawn = queryable("spawn")?;
         let stop = queryable("stop")?;
         let handles = session
@@ -252,19 +296,18 @@ impl Agent {
             .declare_token(agent_token_key(&host))
             .wait()
             .map_err(declare_error("the agent's liveliness token"))?;
-        let online = CpuSet::available();
         Ok(Agent {
             config,
             session,
             _token: token,
-            info,
+            _info: info,
+            state,
             spawn,
             stop,
             handles,
             alive_handles: HashSet::new(),
             roles: Vec::new(),
             online,
-            load: HostLoad::new(),
         })
     }
 
@@ -281,19 +324,6 @@ impl Agent {
     /// Answer requests, follow the handles, reap exits, escalate stops; call every few ms.
     pub fn step(&mut self) -> Vec<AgentEvent> {
         let mut events = Vec::new();
-        while let Ok(Some(q)) = self.info.try_recv() {
-            let info = HostInfo {
-                host: self.config.host.clone(),
-                schema: SchemaStamp::current(),
-                cpus: self.online.to_string(),
-                agent_pid: std::process::id(),
-                roles: self.roles.len(),
-                monotonic_ns: host_monotonic_ns(),
-                busy_cores: self.load.busy(&self.online),
-                cpu_count: self.online.cpus().len() as u32,
-            };
-            reply(&q, &AgentReply::Ok(info));
-        }
         while let Ok(Some(q)) = self.spawn.try_recv() {
             let answer = self.spawn_role(&q, &mut events);
             reply(&q, &answer);
@@ -319,6 +349,7 @@ impl Agent {
         }
         self.follow_handles(&mut events);
         self.reap(&mut events);
+        self.state.roles.store(self.roles.len(), Ordering::Relaxed);
         events
     }
 

@@ -5,7 +5,8 @@
 //! a time namespace whose CLOCK_MONOTONIC is [`GROUND_CLOCK_AHEAD_S`] ahead, as two
 //! machines' clocks differ (each counts from its own boot): what one host stamps must be
 //! read on the other through the offset their link measured. Needs root (CAP_NET_ADMIN and
-//! CAP_SYS_ADMIN), `ip` (iproute2), `unshare` and `nsenter` (util-linux); `tc` for netem.
+//! CAP_SYS_ADMIN), `ip` (iproute2), `unshare`, `nsenter` and `taskset` (util-linux); `tc`
+//! for netem.
 
 use std::path::Path;
 use std::process::Command;
@@ -53,6 +54,9 @@ pub struct TwoHosts {
     pub vehicle_if: String,
     /// The ground's end of the link (in `ground`).
     pub ground_if: String,
+    /// The CPUs of each host's processes (vehicle, ground), when the machine is split
+    /// between them ([`TwoHosts::split_cpus`]); `None`: every CPU for both.
+    pub cpus: Option<(String, String)>,
 }
 
 fn run(tool: &'static str, args: &[&str]) -> Result<(), NetnsError> {
@@ -85,6 +89,7 @@ impl TwoHosts {
             ground_ip: format!("{subnet}.2"),
             vehicle_if: format!("av{tag}"),
             ground_if: format!("ag{tag}"),
+            cpus: None,
         };
         run("ip", &["netns", "add", &hosts.vehicle])?;
         // from here on, drop removes what was made
@@ -121,6 +126,13 @@ impl TwoHosts {
         Ok(hosts)
     }
 
+    /// Split this machine's CPUs between the two hosts, as two machines have their own:
+    /// the vehicle's processes run on the CPUs of `vehicle` only, the ground's on those of
+    /// `ground` (CPU lists, `taskset` syntax).
+    pub fn split_cpus(&mut self, vehicle: &str, ground: &str) {
+        self.cpus = Some((vehicle.to_string(), ground.to_string()));
+    }
+
     /// The ground host's agent endpoint.
     pub fn ground_endpoint(&self) -> String {
         format!("tcp/{}:7447", self.ground_ip)
@@ -147,8 +159,12 @@ impl TwoHosts {
                 "mount -t tmpfs tmpfs /dev/shm && mkdir -p /tmp/iceoryx2 && \
                  mount -t tmpfs tmpfs /tmp/iceoryx2 && exec \"$@\"",
             )
-            .arg("sh")
-            .arg(program);
+            .arg("sh");
+        if let Some((vehicle, ground)) = &self.cpus {
+            let cpus = if ns == self.ground { ground } else { vehicle };
+            cmd.args(["taskset", "-c", cpus]);
+        }
+        cmd.arg(program);
         cmd
     }
 

@@ -55,7 +55,11 @@ impl StatusBoard {
             let executor = match &role.link {
                 Some(link) => {
                     let mut out = std::io::Cursor::new(&mut place[..]);
-                    let _ = write!(out, "{}:{}", link.host, role.executor);
+                    let _ = if role.executor.is_empty() {
+                        write!(out, "{}", link.host)
+                    } else {
+                        write!(out, "{}:{}", link.host, role.executor)
+                    };
                     let n = out.position() as usize;
                     core::str::from_utf8(&place[..n]).unwrap_or(&role.executor)
                 }

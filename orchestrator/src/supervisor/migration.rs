@@ -74,6 +74,17 @@ impl Supervisor {
     /// - an executor or CPU list of the flight's host, for a role on another host: back,
     ///   make-before-break too.
     pub fn move_role(&mut self, role: &str, target: &str) -> Result<RoleMove, MigrateError> {
+        self.move_role_for(role, target, None)
+    }
+
+    /// [`Supervisor::move_role`], for the figures in `trigger` (the scheduling policy) or
+    /// by hand (`None`): the role's binding says which.
+    pub(super) fn move_role_for(
+        &mut self,
+        role: &str,
+        target: &str,
+        trigger: Option<MigrationTrigger>,
+    ) -> Result<RoleMove, MigrateError> {
         let Some(i) = self.roles.iter().position(|r| r.name == role) else {
             return Err(MigrateError::UnknownRole {
                 role: role.to_string(),
@@ -122,6 +133,14 @@ impl Supervisor {
                 }
             }
         };
+        let mut placement = placement;
+        if trigger.is_some() {
+            let from = match &self.roles[i].link {
+                Some(l) => format!("host `{}`", l.host),
+                None => "the flight's host".to_string(),
+            };
+            placement.why = self.binding_why(trigger.as_ref(), &from);
+        }
         let place = placement.place.clone();
         let variant = self.roles[i].variant.clone();
         // loaded at the normal policy: under outside load an idle load got no CPU (measured:
@@ -141,6 +160,24 @@ impl Supervisor {
         // sent by hand: it no longer waits to return where a lost link took it from
         self.roles[i].returns_to = None;
         Ok(RoleMove::Started { new_pid, place })
+    }
+
+    /// Why a role moved from `from` (its binding): the figures of `trigger`, or by hand.
+    fn binding_why(&self, trigger: Option<&MigrationTrigger>, from: &str) -> String {
+        match trigger {
+            Some(t) if t.initial => format!(
+                "initial binding: {:.0} ms on {from} > {:.0}% of {:.0} ms budget, {:.0} ms predicted",
+                t.latency_ms,
+                100.0 * (1.0 - self.scheduling.margin),
+                t.budget_ms,
+                t.predicted_ms
+            ),
+            Some(t) => format!(
+                "moved from {from}: {:.0} ms > {:.0} ms budget, {:.0} ms predicted",
+                t.latency_ms, t.budget_ms, t.predicted_ms
+            ),
+            None => format!("moved by hand from {from}"),
+        }
     }
 
     /// The executor on another host that `target` names (`HOST:EXECUTOR`, or an executor
@@ -337,20 +374,9 @@ impl Supervisor {
         r.cpu_set = Some(set.clone());
         r.executor = to_name.clone();
         r.migrations += 1;
-        r.binding = match &trigger {
-            Some(t) if t.initial => format!(
-                "initial binding: {:.0} ms on {from} > {:.0}% of {:.0} ms budget, {:.0} ms predicted",
-                t.latency_ms,
-                100.0 * (1.0 - self.scheduling.margin),
-                t.budget_ms,
-                t.predicted_ms
-            ),
-            Some(t) => format!(
-                "moved from {from}: {:.0} ms > {:.0} ms budget, {:.0} ms predicted",
-                t.latency_ms, t.budget_ms, t.predicted_ms
-            ),
-            None => format!("moved by hand from {from}"),
-        };
+        let binding = self.binding_why(trigger.as_ref(), &from);
+        let r = &mut self.roles[i];
+        r.binding = binding;
         // the spec a restart reads names the new CPUs too
         if let Ok(mut spec) = aeris_runtime::RoleSpec::load(&r.spec_path) {
             spec.cpus = r.cpus.clone();

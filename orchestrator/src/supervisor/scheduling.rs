@@ -123,13 +123,17 @@ impl Supervisor {
                     Some(host) => format!("{host}:{}", to.name),
                     None => to.name.clone(),
                 };
-                self.move_role(&role.name, &target).map(|_| {
-                    self.pending.push(SupervisorEvent::MoveAcrossHosts {
-                        name: role.name.clone(),
-                        place: target,
-                        trigger,
-                    });
-                })
+                // why, before the move's own events
+                let at = self.pending.len();
+                self.move_role_for(&role.name, &target, Some(trigger.clone()))
+                    .map(|_| {
+                        let why = SupervisorEvent::MoveAcrossHosts {
+                            name: role.name.clone(),
+                            place: target,
+                            trigger,
+                        };
+                        self.pending.insert(at.min(self.pending.len()), why);
+                    })
             } else {
                 self.migrate_with(&role.name, &to.name, Some(trigger))
                     .map(|_| ())
