@@ -173,6 +173,9 @@ pub struct PlacementFigures {
     pub done_after_ms: Option<u64>,
     /// The policy's line: the latency, the budget and the prediction there.
     pub why: Option<String>,
+    /// The flight's lines about the detector (the initial binding's, probes, moves), up to
+    /// [`PLACEMENT_LINES`], for a run where it did not move.
+    pub detector_lines: Vec<String>,
     /// The flight reached its goal.
     pub reached_goal: Option<bool>,
     /// Controller ticks whose setpoint never reached the autopilot (the hog shares the
@@ -363,7 +366,15 @@ impl Flight {
     }
 
     /// Wait for the end; the summary (the last JSON line of stdout).
-    fn finish(mut self) -> Result<(serde_json::Value, PathBuf), HostsBenchError> {
+    fn finish(self) -> Result<(serde_json::Value, PathBuf), HostsBenchError> {
+        self.finish_with_lines()
+            .map(|(summary, dir, _)| (summary, dir))
+    }
+
+    /// [`Flight::finish`], with every line the flight printed on stderr.
+    fn finish_with_lines(
+        mut self,
+    ) -> Result<(serde_json::Value, PathBuf, Vec<String>), HostsBenchError> {
         let start = Instant::now();
         let status = loop {
             while let Ok(line) = self.lines.try_recv() {
@@ -390,7 +401,11 @@ impl Flight {
             .rev()
             .find_map(|l| serde_json::from_str::<serde_json::Value>(l).ok());
         match summary {
-            Some(s) if status.success() => Ok((s, self.run_dir)),
+            Some(s) if status.success() => Ok((
+                s,
+                self.run_dir,
+                self.seen.into_iter().map(|(_, l)| l).collect(),
+            )),
             _ => {
                 let tail: Vec<&str> = self
                     .seen
@@ -630,6 +645,8 @@ fn cut(config: &HostsBenchConfig) -> Result<CutFigures, HostsBenchError> {
 /// The detector's budget in the placement scenario (ms): above its cycle on an idle CPU of
 /// this kind of machine (about 60 ms), below it under the hog.
 const PLACEMENT_BUDGET_MS: f64 = 100.0;
+/// The flight's lines about the detector kept in the figures, at most.
+const PLACEMENT_LINES: usize = 8;
 /// Busy threads of the placement scenario's hog.
 const PLACEMENT_HOG_THREADS: usize = 2;
 
@@ -675,6 +692,7 @@ fn placement(config: &HostsBenchConfig) -> Result<PlacementFigures, HostsBenchEr
         ready_after_ms: None,
         done_after_ms: None,
         why: None,
+        detector_lines: Vec::new(),
         reached_goal: None,
         controller_missed_ticks: None,
     };
@@ -727,8 +745,14 @@ fn placement(config: &HostsBenchConfig) -> Result<PlacementFigures, HostsBenchEr
             .ok()
             .map(ms);
     }
-    let (summary, _) = flight.finish()?;
+    let (summary, _, lines) = flight.finish_with_lines()?;
     drop(hog);
+    fig.detector_lines = lines
+        .into_iter()
+        .filter(|l| l.contains("detector"))
+        .map(|l| l.trim_start_matches("aeris: ").to_string())
+        .take(PLACEMENT_LINES)
+        .collect();
     fig.reached_goal = summary["reached_goal"].as_bool();
     fig.controller_missed_ticks = summary["controller_missed_ticks"].as_u64();
     Ok(fig)

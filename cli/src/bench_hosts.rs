@@ -133,8 +133,14 @@ pub fn run(a: HostsArgs) -> Result<()> {
                     .map_or_else(|| "-".to_string(), |x| x.to_string()),
                 p.reached_goal.map_or("-", |g| if g { "yes" } else { "no" })
             );
-            if let Some(why) = &p.why {
-                println!("    {why}");
+            match &p.why {
+                Some(why) => println!("    {why}"),
+                // no move: what the flight said of the detector
+                None => {
+                    for line in &p.detector_lines {
+                        println!("    {line}");
+                    }
+                }
             }
         }
     }

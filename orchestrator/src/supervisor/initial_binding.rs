@@ -244,7 +244,7 @@ impl Supervisor {
             let r = &self.roles[i];
             if r.pid != Some(p.pids[k]) || r.state != RoleState::Running || r.swap.is_some() {
                 // restarted (on its home CPUs, from its spec), or being swapped: no probes
-                self.restore_home(i, p.roles[k].home);
+                self.restore_home(i, executors, p.roles[k].home);
                 p.forget(k);
             } else if r.sched.len() < ticks {
                 self.initial.probes = Some(p);
@@ -273,7 +273,7 @@ impl Supervisor {
                 // its last probe: back home before the next role is measured
                 if !p.queue.iter().any(|&(q, _)| q == k) {
                     let home = p.roles[k].home;
-                    if let Err(reason) = self.probe_move(i, home) {
+                    if let Err(reason) = self.probe_move(i, executors, home) {
                         events.push(SupervisorEvent::MigrationFailed {
                             name: self.roles[i].name.clone(),
                             reason: format!("back from the initial binding's probes: {reason}"),
@@ -285,7 +285,7 @@ impl Supervisor {
         }
         while let Some((k, e)) = p.queue.pop_front() {
             let i = p.roles[k].role;
-            match self.probe_move(i, e) {
+            match self.probe_move(i, executors, e) {
                 Ok(()) => {
                     p.current = Some((k, e, self.roles[i].worked_cycles));
                     self.initial.probes = Some(p);
@@ -298,7 +298,7 @@ impl Supervisor {
                     });
                     // the next candidate, or home when there is none
                     if !p.queue.iter().any(|&(q, _)| q == k) {
-                        let _ = self.probe_move(i, p.roles[k].home);
+                        let _ = self.probe_move(i, executors, p.roles[k].home);
                     }
                 }
             }
@@ -308,9 +308,12 @@ impl Supervisor {
 
     /// A probe's move: the role's threads to executor `e`, nothing counted as a migration
     /// (the role's spec, which a restart reads, keeps its home).
-    fn probe_move(&mut self, i: usize, e: usize) -> Result<(), String> {
-        let Some(x) = self.registry.executors().get(e) else {
-            return Err(format!("no executor #{e}"));
+    fn probe_move(&mut self, i: usize, executors: &[ExecutorLoad], e: usize) -> Result<(), String> {
+        let Some(x) = executors
+            .get(e)
+            .and_then(|x| self.registry.by_name(&x.name))
+        else {
+            return Err(format!("no executor #{e} on the flight's host"));
         };
         let (name, set) = (x.name.clone(), x.cpus.clone());
         let r = &mut self.roles[i];
@@ -328,8 +331,11 @@ impl Supervisor {
     }
 
     /// Record role `i` on its home executor again (its process was restarted there).
-    fn restore_home(&mut self, i: usize, home: usize) {
-        if let Some(x) = self.registry.executors().get(home) {
+    fn restore_home(&mut self, i: usize, executors: &[ExecutorLoad], home: usize) {
+        if let Some(x) = executors
+            .get(home)
+            .and_then(|x| self.registry.by_name(&x.name))
+        {
             let (name, set) = (x.name.clone(), x.cpus.clone());
             let r = &mut self.roles[i];
             r.cpus = set.to_string();

@@ -188,15 +188,19 @@ impl Supervisor {
 
     /// The policy's view of the flight now.
     fn observe(&mut self) -> (Vec<RoleLoad>, Vec<ExecutorLoad>) {
-        let mut executors: Vec<ExecutorLoad> = self
-            .registry
-            .executors()
-            .iter()
-            .map(|e| ExecutorLoad::local(&e.name, e.capacity(), e.busy))
-            .collect();
+        // executors of the same CPUs are one place to run (two names of "auto" on a
+        // one-CPU host): listed twice, each would look free while the other is loaded
+        let mut seen: Vec<&CpuSet> = Vec::new();
+        let mut executors: Vec<ExecutorLoad> = Vec::new();
+        for e in self.registry.executors() {
+            if !seen.contains(&&e.cpus) {
+                seen.push(&e.cpus);
+                executors.push(ExecutorLoad::local(&e.name, e.capacity(), e.busy));
+            }
+        }
+        let local_sets: Vec<CpuSet> = seen.into_iter().cloned().collect();
         let local = executors.len();
         executors.extend(self.remote_executor_loads());
-        let registry = &self.registry;
         let remote = &self.remote_executors;
         let roles = self
             .roles
@@ -211,7 +215,7 @@ impl Supervisor {
                     None => r
                         .cpu_set
                         .as_ref()
-                        .and_then(|set| registry.executors().iter().position(|e| &e.cpus == set)),
+                        .and_then(|set| local_sets.iter().position(|s| s == set)),
                 }
                 .unwrap_or(usize::MAX);
                 let n = r.sched.len();
