@@ -164,8 +164,10 @@ pub struct PlacementFigures {
     pub budget_ms: f64,
     /// Its latency on board before the hog, as the initial binding measured it (ms).
     pub latency_before_ms: Option<f64>,
-    /// From the hog's landing to the policy's move (ms); `None`: it did not move, or the
-    /// initial binding moved it before the hog (then `why` says so).
+    /// The policy moved it before the hog landed: the board was too slow for its budget
+    /// already (outside load); the times after the hog are then `None`.
+    pub moved_before_hog: bool,
+    /// From the hog's landing to the policy's move (ms); `None`: it did not move after it.
     pub moved_after_ms: Option<u64>,
     /// From the hog's landing to the detector's first heartbeat on the ground (ms).
     pub ready_after_ms: Option<u64>,
@@ -688,6 +690,7 @@ fn placement(config: &HostsBenchConfig) -> Result<PlacementFigures, HostsBenchEr
         hog_threads: PLACEMENT_HOG_THREADS,
         budget_ms: PLACEMENT_BUDGET_MS,
         latency_before_ms: None,
+        moved_before_hog: false,
         moved_after_ms: None,
         ready_after_ms: None,
         done_after_ms: None,
@@ -732,18 +735,21 @@ fn placement(config: &HostsBenchConfig) -> Result<PlacementFigures, HostsBenchEr
     let hog = crate::flights::BusyThreads::start(Some(&vehicle), PLACEMENT_HOG_THREADS);
     let ms = |t: Instant| t.saturating_duration_since(hog_at).as_millis() as u64;
     if let Ok(t) = flight.wait_line("moves `detector` to ground:") {
-        // (before the hog: the initial binding found the board too slow already)
-        fig.moved_after_ms = (t >= hog_at).then(|| ms(t));
         fig.why = flight
             .seen
             .iter()
             .find(|(_, l)| l.contains("moves `detector` to ground:"))
             .map(|(_, l)| l.trim_start_matches("aeris: ").to_string());
-        fig.ready_after_ms = flight.wait_line("`yolo` (pid").ok().map(ms);
-        fig.done_after_ms = flight
-            .wait_line("move of `yolo` to host `ground`")
-            .ok()
-            .map(ms);
+        // before the hog: the board was too slow for it already (outside load)
+        fig.moved_before_hog = t < hog_at;
+        if !fig.moved_before_hog {
+            fig.moved_after_ms = Some(ms(t));
+            fig.ready_after_ms = flight.wait_line("`yolo` (pid").ok().map(ms);
+            fig.done_after_ms = flight
+                .wait_line("move of `yolo` to host `ground`")
+                .ok()
+                .map(ms);
+        }
     }
     let (summary, _, lines) = flight.finish_with_lines()?;
     drop(hog);

@@ -118,17 +118,24 @@ pub fn run(a: HostsArgs) -> Result<()> {
         Some(why) => println!("  placement: skipped: {why}"),
         None => {
             let ms = |v: Option<u64>| v.map_or_else(|| "-".to_string(), |x| format!("{x} ms"));
+            let moved = if p.moved_before_hog {
+                "moved to the ground before the hog landed".to_string()
+            } else {
+                format!(
+                    "a hog of {} threads on the vehicle's CPUs: moved to the ground after {}, ready {}, done {}",
+                    p.hog_threads,
+                    ms(p.moved_after_ms),
+                    ms(p.ready_after_ms),
+                    ms(p.done_after_ms)
+                )
+            };
             println!(
-                "  placement (vehicle CPUs {}, ground CPUs {}): detector {} of its {:.0} ms budget on board; a hog of {} threads on the vehicle's CPUs: moved to the ground after {}, ready {}, done {}; missed ticks {}, goal {}",
+                "  placement (vehicle CPUs {}, ground CPUs {}): detector {} of its {:.0} ms budget on board; {moved}; missed ticks {}, goal {}",
                 p.vehicle_cpus,
                 p.ground_cpus,
                 p.latency_before_ms
                     .map_or_else(|| "?".to_string(), |l| format!("{l:.1} ms")),
                 p.budget_ms,
-                p.hog_threads,
-                ms(p.moved_after_ms),
-                ms(p.ready_after_ms),
-                ms(p.done_after_ms),
                 p.controller_missed_ticks
                     .map_or_else(|| "-".to_string(), |x| x.to_string()),
                 p.reached_goal.map_or("-", |g| if g { "yes" } else { "no" })
