@@ -37,9 +37,9 @@
 //! The bridge on the flight's host (`probe` names the other host) also measures the link:
 //! it asks the other host's agent for its `info` every 250 ms and publishes the round
 //! trip, the loss, the clock offset, the other host's load and the cost of encoding a frame
-//! on `hosts/link` ([`crate::probe`]). While no frame crosses it still encodes one frame a
-//! second (and sends nothing), so the cost of sending frames there is known before a role
-//! that reads them moves there.
+//! on `hosts/link` ([`crate::probe`]). The encoding cost is that of the frames sent: none is
+//! encoded only to measure it (on the vehicle, CPU is what the flight lacks; a debug build
+//! takes 15 ms a frame), so until a frame has crossed it is unknown (0).
 //!
 //! When it stops it prints what crossed, per topic (`bridge: sent `camera/rgb`: N messages,
 //! B bytes`).
@@ -88,9 +88,6 @@ const BURST: usize = 64;
 
 /// How often a working bridge reports a worked cycle (its heartbeat, not each message).
 const REPORT_NS: u64 = 100_000_000;
-
-/// How often a frame that does not cross is encoded anyway, to measure the cost (ns).
-const CODING_SAMPLE_NS: u64 = 1_000_000_000;
 
 /// Attachment: schema stamp (12 bytes), sequence number (8), header length (4), frame
 /// coding (1: [`CODING_RAW`] or [`CODING_JPEG`]; absent means raw).
@@ -163,8 +160,6 @@ pub struct BridgeRole {
     link_checked_ns: u64,
     /// The link's measurement (the bridge on the flight's host only).
     probe: Option<LinkProbe>,
-    /// When a frame that does not cross was last encoded to measure the cost.
-    coding_sampled_ns: u64,
 }
 
 fn topics_param(ctx: &RoleContext, key: &str) -> Result<Vec<String>, RoleError> {
@@ -291,7 +286,6 @@ impl Role for BridgeRole {
             last_report_ns: 0,
             link_checked_ns: 0,
             probe,
-            coding_sampled_ns: 0,
         };
         match open_client(&connect, Reach::Eventually, lease) {
             Ok(session) => bridge.attach(session)?,
@@ -342,27 +336,9 @@ impl Role for BridgeRole {
                     self.frames,
                     ex.payload == Payload::Frame,
                 );
-                // a frame that does not cross is encoded once a second all the same (the
-                // probing bridge only): the link's frame cost is known before it is paid
-                let sample_coding = !wanted
-                    && is_frame
-                    && self.probe.is_some()
-                    && t0.saturating_sub(self.coding_sampled_ns) >= CODING_SAMPLE_NS;
-                let scratch = &mut self.pixels;
                 let mut encode_ns = 0u64;
-                let mut sampled = false;
                 let got = ex.sub.next_raw(&mut |bytes, pixels, from| {
-                    if own.contains(&from) {
-                        return;
-                    }
-                    if !wanted {
-                        if let (true, Some(header)) = (sample_coding, read::<FrameHeader>(bytes)) {
-                            scratch.clear();
-                            let t = monotonic_ns();
-                            sampled =
-                                matches!(frames.encode(&header, pixels, scratch), Ok(CODING_JPEG));
-                            encode_ns = monotonic_ns().saturating_sub(t);
-                        }
+                    if !wanted || own.contains(&from) {
                         return;
                     }
                     // a JPEG frame is a few percent of its pixels: reserve accordingly
@@ -394,12 +370,6 @@ impl Role for BridgeRole {
                 })?;
                 if !got {
                     break;
-                }
-                if sampled {
-                    self.coding_sampled_ns = t0;
-                    if let Some(p) = self.probe.as_mut() {
-                        p.frame_coded(encode_ns);
-                    }
                 }
                 if let Some(e) = failed {
                     self.counters[5] += 1;

@@ -110,7 +110,8 @@ pub struct ExecutorLoad {
     /// the flight's host.
     pub link_ms: f64,
     /// What a role there that reads frames pays on top (ms): encoding a frame for the
-    /// link, as measured; 0 on the flight's host.
+    /// link, as measured on the frames sent (0 until one has crossed); 0 on the flight's
+    /// host.
     pub frame_ms: f64,
     /// Roles may be moved here: always on the flight's host; on another host while its
     /// link is up and measured.
