@@ -135,10 +135,7 @@ impl Supervisor {
         };
         let mut placement = placement;
         if trigger.is_some() {
-            let from = match &self.roles[i].link {
-                Some(l) => format!("host `{}`", l.host),
-                None => "the flight's host".to_string(),
-            };
+            let from = self.roles[i].host_label();
             placement.why = self.binding_why(trigger.as_ref(), &from);
         }
         let place = placement.place.clone();
@@ -271,10 +268,7 @@ impl Supervisor {
                 cpus: r.cpu_set.clone(),
             }),
         });
-        let from = match &r.link {
-            Some(l) => format!("host `{}`", l.host),
-            None => "the flight's host".to_string(),
-        };
+        let from = r.host_label();
         Ok(Placement {
             cpus: None,
             executor,

@@ -323,6 +323,14 @@ impl RoleRuntime {
         }
     }
 
+    /// The host it runs on, for messages: `host `NAME`` or `the flight's host`.
+    pub(super) fn host_label(&self) -> String {
+        match &self.link {
+            Some(l) => format!("host `{}`", l.host),
+            None => "the flight's host".to_string(),
+        }
+    }
+
     /// Its state in words, for errors ("running, pid 123", "stopped, last exit code 1").
     pub(super) fn describe_state(&self) -> String {
         match (self.state, self.pid) {
