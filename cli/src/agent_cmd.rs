@@ -55,6 +55,10 @@ pub fn run(args: AgentArgs) -> Result<()> {
         aeris_hosts::protocol::SchemaStamp::current(),
         run_dir.display()
     );
+    println!(
+        "roles' priority over this host's other work: {}",
+        agent.priority()
+    );
     while !aeris_runtime::signals::termination_requested() {
         for e in agent.step() {
             println!("{e}");

@@ -35,6 +35,7 @@ impl FlightWatcher for FlightPrinter {
                 logs,
                 instruction,
                 accelerators,
+                priority,
             } => {
                 eprintln!(
                     "aeris: flight {flight}: {roles} roles started (logs in {})",
@@ -42,6 +43,7 @@ impl FlightWatcher for FlightPrinter {
                 );
                 eprintln!("aeris: mission: {instruction}");
                 eprintln!("aeris: {accelerators}");
+                eprintln!("aeris: roles' priority over outside work: {priority}");
             }
             FlightEvent::Supervisor(event) => print_supervisor_event(event),
             FlightEvent::Progress(p) if self.progress => {

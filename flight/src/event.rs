@@ -107,6 +107,8 @@ pub enum FlightEvent {
         instruction: String,
         /// The accelerators the flight may use, as one line.
         accelerators: String,
+        /// How the roles got priority over outside work, as one line.
+        priority: String,
     },
     /// Every role sent its first heartbeat: the flight is on, its time limit runs.
     Ready,

@@ -108,6 +108,11 @@ pub struct FlightSummary {
     pub recording: Option<crate::RecordingSummary>,
     /// The links to other hosts as last measured (empty for a flight on one host).
     pub links: Vec<LinkSummary>,
+    /// How the roles got priority over outside work: `cgroup-v2`, `cgroup-v1`, `nice` or
+    /// `none` ([`aeris_orchestrator::priority`]).
+    pub priority: String,
+    /// The same in words: the group and its weight, the nice value, or why none.
+    pub priority_detail: String,
 }
 
 /// A link to another host at the end of a flight, as its bridge measured it.
@@ -579,6 +584,8 @@ impl FlightMonitor {
             first_decision_on_video_s: self.video_start.seconds(),
             recording: None,
             links: Vec::new(),
+            priority: String::new(),
+            priority_detail: String::new(),
         }
     }
 }

@@ -150,6 +150,7 @@ pub(crate) fn supervise<H: StepHook>(
         logs: run_dir.join("logs"),
         instruction: mission.instruction.clone(),
         accelerators: accelerator_line(sup.registry()),
+        priority: sup.priority().to_string(),
     });
     shared.set_roles(&sup);
     shared.set_phase(FlightPhase::WaitingForRoles);
@@ -247,6 +248,8 @@ pub(crate) fn supervise<H: StepHook>(
     summary.swaps_done = swaps_done;
     summary.swaps_failed = swaps_failed;
     summary.links = sup.status().links().iter().map(LinkSummary::of).collect();
+    summary.priority = sup.priority().mechanism().to_string();
+    summary.priority_detail = sup.priority().to_string();
     let recorder_heartbeat = record.as_ref().and_then(|(_, role)| {
         sup.roles()
             .iter()

@@ -243,6 +243,8 @@ pub struct Agent {
     alive_handles: HashSet<String>,
     roles: Vec<RoleProcess>,
     online: CpuSet,
+    /// The priority of the roles it runs over this host's other work.
+    priority: aeris_orchestrator::priority::FlightPriority,
 }
 
 fn declare_error(what: &str) -> impl Fn(zenoh::Error) -> AgentError + '_ {
@@ -296,6 +298,7 @@ impl Agent {
             .declare_token(agent_token_key(&host))
             .wait()
             .map_err(declare_error("the agent's liveliness token"))?;
+        let config_host = config.host.clone();
         Ok(Agent {
             config,
             session,
@@ -308,7 +311,16 @@ impl Agent {
             alive_handles: HashSet::new(),
             roles: Vec::new(),
             online,
+            priority: aeris_orchestrator::priority::FlightPriority::establish(
+                &format!("agent-{}", config_host),
+                aeris_orchestrator::priority::PriorityMode::Auto,
+            ),
         })
+    }
+
+    /// How the roles this agent runs got priority over the host's other work.
+    pub fn priority(&self) -> &aeris_orchestrator::priority::Priority {
+        self.priority.priority()
     }
 
     /// The host's name.
@@ -424,6 +436,7 @@ impl Agent {
             log,
             cpus.as_ref(),
             LoadPolicy::Normal,
+            self.priority.for_child(),
         ) {
             Ok(child) => {
                 let pid = child.id();

@@ -26,6 +26,7 @@ pub mod control;
 pub mod executors;
 pub mod ladder;
 pub mod launch;
+pub mod priority;
 pub mod probe;
 pub mod rebind;
 pub mod restart;

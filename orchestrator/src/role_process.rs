@@ -1,9 +1,11 @@
 //! Starting one role process the way every AERIS process starter does (the supervisor on
 //! the flight's host, the host agent on another): `aeris role --spec FILE --instance N`
 //! with its log as stdout and stderr, in its own process group, with
-//! `PR_SET_PDEATHSIG(SIGKILL)`, bound to its CPUs, optionally under SCHED_IDLE, inheriting
-//! no descriptor of its parent.
+//! `PR_SET_PDEATHSIG(SIGKILL)`, bound to its CPUs, optionally under SCHED_IDLE, in the
+//! flight's CPU control group or at its nice value ([`crate::priority`]), inheriting no
+//! descriptor of its parent.
 
+use crate::priority::ChildPriority;
 use aeris_runtime::affinity::CpuSet;
 use std::os::unix::process::CommandExt;
 use std::path::Path;
@@ -24,7 +26,7 @@ pub enum LoadPolicy {
 
 /// Start `exe role --spec SPEC --instance N` with stdout and stderr appended to `log`, in
 /// its own process group, killed when this process dies (`PR_SET_PDEATHSIG`), bound to
-/// `cpus`, inheriting no descriptor but its standard streams.
+/// `cpus`, given the flight's `priority`, inheriting no descriptor but its standard streams.
 pub fn spawn_role(
     exe: &Path,
     spec: &Path,
@@ -32,6 +34,7 @@ pub fn spawn_role(
     log: std::fs::File,
     cpus: Option<&CpuSet>,
     policy: LoadPolicy,
+    priority: ChildPriority,
 ) -> std::io::Result<Child> {
     let file = log;
     let err = file.try_clone()?;
@@ -49,8 +52,10 @@ pub fn spawn_role(
     let parent = unsafe { libc::getpid() };
     let cpus = cpus.cloned();
     // SAFETY: the closure only makes async-signal-safe system calls (prctl, getppid,
-    // sched_setaffinity, sched_setscheduler, close_range/fcntl) and does not allocate: CpuSet::bind_task builds the mask on the
-    // stack and io::Error::last_os_error / from_raw_os_error do not allocate.
+    // sched_setaffinity, sched_setscheduler, write, setpriority, close_range/fcntl) and does
+    // not allocate: CpuSet::bind_task builds the mask on the stack and
+    // io::Error::last_os_error / from_raw_os_error do not allocate; `priority` holds the
+    // parent's open cgroup.procs descriptor, which outlives the spawn.
     unsafe {
         cmd.pre_exec(move || {
             if libc::prctl(
@@ -70,6 +75,7 @@ pub fn spawn_role(
             if let Some(set) = &cpus {
                 set.bind_task(0)?;
             }
+            priority.apply_in_child();
             // the policy is per thread on Linux; threads the role starts inherit it
             if policy == LoadPolicy::IdleUntilReady {
                 let param = libc::sched_param { sched_priority: 0 };

@@ -248,6 +248,9 @@ pub struct SchedulingSpec {
     /// that does not fit its budget where the workflow put it; 0 judges every executor
     /// from its load instead of probing.
     pub probe_ticks: u32,
+    /// How the roles get priority over outside work on a shared machine: `auto` (a CPU
+    /// control group where permitted, else a nice value), `nice`, or `off`.
+    pub priority: crate::priority::PriorityMode,
 }
 
 impl SchedulingSpec {
@@ -265,6 +268,7 @@ impl SchedulingSpec {
             stall_hard_timeout_ms: timing.heartbeat_period_ms.saturating_mul(30).max(60_000),
             adapt_variants: true,
             probe_ticks: 4,
+            priority: crate::priority::PriorityMode::Auto,
         }
     }
 }

@@ -246,3 +246,41 @@ pub fn free_udp_port() -> u16 {
         .map(|a| a.port())
         .expect("free UDP port")
 }
+
+/// Busy threads in the test process, outside any flight (unpinned, normal priority), until
+/// dropped: a shared machine's other work.
+pub struct OutsideLoad {
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    threads: Vec<std::thread::JoinHandle<()>>,
+}
+
+impl OutsideLoad {
+    /// Start `n` busy threads.
+    pub fn start(n: usize) -> Self {
+        use std::sync::atomic::Ordering;
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let threads = (0..n)
+            .map(|_| {
+                let stop = stop.clone();
+                std::thread::spawn(move || {
+                    let mut x = 0u64;
+                    while !stop.load(Ordering::Relaxed) {
+                        for i in 0..10_000u64 {
+                            x = std::hint::black_box(x.wrapping_mul(31).wrapping_add(i));
+                        }
+                    }
+                })
+            })
+            .collect();
+        OutsideLoad { stop, threads }
+    }
+}
+
+impl Drop for OutsideLoad {
+    fn drop(&mut self) {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+    }
+}

@@ -68,6 +68,7 @@ pub use swap::{DEFAULT_SWAP_READY_TIMEOUT, RETIRE_GRACE};
 use crate::executors::ExecutorRegistry;
 use crate::ladder::VariantLadder;
 use crate::launch::{PlannedRole, plan_launch};
+use crate::priority::{FlightPriority, Priority};
 use crate::rebind::RebindPolicy;
 use crate::workflow::{SchedulingSpec, Workflow};
 use aeris_runtime::affinity::CpuSet;
@@ -242,7 +243,10 @@ impl Supervisor {
         let mut sup = Supervisor {
             roles: Vec::with_capacity(plan.roles.len()),
             flight: flight.clone(),
-            launcher: Launcher::new(aeris_exe),
+            launcher: Launcher::new(
+                aeris_exe,
+                FlightPriority::establish(&flight, scheduling.priority),
+            ),
             run_dir,
             heartbeats: HeartbeatIntake::new(heartbeats),
             board: StatusBoard::new(board, workflow.mission.subgoals.len()),
@@ -472,6 +476,12 @@ impl Supervisor {
         self.board
             .set_progress(active_step, subgoals, distance_to_goal_m, ct_mean_s);
         self.publish_board();
+    }
+
+    /// How the flight's roles got priority over outside work (their CPU control group, a
+    /// nice value, or none and why).
+    pub fn priority(&self) -> &Priority {
+        self.launcher.priority().priority()
     }
 
     /// The executor registry (declared and discovered CPU sets with their last load).

@@ -6,6 +6,7 @@
 use super::error::SupervisorError;
 use super::logs::open_log;
 use super::role_runtime::{RoleRuntime, RoleState};
+use crate::priority::FlightPriority;
 pub(super) use crate::role_process::{LoadPolicy, spawn_role};
 use aeris_runtime::RoleSpec;
 use aeris_runtime::affinity::CpuSet;
@@ -21,15 +22,23 @@ pub(super) struct Launcher {
     exe: PathBuf,
     /// Instance number of the next process.
     next_instance: u32,
+    /// The roles' priority over outside work (their CPU control group or nice value).
+    priority: FlightPriority,
 }
 
 impl Launcher {
-    /// A launcher of `exe role ...` processes, numbering them from 1.
-    pub(super) fn new(exe: PathBuf) -> Self {
+    /// A launcher of `exe role ...` processes, numbering them from 1, each given `priority`.
+    pub(super) fn new(exe: PathBuf, priority: FlightPriority) -> Self {
         Launcher {
             exe,
             next_instance: 1,
+            priority,
         }
+    }
+
+    /// The roles' priority over outside work.
+    pub(super) fn priority(&self) -> &FlightPriority {
+        &self.priority
     }
 
     /// The `aeris` executable.
@@ -51,7 +60,15 @@ impl Launcher {
         cpus: Option<&CpuSet>,
         policy: LoadPolicy,
     ) -> std::io::Result<Child> {
-        let child = spawn_role(&self.exe, spec, self.next_instance, log, cpus, policy)?;
+        let child = spawn_role(
+            &self.exe,
+            spec,
+            self.next_instance,
+            log,
+            cpus,
+            policy,
+            self.priority.for_child(),
+        )?;
         self.next_instance += 1;
         Ok(child)
     }

@@ -47,6 +47,7 @@ struct RawScheduling {
     stall_hard_timeout_ms: Option<u64>,
     adapt_variants: Option<bool>,
     probe_ticks: Option<u32>,
+    priority: Option<crate::priority::PriorityMode>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -273,6 +274,7 @@ impl Workflow {
             stall_hard_timeout_ms: rs.stall_hard_timeout_ms.unwrap_or(d.stall_hard_timeout_ms),
             adapt_variants: rs.adapt_variants.unwrap_or(d.adapt_variants),
             probe_ticks: rs.probe_ticks.unwrap_or(d.probe_ticks),
+            priority: rs.priority.unwrap_or(d.priority),
         };
         let hosts = raw
             .hosts

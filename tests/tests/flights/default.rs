@@ -1,6 +1,7 @@
 //! The main job end to end: `aeris run` flies the built-in default mission with every role
-//! in its own process, while `aeris status` and `aeris topic` inspect it from outside; no
-//! iceoryx2 resources of the flight remain afterwards.
+//! in its own process, while `aeris status` and `aeris topic` inspect it from outside and
+//! two busy threads outside the flight share the machine (issue 21: the roles get priority
+//! over them); no iceoryx2 resources of the flight remain afterwards.
 
 use aeris_runtime::bus::{FlightBus, flight_node_census, list_flight_services};
 use aeris_tests::*;
@@ -26,6 +27,8 @@ fn aeris(args: &[&str]) -> (bool, String, String) {
 fn default_mission_reaches_the_goal_with_every_role_in_its_own_process() {
     let dir = TempDir::new("default");
     let flight = unique_flight("default");
+    // a shared machine: two busy threads of this process, outside the flight, all along
+    let load = OutsideLoad::start(2);
     let mut run = spawn_run(&dir.0, &flight, &[]);
 
     // While it flies: the status board lists every role with a live pid of its own.
@@ -64,6 +67,18 @@ fn default_mission_reaches_the_goal_with_every_role_in_its_own_process() {
     ] {
         assert!(names.contains(r), "{r} missing from {names:?}");
     }
+    // where the flight has a CPU control group, every role is in it; the busy threads (this
+    // process) and the supervisor are not
+    let own_cgroups = std::fs::read_to_string("/proc/self/cgroup").unwrap();
+    let group = format!("/aeris-{flight}");
+    assert!(!own_cgroups.contains(&group), "{own_cgroups}");
+    let in_group: Vec<bool> = pids
+        .iter()
+        .map(|p| {
+            std::fs::read_to_string(format!("/proc/{p}/cgroup"))
+                .is_ok_and(|c| c.lines().any(|l| l.ends_with(&group)))
+        })
+        .collect();
 
     let (ok, out, err) = aeris(&["status", "--json", "--flight", &flight]);
     assert!(ok, "aeris status failed: {err}");
@@ -112,9 +127,30 @@ fn default_mission_reaches_the_goal_with_every_role_in_its_own_process() {
     );
 
     let status = wait_bounded(&mut run.0, FLIGHT_BOUND).expect("flight finished");
+    drop(load);
     let (stdout, stderr) = run_output(&dir.0);
     assert!(status.success(), "aeris run failed: {status}\n{stderr}");
     let summary = last_json_line(&stdout);
+    let priority = summary["priority"].as_str().unwrap();
+    if priority.starts_with("cgroup") {
+        assert!(in_group.iter().all(|&i| i), "{in_group:?} {summary}");
+        // "cgroup v1 PATH cpu.shares N": the group is gone with the flight
+        let detail = summary["priority_detail"].as_str().unwrap();
+        let path = detail.split_whitespace().nth(2).unwrap();
+        assert!(path.ends_with(&group), "{detail}");
+        assert!(!std::path::Path::new(path).exists(), "{detail}");
+    } else {
+        assert!(in_group.iter().all(|&i| !i), "{in_group:?} {summary}");
+    }
+    // root may always raise its roles' priority (a nice value at least)
+    // SAFETY: geteuid has no preconditions.
+    if unsafe { libc::geteuid() } == 0 {
+        assert_ne!(priority, "none", "{summary}");
+    }
+    assert!(
+        stderr.contains("roles' priority over outside work:"),
+        "{stderr}"
+    );
     assert_eq!(summary["reached_goal"], true, "{summary}\n{stderr}");
     assert!(
         summary["final_distance_m"].as_f64().unwrap() <= 3.0,
