@@ -20,9 +20,22 @@ pub struct FlightBenchArgs {
     /// Where role specs and logs go (default: $TMPDIR/aeris/FLIGHT).
     #[arg(long, value_name = "DIR")]
     pub run_dir: Option<PathBuf>,
+    /// Busy threads started outside the flight (unpinned, normal priority) for the run: the
+    /// flight on a shared machine.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub outside_load: usize,
+    /// How the roles get priority over outside work: `auto` (a CPU control group where
+    /// permitted, else nice -5), `nice` or `off` (default: the workflow's `[scheduling]
+    /// priority`, itself `auto` by default).
+    #[arg(long, value_name = "MODE", value_parser = parse_priority)]
+    pub priority: Option<aeris_orchestrator::priority::PriorityMode>,
     /// Print one JSON object on the last line of stdout.
     #[arg(long)]
     pub json: bool,
+}
+
+fn parse_priority(s: &str) -> Result<aeris_orchestrator::priority::PriorityMode, String> {
+    s.parse()
 }
 
 impl FlightBenchArgs {
@@ -32,6 +45,8 @@ impl FlightBenchArgs {
             workflow: self.workflow.clone(),
             variants: variant_choices(&self.variant)?,
             run_dir: self.run_dir.clone(),
+            outside_load: self.outside_load,
+            priority: self.priority,
         })
     }
 }
@@ -84,6 +99,10 @@ pub fn cycle(a: CycleArgs) -> Result<()> {
         report.heartbeats, report.reasoning
     );
     println!(
+        "  {} busy threads outside the flight; roles' priority: {}",
+        report.outside_load, report.priority_detail
+    );
+    println!(
         "  CT mean {:.3} s  std {:.3} s  p95 {:.3} s   EER {:.1}% ({} late)",
         report.ct_mean_s,
         report.ct_std_s,
@@ -122,8 +141,8 @@ pub fn swap(a: SwapArgs) -> Result<()> {
     };
     let report = swap::run(&config, &mut FlightPrinter::new(true, "")?)?;
     println!(
-        "hot swaps of role `{}` during a flight (make-before-break)",
-        report.role
+        "hot swaps of role `{}` during a flight (make-before-break), {} busy threads outside the flight; roles' priority: {}",
+        report.role, report.outside_load, report.priority_detail
     );
     println!(
         "{:<9} {:<9} {:>6} {:>10} {:>10} {:>7} {:>12}",

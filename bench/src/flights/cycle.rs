@@ -2,8 +2,8 @@
 //! stage (mean, std, p95), EER, each role's heartbeat latency.
 
 use super::{
-    FlightBenchConfig, FlightBenchError, flight_name_and_dir, load_workflow, role_latencies,
-    with_variants,
+    BusyThreads, FlightBenchConfig, FlightBenchError, flight_name_and_dir, load_workflow,
+    role_latencies, with_variants,
 };
 use aeris_flight::{Flight, FlightWatcher, HookError, StageMeans, StepContext, StepHook, StopRule};
 use serde::Serialize;
@@ -53,6 +53,12 @@ pub struct CycleReport {
     pub decisions_late: u64,
     /// Controller ticks that missed their deadline.
     pub controller_missed_ticks: u64,
+    /// Busy threads outside the flight during the run.
+    pub outside_load: usize,
+    /// How the roles got priority over them (`cgroup-v2`, `cgroup-v1`, `nice`, `none`).
+    pub priority: String,
+    /// The same in words.
+    pub priority_detail: String,
 }
 
 /// Keeps the roles' latest heartbeat latencies.
@@ -91,7 +97,11 @@ pub fn run(
         .mission
         .max_duration_s
         .max(config.heartbeats as f64 * period_s * 3.0 + 60.0);
+    if let Some(mode) = config.flight.priority {
+        w.scheduling.priority = mode;
+    }
     let (name, run_dir) = flight_name_and_dir("cycle", config.flight.run_dir.clone());
+    let _load = BusyThreads::start(None, config.flight.outside_load);
     let (outcome, watch) = Flight::builder(w)
         .name(name)
         .run_dir(run_dir)
@@ -117,5 +127,8 @@ pub fn run(
         roles: watch.roles,
         decisions_late: s.decisions_late,
         controller_missed_ticks: s.controller_missed_ticks,
+        outside_load: config.flight.outside_load,
+        priority: s.priority,
+        priority_detail: s.priority_detail,
     })
 }

@@ -42,6 +42,10 @@ pub struct FlightBenchConfig {
     pub variants: Vec<VariantChoice>,
     /// Where role specs and logs go (default: $TMPDIR/aeris/FLIGHT).
     pub run_dir: Option<PathBuf>,
+    /// Busy threads started outside the flight (unpinned, normal priority) for the run.
+    pub outside_load: usize,
+    /// How the roles get priority over outside work (default: the workflow's).
+    pub priority: Option<aeris_orchestrator::priority::PriorityMode>,
 }
 
 /// Why a flight benchmark could not run to the end.
@@ -115,7 +119,7 @@ fn reason_text(failure: &Option<FlightFailure>) -> String {
 }
 
 /// Busy threads (pinned to a CPU set, or unpinned at normal priority) until dropped: the
-/// CPU hog of `bench ds`, the outside load of `bench record`.
+/// CPU hog of `bench ds`, the outside load of `bench record`, `cycle` and `swap`.
 pub(crate) struct BusyThreads {
     stop: Arc<AtomicBool>,
     threads: Vec<std::thread::JoinHandle<()>>,

@@ -3,7 +3,8 @@
 //! longest interval between hub setpoints from its start to one heartbeat after its end.
 
 use super::{
-    FlightBenchConfig, FlightBenchError, flight_name_and_dir, load_workflow, no_role, with_variants,
+    BusyThreads, FlightBenchConfig, FlightBenchError, flight_name_and_dir, load_workflow, no_role,
+    with_variants,
 };
 use aeris_flight::{Flight, FlightWatcher, HookError, StepContext, StepHook, StopRule};
 use aeris_orchestrator::supervisor::{DEFAULT_SWAP_READY_TIMEOUT, SupervisorEvent};
@@ -67,6 +68,12 @@ pub struct SwapReport {
     pub flight_max_setpoint_gap_ms: f64,
     /// One row per swap.
     pub rows: Vec<SwapRow>,
+    /// Busy threads outside the flight during the run.
+    pub outside_load: usize,
+    /// How the roles got priority over them (`cgroup-v2`, `cgroup-v1`, `nice`, `none`).
+    pub priority: String,
+    /// The same in words.
+    pub priority_detail: String,
 }
 
 /// Cycles the flight completes before the first swap: the start, with every model's first
@@ -289,7 +296,11 @@ pub fn run(
         rows: Vec::new(),
         flight_gaps: (0.0, 0.0),
     };
+    if let Some(mode) = config.flight.priority {
+        w.scheduling.priority = mode;
+    }
     let (name, run_dir) = flight_name_and_dir("swap", config.flight.run_dir.clone());
+    let _load = BusyThreads::start(None, config.flight.outside_load);
     // the swaps end the flight, not the goal (the vehicle lands and the loop goes on)
     let (outcome, schedule) = Flight::builder(w)
         .name(name)
@@ -318,5 +329,8 @@ pub fn run(
         setpoint_period_ms: schedule.flight_gaps.1,
         flight_max_setpoint_gap_ms: schedule.flight_gaps.0,
         rows,
+        outside_load: config.flight.outside_load,
+        priority: outcome.summary.priority.clone(),
+        priority_detail: outcome.summary.priority_detail.clone(),
     })
 }
