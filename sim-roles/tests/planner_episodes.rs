@@ -3,7 +3,7 @@
 //! heartbeat, and a point-mass vehicle following its decisions.
 //!
 //! The full multi-process pipeline flies these episodes in `aeris eval`
-//! (tests/tests/vln_eval.rs runs one); this test pins the planner's own behaviour on them
+//! (tests/tests/flights/vln_eval.rs runs one); this test pins the planner's own behaviour on them
 //! without processes, so a grounding regression shows here as a named failure: the dense
 //! episode's "land next to the blue-roofed building" once came down onto the roof.
 //!

@@ -3,9 +3,11 @@
 //! fit the 2-core CI machine), which keeps the suite inside its time budget. The video
 //! flights (decoded H.264, a video file without depth) are here too: they flew two at a
 //! time in their own binaries already, and here a planner flight is their usual partner.
-//! Flights whose assertions depend on the machine's load or timing (dynamic scheduling, the
-//! fault table's lost decisions, hot swaps of language models) keep binaries of their own
-//! and fly alone.
+//! The VLN evaluation's episodes and the recording flights are here for the same reason: in
+//! binaries of their own, their longest test flew alone at the end while the other thread
+//! idled. Flights whose assertions depend on the machine's load or timing (dynamic
+//! scheduling, the fault table's lost decisions, hot swaps of language models) keep
+//! binaries of their own and fly alone.
 
 mod ardupilot;
 mod default;
@@ -16,5 +18,7 @@ mod hosts;
 mod ladder;
 mod mavproxy;
 mod no_depth;
+mod record;
 mod standby;
 mod video;
+mod vln_eval;
