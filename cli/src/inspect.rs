@@ -35,6 +35,8 @@ pub fn tool_bus(flight: &str, tool: &str) -> Result<FlightBus> {
         .with_context(|| format!("cannot join flight `{flight}`"))
 }
 
+const MIB: f64 = 1024.0 * 1024.0;
+
 /// `aeris status`.
 pub fn status(flight: Option<String>, json: bool) -> Result<()> {
     let flight = resolve_flight(flight)?;
@@ -49,6 +51,12 @@ pub fn status(flight: Option<String>, json: bool) -> Result<()> {
         .map(|r| {
             let age_ms = (r.last_heartbeat_ns > 0)
                 .then(|| now.saturating_sub(r.last_heartbeat_ns) as f64 / 1e6);
+            // a role on another host runs on an executor `HOST:EXECUTOR`; its pid is that
+            // host's, its memory not readable here
+            let executor = r.executor.as_str_lossy();
+            let memory = (r.pid != 0 && !executor.contains(':'))
+                .then(|| aeris_orchestrator::executors::process_memory(r.pid))
+                .flatten();
             serde_json::json!({
                 "name": r.name.as_str_lossy(),
                 "pid": r.pid,
@@ -67,6 +75,8 @@ pub fn status(flight: Option<String>, json: bool) -> Result<()> {
                 "migrations": r.migrations,
                 "stalls": r.stalls,
                 "binding": r.binding.as_str_lossy(),
+                "rss_mib": memory.map(|m| m.rss_bytes as f64 / MIB),
+                "pss_mib": memory.and_then(|m| m.pss_bytes).map(|b| b as f64 / MIB),
             })
         })
         .collect();
@@ -90,8 +100,14 @@ pub fn status(flight: Option<String>, json: bool) -> Result<()> {
             })
         })
         .collect();
+    let sum = |key: &str| -> Option<f64> {
+        let known: Vec<f64> = roles.iter().filter_map(|r| r[key].as_f64()).collect();
+        (!known.is_empty()).then(|| known.iter().sum())
+    };
+    let (rss_total, pss_total) = (sum("rss_mib"), sum("pss_mib"));
     if json {
         let out = serde_json::json!({
+            "memory": {"rss_total_mib": rss_total, "pss_total_mib": pss_total},
             "flight": flight,
             "supervisor_pid": board.supervisor_pid,
             "active_step": board.active_step,
@@ -118,8 +134,15 @@ pub fn status(flight: Option<String>, json: bool) -> Result<()> {
         board.ct_mean_s,
         board.migrations
     );
+    // the role column fits the longest name (`controller-standby`)
+    let w = roles
+        .iter()
+        .filter_map(|r| r["name"].as_str().map(str::len))
+        .max()
+        .unwrap_or(0)
+        .max(12);
     println!(
-        "{:<12} {:>7} {:<12} {:<6} {:<15} {:<12} {:>9} {:>9} {:>9} {:>9} {:>8} {:>5} {:>6}",
+        "{:<w$} {:>7} {:<12} {:<6} {:<15} {:<12} {:>9} {:>9} {:>9} {:>9} {:>8} {:>5} {:>6} {:>7}",
         "ROLE",
         "PID",
         "EXECUTOR",
@@ -132,7 +155,8 @@ pub fn status(flight: Option<String>, json: bool) -> Result<()> {
         "BUDGET ms",
         "RESTARTS",
         "MOVES",
-        "STALLS"
+        "STALLS",
+        "MEM MiB"
     );
     for r in &roles {
         let age = r["heartbeat_age_ms"]
@@ -140,7 +164,7 @@ pub fn status(flight: Option<String>, json: bool) -> Result<()> {
             .map(|a| format!("{a:.0} ms"))
             .unwrap_or_else(|| "-".into());
         println!(
-            "{:<12} {:>7} {:<12} {:<6} {:<15} {:<12} {:>9} {:>9.3} {:>9.3} {:>9} {:>8} {:>5} {:>6}",
+            "{:<w$} {:>7} {:<12} {:<6} {:<15} {:<12} {:>9} {:>9.3} {:>9.3} {:>9} {:>8} {:>5} {:>6} {:>7}",
             r["name"].as_str().unwrap_or(""),
             r["pid"],
             r["executor"].as_str().unwrap_or(""),
@@ -156,13 +180,26 @@ pub fn status(flight: Option<String>, json: bool) -> Result<()> {
                 .unwrap_or_else(|| "-".into()),
             r["restarts"].as_u64().unwrap_or(0),
             r["migrations"].as_u64().unwrap_or(0),
-            r["stalls"].as_u64().unwrap_or(0)
+            r["stalls"].as_u64().unwrap_or(0),
+            r["pss_mib"]
+                .as_f64()
+                .or(r["rss_mib"].as_f64())
+                .map(|m| format!("{m:.0}"))
+                .unwrap_or_else(|| "-".into())
         );
+    }
+    if let Some(rss) = rss_total {
+        match pss_total {
+            Some(pss) => println!(
+                "memory of the roles on this host: {pss:.0} MiB (PSS: shared pages divided among them; RSS summed {rss:.0} MiB)"
+            ),
+            None => println!("memory of the roles on this host: RSS summed {rss:.0} MiB"),
+        }
     }
     println!("binding:");
     for r in &roles {
         println!(
-            "  {:<12} {}",
+            "  {:<w$} {}",
             r["name"].as_str().unwrap_or(""),
             r["binding"].as_str().unwrap_or("")
         );

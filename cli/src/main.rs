@@ -40,7 +40,7 @@ struct Cli {
 enum Command {
     /// Fly a mission: with no WORKFLOW, the built-in default mission in the built-in sim.
     Run(run_cmd::RunArgs),
-    /// Show every role of a running flight: pid, CPU set, variant, heartbeat age, latency, restarts.
+    /// Show every role of a running flight: pid, CPU set, variant, heartbeat age, latency, restarts, memory.
     Status {
         /// Flight to show (default: the only one running).
         #[arg(long)]

@@ -276,6 +276,29 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
         summary.autopilot_link_losses,
         summary.autopilot_commands_refused
     );
+    let m = &summary.memory;
+    if m.samples > 0 {
+        let roles: Vec<String> = m
+            .roles
+            .iter()
+            .map(|r| format!("{} {:.0}", r.role, r.pss_peak_mib.unwrap_or(r.rss_peak_mib)))
+            .collect();
+        println!(
+            "  memory of the roles (peak MiB, {}): flight {}{}; {}",
+            if m.total_pss_peak_mib.is_some() {
+                "PSS: shared pages divided among the roles"
+            } else {
+                "RSS: shared pages counted per role"
+            },
+            m.total_pss_peak_mib
+                .map(|p| format!("{p:.0}"))
+                .unwrap_or_else(|| format!("{:.0}", m.total_rss_peak_mib)),
+            m.total_pss_peak_mib
+                .map(|_| format!(" (RSS summed {:.0})", m.total_rss_peak_mib))
+                .unwrap_or_default(),
+            roles.join(", ")
+        );
+    }
     for l in &summary.links {
         println!(
             "  link to host `{}`: round trip {}, loss {:.0} % of the last probes ({} of {} answered){}",

@@ -49,6 +49,7 @@ pub mod event;
 pub mod executors;
 mod handle;
 pub mod hook;
+pub mod memory;
 pub mod monitor;
 pub mod overrides;
 pub mod recording;
@@ -63,6 +64,7 @@ pub use event::{
 };
 pub use handle::{Flight, FlightBuilder, FlightError, FlightOutcome};
 pub use hook::{FnHook, HookError, NoHook, StepContext, StepHook};
+pub use memory::{MemorySummary, RoleMemory};
 pub use monitor::{CycleTrace, FlightMonitor, FlightSummary, LinkSummary, StageMeans};
 pub use overrides::{OverrideError, Overrides, VariantChoice};
 pub use recording::{RecordError, RecordingSummary};

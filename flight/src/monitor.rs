@@ -113,6 +113,8 @@ pub struct FlightSummary {
     pub priority: String,
     /// The same in words: the group and its weight, the nice value, or why none.
     pub priority_detail: String,
+    /// The memory the roles on the flight's host held: each role's peak, and the flight's.
+    pub memory: crate::memory::MemorySummary,
 }
 
 /// A link to another host at the end of a flight, as its bridge measured it.
@@ -586,6 +588,7 @@ impl FlightMonitor {
             links: Vec::new(),
             priority: String::new(),
             priority_detail: String::new(),
+            memory: Default::default(),
         }
     }
 }

@@ -165,6 +165,7 @@ pub(crate) fn supervise<H: StepHook>(
     let mut last_progress = Instant::now();
     let mut failure: Option<FlightFailure> = None;
     let (mut swaps_done, mut swaps_failed) = (0u64, 0u64);
+    let mut memory = crate::memory::MemoryWatch::default();
     loop {
         let step_events = sup
             .step()
@@ -184,6 +185,7 @@ pub(crate) fn supervise<H: StepHook>(
             send(FlightEvent::Supervisor(event.clone()));
         }
         monitor.poll().map_err(FlightError::Telemetry)?;
+        memory.sample(&sup);
         for event in monitor.take_autopilot_events() {
             send(FlightEvent::Autopilot(event));
         }
@@ -250,6 +252,7 @@ pub(crate) fn supervise<H: StepHook>(
     summary.links = sup.status().links().iter().map(LinkSummary::of).collect();
     summary.priority = sup.priority().mechanism().to_string();
     summary.priority_detail = sup.priority().to_string();
+    summary.memory = memory.summary();
     let recorder_heartbeat = record.as_ref().and_then(|(_, role)| {
         sup.roles()
             .iter()

@@ -183,6 +183,50 @@ pub fn process_sched_time(pid: u32) -> Option<SchedTime> {
     any.then_some(sum)
 }
 
+/// The memory of one process.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ProcessMemory {
+    /// Resident set size (bytes): its pages in RAM, shared ones counted whole.
+    pub rss_bytes: u64,
+    /// Proportional set size (bytes): shared pages divided among the processes mapping
+    /// them, so that the PSS of several processes adds up to what they hold together
+    /// (`None` where the kernel has no `smaps_rollup`).
+    pub pss_bytes: Option<u64>,
+}
+
+/// Parse `/proc/PID/smaps_rollup` (its `Rss:` and `Pss:` lines, in kB).
+pub fn parse_smaps_rollup(text: &str) -> Option<ProcessMemory> {
+    let field = |name: &str| {
+        text.lines()
+            .find_map(|l| l.strip_prefix(name))
+            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+            .map(|kib| kib * 1024)
+    };
+    Some(ProcessMemory {
+        rss_bytes: field("Rss:")?,
+        pss_bytes: field("Pss:"),
+    })
+}
+
+/// The memory of process `pid` (`/proc/PID/smaps_rollup`, else the resident pages of
+/// `/proc/PID/statm`); `None` when it is gone or not readable.
+pub fn process_memory(pid: u32) -> Option<ProcessMemory> {
+    if let Some(m) = std::fs::read_to_string(format!("/proc/{pid}/smaps_rollup"))
+        .ok()
+        .and_then(|t| parse_smaps_rollup(&t))
+    {
+        return Some(m);
+    }
+    let statm = std::fs::read_to_string(format!("/proc/{pid}/statm")).ok()?;
+    let pages: u64 = statm.split_whitespace().nth(1)?.parse().ok()?;
+    // SAFETY: sysconf has no preconditions.
+    let page = unsafe { libc::sysconf(libc::_SC_PAGESIZE) }.max(4096) as u64;
+    Some(ProcessMemory {
+        rss_bytes: pages * page,
+        pss_bytes: None,
+    })
+}
+
 /// The state letter of process `pid` from `/proc/PID/stat` (`R`, `S`, `D`, `T` stopped,
 /// `t` traced, `Z` zombie...); `None` when it is gone.
 pub fn process_state(pid: u32) -> Option<char> {
@@ -404,6 +448,22 @@ mod tests {
             })
         );
         assert_eq!(parse_schedstat("x"), None);
+    }
+
+    #[test]
+    fn smaps_rollup_parses_and_this_process_has_memory() {
+        let text = "55d0-7ffe ---p 00000000 00:00 0  [rollup]\nRss:    2048 kB\nPss:    1024 kB\nPss_Anon: 512 kB\n";
+        assert_eq!(
+            parse_smaps_rollup(text),
+            Some(ProcessMemory {
+                rss_bytes: 2048 * 1024,
+                pss_bytes: Some(1024 * 1024)
+            })
+        );
+        assert_eq!(parse_smaps_rollup("Pss: 1 kB"), None);
+        let own = process_memory(std::process::id()).unwrap();
+        assert!(own.rss_bytes > 0);
+        assert!(own.pss_bytes.is_none_or(|p| p > 0 && p <= own.rss_bytes));
     }
 
     #[test]

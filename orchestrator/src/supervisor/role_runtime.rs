@@ -251,6 +251,14 @@ impl RoleRuntime {
     pub fn binding(&self) -> &str {
         &self.binding
     }
+    /// The other host its process runs on (`None`: the flight's host, its fallback's
+    /// included while the link is lost).
+    pub fn host(&self) -> Option<&str> {
+        self.link
+            .as_ref()
+            .filter(|l| !l.lost)
+            .map(|l| l.host.as_str())
+    }
 
     /// A role as planned, not started yet: its spec is at `spec_path`, its log goes to
     /// `log_path`.

@@ -94,10 +94,15 @@ fn default_mission_reaches_the_goal_with_every_role_in_its_own_process() {
             "latency_p50_ms",
             "latency_p95_ms",
             "restarts",
+            "rss_mib",
         ] {
             assert!(!r[key].is_null(), "status role lacks {key}: {r}");
         }
     }
+    assert!(
+        status["memory"]["rss_total_mib"].as_f64().unwrap() > 0.0,
+        "{status}"
+    );
 
     let (ok, out, err) = aeris(&["topic", "list", "--flight", &flight]);
     assert!(ok, "topic list failed: {err}");
@@ -170,6 +175,19 @@ fn default_mission_reaches_the_goal_with_every_role_in_its_own_process() {
         assert!(summary[key].is_number(), "summary lacks {key}: {summary}");
     }
     assert!(summary["controller_ticks"].as_u64().unwrap() > 0);
+    // every role's memory, and the flight's at least the largest role's
+    let memory = &summary["memory"];
+    let roles = memory["roles"].as_array().unwrap();
+    assert_eq!(roles.len(), board.roles().len(), "{memory}");
+    let largest = roles
+        .iter()
+        .map(|r| r["rss_peak_mib"].as_f64().unwrap())
+        .fold(0.0, f64::max);
+    assert!(largest > 0.0, "{memory}");
+    assert!(
+        memory["total_rss_peak_mib"].as_f64().unwrap() >= largest,
+        "{memory}"
+    );
     assert!(summary["cycles"].as_u64().unwrap() > 0);
     assert_eq!(summary["role_restarts"], 0);
     assert_eq!(
