@@ -9,6 +9,7 @@
 # - GStreamer's plugins the video tests run real pipelines with (Debian packages, only if
 #   missing): H.264 encode (x264enc, plugins-ugly) and decode (avdec_h264, libav), MP4 and
 #   RTP (plugins-good), and gst-launch-1.0 (tools) for the second-process RTP sender.
+# - an ONNX Runtime too old for `ort` (PyPI wheel, pinned), for the refused-runtime test.
 # Nothing is downloaded from anywhere but the Debian archive and PyPI.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -52,4 +53,27 @@ if ! .venv/bin/python -c "import MAVProxy, serial, sys; from importlib.metadata 
     echo "setup: installing MAVProxy==$MAVPROXY_VERSION into .venv" >&2
     .venv/bin/python -m pip install --quiet --disable-pip-version-check "pyserial==$PYSERIAL_VERSION"
     .venv/bin/python -m pip install --quiet --disable-pip-version-check --no-deps "MAVProxy==$MAVPROXY_VERSION"
+fi
+
+# An ONNX Runtime older than the `ort` crate supports (1.21.1; it needs 1.22 or newer), for
+# the test that a user's own runtime (AERIS_ONNXRUNTIME) of the wrong version is refused
+# with a clear error. PyPI wheel, pinned by its sha256; x86_64 only.
+OLD_ORT_DIR="${AERIS_TEST_DOWNLOADS:-$HOME/.cache/aeris/test-downloads}"
+if [ "$(uname -m)" = x86_64 ] && [ ! -f "$OLD_ORT_DIR/libonnxruntime.so.1.21.1" ]; then
+    echo "setup: downloading onnxruntime 1.21.1 from PyPI into $OLD_ORT_DIR (the too-old runtime test)" >&2
+    mkdir -p "$OLD_ORT_DIR"
+    .venv/bin/python -m pip download --quiet --disable-pip-version-check --no-deps --require-hashes \
+        --only-binary=:all: --platform manylinux_2_28_x86_64 --python-version 311 -d "$OLD_ORT_DIR" \
+        -r <(echo "onnxruntime==1.21.1 --hash=sha256:982dcc04a6688e1af9e3da1d4ef2bdeb11417cf3f8dde81f8f721043c1919a4f")
+    .venv/bin/python - "$OLD_ORT_DIR" <<'PY'
+import glob, os, sys, zipfile
+folder = sys.argv[1]
+wheel = glob.glob(os.path.join(folder, "onnxruntime-1.21.1-*.whl"))[0]
+with zipfile.ZipFile(wheel) as z:
+    member = next(n for n in z.namelist() if n.endswith("/libonnxruntime.so.1.21.1"))
+    with z.open(member) as src, open(os.path.join(folder, "libonnxruntime.so.1.21.1.part"), "wb") as out:
+        out.write(src.read())
+os.replace(os.path.join(folder, "libonnxruntime.so.1.21.1.part"), os.path.join(folder, "libonnxruntime.so.1.21.1"))
+os.remove(wheel)
+PY
 fi

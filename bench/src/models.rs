@@ -10,7 +10,7 @@
 
 use crate::error::BenchError;
 use aeris_llm::{DecisionView, LanguageReasoner, Observation, ReasonerConfig};
-use aeris_models::{ModelStore, OcrReader, TextEmbedder};
+use aeris_models::{ModelStore, OcrReader, SessionOptions, TextEmbedder};
 use aeris_roles::planner::Planner;
 use aeris_runtime::MissionSpec;
 use aeris_schemas::{FixedText, PerceptionState};
@@ -343,7 +343,7 @@ fn load_probe(
         "ppocr" => {
             let (rgb, width, height) = sign_frame()?;
             Box::new(OcrProbe {
-                reader: OcrReader::load(store, threads)?,
+                reader: OcrReader::load(store, &SessionOptions::cpu(threads))?,
                 rgb,
                 width,
                 height,
@@ -358,7 +358,7 @@ fn load_probe(
             };
             let (rgb, width, height) = load_rgb(store, "assets/bus.jpg")?;
             Box::new(DetectorProbe {
-                detector: aeris_models::Detector::load(store, file, threads)?,
+                detector: aeris_models::Detector::load(store, file, &SessionOptions::cpu(threads))?,
                 rgb,
                 width,
                 height,
@@ -371,7 +371,7 @@ fn load_probe(
                 ["LAKE VIEW", "yellow sign", "red roof", "blue water tower"].map(String::from),
             );
             Box::new(EmbedProbe {
-                embedder: TextEmbedder::load(store, threads)?,
+                embedder: TextEmbedder::load(store, &SessionOptions::cpu(threads))?,
                 texts,
                 out: Vec::new(),
             })

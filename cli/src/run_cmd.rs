@@ -2,7 +2,7 @@
 
 use crate::bench_flight::variant_choices;
 use crate::flight_print::FlightPrinter;
-use aeris_flight::executors::{accelerator_line, planned_registry};
+use aeris_flight::executors::{accelerator_line, check_accelerators, planned_registry};
 use aeris_flight::{Flight, Overrides, StopRule};
 use aeris_orchestrator::executors::ExecutorOrigin;
 use aeris_orchestrator::workflow::Workflow;
@@ -150,6 +150,14 @@ pub fn validate(path: &Path) -> Result<ExitCode> {
         println!("  {:<18} CPUs {:<8} {origin}", e.name, e.cpus.to_string());
     }
     println!("{}", accelerator_line(&registry));
+    for ex in w.executors.iter().filter(|e| e.accelerator.is_some()) {
+        println!(
+            "  executor {} runs its model roles on {}",
+            ex.name,
+            ex.accelerator.map(|a| a.to_string()).unwrap_or_default()
+        );
+    }
+    check_accelerators(&w)?;
     Ok(ExitCode::SUCCESS)
 }
 

@@ -44,7 +44,7 @@ pub fn planned_registry(workflow: &Workflow) -> Result<ExecutorRegistry, PlanErr
 /// One line on the registry's accelerators, for logs.
 pub fn accelerator_line(registry: &ExecutorRegistry) -> String {
     let Some(providers) = registry.providers() else {
-        return "accelerators: unknown (no provisioned ONNX Runtime to ask)".into();
+        return "accelerators: unknown (no ONNX Runtime could be loaded to ask)".into();
     };
     let providers = providers
         .iter()
@@ -61,4 +61,46 @@ pub fn accelerator_line(registry: &ExecutorRegistry) -> String {
         .collect::<Vec<_>>()
         .join(", ");
     format!("accelerators: {list} (ONNX Runtime providers: {providers})")
+}
+
+/// An accelerator executor whose accelerator this host's ONNX Runtime cannot run.
+#[derive(Debug, thiserror::Error)]
+#[error("[executors.{executor}]")]
+pub struct AcceleratorError {
+    /// The executor.
+    pub executor: String,
+    /// Why: the model cache or runtime is missing, or the provider is not offered (the
+    /// error names those that are).
+    #[source]
+    pub source: aeris_models::ModelError,
+}
+
+/// Check every accelerator executor on the flight's host that a role starts on against the
+/// ONNX Runtime its model roles would load (the provisioned one, or `$AERIS_ONNXRUNTIME`):
+/// a provider it does not offer is refused before any role starts. An executor no role
+/// starts on is checked when a role is moved there (`aeris migrate`); another host's are
+/// checked there, when their roles load.
+pub fn check_accelerators(workflow: &Workflow) -> Result<(), AcceleratorError> {
+    let used = |name: &str| {
+        workflow
+            .roles
+            .iter()
+            .any(|r| r.executor.as_deref() == Some(name))
+    };
+    for ex in workflow
+        .executors
+        .iter()
+        .filter(|e| e.host.is_none() && used(&e.name))
+    {
+        let Some(accelerator) = ex.accelerator else {
+            continue;
+        };
+        let err = |source| AcceleratorError {
+            executor: ex.name.clone(),
+            source,
+        };
+        let store = aeris_models::ModelStore::open(None).map_err(err)?;
+        aeris_models::check_accelerator(&store, &accelerator).map_err(err)?;
+    }
+    Ok(())
 }

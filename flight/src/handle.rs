@@ -44,6 +44,9 @@ pub enum FlightError {
     /// The flight's thread could not be started.
     #[error("starting the flight's thread")]
     Thread(#[source] std::io::Error),
+    /// An accelerator executor names an accelerator this host's ONNX Runtime cannot run.
+    #[error(transparent)]
+    Accelerator(Box<crate::executors::AcceleratorError>),
     /// The supervisor could not start the roles.
     #[error("starting the supervisor")]
     Start(#[source] Box<SupervisorError>),

@@ -189,6 +189,7 @@ pub fn attach_spec(
         remote: None,
         heartbeat_pid: None,
         flight_clock_offset_ns: 0,
+        accelerator: None,
     })
 }
 

@@ -130,6 +130,8 @@ pub(crate) fn supervise<H: StepHook>(
     };
     let mission = workflow.mission.clone();
     let max_duration = Duration::from_secs_f64(mission.max_duration_s);
+    crate::executors::check_accelerators(&workflow)
+        .map_err(|e| FlightError::Accelerator(Box::new(e)))?;
     let mut sup = Supervisor::start(SupervisorOptions {
         workflow,
         flight: name.clone(),

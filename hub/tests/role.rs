@@ -51,6 +51,7 @@ fn spec(flight: &str) -> RoleSpec {
         remote: None,
         heartbeat_pid: None,
         flight_clock_offset_ns: 0,
+        accelerator: None,
     }
 }
 

@@ -11,7 +11,7 @@
 
 use crate::error::ModelError;
 use crate::image::{Letterbox, letterbox_chw, rgb8_mismatch};
-use crate::onnx::OnnxModel;
+use crate::onnx::{OnnxModel, SessionOptions};
 use crate::store::ModelStore;
 
 /// The COCO detector inside the cache (converted Darknet yolov3-tiny).
@@ -179,8 +179,12 @@ impl Detector {
     /// Load `file` from the cache. The layout comes from the model's `layout` metadata
     /// (`yolov5`) or, without it, is taken as YOLOv8 (the Ultralytics export format); the
     /// input side from the model's fixed input shape or its `imgsz` metadata.
-    pub fn load(store: &ModelStore, file: &str, threads: usize) -> Result<Self, ModelError> {
-        let model = OnnxModel::load(store, file, threads)?;
+    pub fn load(
+        store: &ModelStore,
+        file: &str,
+        options: &SessionOptions,
+    ) -> Result<Self, ModelError> {
+        let model = OnnxModel::load_with(store, file, options)?;
         let layout = match model.metadata("layout").as_deref() {
             Some("yolov5") => DetectorLayout::Yolov5,
             Some("yolov8") | None => DetectorLayout::Yolov8,

@@ -1,7 +1,7 @@
 //! Sentence embeddings: all-MiniLM-L6-v2 through ONNX Runtime, WordPiece via `tokenizers`.
 
 use crate::error::ModelError;
-use crate::onnx::OnnxModel;
+use crate::onnx::{OnnxModel, SessionOptions};
 use crate::store::ModelStore;
 use ort::value::TensorRef;
 use std::path::PathBuf;
@@ -42,9 +42,9 @@ impl std::fmt::Debug for TextEmbedder {
 }
 
 impl TextEmbedder {
-    /// Load the model and tokenizer from the cache (`threads` intra-op threads, 0 = default).
-    pub fn load(store: &ModelStore, threads: usize) -> Result<Self, ModelError> {
-        let model = OnnxModel::load(store, MODEL_FILE, threads)?;
+    /// Load the model and tokenizer from the cache, the model to run as `options` say.
+    pub fn load(store: &ModelStore, options: &SessionOptions) -> Result<Self, ModelError> {
+        let model = OnnxModel::load_with(store, MODEL_FILE, options)?;
         let tokenizer_path = store.verified(TOKENIZER_FILE)?;
         let tk_err = |reason: String| ModelError::Tokenizer {
             path: tokenizer_path.clone(),

@@ -68,6 +68,28 @@ pub enum ModelError {
         /// What ONNX Runtime or the loader said.
         reason: String,
     },
+    /// The ONNX Runtime loaded has no execution provider for the accelerator asked for.
+    #[error(
+        "accelerator `{accelerator}` needs ONNX Runtime's {}, which {library} does not offer (it offers: {available}); use an ONNX Runtime built with it (AERIS_ONNXRUNTIME=PATH) or bind the role to a CPU executor",
+        accelerator.kind.provider()
+    )]
+    ProviderUnavailable {
+        /// The accelerator (`cuda:0`), whose kind names the execution provider it needs.
+        accelerator: aeris_schemas::accelerator::Accelerator,
+        /// The ONNX Runtime library loaded.
+        library: PathBuf,
+        /// The providers that library offers.
+        available: String,
+    },
+    /// The user's own ONNX Runtime library (`$AERIS_ONNXRUNTIME`) could not be loaded: it
+    /// is missing, not an ONNX Runtime, or a version `ort` does not support.
+    #[error("cannot start the ONNX Runtime that AERIS_ONNXRUNTIME names: {reason}")]
+    OwnRuntime {
+        /// The library path.
+        path: PathBuf,
+        /// What the loader or `ort`'s version check said (naming the library).
+        reason: String,
+    },
     /// ONNX Runtime refused the model file.
     #[error("cannot load model {path}: {reason}")]
     Load {

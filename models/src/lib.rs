@@ -26,5 +26,8 @@ pub use detect::{DetectedBox, Detector, DetectorLayout};
 pub use embed::{EMBEDDING_DIM, TextEmbedder, cosine};
 pub use error::ModelError;
 pub use ocr::{OcrReader, TextRegion};
-pub use onnx::{DeviceKind, OnnxModel, ProviderDevice, ProviderReport, execution_providers};
+pub use onnx::{
+    Accelerator, AcceleratorKind, DeviceKind, OnnxModel, ProviderDevice, ProviderReport,
+    SessionOptions, check_accelerator, execution_providers, runtime_library,
+};
 pub use store::ModelStore;

@@ -11,7 +11,7 @@
 
 use crate::error::ModelError;
 use crate::image::rgb8_mismatch;
-use crate::onnx::OnnxModel;
+use crate::onnx::{OnnxModel, SessionOptions};
 use crate::store::ModelStore;
 
 /// PP-OCRv4 detection model inside the cache.
@@ -184,10 +184,10 @@ fn bgr_norm(v: u8, channel: usize) -> f32 {
 }
 
 impl OcrReader {
-    /// Load both models from the cache.
-    pub fn load(store: &ModelStore, threads: usize) -> Result<Self, ModelError> {
-        let det = OnnxModel::load(store, DET_MODEL, threads)?;
-        let rec = OnnxModel::load(store, REC_MODEL, threads)?;
+    /// Load both models from the cache, to run as `options` say.
+    pub fn load(store: &ModelStore, options: &SessionOptions) -> Result<Self, ModelError> {
+        let det = OnnxModel::load_with(store, DET_MODEL, options)?;
+        let rec = OnnxModel::load_with(store, REC_MODEL, options)?;
         let characters = rec
             .metadata("character")
             .ok_or_else(|| rec.interface_error("no `character` table in the metadata"))?;

@@ -2,7 +2,9 @@
 
 use crate::error::ModelError;
 use crate::store::ModelStore;
+pub use aeris_schemas::accelerator::{Accelerator, AcceleratorKind};
 use ort::environment::Environment;
+use ort::ep;
 use ort::session::Session;
 use ort::session::builder::GraphOptimizationLevel;
 use ort::value::TensorRef;
@@ -12,17 +14,44 @@ use std::sync::OnceLock;
 /// Where the provisioned ONNX Runtime library lies inside the cache.
 pub const RUNTIME_LIBRARY: &str = "onnxruntime/libonnxruntime.so";
 
+/// Environment variable naming an ONNX Runtime library of the user's own instead of the
+/// provisioned one (JetPack ships its build with the CUDA and TensorRT providers):
+/// `AERIS_ONNXRUNTIME=/usr/lib/aarch64-linux-gnu/libonnxruntime.so`. Its version must be
+/// one `ort` supports (1.[`ort::MINOR_VERSION`] or newer), which loading checks.
+pub const RUNTIME_ENV: &str = "AERIS_ONNXRUNTIME";
+
 static ENVIRONMENT: OnceLock<Result<Environment, String>> = OnceLock::new();
 
-/// The process's ONNX Runtime environment, loading the library from `store` on first use.
+/// The ONNX Runtime library a process loads: `$AERIS_ONNXRUNTIME` if set, else the one in
+/// `store`.
+pub fn runtime_library(store: &ModelStore) -> PathBuf {
+    match std::env::var_os(RUNTIME_ENV).filter(|p| !p.is_empty()) {
+        Some(p) => PathBuf::from(p),
+        None => store.root().join(RUNTIME_LIBRARY),
+    }
+}
+
+/// The process's ONNX Runtime environment, loading the library ([`runtime_library`]) on
+/// first use.
 ///
 /// A process loads one ONNX Runtime; later calls return the same environment.
 pub fn environment(store: &ModelStore) -> Result<&'static Environment, ModelError> {
-    let lib = store.root().join(RUNTIME_LIBRARY);
+    let lib = runtime_library(store);
+    let own = std::env::var_os(RUNTIME_ENV).is_some_and(|p| !p.is_empty());
     if ENVIRONMENT.get().is_none() {
-        // verify before dlopen: a corrupt library would crash the process, not fail; the
-        // store's error names the file and the command that fixes it
-        store.verified(RUNTIME_LIBRARY)?;
+        if own {
+            // the user's library has no manifest entry; it must at least be there
+            if !lib.is_file() {
+                return Err(ModelError::OwnRuntime {
+                    reason: format!("{} does not exist", lib.display()),
+                    path: lib,
+                });
+            }
+        } else {
+            // verify before dlopen: a corrupt library would crash the process, not fail;
+            // the store's error names the file and the command that fixes it
+            store.verified(RUNTIME_LIBRARY)?;
+        }
     }
     let env = ENVIRONMENT.get_or_init(|| {
         ort::init_from(&lib)
@@ -31,9 +60,13 @@ pub fn environment(store: &ModelStore) -> Result<&'static Environment, ModelErro
             .build()
             .map_err(|e| e.to_string())
     });
-    env.as_ref().map_err(|reason| ModelError::Runtime {
-        path: store.root().join(RUNTIME_LIBRARY),
-        reason: reason.clone(),
+    env.as_ref().map_err(|reason| {
+        let (path, reason) = (lib, reason.clone());
+        if own {
+            ModelError::OwnRuntime { path, reason }
+        } else {
+            ModelError::Runtime { path, reason }
+        }
     })
 }
 
@@ -90,7 +123,7 @@ pub struct ProviderReport {
 pub fn execution_providers(store: &ModelStore) -> Result<ProviderReport, ModelError> {
     let env = environment(store)?;
     let runtime = |reason: String| ModelError::Runtime {
-        path: store.root().join(RUNTIME_LIBRARY),
+        path: runtime_library(store),
         reason,
     };
     let api = ort::api();
@@ -154,16 +187,69 @@ impl std::fmt::Debug for OnnxModel {
     }
 }
 
+/// Where and how a model session runs.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct SessionOptions {
+    /// Intra-op threads on the CPU (0 = ONNX Runtime's default).
+    pub threads: usize,
+    /// The accelerator to run on (`None`: the CPU).
+    pub accelerator: Option<Accelerator>,
+}
+
+impl SessionOptions {
+    /// On the CPU with `threads` intra-op threads.
+    pub fn cpu(threads: usize) -> Self {
+        SessionOptions {
+            threads,
+            accelerator: None,
+        }
+    }
+}
+
+/// Check that the loaded ONNX Runtime offers `accelerator`'s execution provider; the error
+/// names the providers it does offer.
+pub fn check_accelerator(store: &ModelStore, accelerator: &Accelerator) -> Result<(), ModelError> {
+    let report = execution_providers(store)?;
+    let provider = accelerator.kind.provider();
+    if report.providers.iter().any(|p| p == provider) {
+        return Ok(());
+    }
+    Err(ModelError::ProviderUnavailable {
+        accelerator: *accelerator,
+        library: runtime_library(store),
+        available: report.providers.join(", "),
+    })
+}
+
 impl OnnxModel {
     /// Load `file` (relative to the cache, checked against the manifest) with `threads`
-    /// intra-op threads (0 = ONNX Runtime's default).
+    /// intra-op threads (0 = ONNX Runtime's default), on the CPU.
     pub fn load(store: &ModelStore, file: &str, threads: usize) -> Result<Self, ModelError> {
-        let env = environment(store)?;
-        let path = store.verified(file)?;
-        Self::load_path(env, &path, threads)
+        Self::load_with(store, file, &SessionOptions::cpu(threads))
     }
 
-    fn load_path(env: &Environment, path: &Path, threads: usize) -> Result<Self, ModelError> {
+    /// Load `file` as `options` say: on an accelerator, its execution provider is checked
+    /// ([`check_accelerator`]) and registered so that a failure is an error, never a silent
+    /// fall-back to the CPU.
+    pub fn load_with(
+        store: &ModelStore,
+        file: &str,
+        options: &SessionOptions,
+    ) -> Result<Self, ModelError> {
+        let env = environment(store)?;
+        if let Some(a) = &options.accelerator {
+            check_accelerator(store, a)?;
+        }
+        let path = store.verified(file)?;
+        Self::load_path(env, &path, options)
+    }
+
+    fn load_path(
+        env: &Environment,
+        path: &Path,
+        options: &SessionOptions,
+    ) -> Result<Self, ModelError> {
+        let threads = options.threads;
         let load = |e: ort::Error| ModelError::Load {
             path: path.to_path_buf(),
             reason: e.to_string(),
@@ -172,6 +258,17 @@ impl OnnxModel {
             .map_err(load)?
             .with_optimization_level(GraphOptimizationLevel::Level3)
             .map_err(|e| load(e.into()))?;
+        if let Some(a) = &options.accelerator {
+            let device = i32::try_from(a.device).unwrap_or(i32::MAX);
+            let ep = match a.kind {
+                AcceleratorKind::Cuda => ep::CUDA::default().with_device_id(device).build(),
+                AcceleratorKind::TensorRt => ep::TensorRT::default().with_device_id(device).build(),
+                AcceleratorKind::Rocm => ep::ROCm::default().with_device_id(device).build(),
+            };
+            builder = builder
+                .with_execution_providers([ep.error_on_failure()])
+                .map_err(|e| load(e.into()))?;
+        }
         if threads > 0 {
             builder = builder
                 .with_intra_threads(threads)

@@ -21,7 +21,8 @@ fn labels<'a>(d: &'a Detector, boxes: &[DetectedBox]) -> Vec<&'a str> {
 #[test]
 fn the_coco_detector_finds_the_bus_and_the_people() {
     let store = ModelStore::open(None).expect("model cache (run scripts/provision-models.sh)");
-    let mut d = Detector::load(&store, COCO_DETECTOR, 1).unwrap();
+    let mut d =
+        Detector::load(&store, COCO_DETECTOR, &aeris_models::SessionOptions::cpu(1)).unwrap();
     assert_eq!(d.layout(), DetectorLayout::Yolov5);
     assert_eq!(d.names().len(), 80);
     let (rgb, w, h) = image(&store, "bus.jpg");
@@ -47,7 +48,12 @@ fn the_coco_detector_finds_the_bus_and_the_people() {
 #[test]
 fn the_yolov8_layout_decodes_on_a_real_model() {
     let store = ModelStore::open(None).expect("model cache (run scripts/provision-models.sh)");
-    let mut d = Detector::load(&store, YOLOV8_DETECTOR, 1).unwrap();
+    let mut d = Detector::load(
+        &store,
+        YOLOV8_DETECTOR,
+        &aeris_models::SessionOptions::cpu(1),
+    )
+    .unwrap();
     assert_eq!(d.layout(), DetectorLayout::Yolov8);
     assert_eq!(d.input_side_px(), 320);
     let (rgb, w, h) = image(&store, "zidane.jpg");

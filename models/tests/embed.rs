@@ -6,7 +6,8 @@ use aeris_models::{ModelStore, TextEmbedder, cosine};
 
 fn embedder() -> TextEmbedder {
     let store = ModelStore::open(None).expect("model cache (run scripts/provision-models.sh)");
-    TextEmbedder::load(&store, 1).expect("embedding model loads")
+    TextEmbedder::load(&store, &aeris_models::SessionOptions::cpu(1))
+        .expect("embedding model loads")
 }
 
 #[test]

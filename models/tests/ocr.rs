@@ -8,7 +8,7 @@ use aeris_sim::world::World;
 #[test]
 fn reads_the_lake_view_sign_in_a_rendered_frame() {
     let store = ModelStore::open(None).expect("model cache (run scripts/provision-models.sh)");
-    let mut ocr = OcrReader::load(&store, 1).unwrap();
+    let mut ocr = OcrReader::load(&store, &aeris_models::SessionOptions::cpu(1)).unwrap();
     assert_eq!(ocr.charset_len(), 6625);
     let (w, h) = (640u32, 480u32);
     let renderer = Renderer::new(w, h, 60f32.to_radians()).unwrap();
@@ -65,7 +65,7 @@ fn reads_the_lake_view_sign_in_a_rendered_frame() {
 fn reads_the_billboards_of_generated_scenes() {
     use aeris_sim::world::LandmarkKind;
     let store = ModelStore::open(None).expect("model cache (run scripts/provision-models.sh)");
-    let mut ocr = OcrReader::load(&store, 1).unwrap();
+    let mut ocr = OcrReader::load(&store, &aeris_models::SessionOptions::cpu(1)).unwrap();
     let (w, h) = (640u32, 480u32);
     let renderer = Renderer::new(w, h, 60f32.to_radians()).unwrap();
     let mut rgb = vec![0u8; renderer.rgb_len()];

@@ -59,6 +59,8 @@ pub struct LaunchPlan {
     pub executors: Vec<(String, CpuSet)>,
     /// The executors on other hosts: where a role moved there runs (name, host and CPUs).
     pub remote_executors: Vec<(String, RemoteSpec)>,
+    /// The executors that name an accelerator (on any host), with it.
+    pub accelerators: Vec<(String, aeris_runtime::accelerator::Accelerator)>,
     /// UDP port of the built-in vehicle link, when the built-in vehicle flies.
     pub vehicle_port: Option<u16>,
 }
@@ -265,6 +267,7 @@ pub fn plan_launch(
                     remote,
                     heartbeat_pid: None,
                     flight_clock_offset_ns: 0,
+                    accelerator: executor.and_then(|e| e.accelerator).map(|a| a.to_string()),
                 },
                 cpus,
                 executor: r.executor.clone(),
@@ -295,10 +298,16 @@ pub fn plan_launch(
             Some((ex.name.clone(), remote_spec(host, Some(ex))))
         })
         .collect();
+    let accelerators = w
+        .executors
+        .iter()
+        .filter_map(|ex| Some((ex.name.clone(), ex.accelerator?)))
+        .collect();
     Ok(LaunchPlan {
         roles,
         executors,
         remote_executors,
+        accelerators,
         vehicle_port,
     })
 }

@@ -17,7 +17,7 @@ mod validate;
 
 pub use builtin::{DEFAULT_WORKFLOW_TOML, MODELS_WORKFLOW_TOML};
 pub use hosts::{BridgePlan, SUPERVISOR_READS, movable_across_hosts, remote_cpus};
-pub use validate::REQUIRED_KINDS;
+pub use validate::{ONNX_MODEL_VARIANTS, REQUIRED_KINDS};
 
 use crate::restart::RestartPolicy;
 use aeris_runtime::affinity::{CpuSet, CpuSetError};
@@ -56,7 +56,8 @@ impl core::fmt::Display for ExecutorCpus {
     }
 }
 
-/// A named executor: a CPU set roles are bound to, on the flight's host or another.
+/// A named executor: a CPU set roles are bound to, on the flight's host or another, and
+/// optionally an accelerator its model roles run their sessions on.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Executor {
     /// Executor name (the key under `[executors]`).
@@ -65,6 +66,9 @@ pub struct Executor {
     pub cpus: ExecutorCpus,
     /// The host it is on (a `[hosts.NAME]`); `None`: the flight's own host.
     pub host: Option<String>,
+    /// The accelerator its roles' model sessions run on (`accelerator = "cuda:0"`); the
+    /// roles' processes still run on its `cpus`.
+    pub accelerator: Option<aeris_runtime::accelerator::Accelerator>,
 }
 
 /// Another host roles may run on (`[hosts.NAME]`): an `aeris agent` listens there.
@@ -330,6 +334,29 @@ pub enum WorkflowError {
         cpus: String,
         /// Why it is unusable.
         source: CpuSetError,
+    },
+    /// An executor's `accelerator` is not one.
+    #[error("[executors.{executor}] accelerator is unusable")]
+    BadAccelerator {
+        /// Executor name.
+        executor: String,
+        /// Why.
+        source: aeris_runtime::accelerator::AcceleratorParseError,
+    },
+    /// A role that runs no ONNX model is bound to an accelerator executor.
+    #[error(
+        "role `{role}` ({kind_variant}) is bound to executor `{executor}`, an accelerator ({accelerator}): only roles that run ONNX models can use one ({}); bind it to a CPU executor",
+        validate::onnx_model_variants_text()
+    )]
+    NotAccelerated {
+        /// The role.
+        role: String,
+        /// Its kind and variant (`camera / sim-render`).
+        kind_variant: String,
+        /// The executor.
+        executor: String,
+        /// Its accelerator.
+        accelerator: aeris_runtime::accelerator::Accelerator,
     },
     /// An executor names a host that is not declared.
     #[error("[executors.{executor}] host `{host}` is not declared (declared: {known})")]

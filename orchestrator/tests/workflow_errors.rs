@@ -1,7 +1,7 @@
 //! Every bad workflow file under tests/workflows/ is rejected with the right error, and the
 //! message names the offending thing. The parser never panics, whatever the input.
 
-use aeris_orchestrator::workflow::DEFAULT_WORKFLOW_TOML;
+use aeris_orchestrator::workflow::{DEFAULT_WORKFLOW_TOML, MODELS_WORKFLOW_TOML};
 use aeris_orchestrator::{Workflow, WorkflowError, WorkflowFileError};
 use aeris_runtime::affinity::CpuSetError;
 use proptest::prelude::*;
@@ -307,4 +307,48 @@ proptest! {
         let text = format!("{}{}{}", &base[..start], insert, &base[end..]);
         let _ = Workflow::from_toml_str(&text);
     }
+}
+
+/// The model flight with an executor `gpu` on `accelerator`, its `cues` role bound to it.
+fn with_accelerator(accelerator: &str) -> Result<Workflow, WorkflowError> {
+    let bound = "name = \"cues\"\nkind = \"cues\"\nvariant = \"minilm\"\nexecutor = \"perception\"";
+    assert!(MODELS_WORKFLOW_TOML.contains(bound));
+    let text = MODELS_WORKFLOW_TOML
+        .replace(bound, &bound.replace("\"perception\"", "\"gpu\""))
+        .replace(
+            "[executors.control]",
+            &format!("[executors.gpu]\ncpus = \"auto\"\naccelerator = \"{accelerator}\"\n\n[executors.control]"),
+        );
+    Workflow::from_toml_str(&text)
+}
+
+#[test]
+fn accelerator_executors_are_checked_and_reach_their_roles_specs() {
+    let w = with_accelerator("tensorrt:1").unwrap();
+    let gpu = w.executors.iter().find(|e| e.name == "gpu").unwrap();
+    assert_eq!(
+        gpu.accelerator.map(|a| a.to_string()).as_deref(),
+        Some("tensorrt:1")
+    );
+    let online = aeris_runtime::affinity::CpuSet::available();
+    let plan =
+        aeris_orchestrator::launch::plan_launch(&w, "accel", None, &online, || Ok(14550)).unwrap();
+    let cues = plan.roles.iter().find(|r| r.spec.name == "cues").unwrap();
+    assert_eq!(cues.spec.accelerator.as_deref(), Some("tensorrt:1"));
+    // the other roles run on CPUs
+    let detector = plan
+        .roles
+        .iter()
+        .find(|r| r.spec.name == "detector")
+        .unwrap();
+    assert_eq!(detector.spec.accelerator, None);
+    assert_eq!(plan.accelerators.len(), 1);
+
+    let e = with_accelerator("cuda:zero").unwrap_err();
+    assert!(
+        matches!(&e, WorkflowError::BadAccelerator { executor, .. } if executor == "gpu"),
+        "{e:?}"
+    );
+    let msg = aeris_runtime::error_chain::chain(&e).to_string();
+    assert!(msg.contains("cuda:zero"), "{msg}");
 }

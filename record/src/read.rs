@@ -500,6 +500,7 @@ mod tests {
             remote: None,
             heartbeat_pid: None,
             flight_clock_offset_ns: 0,
+            accelerator: None,
         };
         let ours = flight_metadata(&spec);
         let good = dir.path().join("good.mcap");

@@ -9,7 +9,7 @@
 //! (default 1), `models_dir`. Heartbeat counters: `[blocks published, phrases scored in the
 //! last block, 0..]`.
 
-use crate::vision::{open_store, threads};
+use crate::vision::{open_store, session_options};
 use aeris_models::embed::Embedding;
 use aeris_models::{TextEmbedder, cosine};
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
@@ -112,7 +112,7 @@ pub struct CueRole {
 impl Role for CueRole {
     fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
         let store = open_store(ctx)?;
-        let mut embedder = TextEmbedder::load(&store, threads(ctx))
+        let mut embedder = TextEmbedder::load(&store, &session_options(ctx)?)
             .map_err(|e| RoleError::step("loading the sentence embedder", e))?;
         let texts: Vec<&str> = ctx
             .spec

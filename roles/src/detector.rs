@@ -15,7 +15,7 @@
 //! `threads` (default 1), `min_score`, `models_dir`.
 //! Heartbeat counters: `[blocks published, detections in the last block, frames rejected, 0..]`.
 
-use crate::vision::{FrameStride, begin_block, model_file, open_store, threads};
+use crate::vision::{FrameStride, begin_block, model_file, open_store, session_options};
 use aeris_models::detect::{COCO_DETECTOR, YOLOV8_DETECTOR};
 use aeris_models::{DetectedBox, Detector};
 use aeris_runtime::bus::{FrameSample, FrameSubscriber, TypedPublisher};
@@ -100,7 +100,7 @@ impl DetectionEngine for ModelDetection {
         };
         let store = open_store(ctx)?;
         let file = model_file(ctx, default).to_string();
-        let mut det = Detector::load(&store, &file, threads(ctx))
+        let mut det = Detector::load(&store, &file, &session_options(ctx)?)
             .map_err(|e| RoleError::step(format!("loading the detector {file}"), e))?;
         if let Some(s) = ctx.spec.param_f64("min_score") {
             det.min_score = s as f32;

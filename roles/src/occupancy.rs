@@ -15,7 +15,7 @@
 //! 0..]`.
 
 use crate::depth_occupancy::{OCCUPANCY_RESOLUTION_M, occupancy_from_depth};
-use crate::vision::{FrameStride, begin_block, open_store, threads};
+use crate::vision::{FrameStride, begin_block, open_store, session_options};
 use aeris_models::OnnxModel;
 use aeris_runtime::bus::{FrameSubscriber, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
@@ -99,7 +99,7 @@ impl Role for OccupancyRole {
                 .ok_or_else(|| RoleError::Config(NO_OCCUPANCY_WEIGHTS.into()))?
                 .to_string();
             let store = open_store(ctx)?;
-            let model = OnnxModel::load(&store, &file, threads(ctx))
+            let model = OnnxModel::load_with(&store, &file, &session_options(ctx)?)
                 .map_err(|e| RoleError::step(format!("loading the occupancy model {file}"), e))?;
             Some(LearnedGrid {
                 model,

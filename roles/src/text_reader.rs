@@ -6,7 +6,7 @@
 //! Parameters: `interval_ms` (frame stride, default 2000), `threads` (default 1),
 //! `models_dir`. Heartbeat counters: `[blocks published, regions read, frames rejected, 0..]`.
 
-use crate::vision::{FrameStride, begin_block, open_store, threads};
+use crate::vision::{FrameStride, begin_block, open_store, session_options};
 use aeris_models::ocr::{OcrReader, TextRegion};
 use aeris_runtime::bus::{FrameSubscriber, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
@@ -52,7 +52,7 @@ pub struct TextReaderRole {
 impl Role for TextReaderRole {
     fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
         let store = open_store(ctx)?;
-        let mut reader = OcrReader::load(&store, threads(ctx))
+        let mut reader = OcrReader::load(&store, &session_options(ctx)?)
             .map_err(|e| RoleError::step("loading PP-OCR", e))?;
         let camera = &ctx.spec.camera;
         reader

@@ -2,7 +2,7 @@
 //! frame fields every block carries.
 
 use aeris_geometry::CAMERA_MOUNT_HEIGHT_M;
-use aeris_models::ModelStore;
+use aeris_models::{Accelerator, ModelStore, SessionOptions};
 use aeris_runtime::bus::{FrameSample, FrameSubscriber};
 use aeris_runtime::{RoleContext, RoleError};
 use aeris_schemas::{FrameHeader, PerceptionState};
@@ -82,6 +82,23 @@ pub fn threads(ctx: &RoleContext) -> usize {
         .param_f64("threads")
         .unwrap_or(1.0)
         .clamp(1.0, 64.0) as usize
+}
+
+/// Where a model role's sessions run: its `threads`, on its executor's accelerator if the
+/// spec names one (`cuda:0`). Loading checks the accelerator's execution provider, and the
+/// error names the providers the ONNX Runtime offers.
+pub fn session_options(ctx: &RoleContext) -> Result<SessionOptions, RoleError> {
+    let accelerator = ctx
+        .spec
+        .accelerator
+        .as_deref()
+        .map(str::parse::<Accelerator>)
+        .transpose()
+        .map_err(|e| RoleError::step("reading the role's accelerator", e))?;
+    Ok(SessionOptions {
+        threads: threads(ctx),
+        accelerator,
+    })
 }
 
 /// Reset `state` to an empty block for the frame `header` describes.

@@ -43,6 +43,7 @@ fn default_spec() -> RoleSpec {
         remote: None,
         heartbeat_pid: None,
         flight_clock_offset_ns: 0,
+        accelerator: None,
     }
 }
 

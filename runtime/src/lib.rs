@@ -13,6 +13,8 @@
 
 #![deny(missing_docs)]
 
+/// Accelerators a role may be bound to (defined with the schemas, shared by every crate).
+pub use aeris_schemas::accelerator;
 pub mod affinity;
 pub mod bus;
 pub mod catalog;

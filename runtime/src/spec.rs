@@ -280,6 +280,10 @@ pub struct RoleSpec {
     /// between the two hosts ([`crate::clock`]).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub flight_clock_offset_ns: i64,
+    /// The accelerator its executor names (`cuda:0`, [`crate::accelerator::Accelerator`]):
+    /// a model role runs its sessions there; `None` runs them on its CPUs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accelerator: Option<String>,
 }
 
 fn is_zero(v: &i64) -> bool {

@@ -15,6 +15,7 @@
 
 #![deny(missing_docs)]
 
+pub mod accelerator;
 pub mod autopilot_link;
 pub mod control;
 pub mod decision;

@@ -229,6 +229,7 @@ pub fn role_spec(
         remote: None,
         heartbeat_pid: None,
         flight_clock_offset_ns: 0,
+        accelerator: None,
     }
 }
 

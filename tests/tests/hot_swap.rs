@@ -129,6 +129,14 @@ fn roles_are_hot_swapped_during_a_flight_and_broken_variants_roll_back() {
         "variants".into(),
         toml::Value::Array(vec!["compose".into(), "vlm".into()]),
     );
+    // an accelerator executor no role starts on: this host's ONNX Runtime has no CUDA
+    let mut gpu = toml::Table::new();
+    gpu.insert("cpus".into(), "auto".into());
+    gpu.insert("accelerator".into(), "cuda:0".into());
+    w["executors"]
+        .as_table_mut()
+        .unwrap()
+        .insert("gpu".into(), toml::Value::Table(gpu));
     let path = write_workflow(&dir.0, "models.toml", &w);
     let mut run = spawn_run(&dir.0, &flight, &[path.to_str().unwrap(), "--no-ds"]);
 
@@ -209,9 +217,35 @@ fn roles_are_hot_swapped_during_a_flight_and_broken_variants_roll_back() {
     );
     assert_eq!(out["steps"].as_array().unwrap().len(), 1, "{out}");
 
-    // the processes the failed swaps would have replaced never stopped
+    // 5. onto the accelerator: refused, naming what this host's ONNX Runtime offers (the
+    // model role) or that the role runs no model (the camera); both stay where they run
+    let camera = entry(&board, "camera");
+    let migrate = |role: &str| {
+        let out = Command::new(aeris_bin())
+            .args(["migrate", role, "gpu", "--flight", &flight])
+            .output()
+            .unwrap();
+        (
+            out.status.success(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let (ok, err) = migrate("detector");
+    assert!(!ok, "{err}");
+    for needle in [
+        "CUDAExecutionProvider",
+        "offered: ",
+        "CPUExecutionProvider",
+        "stays",
+    ] {
+        assert!(err.contains(needle), "{needle:?} not in {err}");
+    }
+    let (ok, err) = migrate("camera");
+    assert!(!ok && err.contains("runs none"), "{err}");
+
+    // the processes the failed swaps and moves would have replaced never stopped
     let board = observer.read_status_board().unwrap();
-    for (name, was) in [("detector", detector), ("scene", scene)] {
+    for (name, was) in [("detector", detector), ("scene", scene), ("camera", camera)] {
         let now = entry(&board, name);
         assert_eq!(
             (now.pid, now.variant, now.restarts),
@@ -219,6 +253,7 @@ fn roles_are_hot_swapped_during_a_flight_and_broken_variants_roll_back() {
             "{name} was disturbed"
         );
         assert!(alive(was.pid), "{name} stopped");
+        assert_eq!(now.executor.as_str(), was.executor.as_str(), "{name} moved");
     }
     // through every swap the controller had a fresh setpoint at every tick, on time
     assert_eq!(controller_counters(&telemetry), counters_before);

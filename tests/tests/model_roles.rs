@@ -1,7 +1,8 @@
-//! The model-backed roles as real processes: a role whose model is missing or corrupt, or
-//! whose slot has no weights, stops with an error that says what to do (the whole model
-//! flight, with its swaps, is `hot_swap.rs`). Needs the provisioned model cache
-//! (`scripts/provision-models.sh`, part of the test command).
+//! The model-backed roles as real processes: a role whose model is missing or corrupt, whose
+//! accelerator the ONNX Runtime cannot run, or whose slot has no weights, stops with an
+//! error that says what to do (the whole model flight, with its swaps, is `hot_swap.rs`).
+//! Needs the provisioned model cache (`scripts/provision-models.sh`, part of the test
+//! command).
 
 use aeris_tests::*;
 use std::path::{Path, PathBuf};
@@ -51,7 +52,25 @@ fn missing_corrupt_or_absent_models_stop_the_role_with_a_clear_error() {
     let dir = TempDir::new("model-errors");
     let flight = unique_flight("modelerr");
     let cache = corrupt_cache(&dir.0, "detect/yolov3-tiny.onnx");
+    // a detector told to run on CUDA, which the provisioned ONNX Runtime lacks
+    let mut on_cuda = role_spec(
+        &flight,
+        "on-cuda",
+        "detector",
+        "yolo",
+        serde_json::json!({}),
+    );
+    on_cuda.accelerator = Some("cuda:0".into());
     let cases: Vec<(aeris_runtime::RoleSpec, &[&str])> = vec![
+        (
+            on_cuda,
+            &[
+                "cuda:0",
+                "CUDAExecutionProvider",
+                "it offers: ",
+                "CPUExecutionProvider",
+            ],
+        ),
         (
             role_spec(
                 &flight,

@@ -262,6 +262,7 @@ pub fn replay_workflow(
             name: name.clone(),
             cpus: ExecutorCpus::Auto,
             host: None,
+            accelerator: None,
         })
         .collect();
     if executors.is_empty() {
@@ -269,6 +270,7 @@ pub fn replay_workflow(
             name: "replay".into(),
             cpus: ExecutorCpus::Auto,
             host: None,
+            accelerator: None,
         });
     }
     executors.sort_by(|a, b| a.name.cmp(&b.name));

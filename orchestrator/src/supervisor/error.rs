@@ -237,6 +237,33 @@ pub enum MigrateError {
         /// Its state.
         state: String,
     },
+    /// The target is an accelerator executor and the role runs no ONNX model.
+    #[error(
+        "role `{role}` cannot go to `{target}`: its accelerator ({accelerator}) runs ONNX models, and the role runs none; it stays where it runs"
+    )]
+    NotAccelerated {
+        /// Role name.
+        role: String,
+        /// The target as given.
+        target: String,
+        /// The target's accelerator.
+        accelerator: aeris_runtime::accelerator::Accelerator,
+    },
+    /// The target's accelerator needs an execution provider this host's ONNX Runtime lacks.
+    #[error(
+        "role `{role}` cannot go to `{target}`: its accelerator {accelerator} needs ONNX Runtime's {}, which this host's does not offer (offered: {offered}); it stays where it runs",
+        accelerator.kind.provider()
+    )]
+    AcceleratorUnavailable {
+        /// Role name.
+        role: String,
+        /// The target as given.
+        target: String,
+        /// The target's accelerator.
+        accelerator: aeris_runtime::accelerator::Accelerator,
+        /// The providers offered.
+        offered: String,
+    },
     /// A hot swap of the role is under way.
     #[error("role `{role}` is being swapped; move it once the swap is done")]
     SwapInProgress {

@@ -87,6 +87,7 @@ impl Supervisor {
                 let placement = Placement {
                     cpus: fb.cpus.clone(),
                     place: place.clone(),
+                    accelerator: self.accelerator_of(&executor),
                     executor,
                     remote: None,
                     link_fallback: None,

@@ -12,6 +12,7 @@ use super::swap::{DEFAULT_SWAP_READY_TIMEOUT, Placement};
 use crate::executors::process_threads;
 use crate::launch::PlannedFallback;
 use crate::workflow::movable_across_hosts;
+use aeris_runtime::accelerator::Accelerator;
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::spec::RemoteSpec;
@@ -92,8 +93,17 @@ impl Supervisor {
             });
         };
         let remote = self.resolve_remote(target)?;
+        // onto or off an accelerator: a restart with the other execution provider
+        let accelerator = match &remote {
+            Some((executor, _)) => self.accelerator_of(executor),
+            None => self
+                .resolve_target(target)
+                .ok()
+                .and_then(|(executor, _)| self.accelerator_of(&executor)),
+        };
+        self.check_accelerator_move(i, target, accelerator)?;
         let r = &self.roles[i];
-        if remote.is_none() && r.link.is_none() {
+        if remote.is_none() && r.link.is_none() && accelerator == r.accelerator {
             let moved = self.migrate(role, target).map(RoleMove::Live)?;
             // sent by hand: it no longer waits to return where a lost link took it from
             self.roles[i].returns_to = None;
@@ -124,6 +134,7 @@ impl Supervisor {
                 Placement {
                     place: flight_host_place(&executor),
                     cpus: Some(set),
+                    accelerator,
                     executor,
                     remote: None,
                     link_fallback: None,
@@ -157,6 +168,53 @@ impl Supervisor {
         // sent by hand: it no longer waits to return where a lost link took it from
         self.roles[i].returns_to = None;
         Ok(RoleMove::Started { new_pid, place })
+    }
+
+    /// The accelerator executor `executor` names, if any.
+    pub(super) fn accelerator_of(&self, executor: &str) -> Option<Accelerator> {
+        self.executor_accelerators
+            .iter()
+            .find(|(name, _)| name == executor)
+            .map(|(_, a)| *a)
+    }
+
+    /// Whether role `i` may go to `target`, whose accelerator is `accelerator`: only a role
+    /// that runs ONNX models goes onto one, and only if this host's ONNX Runtime offers its
+    /// execution provider (another host's is checked there, when the role loads). A refusal
+    /// leaves the role where it runs.
+    fn check_accelerator_move(
+        &self,
+        i: usize,
+        target: &str,
+        accelerator: Option<Accelerator>,
+    ) -> Result<(), MigrateError> {
+        let r = &self.roles[i];
+        let Some(a) = accelerator else {
+            return Ok(());
+        };
+        if !crate::workflow::ONNX_MODEL_VARIANTS.contains(&(r.kind.as_str(), r.variant.as_str())) {
+            return Err(MigrateError::NotAccelerated {
+                role: r.name.clone(),
+                target: target.to_string(),
+                accelerator: a,
+            });
+        }
+        if self.resolve_remote(target).ok().flatten().is_some() {
+            return Ok(());
+        }
+        let provider = a.kind.provider();
+        match self.registry.providers() {
+            Some(offered) if offered.iter().any(|p| p == provider) => Ok(()),
+            offered => Err(MigrateError::AcceleratorUnavailable {
+                role: r.name.clone(),
+                target: target.to_string(),
+                accelerator: a,
+                offered: offered.map_or_else(
+                    || "none known: no ONNX Runtime could be asked".to_string(),
+                    |p| p.join(", "),
+                ),
+            }),
+        }
     }
 
     /// Why a role moved from `from` (its binding): the figures of `trigger`, or by hand.
@@ -271,6 +329,7 @@ impl Supervisor {
         let from = r.host_label();
         Ok(Placement {
             cpus: None,
+            accelerator: self.accelerator_of(&executor),
             executor,
             why: format!("moved by hand from {from}"),
             place,

@@ -154,6 +154,8 @@ pub struct Supervisor {
     services: ServiceAudit,
     /// The executors on other hosts (where `aeris migrate ROLE HOST:EXECUTOR` sends a role).
     remote_executors: Vec<(String, aeris_runtime::spec::RemoteSpec)>,
+    /// The executors that name an accelerator, with it.
+    executor_accelerators: Vec<(String, aeris_runtime::accelerator::Accelerator)>,
     /// Lost links that are back, and since when (roles return after the hysteresis).
     links_up_since: Vec<(String, Instant)>,
     /// The links to the other hosts as their bridges measure them.
@@ -265,6 +267,7 @@ impl Supervisor {
             migrations: 0,
             services: ServiceAudit::new(),
             remote_executors: plan.remote_executors,
+            executor_accelerators: plan.accelerators,
             links_up_since: Vec::new(),
             host_links,
         };

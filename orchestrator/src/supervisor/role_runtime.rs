@@ -120,6 +120,8 @@ pub struct RoleRuntime {
     pub(super) swap: Option<SwapInProgress>,
     /// Its executor's name (empty: unbound).
     pub(super) executor: String,
+    /// The accelerator its model sessions run on (its executor's), if any.
+    pub(super) accelerator: Option<aeris_runtime::accelerator::Accelerator>,
     /// Its latency budget (ms).
     pub(super) budget_ms: Option<f64>,
     /// Live moves so far.
@@ -247,6 +249,10 @@ impl RoleRuntime {
     pub fn stalls(&self) -> u32 {
         self.stalls
     }
+    /// The accelerator its model sessions run on (`cuda:0`), if any.
+    pub fn accelerator(&self) -> Option<aeris_runtime::accelerator::Accelerator> {
+        self.accelerator
+    }
     /// Why it is bound where it is.
     pub fn binding(&self) -> &str {
         &self.binding
@@ -282,7 +288,9 @@ impl RoleRuntime {
             lost: false,
             held_policy: None,
         });
+        let accelerator = spec.accelerator.as_deref().and_then(|a| a.parse().ok());
         RoleRuntime {
+            accelerator,
             link,
             returns_to: None,
             declared_fallback: fallback,
@@ -424,6 +432,7 @@ mod tests {
 
     fn runtime() -> RoleRuntime {
         RoleRuntime {
+            accelerator: None,
             link: None,
             returns_to: None,
             declared_fallback: None,

@@ -193,6 +193,11 @@ impl Supervisor {
         let mut seen: Vec<&CpuSet> = Vec::new();
         let mut executors: Vec<ExecutorLoad> = Vec::new();
         for e in self.registry.executors() {
+            // an accelerator executor is no CPU set to predict a role's cycle on: roles go
+            // there by hand (`aeris migrate`), not by the policy
+            if self.accelerator_of(&e.name).is_some() {
+                continue;
+            }
             if !seen.contains(&&e.cpus) {
                 seen.push(&e.cpus);
                 executors.push(ExecutorLoad::local(&e.name, e.capacity(), e.busy));
@@ -241,6 +246,7 @@ impl Supervisor {
                     waiting,
                     // a role that fell back with its link returns there by itself
                     movable: executor != usize::MAX
+                        && r.accelerator.is_none()
                         && r.state == RoleState::Running
                         && r.swap.is_none()
                         && r.returns_to.is_none()

@@ -65,6 +65,8 @@ pub(super) struct Placement {
     pub(super) cpus: Option<CpuSet>,
     /// Its executor's name (empty: unbound).
     pub(super) executor: String,
+    /// The accelerator its model sessions run on there (its executor's), if any.
+    pub(super) accelerator: Option<aeris_runtime::accelerator::Accelerator>,
     /// On another host: that host, its agent and the CPUs there (`None`: the flight's host).
     pub(super) remote: Option<RemoteSpec>,
     /// What takes over on the flight's host if the link to `remote` is lost.
@@ -212,6 +214,7 @@ impl RoleRuntime {
             };
             self.cpu_set = p.cpus;
             self.executor = p.executor;
+            self.accelerator = p.accelerator;
             self.binding = p.why;
             if let Some(policy) = p.policy {
                 self.policy = policy;
@@ -309,6 +312,7 @@ impl Supervisor {
         if let Some(p) = &placement {
             spec.remote = p.remote.clone();
             spec.cpus = p.cpus.as_ref().map(|c| c.to_string()).unwrap_or_default();
+            spec.accelerator = p.accelerator.map(|a| a.to_string());
         }
         let cpus = placement
             .as_ref()

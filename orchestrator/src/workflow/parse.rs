@@ -67,6 +67,7 @@ struct RawExecutor {
     #[serde(default = "auto")]
     cpus: String,
     host: Option<String>,
+    accelerator: Option<String>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -212,10 +213,20 @@ impl Workflow {
                     ExecutorCpus::Set(set)
                 }
             };
+            let accelerator = ex
+                .accelerator
+                .as_deref()
+                .map(str::parse)
+                .transpose()
+                .map_err(|source| WorkflowError::BadAccelerator {
+                    executor: name.clone(),
+                    source,
+                })?;
             executors.push(Executor {
                 name,
                 cpus,
                 host: ex.host,
+                accelerator,
             });
         }
 

@@ -26,6 +26,24 @@ fn is_valid_role_name(name: &str) -> bool {
             .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
 }
 
+/// The role variants whose work is ONNX Runtime sessions, which an accelerator executor can
+/// run (`kind`, `variant`). Language models (llama.cpp) run on CPUs in this build.
+pub const ONNX_MODEL_VARIANTS: &[(&str, &str)] = &[
+    ("text-reader", "ppocr"),
+    ("detector", "yolo"),
+    ("detector", "yolov8"),
+    ("cues", "minilm"),
+    ("occupancy", "onnx"),
+];
+
+/// [`ONNX_MODEL_VARIANTS`] for messages: `text-reader/ppocr, detector/yolo, ...`.
+pub(crate) fn onnx_model_variants_text() -> String {
+    ONNX_MODEL_VARIANTS
+        .iter()
+        .map(|(k, v)| format!("{k}/{v}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
 impl Workflow {
     /// Check everything: timing, camera, mission, executors, roles against the catalog,
     /// required kinds, topics, and that the services graph has no cycle.
@@ -263,6 +281,17 @@ impl Workflow {
                     role: r.name.clone(),
                     executor: ex.clone(),
                     known,
+                });
+            }
+            if let Some(ex) = r.executor.as_ref().and_then(|ex| self.executor(ex))
+                && let Some(accelerator) = ex.accelerator
+                && !ONNX_MODEL_VARIANTS.contains(&(r.kind.as_str(), r.variant.as_str()))
+            {
+                return Err(WorkflowError::NotAccelerated {
+                    role: r.name.clone(),
+                    kind_variant: format!("{} / {}", r.kind, r.variant),
+                    executor: ex.name.clone(),
+                    accelerator,
                 });
             }
             let string_param = |param: &'static str| match r.params.get(param) {
