@@ -117,6 +117,13 @@ pub fn cycle(a: CycleArgs) -> Result<()> {
         report.stages.routing,
         report.stages.binding
     );
+    let m = &report.memory;
+    println!(
+        "  memory: the roles' PSS peak {} MiB (RSS summed {:.0} MiB)",
+        m.total_pss_peak_mib
+            .map_or_else(|| "?".into(), |p| format!("{p:.0}")),
+        m.total_rss_peak_mib
+    );
     println!("  role latency from heartbeats (p50 / p95 ms):");
     for r in &report.roles {
         println!(

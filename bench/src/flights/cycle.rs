@@ -59,6 +59,8 @@ pub struct CycleReport {
     pub priority: String,
     /// The same in words.
     pub priority_detail: String,
+    /// The roles' memory: each role's peak and the flight's (PSS summed).
+    pub memory: aeris_flight::MemorySummary,
 }
 
 /// Keeps the roles' latest heartbeat latencies.
@@ -130,5 +132,6 @@ pub fn run(
         outside_load: config.flight.outside_load,
         priority: s.priority,
         priority_detail: s.priority_detail,
+        memory: s.memory,
     })
 }
