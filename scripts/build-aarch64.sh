@@ -64,8 +64,9 @@ export AR_aarch64_unknown_linux_gnu=aarch64-linux-gnu-ar
 # development package cannot be installed beside the host's (Debian replaces one by the
 # other), so its pkg-config files and link names are unpacked into a folder of their own.
 armdev="${AERIS_AARCH64_DEV:-$HOME/.cache/aeris/aarch64-dev}"
-export PKG_CONFIG_ALLOW_CROSS=1
-export PKG_CONFIG_LIBDIR="$armdev/pkgconfig:/usr/lib/aarch64-linux-gnu/pkgconfig:/usr/share/pkgconfig"
+# (the pkg-config crate reads these for the target only; host build scripts keep the host's)
+export PKG_CONFIG_ALLOW_CROSS_aarch64_unknown_linux_gnu=1
+export PKG_CONFIG_LIBDIR_aarch64_unknown_linux_gnu="$armdev/pkgconfig:/usr/lib/aarch64-linux-gnu/pkgconfig:/usr/share/pkgconfig"
 export CMAKE_C_COMPILER_LAUNCHER=ccache CMAKE_CXX_COMPILER_LAUNCHER=ccache
 export CCACHE_DIR="${CCACHE_DIR:-$HOME/.cache/aeris/ccache}" CCACHE_NOHASHDIR=1 CCACHE_BASEDIR="$PWD"
 models="${AERIS_MODELS_AARCH64:-$HOME/.cache/aeris/models-aarch64}"
@@ -77,7 +78,7 @@ flight=("$bin" run --json --run-dir "target/$TARGET/flight")
 
 if [ "$dry_run" -eq 1 ]; then
     echo "board: $board"
-    env | grep -E '^(CARGO_TARGET_AARCH64|CC_aarch64|CXX_aarch64|AR_aarch64|PKG_CONFIG)' | sort
+    env | grep -E '^(CARGO_TARGET_AARCH64|CC_aarch64|CXX_aarch64|AR_aarch64|PKG_CONFIG_[A-Z_]*aarch64)' | sort
     echo "build: ${build[*]}"
     [ "$run_checks" -eq 1 ] && echo "tests: ${tests[*]}" && echo "flight: AERIS_MODELS=$models ${flight[*]}"
     exit 0
@@ -132,9 +133,14 @@ if [ "$run_checks" -eq 0 ]; then
     exit 0
 fi
 
+step "4/5 the library unit tests under qemu-aarch64 (cargo runs them through it)"
+start=$(date +%s)
+"${tests[@]}"
+step "unit tests passed under qemu in $(( $(date +%s) - start )) s"
+
+step "5/5 one default flight under qemu-aarch64 with the aarch64 ONNX Runtime"
 # Role processes are spawned as the aeris binary itself: the kernel must hand aarch64 ELF
 # files to qemu (binfmt_misc) for a flight's roles to start.
-step "4/5 the library unit tests under qemu-aarch64"
 if [ ! -e /proc/sys/fs/binfmt_misc/status ]; then
     $SUDO mount -t binfmt_misc binfmt_misc /proc/sys/fs/binfmt_misc \
         || { echo "build-aarch64: cannot mount binfmt_misc (qemu cannot start the flight's role processes)" >&2; exit 1; }
@@ -144,14 +150,9 @@ if ! grep -qs "^interpreter $(command -v qemu-aarch64)" /proc/sys/fs/binfmt_misc
     printf '%s' ':aeris-qemu-aarch64:M::\x7f\x45\x4c\x46\x02\x01\x01\x00\x00\x00\x00\x00\x00\x00\x00\x00\x02\x00\xb7\x00:\xff\xff\xff\xff\xff\xff\xff\x00\xff\xff\xff\xff\xff\xff\xff\xff\xfe\xff\xff\xff:'"$(command -v qemu-aarch64)"':' \
         | $SUDO tee /proc/sys/fs/binfmt_misc/register >/dev/null
 fi
-start=$(date +%s)
-"${tests[@]}"
-step "unit tests passed under qemu in $(( $(date +%s) - start )) s"
-
-step "5/5 one short default flight under qemu-aarch64 with the aarch64 ONNX Runtime"
 AERIS_MODELS="$models" AERIS_MODELS_ARCH=aarch64 scripts/provision-models.sh
 # `aeris validate` loads the ONNX Runtime and names its execution providers
-AERIS_MODELS="$models" "$bin" validate | grep -E "accelerators|error" >&2
+AERIS_MODELS="$models" "$bin" validate workflows/default.toml | grep -E "^accelerators" >&2
 start=$(date +%s)
 AERIS_MODELS="$models" "${flight[@]}" | tee "target/$TARGET/flight.log"
 step "flight done under qemu in $(( $(date +%s) - start )) s"

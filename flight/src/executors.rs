@@ -75,17 +75,18 @@ pub struct AcceleratorError {
     pub source: aeris_models::ModelError,
 }
 
-/// Check every accelerator executor on the flight's host that a role starts on against the
+/// Check every accelerator executor on the flight's host that a role starts on (or falls
+/// back to when its link to another host is lost) against the
 /// ONNX Runtime its model roles would load (the provisioned one, or `$AERIS_ONNXRUNTIME`):
 /// a provider it does not offer is refused before any role starts. An executor no role
 /// starts on is checked when a role is moved there (`aeris migrate`); another host's are
 /// checked there, when their roles load.
 pub fn check_accelerators(workflow: &Workflow) -> Result<(), AcceleratorError> {
     let used = |name: &str| {
-        workflow
-            .roles
-            .iter()
-            .any(|r| r.executor.as_deref() == Some(name))
+        workflow.roles.iter().any(|r| {
+            r.executor.as_deref() == Some(name)
+                || r.fallback.as_ref().and_then(|f| f.executor.as_deref()) == Some(name)
+        })
     };
     for ex in workflow
         .executors

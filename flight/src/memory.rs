@@ -77,32 +77,36 @@ impl MemoryWatch {
                 Some(p) => pss += p,
                 None => pss_known = false,
             }
-            let entry = match self
+            let i = match self
                 .summary
                 .roles
-                .iter_mut()
-                .find(|e| e.role == role.name())
+                .iter()
+                .position(|e| e.role == role.name())
             {
-                Some(e) => e,
+                Some(i) => i,
                 None => {
                     self.summary.roles.push(RoleMemory {
                         role: role.name().to_string(),
                         rss_peak_mib: 0.0,
-                        pss_peak_mib: p.map(|_| 0.0),
+                        pss_peak_mib: None,
                     });
-                    self.summary.roles.last_mut().expect("just pushed")
+                    self.summary.roles.len() - 1
                 }
             };
+            let entry = &mut self.summary.roles[i];
             entry.rss_peak_mib = entry.rss_peak_mib.max(r);
-            entry.pss_peak_mib = entry.pss_peak_mib.zip(p).map(|(a, b)| a.max(b));
+            // a sample without PSS (a process exiting between two reads) keeps the peak
+            if let Some(p) = p {
+                entry.pss_peak_mib = Some(entry.pss_peak_mib.map_or(p, |a| a.max(p)));
+            }
         }
         self.summary.samples += 1;
         self.summary.total_rss_peak_mib = self.summary.total_rss_peak_mib.max(rss);
-        self.summary.total_pss_peak_mib = if pss_known {
-            Some(self.summary.total_pss_peak_mib.unwrap_or(0.0).max(pss))
-        } else {
-            None
-        };
+        // the flight's PSS only from samples where every role's was read
+        if pss_known {
+            self.summary.total_pss_peak_mib =
+                Some(self.summary.total_pss_peak_mib.map_or(pss, |a| a.max(pss)));
+        }
     }
 
     /// What was measured.

@@ -229,8 +229,9 @@ impl OnnxModel {
     }
 
     /// Load `file` as `options` say: on an accelerator, its execution provider is checked
-    /// ([`check_accelerator`]) and registered so that a failure is an error, never a silent
-    /// fall-back to the CPU.
+    /// ([`check_accelerator`]) and registered so that failing to register it is an error,
+    /// not a session silently on the CPU. Nodes the provider cannot run still run on the CPU
+    /// provider, as ONNX Runtime places them.
     pub fn load_with(
         store: &ModelStore,
         file: &str,

@@ -5,14 +5,19 @@
 //! priority (a negative nice value); where neither is permitted, they run as any process
 //! and the flight says so.
 //!
+//! The group is a child of the supervisor's own, named `aeris-PID-FLIGHT` after the process
+//! that made it, so that a later flight removes only the groups of processes that are gone.
+//!
 //! Which works where:
-//! - **cgroup v2** (`cpu.weight`): the flight's group is made beside the processes of the
-//!   supervisor's own group, which needs the `cpu` controller enabled for that group's
-//!   children. That holds for root in the root group (a container, a board's own image);
-//!   under systemd it needs a delegated group (`systemd-run --scope -p Delegate=yes`);
+//! - **cgroup v2** (`cpu.weight`): the supervisor's group must hand the `cpu` controller to
+//!   its children, which the kernel allows a non-root group only while it holds no process
+//!   of its own: in practice the supervisor must run in the root group (root on a board's
+//!   own image or a VM). In a container or a systemd scope, where it shares a group with
+//!   other processes, the kernel refuses (EBUSY) and the roles get a nice value instead;
 //! - **cgroup v1** (`cpu.shares`, JetPack 5 and hybrid hosts): needs write access to the
 //!   `cpu` hierarchy (root);
-//! - **nice** −5: needs root, `CAP_SYS_NICE`, or an `RLIMIT_NICE` of at least 25;
+//! - **nice** −5: needs `CAP_SYS_NICE` (root has it unless a container dropped it) or an
+//!   `RLIMIT_NICE` of at least 25;
 //! - otherwise **none**: the roles compete with outside work as equals; the flight flies
 //!   and its summary names why.
 
@@ -167,7 +172,7 @@ impl FlightPriority {
     }
 
     /// Give flight `flight`'s roles priority as `mode` asks and this process is permitted:
-    /// a control group `aeris-FLIGHT` beside this process's own, else a nice value, else
+    /// a control group `aeris-PID-FLIGHT` under this process's own, else a nice value, else
     /// none. Never fails: what was not permitted is in [`Priority::None`]'s reason.
     pub fn establish(flight: &str, mode: PriorityMode) -> Self {
         let mut refused = Vec::new();
@@ -237,7 +242,11 @@ fn cpu_hierarchy() -> Result<(bool, PathBuf, String), String> {
         let Some((left, right)) = line.split_once(" - ") else {
             continue;
         };
-        let mount = left.split(' ').nth(4).unwrap_or_default();
+        let mut fields = left.split(' ');
+        // the hierarchy's folder mounted there (`/` unless only part of it is, as in a
+        // container that sees its own group as the root)
+        let root = fields.nth(3).unwrap_or("/");
+        let mount = fields.next().unwrap_or_default();
         let mut r = right.split(' ');
         let fstype = r.next().unwrap_or_default();
         let options = r.nth(1).unwrap_or_default();
@@ -245,35 +254,42 @@ fn cpu_hierarchy() -> Result<(bool, PathBuf, String), String> {
             let controllers = std::fs::read_to_string(Path::new(mount).join("cgroup.controllers"))
                 .unwrap_or_default();
             if controllers.split_whitespace().any(|c| c == "cpu") {
-                v2 = Some(PathBuf::from(mount));
+                v2 = Some((PathBuf::from(mount), root.to_string()));
             }
         } else if fstype == "cgroup" && options.split(',').any(|o| o == "cpu") && v1.is_none() {
-            v1 = Some(PathBuf::from(mount));
+            v1 = Some((PathBuf::from(mount), root.to_string()));
         }
     }
     for line in cgroups.lines() {
         let mut f = line.splitn(3, ':');
         let (_, controllers, path) = (f.next(), f.next().unwrap_or(""), f.next().unwrap_or(""));
-        if let Some(mount) = &v2
+        // the process's path is in the whole hierarchy; below the mount's root it is there
+        let under = |root: &str| {
+            let rest = path
+                .strip_prefix(root.trim_end_matches('/'))
+                .unwrap_or(path);
+            rest.to_string()
+        };
+        if let Some((mount, root)) = &v2
             && controllers.is_empty()
         {
-            return Ok((true, mount.clone(), path.to_string()));
+            return Ok((true, mount.clone(), under(root)));
         }
-        if let Some(mount) = &v1
+        if let Some((mount, root)) = &v1
             && controllers.split(',').any(|c| c == "cpu")
         {
-            return Ok((false, mount.clone(), path.to_string()));
+            return Ok((false, mount.clone(), under(root)));
         }
     }
     Err("no cgroup hierarchy with the cpu controller".into())
 }
 
-/// Make the flight's group beside this process's own and open its `cgroup.procs`.
+/// Make the flight's group under this process's own and open its `cgroup.procs`.
 fn cgroup_group(flight: &str) -> Result<FlightPriority, String> {
     let (v2, mount, own) = cpu_hierarchy()?;
     let parent = mount.join(own.trim_start_matches('/'));
     sweep_stale_groups(&parent);
-    let dir = parent.join(format!("aeris-{flight}"));
+    let dir = parent.join(format!("aeris-{}-{flight}", std::process::id()));
     let denied = |what: &str, e: std::io::Error| {
         format!("cgroup {}: {what}: {e}", if v2 { "v2" } else { "v1" })
     };
@@ -326,17 +342,23 @@ fn cgroup_group(flight: &str) -> Result<FlightPriority, String> {
     })
 }
 
-/// Remove the empty groups of flights that ended without removing theirs (a killed
-/// supervisor); a group still holding processes is left alone (the kernel refuses).
+/// Remove the groups of flights whose process is gone without removing its group (a killed
+/// supervisor): `aeris-PID-...` with no process PID. A group still holding processes is
+/// left alone (the kernel refuses); a live process's group, empty or not, is never touched.
 fn sweep_stale_groups(parent: &Path) {
     let Ok(entries) = std::fs::read_dir(parent) else {
         return;
     };
     for e in entries.flatten() {
-        if e.file_name().to_string_lossy().starts_with("aeris-")
-            && std::fs::read_to_string(e.path().join("cgroup.procs"))
-                .is_ok_and(|p| p.trim().is_empty())
-        {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let Some(pid) = name
+            .strip_prefix("aeris-")
+            .and_then(|rest| rest.split('-').next())
+            .and_then(|pid| pid.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if !Path::new(&format!("/proc/{pid}")).exists() {
             let _ = std::fs::remove_dir(e.path());
         }
     }
@@ -345,13 +367,9 @@ fn sweep_stale_groups(parent: &Path) {
 /// The capability bit that permits raising a priority (linux/capability.h).
 const CAP_SYS_NICE: u32 = 23;
 
-/// Whether this process may give its children a nice value of `nice` (< 0): as root, with
-/// `CAP_SYS_NICE`, or within `RLIMIT_NICE`.
-fn may_raise_priority(nice: i32) -> bool {
-    // SAFETY: geteuid has no preconditions.
-    if unsafe { libc::geteuid() } == 0 {
-        return true;
-    }
+/// Whether this process may give its children a nice value of `nice` (< 0): with
+/// `CAP_SYS_NICE` (root has it unless a container dropped it), or within `RLIMIT_NICE`.
+pub fn may_raise_priority(nice: i32) -> bool {
     let cap_sys_nice = std::fs::read_to_string("/proc/self/status")
         .ok()
         .and_then(|s| {
@@ -413,6 +431,17 @@ mod tests {
                 let text = String::from_utf8_lossy(&out.stdout);
                 let name = path.file_name().unwrap().to_string_lossy().into_owned();
                 assert!(text.contains(&name), "{text}");
+                // a later flight's sweep removes the group of a process that is gone, and
+                // never a live one's (this one's, empty now)
+                let parent = path.parent().unwrap();
+                let mut gone = std::process::Command::new("true").spawn().unwrap();
+                let dead = gone.id();
+                gone.wait().unwrap();
+                let stale = parent.join(format!("aeris-{dead}-unit"));
+                std::fs::create_dir(&stale).unwrap();
+                sweep_stale_groups(parent);
+                assert!(!stale.exists(), "{}", stale.display());
+                assert!(path.exists(), "{}", path.display());
                 drop(p);
                 assert!(!path.exists(), "{}", path.display());
             }

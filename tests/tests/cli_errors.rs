@@ -110,8 +110,8 @@ fn validate_lists_the_executor_registry_with_what_onnx_runtime_offers() {
     );
 }
 
-/// The model flight with its detector on an accelerator executor `accelerator`.
-fn detector_on(dir: &std::path::Path, name: &str, accelerator: &str, role: &str) -> String {
+/// The model flight with role `role` on an accelerator executor `accelerator`.
+fn role_on(dir: &std::path::Path, name: &str, accelerator: &str, role: &str) -> String {
     let text = std::fs::read_to_string(
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../workflows/models.toml"),
     )
@@ -137,7 +137,7 @@ fn detector_on(dir: &std::path::Path, name: &str, accelerator: &str, role: &str)
 #[test]
 fn an_accelerator_this_onnx_runtime_lacks_is_refused_before_any_role_starts() {
     let dir = TempDir::new("cli-accel");
-    let cuda = detector_on(&dir.0, "cuda.toml", "cuda:0", "detector");
+    let cuda = role_on(&dir.0, "cuda.toml", "cuda:0", "text");
     // validate names the provider and what the runtime offers instead
     let (code, err) = run(&["validate", &cuda]);
     assert_eq!(code, Some(1), "{err}");
@@ -159,12 +159,12 @@ fn an_accelerator_this_onnx_runtime_lacks_is_refused_before_any_role_starts() {
         "roles were started: {run_err}"
     );
     // a role that runs no model cannot be bound to one at all
-    let camera = detector_on(&dir.0, "camera.toml", "cuda:0", "camera");
+    let camera = role_on(&dir.0, "camera.toml", "cuda:0", "camera");
     let (code, err) = run(&["validate", &camera]);
     assert_eq!(code, Some(1));
     assert!(err.contains("only roles that run ONNX models"), "{err}");
     // nor can an accelerator no ONNX Runtime provider drives
-    let npu = detector_on(&dir.0, "npu.toml", "npu:0", "detector");
+    let npu = role_on(&dir.0, "npu.toml", "npu:0", "text");
     let (code, err) = run(&["validate", &npu]);
     assert_eq!(code, Some(1));
     assert!(err.contains("unknown accelerator `npu:0`"), "{err}");
@@ -173,7 +173,7 @@ fn an_accelerator_this_onnx_runtime_lacks_is_refused_before_any_role_starts() {
 #[test]
 fn an_own_onnx_runtime_that_is_missing_or_too_old_is_refused_clearly() {
     let dir = TempDir::new("cli-own-ort");
-    let cuda = detector_on(&dir.0, "cuda.toml", "cuda:0", "detector");
+    let cuda = role_on(&dir.0, "cuda.toml", "cuda:0", "text");
     let validate = |lib: &str| {
         let out = Command::new(aeris_bin())
             .args(["validate", &cuda])

@@ -264,6 +264,29 @@ pub enum MigrateError {
         /// The providers offered.
         offered: String,
     },
+    /// The target's accelerator cannot be checked: no ONNX Runtime could be loaded here.
+    #[error(
+        "role `{role}` cannot go to `{target}`: no ONNX Runtime could be loaded on this host to check that it offers {}, which its accelerator {accelerator} needs; it stays where it runs",
+        accelerator.kind.provider()
+    )]
+    AcceleratorUnchecked {
+        /// Role name.
+        role: String,
+        /// The target as given.
+        target: String,
+        /// The target's accelerator.
+        accelerator: aeris_runtime::accelerator::Accelerator,
+    },
+    /// A live move (same process) would change the role's accelerator, which needs a restart.
+    #[error(
+        "role `{role}` cannot move to `{target}` live: it changes the accelerator its models run on, which restarts it (`aeris migrate` does, make-before-break)"
+    )]
+    AcceleratorNeedsRestart {
+        /// Role name.
+        role: String,
+        /// The target as given.
+        target: String,
+    },
     /// A hot swap of the role is under way.
     #[error("role `{role}` is being swapped; move it once the swap is done")]
     SwapInProgress {

@@ -96,10 +96,8 @@ impl Supervisor {
         // onto or off an accelerator: a restart with the other execution provider
         let accelerator = match &remote {
             Some((executor, _)) => self.accelerator_of(executor),
-            None => self
-                .resolve_target(target)
-                .ok()
-                .and_then(|(executor, _)| self.accelerator_of(&executor)),
+            // a CPU list is CPUs, whichever executor has them
+            None => self.accelerator_of(target),
         };
         self.check_accelerator_move(i, target, accelerator)?;
         let r = &self.roles[i];
@@ -205,14 +203,16 @@ impl Supervisor {
         let provider = a.kind.provider();
         match self.registry.providers() {
             Some(offered) if offered.iter().any(|p| p == provider) => Ok(()),
-            offered => Err(MigrateError::AcceleratorUnavailable {
+            Some(offered) => Err(MigrateError::AcceleratorUnavailable {
                 role: r.name.clone(),
                 target: target.to_string(),
                 accelerator: a,
-                offered: offered.map_or_else(
-                    || "none known: no ONNX Runtime could be asked".to_string(),
-                    |p| p.join(", "),
-                ),
+                offered: offered.join(", "),
+            }),
+            None => Err(MigrateError::AcceleratorUnchecked {
+                role: r.name.clone(),
+                target: target.to_string(),
+                accelerator: a,
             }),
         }
     }
@@ -367,9 +367,13 @@ impl Supervisor {
         };
         let set = CpuSet::parse(target).map_err(|e| bad(e.to_string()))?;
         set.check_exists().map_err(|e| bad(e.to_string()))?;
+        // named after a CPU executor with those CPUs: an accelerator executor's CPUs are not
+        // its accelerator
         let name = self
             .registry
-            .by_cpus(&set)
+            .executors()
+            .iter()
+            .find(|e| e.cpus == set && self.accelerator_of(&e.name).is_none())
             .map(|e| e.name.clone())
             .unwrap_or_else(|| format!("cpus {set}"));
         Ok((name, set))
@@ -390,6 +394,12 @@ impl Supervisor {
             });
         };
         let (to_name, set) = self.resolve_target(target)?;
+        if self.accelerator_of(&to_name) != self.roles[i].accelerator {
+            return Err(MigrateError::AcceleratorNeedsRestart {
+                role: role.to_string(),
+                target: target.to_string(),
+            });
+        }
         let r = &mut self.roles[i];
         if r.swap.is_some() {
             return Err(MigrateError::SwapInProgress {

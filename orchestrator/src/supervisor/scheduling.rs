@@ -154,6 +154,8 @@ impl Supervisor {
     fn remote_executor_loads(&self) -> Vec<ExecutorLoad> {
         self.remote_executors
             .iter()
+            // as on the flight's host: accelerators are no CPU set to predict on
+            .filter(|(name, _)| self.accelerator_of(name).is_none())
             .map(|(name, spec)| {
                 let link = self.host_links.get(&spec.host);
                 let host_cpus = link.map_or(0, |l| l.cpus) as f64;
@@ -206,7 +208,13 @@ impl Supervisor {
         let local_sets: Vec<CpuSet> = seen.into_iter().cloned().collect();
         let local = executors.len();
         executors.extend(self.remote_executor_loads());
-        let remote = &self.remote_executors;
+        // in the order remote_executor_loads lists them
+        let remote: Vec<(String, String)> = self
+            .remote_executors
+            .iter()
+            .filter(|(name, _)| self.accelerator_of(name).is_none())
+            .map(|(name, spec)| (name.clone(), spec.host.clone()))
+            .collect();
         let roles = self
             .roles
             .iter_mut()
@@ -215,7 +223,7 @@ impl Supervisor {
                     // on another host: the executor it runs on there
                     Some(link) => remote
                         .iter()
-                        .position(|(name, spec)| *name == r.executor && spec.host == link.host)
+                        .position(|(name, host)| *name == r.executor && *host == link.host)
                         .map(|j| local + j),
                     None => r
                         .cpu_set

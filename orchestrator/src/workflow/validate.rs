@@ -283,16 +283,42 @@ impl Workflow {
                     known,
                 });
             }
-            if let Some(ex) = r.executor.as_ref().and_then(|ex| self.executor(ex))
-                && let Some(accelerator) = ex.accelerator
-                && !ONNX_MODEL_VARIANTS.contains(&(r.kind.as_str(), r.variant.as_str()))
-            {
-                return Err(WorkflowError::NotAccelerated {
-                    role: r.name.clone(),
-                    kind_variant: format!("{} / {}", r.kind, r.variant),
-                    executor: ex.name.clone(),
-                    accelerator,
-                });
+            // on an accelerator: the variant, every variant it may be swapped or stepped to,
+            // and its fallback where the fallback's executor is one
+            let fallback = r.fallback.as_ref();
+            let placed = [
+                (r.executor.as_deref(), vec![r.variant.as_str()]),
+                (
+                    r.executor.as_deref(),
+                    r.variants
+                        .iter()
+                        .chain(&r.ladder)
+                        .map(String::as_str)
+                        .collect(),
+                ),
+                (
+                    fallback.and_then(|f| f.executor.as_deref()),
+                    fallback.map(|f| f.variant.as_str()).into_iter().collect(),
+                ),
+            ];
+            for (executor, variants) in placed {
+                let Some(ex) = executor.and_then(|ex| self.executor(ex)) else {
+                    continue;
+                };
+                let Some(accelerator) = ex.accelerator else {
+                    continue;
+                };
+                if let Some(variant) = variants
+                    .into_iter()
+                    .find(|v| !ONNX_MODEL_VARIANTS.contains(&(r.kind.as_str(), *v)))
+                {
+                    return Err(WorkflowError::NotAccelerated {
+                        role: r.name.clone(),
+                        kind_variant: format!("{} / {variant}", r.kind),
+                        executor: ex.name.clone(),
+                        accelerator,
+                    });
+                }
             }
             let string_param = |param: &'static str| match r.params.get(param) {
                 Some(v) if !v.is_string() => Err(WorkflowError::BadParam {
