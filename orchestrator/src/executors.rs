@@ -470,7 +470,16 @@ mod tests {
     fn this_process_has_threads_a_state_and_sched_time() {
         let pid = std::process::id();
         assert!(process_threads(pid).unwrap().contains(&(pid as i32)));
-        assert!(matches!(process_state(pid), Some('R' | 'S')));
+        // a child waiting on its input (a process's own /proc/self/stat is emulated under
+        // qemu-user, where the aarch64 build's tests run)
+        let mut child = std::process::Command::new("cat")
+            .stdin(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let state = process_state(child.id());
+        drop(child.stdin.take());
+        child.wait().unwrap();
+        assert!(matches!(state, Some('R' | 'S')), "{state:?}");
         // CONFIG_SCHED_INFO kernels keep schedstat; where they do, the process's figure
         // holds at least this thread's time (the test harness's other threads come and go,
         // so the sum itself may drop between two samples)
