@@ -151,8 +151,21 @@ if ! grep -qs "^interpreter $(command -v qemu-aarch64)" /proc/sys/fs/binfmt_misc
         | $SUDO tee /proc/sys/fs/binfmt_misc/register >/dev/null
 fi
 AERIS_MODELS="$models" AERIS_MODELS_ARCH=aarch64 scripts/provision-models.sh
+# qemu-user 7.2 (Debian 12) shows the emulated processes this machine's x86 /proc/cpuinfo,
+# on which ONNX Runtime's CPU detection (pytorch/cpuinfo) dereferences NULL: they see an
+# aarch64 one instead (the board's cores, as qemu 8 does itself), bound over it in a mount
+# namespace of their own
+cpuinfo="target/$TARGET/cpuinfo"
+: > "$cpuinfo"
+for i in $(seq 0 $(( $(nproc) - 1 ))); do
+    printf 'processor\t: %d\nBogoMIPS\t: 62.50\nFeatures\t: fp asimd evtstrm aes pmull sha1 sha2 crc32 atomics fphp asimdhp cpuid asimdrdm lrcpc dcpop asimddp\nCPU implementer\t: 0x41\nCPU architecture: 8\nCPU variant\t: 0x0\nCPU part\t: 0xd42\nCPU revision\t: 1\n\n' "$i" >> "$cpuinfo"
+done
+as_board() {
+    $SUDO unshare --mount --propagation private \
+        sh -c 'mount --bind "$0" /proc/cpuinfo && exec "$@"' "$PWD/$cpuinfo" env AERIS_MODELS="$models" "$@"
+}
 # `aeris validate` loads the ONNX Runtime and names its execution providers
-AERIS_MODELS="$models" "$bin" validate workflows/default.toml | grep -E "^accelerators" >&2
+as_board "$bin" validate workflows/default.toml | grep -E "^accelerators" >&2
 start=$(date +%s)
-AERIS_MODELS="$models" "${flight[@]}" | tee "target/$TARGET/flight.log"
+as_board "${flight[@]}" | tee "target/$TARGET/flight.log"
 step "flight done under qemu in $(( $(date +%s) - start )) s"
