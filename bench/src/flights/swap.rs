@@ -305,7 +305,7 @@ pub fn run(
     let (outcome, schedule) = Flight::builder(w)
         .name(name)
         .run_dir(run_dir)
-        .stop_when(StopRule::Cycles(u64::MAX))
+        .stop_when(StopRule::Hook)
         .step_hook(schedule)
         .start()?
         .watch(watcher)?;
