@@ -88,6 +88,8 @@ pub fn check_accelerators(workflow: &Workflow) -> Result<(), AcceleratorError> {
                 || r.fallback.as_ref().and_then(|f| f.executor.as_deref()) == Some(name)
         })
     };
+    // the model cache (and its manifest) is read once, for the first accelerator checked
+    let mut store = None;
     for ex in workflow
         .executors
         .iter()
@@ -100,8 +102,11 @@ pub fn check_accelerators(workflow: &Workflow) -> Result<(), AcceleratorError> {
             executor: ex.name.clone(),
             source,
         };
-        let store = aeris_models::ModelStore::open(None).map_err(err)?;
-        aeris_models::check_accelerator(&store, &accelerator).map_err(err)?;
+        let store = match &mut store {
+            Some(s) => s,
+            None => store.insert(aeris_models::ModelStore::open(None).map_err(err)?),
+        };
+        aeris_models::check_accelerator(store, &accelerator).map_err(err)?;
     }
     Ok(())
 }

@@ -99,7 +99,7 @@ impl Supervisor {
             // a CPU list is CPUs, whichever executor has them
             None => self.accelerator_of(target),
         };
-        self.check_accelerator_move(i, target, accelerator)?;
+        self.check_accelerator_move(i, target, accelerator, remote.is_some())?;
         let r = &self.roles[i];
         if remote.is_none() && r.link.is_none() && accelerator == r.accelerator {
             let moved = self.migrate(role, target).map(RoleMove::Live)?;
@@ -178,13 +178,14 @@ impl Supervisor {
 
     /// Whether role `i` may go to `target`, whose accelerator is `accelerator`: only a role
     /// that runs ONNX models goes onto one, and only if this host's ONNX Runtime offers its
-    /// execution provider (another host's is checked there, when the role loads). A refusal
-    /// leaves the role where it runs.
+    /// execution provider (a target `on_other_host` is checked there, when the role loads).
+    /// A refusal leaves the role where it runs.
     fn check_accelerator_move(
         &self,
         i: usize,
         target: &str,
         accelerator: Option<Accelerator>,
+        on_other_host: bool,
     ) -> Result<(), MigrateError> {
         let r = &self.roles[i];
         let Some(a) = accelerator else {
@@ -197,7 +198,7 @@ impl Supervisor {
                 accelerator: a,
             });
         }
-        if self.resolve_remote(target).ok().flatten().is_some() {
+        if on_other_host {
             return Ok(());
         }
         let provider = a.kind.provider();
