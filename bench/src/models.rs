@@ -113,6 +113,9 @@ pub struct ModelRow {
 pub struct ModelsReport {
     /// Threads each model was given.
     pub threads: usize,
+    /// The accelerator the models ran on (`cuda:0`; absent: the CPU).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accelerator: Option<String>,
     /// One row per model.
     pub rows: Vec<ModelRow>,
 }
@@ -336,14 +339,15 @@ fn sign_frame() -> Result<(Vec<u8>, usize, usize), BenchError> {
 fn load_probe(
     case: &ModelCase,
     store: &ModelStore,
-    threads: usize,
+    on: &SessionOptions,
     mission: &MissionSpec,
 ) -> Result<Box<dyn Probe>, BenchError> {
+    let threads = on.threads;
     Ok(match case.name {
         "ppocr" => {
             let (rgb, width, height) = sign_frame()?;
             Box::new(OcrProbe {
-                reader: OcrReader::load(store, &SessionOptions::cpu(threads))?,
+                reader: OcrReader::load(store, on)?,
                 rgb,
                 width,
                 height,
@@ -358,7 +362,7 @@ fn load_probe(
             };
             let (rgb, width, height) = load_rgb(store, "assets/bus.jpg")?;
             Box::new(DetectorProbe {
-                detector: aeris_models::Detector::load(store, file, &SessionOptions::cpu(threads))?,
+                detector: aeris_models::Detector::load(store, file, on)?,
                 rgb,
                 width,
                 height,
@@ -371,7 +375,7 @@ fn load_probe(
                 ["LAKE VIEW", "yellow sign", "red roof", "blue water tower"].map(String::from),
             );
             Box::new(EmbedProbe {
-                embedder: TextEmbedder::load(store, &SessionOptions::cpu(threads))?,
+                embedder: TextEmbedder::load(store, on)?,
                 texts,
                 out: Vec::new(),
             })
@@ -384,6 +388,7 @@ fn load_probe(
             };
             let config = ReasonerConfig {
                 threads: threads as i32,
+                accelerator: on.accelerator,
                 ..ReasonerConfig::default()
             };
             let brief = aeris_roles::language::mission_brief(mission)?;
@@ -402,18 +407,19 @@ fn load_probe(
     })
 }
 
-/// Measure one model in this process: load, one warm-up run, `runs` timed runs.
+/// Measure one model in this process: load (its sessions or layers on `on`'s accelerator, if
+/// it names one), one warm-up run, `runs` timed runs.
 pub fn probe(
     case: &ModelCase,
     store: &ModelStore,
-    threads: usize,
+    on: &SessionOptions,
     runs: usize,
     mission: &MissionSpec,
 ) -> Result<ModelRow, BenchError> {
     let runs = runs.max(1);
     let bare = rss_mib();
     let t0 = Instant::now();
-    let mut p = load_probe(case, store, threads, mission)?;
+    let mut p = load_probe(case, store, on, mission)?;
     let load_s = t0.elapsed().as_secs_f64();
     p.run(0)?;
     let mut ms = Vec::with_capacity(runs);

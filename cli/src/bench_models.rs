@@ -3,6 +3,7 @@
 
 use aeris_bench::models::{self, MODEL_CASES, ModelRow, ModelsReport};
 use aeris_orchestrator::workflow::Workflow;
+use aeris_runtime::accelerator::Accelerator;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use std::path::PathBuf;
@@ -24,6 +25,11 @@ pub struct ModelsArgs {
     /// Model cache (default: $AERIS_MODELS or ~/.cache/aeris/models).
     #[arg(long, value_name = "DIR")]
     pub models_dir: Option<PathBuf>,
+    /// Run the models on this accelerator (`cuda:0`, `tensorrt:0`, `rocm:0`): ONNX models
+    /// with its ONNX Runtime execution provider, language models with every layer offloaded
+    /// (CUDA, in a build with the `cuda` feature). A model that cannot is reported as failed.
+    #[arg(long, value_name = "KIND:DEVICE")]
+    pub accelerator: Option<Accelerator>,
     /// Print one JSON object on the last line of stdout.
     #[arg(long)]
     pub json: bool,
@@ -44,6 +50,9 @@ pub struct ModelProbeArgs {
     /// Model cache.
     #[arg(long)]
     pub models_dir: Option<PathBuf>,
+    /// Accelerator.
+    #[arg(long)]
+    pub accelerator: Option<Accelerator>,
 }
 
 fn default_threads(model: &str) -> usize {
@@ -63,8 +72,11 @@ pub fn run(a: ModelsArgs) -> Result<()> {
         }
     }
     let exe = std::env::current_exe().context("cannot find this executable")?;
+    let on = a
+        .accelerator
+        .map_or_else(|| "the CPU".to_string(), |x| x.to_string());
     println!(
-        "models: load time, latency over {} runs after a warm-up, resident memory; one process per model",
+        "models on {on}: load time, latency over {} runs after a warm-up, resident memory; one process per model",
         a.runs
     );
     println!(
@@ -89,6 +101,9 @@ pub fn run(a: ModelsArgs) -> Result<()> {
             .stdout(Stdio::piped());
         if let Some(dir) = &a.models_dir {
             cmd.arg("--models-dir").arg(dir);
+        }
+        if let Some(x) = a.accelerator {
+            cmd.args(["--accelerator", &x.to_string()]);
         }
         let out = cmd
             .output()
@@ -132,6 +147,7 @@ pub fn run(a: ModelsArgs) -> Result<()> {
     if a.json {
         let report = ModelsReport {
             threads: threads_used,
+            accelerator: a.accelerator.map(|x| x.to_string()),
             rows,
         };
         println!("{}", serde_json::to_string(&report)?);
@@ -163,7 +179,11 @@ pub fn probe(a: ModelProbeArgs) -> Result<()> {
     let store = aeris_models::ModelStore::open(a.models_dir.as_deref())?;
     let workflow = Workflow::builtin_default().context("built-in default workflow")?;
     // the parent (`aeris bench models`) names the model on the line it prints
-    let row = models::probe(case, &store, a.threads, a.runs, &workflow.mission)?;
+    let on = aeris_models::SessionOptions {
+        threads: a.threads,
+        accelerator: a.accelerator,
+    };
+    let row = models::probe(case, &store, &on, a.runs, &workflow.mission)?;
     println!("{}", serde_json::to_string(&row)?);
     Ok(())
 }

@@ -63,50 +63,75 @@ pub fn accelerator_line(registry: &ExecutorRegistry) -> String {
     format!("accelerators: {list} (ONNX Runtime providers: {providers})")
 }
 
-/// An accelerator executor whose accelerator this host's ONNX Runtime cannot run.
+/// An accelerator executor whose accelerator this host cannot use for the roles on it.
 #[derive(Debug, thiserror::Error)]
 #[error("[executors.{executor}]")]
 pub struct AcceleratorError {
     /// The executor.
     pub executor: String,
-    /// Why: the model cache or runtime is missing, or the provider is not offered (the
-    /// error names those that are).
+    /// Why.
     #[source]
-    pub source: aeris_models::ModelError,
+    pub source: AcceleratorRefusal,
+}
+
+/// Why an accelerator executor's roles cannot use it.
+#[derive(Debug, thiserror::Error)]
+pub enum AcceleratorRefusal {
+    /// For its ONNX model roles: the model cache or runtime is missing, or the provider is not
+    /// offered (the error names those that are).
+    #[error(transparent)]
+    Onnx(#[from] aeris_models::ModelError),
+    /// For its language-model roles: this build of llama.cpp cannot offload to it.
+    #[error(transparent)]
+    Language(#[from] aeris_llm::LlmError),
 }
 
 /// Check every accelerator executor on the flight's host that a role starts on (or falls
-/// back to when its link to another host is lost) against the
-/// ONNX Runtime its model roles would load (the provisioned one, or `$AERIS_ONNXRUNTIME`):
-/// a provider it does not offer is refused before any role starts. An executor no role
-/// starts on is checked when a role is moved there (`aeris migrate`); another host's are
-/// checked there, when their roles load.
+/// back to when its link to another host is lost): for its ONNX model roles, against the
+/// ONNX Runtime they would load (the provisioned one, or `$AERIS_ONNXRUNTIME`); for its
+/// language-model roles, against this build's llama.cpp (GPU offload is the cargo feature
+/// `cuda`). A provider or build that cannot run them is refused before any role starts. An
+/// executor no role starts on is checked when a role is moved there (`aeris migrate`);
+/// another host's are checked there, when their roles load; whether a GPU device is present
+/// is checked by each language-model role when it loads.
 pub fn check_accelerators(workflow: &Workflow) -> Result<(), AcceleratorError> {
-    let used = |name: &str| {
-        workflow.roles.iter().any(|r| {
-            r.executor.as_deref() == Some(name)
-                || r.fallback.as_ref().and_then(|f| f.executor.as_deref()) == Some(name)
-        })
+    let starts_on = |r: &aeris_orchestrator::workflow::RoleDecl, name: &str| {
+        r.executor.as_deref() == Some(name)
+            || r.fallback.as_ref().and_then(|f| f.executor.as_deref()) == Some(name)
     };
     // the model cache (and its manifest) is read once, for the first accelerator checked
     let mut store = None;
-    for ex in workflow
-        .executors
-        .iter()
-        .filter(|e| e.host.is_none() && used(&e.name))
-    {
+    for ex in workflow.executors.iter().filter(|e| e.host.is_none()) {
         let Some(accelerator) = ex.accelerator else {
             continue;
         };
-        let err = |source| AcceleratorError {
+        let err = |source: AcceleratorRefusal| AcceleratorError {
             executor: ex.name.clone(),
             source,
         };
-        let store = match &mut store {
-            Some(s) => s,
-            None => store.insert(aeris_models::ModelStore::open(None).map_err(err)?),
+        let language = |kind: &str, variant: &str| {
+            aeris_orchestrator::workflow::LANGUAGE_MODEL_VARIANTS.contains(&(kind, variant))
         };
-        aeris_models::check_accelerator(store, &accelerator).map_err(err)?;
+        let (mut onnx, mut llm) = (false, false);
+        for r in workflow.roles.iter().filter(|r| starts_on(r, &ex.name)) {
+            if language(&r.kind, &r.variant) {
+                llm = true;
+            } else {
+                onnx = true;
+            }
+        }
+        if llm {
+            aeris_llm::check_offload(accelerator).map_err(|e| err(e.into()))?;
+        }
+        if onnx {
+            let store = match &mut store {
+                Some(s) => s,
+                None => {
+                    store.insert(aeris_models::ModelStore::open(None).map_err(|e| err(e.into()))?)
+                }
+            };
+            aeris_models::check_accelerator(store, &accelerator).map_err(|e| err(e.into()))?;
+        }
     }
     Ok(())
 }

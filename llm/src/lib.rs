@@ -15,7 +15,7 @@ pub mod view;
 pub use grammar::{GrammarError, decision_grammar};
 pub use prompt::{MissionBrief, Observation, StepBrief, sanitize};
 pub use reasoner::{
-    GEMMA3_270M, LanguageReasoner, LlmError, ReasonerConfig, SMOLLM2_135M, SMOLLM2_135M_Q4_1,
-    Thought,
+    GEMMA3_270M, GPU_OFFLOAD_BUILT, LanguageReasoner, LlmError, ReasonerConfig, SMOLLM2_135M,
+    SMOLLM2_135M_Q4_1, Thought, check_offload,
 };
 pub use view::{DecisionView, ViewError};

@@ -6,11 +6,12 @@ use crate::prompt::{MissionBrief, Observation, system_message, user_message};
 use crate::view::{DecisionView, ViewError};
 use aeris_models::{ModelError, ModelStore};
 use aeris_schemas::Decision;
+use aeris_schemas::accelerator::{Accelerator, AcceleratorKind};
 use llama_cpp_2::context::LlamaContext;
 use llama_cpp_2::context::params::LlamaContextParams;
 use llama_cpp_2::llama_backend::LlamaBackend;
 use llama_cpp_2::llama_batch::LlamaBatch;
-use llama_cpp_2::model::params::LlamaModelParams;
+use llama_cpp_2::model::params::{LlamaModelParams, LlamaSplitMode};
 use llama_cpp_2::model::{LlamaChatMessage, LlamaChatTemplate, LlamaModel};
 use llama_cpp_2::sampling::LlamaSampler;
 use llama_cpp_2::token::LlamaToken;
@@ -76,6 +77,24 @@ pub enum LlmError {
         /// Context size.
         context: usize,
     },
+    /// The role is bound to an accelerator llama.cpp cannot offload to: only CUDA devices are
+    /// offloaded (TensorRT and ROCm name ONNX Runtime providers).
+    #[error(
+        "accelerator `{0}`: llama.cpp offloads language models to CUDA devices only (`cuda:N`)"
+    )]
+    OffloadKind(Accelerator),
+    /// The role is bound to a CUDA device, and this build's llama.cpp has no GPU offload.
+    #[error(
+        "accelerator `{0}`: this build's llama.cpp has no GPU offload; build aeris with \
+         `--features cuda` (CUDA toolkit needed) or bind the role to a CPU executor"
+    )]
+    OffloadNotBuilt(Accelerator),
+    /// The build offloads, but llama.cpp found no GPU device at run time.
+    #[error(
+        "accelerator `{0}`: llama.cpp was built with GPU offload but finds no GPU device on this \
+         machine (driver missing or device not visible)"
+    )]
+    OffloadUnavailable(Accelerator),
     /// Evaluation failed inside llama.cpp.
     #[error("llama.cpp decode: {0}")]
     Decode(String),
@@ -110,6 +129,8 @@ pub struct ReasonerConfig {
     /// Verify the plan (or the previous decision) as a draft in one batch instead of
     /// evaluating every token (same output; off only to measure what it saves).
     pub draft: bool,
+    /// Offload every layer to this CUDA device (`None`: the CPU only).
+    pub accelerator: Option<Accelerator>,
 }
 
 impl Default for ReasonerConfig {
@@ -119,8 +140,45 @@ impl Default for ReasonerConfig {
             context_tokens: 2048,
             max_output_tokens: 120,
             draft: true,
+            accelerator: None,
         }
     }
+}
+
+/// Whether this build's llama.cpp can offload layers to a GPU (the cargo feature `cuda`).
+pub const GPU_OFFLOAD_BUILT: bool = cfg!(feature = "cuda");
+
+/// Why a language model cannot be offloaded to `accelerator` by this build, checked without
+/// loading llama.cpp: the kind (CUDA only) and the build (feature `cuda`). Whether a device is
+/// present is only known when the role loads its model ([`LlmError::OffloadUnavailable`]).
+pub fn check_offload(accelerator: Accelerator) -> Result<(), LlmError> {
+    if accelerator.kind != AcceleratorKind::Cuda {
+        return Err(LlmError::OffloadKind(accelerator));
+    }
+    if !GPU_OFFLOAD_BUILT {
+        return Err(LlmError::OffloadNotBuilt(accelerator));
+    }
+    Ok(())
+}
+
+/// The model's load parameters: every layer on the accelerator's device, or none (a CUDA
+/// build would otherwise offload by default, also for a role bound to a CPU set).
+fn model_params(
+    backend: &LlamaBackend,
+    accelerator: Option<Accelerator>,
+) -> Result<LlamaModelParams, LlmError> {
+    let params = LlamaModelParams::default();
+    let Some(accelerator) = accelerator else {
+        return Ok(params.with_n_gpu_layers(0));
+    };
+    check_offload(accelerator)?;
+    if !backend.supports_gpu_offload() {
+        return Err(LlmError::OffloadUnavailable(accelerator));
+    }
+    Ok(params
+        .with_n_gpu_layers(u32::MAX)
+        .with_split_mode(LlamaSplitMode::None)
+        .with_main_gpu(i32::try_from(accelerator.device).unwrap_or(i32::MAX)))
 }
 
 /// One decision and what it cost.
@@ -243,11 +301,13 @@ impl LanguageReasoner {
         let path = store.verified(file)?;
         let backend = backend()?;
         let grammar_text = decision_grammar(&mission.limits)?;
-        let model = LlamaModel::load_from_file(backend, &path, &LlamaModelParams::default())
-            .map_err(|e| LlmError::Load {
+        let model_params = model_params(backend, config.accelerator)?;
+        let model = LlamaModel::load_from_file(backend, &path, &model_params).map_err(|e| {
+            LlmError::Load {
                 file: file.to_string(),
                 reason: e.to_string(),
-            })?;
+            }
+        })?;
         let model: &'static LlamaModel = Box::leak(Box::new(model));
         let ctx_tokens = config.context_tokens.max(256);
         let params = LlamaContextParams::default()

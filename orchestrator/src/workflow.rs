@@ -17,7 +17,9 @@ mod validate;
 
 pub use builtin::{DEFAULT_WORKFLOW_TOML, MODELS_WORKFLOW_TOML};
 pub use hosts::{BridgePlan, SUPERVISOR_READS, movable_across_hosts, remote_cpus};
-pub use validate::{ONNX_MODEL_VARIANTS, REQUIRED_KINDS};
+pub use validate::{
+    LANGUAGE_MODEL_VARIANTS, ONNX_MODEL_VARIANTS, REQUIRED_KINDS, runs_on_accelerator,
+};
 
 use crate::restart::RestartPolicy;
 use aeris_runtime::affinity::{CpuSet, CpuSetError};
@@ -343,10 +345,10 @@ pub enum WorkflowError {
         /// Why.
         source: aeris_runtime::accelerator::AcceleratorParseError,
     },
-    /// A role that runs no ONNX model is bound to an accelerator executor.
+    /// A role that runs no model this accelerator can run is bound to it.
     #[error(
-        "role `{role}` ({kind_variant}) is bound to executor `{executor}`, an accelerator ({accelerator}): only roles that run ONNX models can use one ({}); bind it to a CPU executor",
-        validate::onnx_model_variants_text()
+        "role `{role}` ({kind_variant}) is bound to executor `{executor}`, an accelerator ({accelerator}): only model roles can use one ({}); bind it to a CPU executor",
+        validate::accelerated_variants_text()
     )]
     NotAccelerated {
         /// The role.

@@ -112,6 +112,9 @@ impl Role for LanguageRole {
                 .param_f64("context_tokens")
                 .unwrap_or(2048.0)
                 .clamp(256.0, 32768.0) as u32,
+            // bound to a `cuda:N` executor: every layer on that GPU (a build without offload,
+            // or a machine without the device, stops the role with the reason)
+            accelerator: crate::vision::accelerator(ctx)?,
             ..ReasonerConfig::default()
         };
         let show_plan = ctx.spec.param_bool("plan", true)?;

@@ -88,17 +88,20 @@ pub fn threads(ctx: &RoleContext) -> usize {
 /// spec names one (`cuda:0`). Loading checks the accelerator's execution provider, and the
 /// error names the providers the ONNX Runtime offers.
 pub fn session_options(ctx: &RoleContext) -> Result<SessionOptions, RoleError> {
-    let accelerator = ctx
-        .spec
+    Ok(SessionOptions {
+        threads: threads(ctx),
+        accelerator: accelerator(ctx)?,
+    })
+}
+
+/// The accelerator of the role's executor (`cuda:0`), if its spec names one.
+pub fn accelerator(ctx: &RoleContext) -> Result<Option<Accelerator>, RoleError> {
+    ctx.spec
         .accelerator
         .as_deref()
         .map(str::parse::<Accelerator>)
         .transpose()
-        .map_err(|e| RoleError::step("reading the role's accelerator", e))?;
-    Ok(SessionOptions {
-        threads: threads(ctx),
-        accelerator,
-    })
+        .map_err(|e| RoleError::step("reading the role's accelerator", e))
 }
 
 /// Reset `state` to an empty block for the frame `header` describes.

@@ -162,12 +162,74 @@ fn an_accelerator_this_onnx_runtime_lacks_is_refused_before_any_role_starts() {
     let camera = role_on(&dir.0, "camera.toml", "cuda:0", "camera");
     let (code, err) = run(&["validate", &camera]);
     assert_eq!(code, Some(1));
-    assert!(err.contains("only roles that run ONNX models"), "{err}");
+    assert!(err.contains("only model roles can use one"), "{err}");
     // nor can an accelerator no ONNX Runtime provider drives
     let npu = role_on(&dir.0, "npu.toml", "npu:0", "text");
     let (code, err) = run(&["validate", &npu]);
     assert_eq!(code, Some(1));
     assert!(err.contains("unknown accelerator `npu:0`"), "{err}");
+}
+
+#[test]
+fn a_language_model_on_an_accelerator_needs_cuda_and_a_build_that_offloads() {
+    let dir = TempDir::new("cli-llm-accel");
+    // the reasoning role alone on the accelerator: its pool and ladder hold only smollm2
+    let on = |name: &str, accelerator: &str| {
+        let path = role_on(&dir.0, name, accelerator, "reasoning");
+        let mut w: toml::Table = std::fs::read_to_string(&path).unwrap().parse().unwrap();
+        for r in w["roles"].as_array_mut().unwrap() {
+            if r["name"].as_str() == Some("reasoning") {
+                let r = r.as_table_mut().unwrap();
+                r.remove("variants");
+                r.remove("ladder");
+            }
+        }
+        std::fs::write(&path, toml::to_string(&w).unwrap()).unwrap();
+        path
+    };
+    // llama.cpp offloads to CUDA only: TensorRT is an ONNX Runtime provider
+    let trt = on("llm-trt", "tensorrt:0");
+    let (code, err) = run(&["validate", &trt]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("reasoning / smollm2") && err.contains("reasoning/smollm2 (cuda only)"),
+        "{err}"
+    );
+    // on CUDA, a build without llama.cpp's GPU offload (the default, CI's) says how to get
+    // one, before any role starts
+    let cuda = on("llm-cuda", "cuda:0");
+    let (code, err) = run(&["validate", &cuda]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("[executors.gpu]")
+            && err.contains("has no GPU offload")
+            && err.contains("--features cuda"),
+        "{err}"
+    );
+    let run_dir = dir.0.join("run");
+    let (code, run_err) = run(&["run", &cuda, "--run-dir", run_dir.to_str().unwrap()]);
+    assert_eq!(code, Some(1), "{run_err}");
+    assert!(run_err.contains("has no GPU offload"), "{run_err}");
+    assert!(
+        !run_dir.join("logs").exists(),
+        "roles were started: {run_err}"
+    );
+    // the role itself refuses too (a role started by hand, or moved there by `aeris migrate`)
+    let (code, err) = run(&[
+        "bench",
+        "models",
+        "--only",
+        "smollm2",
+        "--runs",
+        "1",
+        "--accelerator",
+        "cuda:0",
+    ]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("smollm2: accelerator `cuda:0`: this build's llama.cpp has no GPU offload"),
+        "{err}"
+    );
 }
 
 #[test]

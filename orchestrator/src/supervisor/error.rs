@@ -237,9 +237,10 @@ pub enum MigrateError {
         /// Its state.
         state: String,
     },
-    /// The target is an accelerator executor and the role runs no ONNX model.
+    /// The target is an accelerator executor and the role runs no model it can run (ONNX
+    /// models on any accelerator, language models on CUDA).
     #[error(
-        "role `{role}` cannot go to `{target}`: its accelerator ({accelerator}) runs ONNX models, and the role runs none; it stays where it runs"
+        "role `{role}` cannot go to `{target}`: its accelerator ({accelerator}) runs ONNX models (and, on CUDA, language models), and the role runs none; it stays where it runs"
     )]
     NotAccelerated {
         /// Role name.

@@ -176,9 +176,10 @@ impl Supervisor {
             .map(|(_, a)| *a)
     }
 
-    /// Whether role `i` may go to `target`, whose accelerator is `accelerator`: only a role
-    /// that runs ONNX models goes onto one, and only if this host's ONNX Runtime offers its
-    /// execution provider (a target `on_other_host` is checked there, when the role loads).
+    /// Whether role `i` may go to `target`, whose accelerator is `accelerator`: only a model
+    /// role goes onto one (language models onto CUDA only), an ONNX one only if this host's
+    /// ONNX Runtime offers its execution provider (a target `on_other_host` is checked there,
+    /// when the role loads).
     /// A refusal leaves the role where it runs.
     fn check_accelerator_move(
         &self,
@@ -191,14 +192,18 @@ impl Supervisor {
         let Some(a) = accelerator else {
             return Ok(());
         };
-        if !crate::workflow::ONNX_MODEL_VARIANTS.contains(&(r.kind.as_str(), r.variant.as_str())) {
+        if !crate::workflow::runs_on_accelerator(&r.kind, &r.variant, a) {
             return Err(MigrateError::NotAccelerated {
                 role: r.name.clone(),
                 target: target.to_string(),
                 accelerator: a,
             });
         }
-        if on_other_host {
+        // a language model's offload is checked by its new process when it loads (a build
+        // without offload, or no device, fails that start and the role stays where it runs)
+        let language = crate::workflow::LANGUAGE_MODEL_VARIANTS
+            .contains(&(r.kind.as_str(), r.variant.as_str()));
+        if on_other_host || language {
             return Ok(());
         }
         let provider = a.kind.provider();

@@ -5,6 +5,7 @@
 
 use super::{ExecutorCpus, Workflow, WorkflowError};
 use aeris_runtime::catalog::{ROLE_KINDS, role_kind};
+use aeris_schemas::accelerator::{Accelerator, AcceleratorKind};
 use aeris_schemas::heartbeat::NAME_MAX;
 use aeris_schemas::{MAX_ROLES, topics};
 
@@ -27,7 +28,7 @@ fn is_valid_role_name(name: &str) -> bool {
 }
 
 /// The role variants whose work is ONNX Runtime sessions, which an accelerator executor can
-/// run (`kind`, `variant`). Language models (llama.cpp) run on CPUs in this build.
+/// run (`kind`, `variant`).
 pub const ONNX_MODEL_VARIANTS: &[(&str, &str)] = &[
     ("text-reader", "ppocr"),
     ("detector", "yolo"),
@@ -36,13 +37,27 @@ pub const ONNX_MODEL_VARIANTS: &[(&str, &str)] = &[
     ("occupancy", "onnx"),
 ];
 
-/// [`ONNX_MODEL_VARIANTS`] for messages: `text-reader/ppocr, detector/yolo, ...`.
-pub(crate) fn onnx_model_variants_text() -> String {
-    ONNX_MODEL_VARIANTS
+/// The role variants whose work is a llama.cpp language model, which offloads its layers to a
+/// CUDA accelerator (in a build with the cargo feature `cuda`).
+pub const LANGUAGE_MODEL_VARIANTS: &[(&str, &str)] =
+    &[("reasoning", "smollm2"), ("reasoning", "gemma3")];
+
+/// Whether `kind`/`variant` can run on `accelerator`: ONNX models on any, language models on
+/// CUDA devices.
+pub fn runs_on_accelerator(kind: &str, variant: &str, accelerator: Accelerator) -> bool {
+    ONNX_MODEL_VARIANTS.contains(&(kind, variant))
+        || (accelerator.kind == AcceleratorKind::Cuda
+            && LANGUAGE_MODEL_VARIANTS.contains(&(kind, variant)))
+}
+
+/// The variants that can use an accelerator, for messages: `text-reader/ppocr, ...,
+/// reasoning/gemma3 (cuda only)`.
+pub(crate) fn accelerated_variants_text() -> String {
+    let onnx = ONNX_MODEL_VARIANTS.iter().map(|(k, v)| format!("{k}/{v}"));
+    let language = LANGUAGE_MODEL_VARIANTS
         .iter()
-        .map(|(k, v)| format!("{k}/{v}"))
-        .collect::<Vec<_>>()
-        .join(", ")
+        .map(|(k, v)| format!("{k}/{v} (cuda only)"));
+    onnx.chain(language).collect::<Vec<_>>().join(", ")
 }
 impl Workflow {
     /// Check everything: timing, camera, mission, executors, roles against the catalog,
@@ -310,7 +325,7 @@ impl Workflow {
                 };
                 if let Some(variant) = variants
                     .into_iter()
-                    .find(|v| !ONNX_MODEL_VARIANTS.contains(&(r.kind.as_str(), *v)))
+                    .find(|v| !runs_on_accelerator(&r.kind, v, accelerator))
                 {
                     return Err(WorkflowError::NotAccelerated {
                         role: r.name.clone(),
