@@ -44,7 +44,20 @@
 //! model on a saturated 2-core machine) would otherwise be moved every cooldown for the
 //! whole flight, each move a cost of its own (a cold cache, a migration).
 //!
+//! Accelerators. An executor may be an accelerator ([`ExecutorLoad::accelerator`]); only
+//! model roles that can run on it go there ([`crate::workflow::runs_on_accelerator`]). A
+//! role's cycle there is the device's work, not a share of CPUs, so it is predicted from what
+//! the role measured there earlier in the flight ([`RoleLoad::accelerator_ms`]), and a role
+//! on one is predicted back on CPUs from its cycle as last measured on CPUs
+//! ([`RoleLoad::cpu_base_ms`]); a move that cannot be predicted is not planned. When no
+//! measured plan restores every budget and a role over budget can run on an accelerator it
+//! has not been measured on, that one move is made as a probe ([`RebindPlan::probe`]): a
+//! make-before-break restart there, whose measurement then decides whether it stays. Roles
+//! sharing one device are not modelled: their measured latencies show it.
+//!
 //! The planner (`plan.rs`) is pure; the policy (`policy.rs`) is its memory between ticks.
+
+use aeris_runtime::accelerator::Accelerator;
 
 mod plan;
 mod policy;
@@ -79,9 +92,28 @@ pub struct RoleLoad {
     pub crosses_hosts: bool,
     /// It reads frames (a role on another host waits for each to be encoded for the link).
     pub reads_frames: bool,
+    /// Its kind and variant (`detector`, `yolo`): which accelerators can run it
+    /// ([`crate::workflow::runs_on_accelerator`]).
+    pub kind_variant: (String, String),
+    /// Its latency (ms) as last measured on accelerator executors this flight: (executor
+    /// index, ms). A role goes onto an accelerator by these figures, or, where it has not
+    /// run yet, by a probe ([`RebindPlan::probe`]).
+    pub accelerator_ms: Vec<(usize, f64)>,
+    /// Its own cycle (ms, without slowdown or link) as last measured on a CPU executor: what
+    /// a role on an accelerator now is predicted to take back on CPUs (`None`: never
+    /// measured there, so it is not moved off).
+    pub cpu_base_ms: Option<f64>,
 }
 
 impl RoleLoad {
+    /// Its latency as last measured on accelerator executor `executor`.
+    pub fn measured_on(&self, executor: usize) -> Option<f64> {
+        self.accelerator_ms
+            .iter()
+            .find(|(e, _)| *e == executor)
+            .map(|(_, ms)| *ms)
+    }
+
     fn ratio(&self) -> f64 {
         match (self.latency_ms, self.budget_ms) {
             (Some(l), Some(b)) if b > 0.0 => l / b,
@@ -116,6 +148,9 @@ pub struct ExecutorLoad {
     /// Roles may be moved here: always on the flight's host; on another host while its
     /// link is up and measured.
     pub reachable: bool,
+    /// The accelerator its model roles run on (`cuda:0`): a role's cycle here is the
+    /// device's work, measured there, not a share of the CPUs.
+    pub accelerator: Option<Accelerator>,
 }
 
 impl ExecutorLoad {
@@ -129,6 +164,7 @@ impl ExecutorLoad {
             link_ms: 0.0,
             frame_ms: 0.0,
             reachable: true,
+            accelerator: None,
         }
     }
 }
@@ -162,6 +198,11 @@ pub struct RebindPlan {
     /// Predicted latency of every role (ms), by role index (`None`: no latency yet).
     pub predicted_ms: Vec<Option<f64>>,
     /// `true` when every role is predicted to fit its budget; `false` for a relief plan
-    /// (the worst latency/budget ratio falls by the margin, some role stays over).
+    /// (the worst latency/budget ratio falls by the margin, some role stays over) and for a
+    /// probe.
     pub restores: bool,
+    /// A probe: no measured plan restores the budget, and the one move sends a role over
+    /// budget onto an accelerator it has not run on yet (its prediction there is `None`).
+    /// The move is make-before-break, and its measurement there decides what follows.
+    pub probe: bool,
 }

@@ -55,8 +55,24 @@ pub fn predict(
         .iter()
         .zip(assignment)
         .map(|(r, &e)| {
-            let latency = r.latency_ms?;
+            let to = executors.get(e)?;
+            if to.accelerator.is_some() {
+                // on an accelerator: what the role measured there (the device's work)
+                return if e == r.executor {
+                    r.latency_ms
+                } else {
+                    r.measured_on(e)
+                };
+            }
             let s_then = *then.get(e)?;
+            if executors
+                .get(r.executor)
+                .is_some_and(|x| x.accelerator.is_some())
+            {
+                // from an accelerator back to CPUs: its cycle as last measured on CPUs
+                return r.cpu_base_ms.map(|base| base * s_then + link_cost(r, to));
+            }
+            let latency = r.latency_ms?;
             // the role's own cycle, without the link it pays now
             let paid = executors.get(r.executor).map_or(0.0, |ex| link_cost(r, ex));
             let cycle = (latency - paid).max(0.0);
@@ -143,6 +159,10 @@ pub fn plan_fewest_moves(
                     continue;
                 }
                 let predicted = predict(roles, executors, &assignment);
+                // a move whose outcome cannot be predicted is no plan (a probe, below)
+                if moves.iter().any(|m| predicted[m.role].is_none()) {
+                    continue;
+                }
                 let Some((worst, restores)) = judge(&predicted) else {
                     continue;
                 };
@@ -165,22 +185,66 @@ pub fn plan_fewest_moves(
                 moves,
                 predicted_ms,
                 restores: true,
+                probe: false,
             });
         }
     }
-    relief.map(|(_, moves, predicted_ms)| RebindPlan {
-        moves,
-        predicted_ms,
+    probe_accelerator(roles, executors, &movable).or_else(|| {
+        relief.map(|(_, moves, predicted_ms)| RebindPlan {
+            moves,
+            predicted_ms,
+            restores: false,
+            probe: false,
+        })
+    })
+}
+
+/// When no measured plan restores every budget: the worst role over budget that can run on
+/// an accelerator executor it has not been measured on goes there, to be measured (the
+/// first such executor). Preferred to relief: an accelerator may cure what CPUs only ease.
+fn probe_accelerator(
+    roles: &[RoleLoad],
+    executors: &[ExecutorLoad],
+    movable: &[usize],
+) -> Option<RebindPlan> {
+    let (r, to) = movable
+        .iter()
+        .filter(|&&r| roles[r].over_budget())
+        .filter_map(|&r| {
+            let role = &roles[r];
+            let to = executors.iter().enumerate().position(|(e, ex)| {
+                e != role.executor
+                    && ex.accelerator.is_some()
+                    && role.measured_on(e).is_none()
+                    && allowed(role, executors.get(role.executor), ex)
+            })?;
+            Some((r, to))
+        })
+        .max_by(|a, b| roles[a.0].ratio().total_cmp(&roles[b.0].ratio()))?;
+    let current: Vec<usize> = roles.iter().map(|r| r.executor).collect();
+    let mut assignment = current.clone();
+    assignment[r] = to;
+    Some(RebindPlan {
+        moves: vec![Move {
+            role: r,
+            from: current[r],
+            to,
+        }],
+        predicted_ms: predict(roles, executors, &assignment),
         restores: false,
+        probe: true,
     })
 }
 
 /// Whether `role` may go from `from` to `to`: there only while its link is up, to another
-/// host only a role that may run there, and from one other host to a different one only
-/// through the flight's host.
+/// host only a role that may run there, from one other host to a different one only
+/// through the flight's host, and to an accelerator only a model role it can run.
 fn allowed(role: &RoleLoad, from: Option<&ExecutorLoad>, to: &ExecutorLoad) -> bool {
     let from_host = from.and_then(|e| e.host.as_ref());
-    to.reachable
+    let (kind, variant) = &role.kind_variant;
+    to.accelerator
+        .is_none_or(|a| crate::workflow::runs_on_accelerator(kind, variant, a))
+        && to.reachable
         && (to.host.is_none() || role.crosses_hosts)
         && (from_host.is_none() || to.host.is_none() || from_host == to.host.as_ref())
 }
@@ -470,5 +534,103 @@ mod tests {
         assert_eq!(combinations(4, 2).len(), 6);
         assert_eq!(combinations(3, 3), vec![vec![0, 1, 2]]);
         assert!(combinations(2, 3).is_empty());
+    }
+
+    /// A detector (budget 100 ms) at 250 ms on a hogged CPU, the other CPU busy too, and a
+    /// CUDA executor: executors 0 and 1 are CPUs, 2 the accelerator.
+    fn accelerator_case() -> (Vec<RoleLoad>, Vec<ExecutorLoad>) {
+        let mut detector = role("detector", 1, 100.0, 250.0, 0.6);
+        detector.slowdown = 2.5;
+        detector.waiting = 0.9;
+        let mut gpu = ex("gpu", 0.0);
+        gpu.accelerator = Some("cuda:0".parse().unwrap());
+        let roles = vec![role("hub", 0, 20.0, 0.5, 0.05), detector];
+        (roles, vec![ex("cpu0", 1.0), ex("cpu1", 1.0), gpu])
+    }
+
+    #[test]
+    fn a_role_no_cpu_can_cure_probes_an_accelerator_it_has_not_run_on() {
+        let (roles, executors) = accelerator_case();
+        let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]).expect("a probe");
+        assert!(plan.probe && !plan.restores, "{plan:?}");
+        assert_eq!(
+            plan.moves,
+            [Move {
+                role: 1,
+                from: 1,
+                to: 2
+            }]
+        );
+        // its latency there is unknown until it runs there
+        assert_eq!(plan.predicted_ms[1], None);
+    }
+
+    #[test]
+    fn a_role_measured_on_the_accelerator_goes_there_by_its_figure() {
+        let (mut roles, executors) = accelerator_case();
+        roles[1].accelerator_ms = vec![(2, 12.0)];
+        let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]).expect("a plan");
+        assert!(plan.restores && !plan.probe, "{plan:?}");
+        assert_eq!(plan.moves[0].to, 2);
+        assert_eq!(plan.predicted_ms[1], Some(12.0));
+        // measured too slow there: no probe again, relief on CPUs at most
+        roles[1].accelerator_ms = vec![(2, 400.0)];
+        let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]);
+        assert!(
+            plan.as_ref()
+                .is_none_or(|p| !p.probe && p.moves.iter().all(|m| m.to != 2)),
+            "{plan:?}"
+        );
+    }
+
+    #[test]
+    fn a_role_slow_on_its_accelerator_goes_back_to_cpus_only_by_a_cpu_measurement() {
+        let (mut roles, mut executors) = accelerator_case();
+        // the detector runs on the GPU now, at 300 ms (the device is shared), CPU 1 is free
+        roles[1].executor = 2;
+        roles[1].latency_ms = Some(300.0);
+        roles[1].slowdown = 1.0;
+        roles[1].waiting = 0.0;
+        roles[1].demand = 0.1;
+        executors[1].busy = 0.0;
+        assert_eq!(
+            plan_fewest_moves(&roles, &executors, 0.2, 3, &[]),
+            None,
+            "never measured on CPUs: no prediction, no move"
+        );
+        roles[1].cpu_base_ms = Some(60.0);
+        let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]).expect("a plan");
+        assert_eq!(
+            plan.moves,
+            [Move {
+                role: 1,
+                from: 2,
+                to: 1
+            }]
+        );
+        assert!((plan.predicted_ms[1].unwrap() - 60.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn only_roles_an_accelerator_can_run_go_onto_it() {
+        let (mut roles, mut executors) = accelerator_case();
+        // a camera runs no model: no probe, no move there
+        roles[1].kind_variant = ("camera".into(), "sim-render".into());
+        roles[1].accelerator_ms = vec![(2, 5.0)];
+        let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]);
+        assert!(
+            plan.as_ref()
+                .is_none_or(|p| p.moves.iter().all(|m| m.to != 2)),
+            "{plan:?}"
+        );
+        // a language model offloads to CUDA, not to TensorRT
+        roles[1].kind_variant = ("reasoning".into(), "smollm2".into());
+        roles[1].accelerator_ms.clear();
+        executors[2].accelerator = Some("tensorrt:0".parse().unwrap());
+        let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]);
+        assert!(plan.as_ref().is_none_or(|p| !p.probe), "{plan:?}");
+        executors[2].accelerator = Some("cuda:0".parse().unwrap());
+        let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]).expect("a probe");
+        assert!(plan.probe, "{plan:?}");
     }
 }

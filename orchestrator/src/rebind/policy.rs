@@ -154,7 +154,8 @@ impl RebindPolicy {
             Some(plan) => {
                 for m in &plan.moves {
                     self.settle(m.role);
-                    if !plan.restores {
+                    // a probe is a measurement, not relief: a plain cooldown
+                    if !plan.restores && !plan.probe {
                         let backoff = 1u32
                             .checked_shl(self.reliefs[m.role])
                             .unwrap_or(u32::MAX)

@@ -202,6 +202,21 @@ pub enum SupervisorEvent {
         /// The latency that triggered it and the one predicted there (the link included).
         trigger: MigrationTrigger,
     },
+    /// The scheduling policy moved a model role onto or off an accelerator executor
+    /// (make-before-break, a restart with the other execution provider: its `SwapStarted`
+    /// .. `SwapDone`/`SwapFailed` follow).
+    MoveAccelerator {
+        /// Role name.
+        name: String,
+        /// The executor it goes to.
+        executor: String,
+        /// That executor's accelerator (`None`: back to CPUs).
+        accelerator: Option<aeris_runtime::accelerator::Accelerator>,
+        /// The latency that triggered it and the one predicted there.
+        trigger: MigrationTrigger,
+        /// A probe: never measured there, so nothing is predicted; the move measures it.
+        probe: bool,
+    },
     /// An automatic move could not be made; the role stays where it was.
     MigrationFailed {
         /// Role name.
@@ -449,6 +464,28 @@ impl core::fmt::Display for SupervisorEvent {
                     trigger.budget_ms,
                     trigger.predicted_ms
                 )
+            }
+            SupervisorEvent::MoveAccelerator {
+                name,
+                executor,
+                accelerator,
+                trigger,
+                probe,
+            } => {
+                let place = match accelerator {
+                    Some(a) => format!("{executor} ({a})"),
+                    None => format!("{executor} (CPUs)"),
+                };
+                write!(
+                    f,
+                    "re-binding moves `{name}` to {place}, make-before-break: {:.0} ms against its budget of {:.0} ms, ",
+                    trigger.latency_ms, trigger.budget_ms
+                )?;
+                if *probe {
+                    write!(f, "a probe (never measured there)")
+                } else {
+                    write!(f, "{:.0} ms predicted there", trigger.predicted_ms)
+                }
             }
             SupervisorEvent::MigrationFailed { name, reason } => {
                 write!(f, "role `{name}` could not be moved: {reason}")

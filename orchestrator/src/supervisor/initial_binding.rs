@@ -182,7 +182,11 @@ impl Supervisor {
             };
             // CPU-bound: running or runnable (a starved role waits in a run queue)
             let wants_cpu = r.demand + r.waiting;
+            // (a role on an accelerator moves only by a restart: the policy's, later)
             if !r.movable
+                || executors
+                    .get(r.executor)
+                    .is_some_and(|e| e.accelerator.is_some())
                 || wants_cpu < MIN_PROBE_DEMAND
                 || latency_ms <= budget_ms * (1.0 - margin)
             {
@@ -213,10 +217,15 @@ impl Supervisor {
             .iter()
             .enumerate()
             .flat_map(|(k, p)| {
-                // probes move live: the executors of the flight's host (one on another host
-                // is judged by the re-binding policy from its load and its link)
+                // probes move live: the CPU executors of the flight's host (one on another
+                // host is judged by the re-binding policy from its load and its link, an
+                // accelerator by a probe of the policy's)
                 (0..executors.len())
-                    .filter(move |&e| e != p.home && executors[e].host.is_none())
+                    .filter(move |&e| {
+                        e != p.home
+                            && executors[e].host.is_none()
+                            && executors[e].accelerator.is_none()
+                    })
                     .map(move |e| (k, e))
             })
             .collect();

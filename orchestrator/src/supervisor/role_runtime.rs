@@ -154,6 +154,10 @@ pub struct RoleRuntime {
     pub(super) declared_fallback: Option<PlannedFallback>,
     /// Running its fallback since its link was lost: where it returns when the link is back.
     pub(super) returns_to: Option<ReturnTo>,
+    /// Its latency (ms) as last measured on each accelerator executor it ran on (by name).
+    pub(super) accelerator_ms: Vec<(String, f64)>,
+    /// Its own cycle (ms, without slowdown or link) as last measured on a CPU executor.
+    pub(super) cpu_base_ms: Option<f64>,
 }
 
 impl RoleRuntime {
@@ -293,6 +297,8 @@ impl RoleRuntime {
             accelerator,
             link,
             returns_to: None,
+            accelerator_ms: Vec::new(),
+            cpu_base_ms: None,
             declared_fallback: fallback,
             name: spec.name,
             kind: spec.kind,
@@ -377,6 +383,17 @@ impl RoleRuntime {
         self.recent = LatencyWindow::new(RECENT_CYCLES);
     }
 
+    /// It failed to start on accelerator executor `executor`: its latency there is taken
+    /// as unbounded, so the re-binding policy neither predicts it fits there nor probes it.
+    pub(super) fn ruled_out_on(&mut self, executor: &str) {
+        match self.accelerator_ms.iter_mut().find(|(n, _)| n == executor) {
+            Some(m) => m.1 = f64::INFINITY,
+            None => self
+                .accelerator_ms
+                .push((executor.to_string(), f64::INFINITY)),
+        }
+    }
+
     /// Record a heartbeat; returns `true` when it is the first of the current process.
     pub(super) fn record(&mut self, hb: &RoleHeartbeat, status: RoleStatus) -> bool {
         let first = self.incarnation_heartbeats == 0;
@@ -435,6 +452,8 @@ mod tests {
             accelerator: None,
             link: None,
             returns_to: None,
+            accelerator_ms: Vec::new(),
+            cpu_base_ms: None,
             declared_fallback: None,
             name: "r".into(),
             kind: "hub".into(),

@@ -115,9 +115,24 @@ impl Supervisor {
                 initial,
             };
             let to = &executors[m.to];
-            let across =
-                to.host.is_some() || executors.get(m.from).is_some_and(|e| e.host.is_some());
-            let result = if across {
+            let from = executors.get(m.from);
+            let across = to.host.is_some() || from.is_some_and(|e| e.host.is_some());
+            // onto, off or between accelerators: a restart with the other provider
+            let restarts = to.accelerator != from.and_then(|e| e.accelerator);
+            let result = if restarts && !across {
+                let at = self.pending.len();
+                self.move_role_for(&role.name, &to.name, Some(trigger.clone()))
+                    .map(|_| {
+                        let why = SupervisorEvent::MoveAccelerator {
+                            name: role.name.clone(),
+                            executor: to.name.clone(),
+                            accelerator: to.accelerator,
+                            trigger,
+                            probe: plan.probe,
+                        };
+                        self.pending.insert(at.min(self.pending.len()), why);
+                    })
+            } else if across {
                 // to or from another host: make-before-break through the hot-swap path
                 let target = match &to.host {
                     Some(host) => format!("{host}:{}", to.name),
@@ -140,10 +155,20 @@ impl Supervisor {
             };
             match result {
                 Ok(()) => moved = true,
-                Err(e) => events.push(SupervisorEvent::MigrationFailed {
-                    name: role.name.clone(),
-                    reason: format!("re-binding to {}: {e}", to.name),
-                }),
+                Err(e) => {
+                    if restarts
+                        && !across
+                        && to.accelerator.is_some()
+                        && let Some(r) = self.roles.iter_mut().find(|r| r.name == role.name)
+                    {
+                        // refused there (no provider for it on this host): not tried again
+                        r.ruled_out_on(&to.name);
+                    }
+                    events.push(SupervisorEvent::MigrationFailed {
+                        name: role.name.clone(),
+                        reason: format!("re-binding to {}: {e}", to.name),
+                    })
+                }
             }
         }
         moved
@@ -179,6 +204,7 @@ impl Supervisor {
                     host: Some(spec.host.clone()),
                     link_ms: link.and_then(|l| l.rtt_ms()).unwrap_or(0.0),
                     frame_ms: link.map_or(0.0, |l| l.frame_coding_ns as f64 / 1e6),
+                    accelerator: None,
                     reachable: !lost
                         && link.is_some_and(|l| {
                             l.connected == 1 && l.rtt_ms().is_some() && l.loss() < MAX_LOSS_TO_PLACE
@@ -192,20 +218,20 @@ impl Supervisor {
     fn observe(&mut self) -> (Vec<RoleLoad>, Vec<ExecutorLoad>) {
         // executors of the same CPUs are one place to run (two names of "auto" on a
         // one-CPU host): listed twice, each would look free while the other is loaded
-        let mut seen: Vec<&CpuSet> = Vec::new();
+        // (an accelerator executor is a place of its own, whatever CPUs it shares)
+        let mut local_sets: Vec<Option<CpuSet>> = Vec::new();
         let mut executors: Vec<ExecutorLoad> = Vec::new();
         for e in self.registry.executors() {
-            // an accelerator executor is no CPU set to predict a role's cycle on: roles go
-            // there by hand (`aeris migrate`), not by the policy
-            if self.accelerator_of(&e.name).is_some() {
+            let accelerator = self.accelerator_of(&e.name);
+            if accelerator.is_none() && local_sets.contains(&Some(e.cpus.clone())) {
                 continue;
             }
-            if !seen.contains(&&e.cpus) {
-                seen.push(&e.cpus);
-                executors.push(ExecutorLoad::local(&e.name, e.capacity(), e.busy));
-            }
+            local_sets.push(accelerator.is_none().then(|| e.cpus.clone()));
+            executors.push(ExecutorLoad {
+                accelerator,
+                ..ExecutorLoad::local(&e.name, e.capacity(), e.busy)
+            });
         }
-        let local_sets: Vec<CpuSet> = seen.into_iter().cloned().collect();
         let local = executors.len();
         executors.extend(self.remote_executor_loads());
         // in the order remote_executor_loads lists them
@@ -225,10 +251,14 @@ impl Supervisor {
                         .iter()
                         .position(|(name, host)| *name == r.executor && *host == link.host)
                         .map(|j| local + j),
+                    // on an accelerator: that executor, by name
+                    None if r.accelerator.is_some() => executors[..local]
+                        .iter()
+                        .position(|e| e.accelerator.is_some() && e.name == r.executor),
                     None => r
                         .cpu_set
                         .as_ref()
-                        .and_then(|set| local_sets.iter().position(|s| s == set)),
+                        .and_then(|set| local_sets.iter().position(|s| s.as_ref() == Some(set))),
                 }
                 .unwrap_or(usize::MAX);
                 let n = r.sched.len();
@@ -254,7 +284,6 @@ impl Supervisor {
                     waiting,
                     // a role that fell back with its link returns there by itself
                     movable: executor != usize::MAX
-                        && r.accelerator.is_none()
                         && r.state == RoleState::Running
                         && r.swap.is_none()
                         && r.returns_to.is_none()
@@ -262,11 +291,39 @@ impl Supervisor {
                     crosses_hosts: movable_across_hosts(&r.kind),
                     reads_frames: role_kind(&r.kind)
                         .is_some_and(|k| k.subscribes.contains(&topics::CAMERA_RGB)),
+                    kind_variant: (r.kind.clone(), r.variant.clone()),
+                    accelerator_ms: Vec::new(),
+                    cpu_base_ms: None,
                 };
                 // on another host its heartbeats give its own cycle: the link comes on top
                 let paid = executors.get(executor).map_or(0.0, |e| link_cost(&load, e));
                 load.latency_ms = percentiles
                     .map(|[p50, p95]| p95.max(p50 * (fast_s / slow_s.max(1.0)).max(1.0)) + paid);
+                // remember what it measured where it runs: its latency on an accelerator,
+                // its own cycle on CPUs (what a later move there or back is predicted from)
+                if let (Some(latency), Some(ex)) = (load.latency_ms, executors.get(executor))
+                    && r.swap.is_none()
+                {
+                    if ex.accelerator.is_some() {
+                        match r.accelerator_ms.iter_mut().find(|(n, _)| *n == ex.name) {
+                            Some(m) => m.1 = latency,
+                            None => r.accelerator_ms.push((ex.name.clone(), latency)),
+                        }
+                    } else {
+                        r.cpu_base_ms = Some((latency - paid).max(0.0) / fast_s.max(1.0));
+                    }
+                }
+                load.cpu_base_ms = r.cpu_base_ms;
+                load.accelerator_ms = r
+                    .accelerator_ms
+                    .iter()
+                    .filter_map(|(name, ms)| {
+                        let e = executors[..local]
+                            .iter()
+                            .position(|e| e.accelerator.is_some() && e.name == *name)?;
+                        Some((e, *ms))
+                    })
+                    .collect();
                 load
             })
             .collect();

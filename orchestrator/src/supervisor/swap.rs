@@ -409,6 +409,11 @@ impl Supervisor {
                 let _ = child.kill();
                 let _ = child.wait();
                 if let Some(p) = swap.placement {
+                    if p.accelerator.is_some() && p.remote.is_none() {
+                        // it cannot run there (no device, no offload, out of memory): the
+                        // policy predicts it never fits there, and probes it no more
+                        role.ruled_out_on(&p.executor);
+                    }
                     if let Some(policy) = p.policy {
                         // a fallback that never took over: the role waits, down, for its
                         // link (restarted when it is back, its policy restored then)

@@ -9,6 +9,7 @@
 //! scheduling, the fault table's lost decisions, hot swaps of language models) keep
 //! binaries of their own and fly alone.
 
+mod accelerator;
 mod ardupilot;
 mod default;
 mod external_autopilot;
