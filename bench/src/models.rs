@@ -116,6 +116,9 @@ pub struct ModelsReport {
     /// The accelerator the models ran on (`cuda:0`; absent: the CPU).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub accelerator: Option<String>,
+    /// Busy threads that ran outside the models meanwhile.
+    #[serde(default)]
+    pub outside_load: usize,
     /// One row per model.
     pub rows: Vec<ModelRow>,
 }

@@ -30,6 +30,10 @@ pub struct ModelsArgs {
     /// (CUDA, in a build with the `cuda` feature). A model that cannot is reported as failed.
     #[arg(long, value_name = "KIND:DEVICE")]
     pub accelerator: Option<Accelerator>,
+    /// Busy threads started outside the models for the run (unpinned, normal priority): the
+    /// models on a shared machine.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub outside_load: usize,
     /// Print one JSON object on the last line of stdout.
     #[arg(long)]
     pub json: bool,
@@ -76,9 +80,10 @@ pub fn run(a: ModelsArgs) -> Result<()> {
         .accelerator
         .map_or_else(|| "the CPU".to_string(), |x| x.to_string());
     println!(
-        "models on {on}: load time, latency over {} runs after a warm-up, resident memory; one process per model",
-        a.runs
+        "models on {on}: load time, latency over {} runs after a warm-up, resident memory; one process per model; {} busy threads outside",
+        a.runs, a.outside_load
     );
+    let _load = aeris_bench::flights::BusyThreads::start(None, a.outside_load);
     println!(
         "{:<12} {:<18} {:>7} {:>9} {:>9} {:>8} {:>9} {:>7}  output",
         "model", "role", "load_s", "p50_ms", "p95_ms", "rss_MiB", "model_MiB", "tok/s"
@@ -148,6 +153,7 @@ pub fn run(a: ModelsArgs) -> Result<()> {
         let report = ModelsReport {
             threads: threads_used,
             accelerator: a.accelerator.map(|x| x.to_string()),
+            outside_load: a.outside_load,
             rows,
         };
         println!("{}", serde_json::to_string(&report)?);

@@ -119,15 +119,15 @@ fn reason_text(failure: &Option<FlightFailure>) -> String {
 }
 
 /// Busy threads (pinned to a CPU set, or unpinned at normal priority) until dropped: the
-/// CPU hog of `bench ds`, the outside load of `bench record`, `cycle` and `swap`.
-pub(crate) struct BusyThreads {
+/// CPU hog of `bench ds`, the outside load of `bench record`, `cycle`, `swap` and `models`.
+pub struct BusyThreads {
     stop: Arc<AtomicBool>,
     threads: Vec<std::thread::JoinHandle<()>>,
 }
 
 impl BusyThreads {
     /// Start `n` busy threads, bound to `cpus` when given.
-    pub(crate) fn start(cpus: Option<&CpuSet>, n: usize) -> Self {
+    pub fn start(cpus: Option<&CpuSet>, n: usize) -> Self {
         let stop = Arc::new(AtomicBool::new(false));
         let threads = (0..n)
             .map(|_| {
