@@ -97,7 +97,10 @@ fn print_supervisor_event(event: &SupervisorEvent) {
         | SupervisorEvent::SwapFailed { .. }
         | SupervisorEvent::RoleMigrated(_)
         | SupervisorEvent::MoveAcrossHosts { .. }
+        | SupervisorEvent::MoveAccelerator { .. }
         | SupervisorEvent::MigrationFailed { .. }
+        | SupervisorEvent::RestartFailed { .. }
+        | SupervisorEvent::RoleGaveUp { .. }
         | SupervisorEvent::RoleStalled { .. }
         | SupervisorEvent::LinkLost { .. }
         | SupervisorEvent::LinkBack { .. }
@@ -108,6 +111,8 @@ fn print_supervisor_event(event: &SupervisorEvent) {
         | SupervisorEvent::InitialBinding { .. }
         | SupervisorEvent::RoleDegraded { .. }
         | SupervisorEvent::RoleRecovered { .. } => eprintln!("aeris: {event}"),
-        _ => {}
+        // the start line says these (no wildcard: a new event is printed or left out here
+        // on purpose; a wildcard hid the accelerator moves and the failed restarts)
+        SupervisorEvent::RoleStarted { .. } | SupervisorEvent::FirstHeartbeat { .. } => {}
     }
 }

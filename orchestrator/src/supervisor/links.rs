@@ -83,11 +83,12 @@ impl Supervisor {
             let silent_ms = silent.as_millis() as u64;
             let started = fallback.as_ref().and_then(|fb| {
                 let executor = fb.executor.clone().unwrap_or_default();
-                let place = flight_host_place(&executor);
+                let accelerator = self.accelerator_of(&executor);
+                let place = flight_host_place(&executor, accelerator);
                 let placement = Placement {
                     cpus: fb.cpus.clone(),
                     place: place.clone(),
-                    accelerator: self.accelerator_of(&executor),
+                    accelerator,
                     executor,
                     remote: None,
                     link_fallback: None,
@@ -350,11 +351,14 @@ fn return_to(
         })
 }
 
-/// The flight's host, and the executor there, for messages.
-pub(super) fn flight_host_place(executor: &str) -> String {
-    if executor.is_empty() {
-        "the flight's host".to_string()
-    } else {
-        format!("the flight's host (executor {executor})")
+/// The flight's host, and the executor there with its accelerator, for messages.
+pub(super) fn flight_host_place(
+    executor: &str,
+    accelerator: Option<aeris_runtime::accelerator::Accelerator>,
+) -> String {
+    match (executor.is_empty(), accelerator) {
+        (true, _) => "the flight's host".to_string(),
+        (false, None) => format!("the flight's host (executor {executor})"),
+        (false, Some(a)) => format!("the flight's host (executor {executor}, {a})"),
     }
 }

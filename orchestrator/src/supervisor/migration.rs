@@ -130,13 +130,17 @@ impl Supervisor {
                     String::new()
                 };
                 Placement {
-                    place: flight_host_place(&executor),
+                    place: flight_host_place(&executor, accelerator),
                     cpus: Some(set),
                     accelerator,
                     executor,
                     remote: None,
                     link_fallback: None,
-                    why: format!("moved by hand from host `{from}`"),
+                    why: if from.is_empty() {
+                        "moved by hand".to_string()
+                    } else {
+                        format!("moved by hand from host `{from}`")
+                    },
                     policy: None,
                     returning: None,
                 }
