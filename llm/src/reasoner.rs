@@ -314,7 +314,10 @@ impl LanguageReasoner {
             .with_n_ctx(NonZeroU32::new(ctx_tokens))
             .with_n_batch(BATCH as u32)
             .with_n_threads(config.threads.max(1))
-            .with_n_threads_batch(config.threads.max(1));
+            .with_n_threads_batch(config.threads.max(1))
+            // the KV cache on the GPU only for a role bound to one (a CUDA build would put it
+            // there for a role on a CPU set too)
+            .with_offload_kqv(config.accelerator.is_some());
         let ctx = model
             .new_context(backend, params)
             .map_err(|e| LlmError::Load {

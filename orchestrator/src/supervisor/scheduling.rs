@@ -7,6 +7,7 @@
 //! ([`Supervisor::move_role`]), a move on the flight's host is live.
 
 use super::Supervisor;
+use super::error::MigrateError;
 use super::events::{MigrationTrigger, SupervisorEvent};
 use super::role_runtime::{RoleState, SCHED_SAMPLES};
 use crate::executors::{SchedTime, process_sched_time};
@@ -156,12 +157,18 @@ impl Supervisor {
             match result {
                 Ok(()) => moved = true,
                 Err(e) => {
-                    if restarts
+                    // refused for the accelerator itself (no provider for it on this host):
+                    // not tried again; a passing refusal (a swap under way) may be
+                    let refused_there = matches!(
+                        e,
+                        MigrateError::NotAccelerated { .. }
+                            | MigrateError::AcceleratorUnavailable { .. }
+                            | MigrateError::AcceleratorUnchecked { .. }
+                    );
+                    if refused_there
                         && !across
-                        && to.accelerator.is_some()
                         && let Some(r) = self.roles.iter_mut().find(|r| r.name == role.name)
                     {
-                        // refused there (no provider for it on this host): not tried again
                         r.ruled_out_on(&to.name);
                     }
                     events.push(SupervisorEvent::MigrationFailed {
@@ -223,7 +230,7 @@ impl Supervisor {
         let mut executors: Vec<ExecutorLoad> = Vec::new();
         for e in self.registry.executors() {
             let accelerator = self.accelerator_of(&e.name);
-            if accelerator.is_none() && local_sets.contains(&Some(e.cpus.clone())) {
+            if accelerator.is_none() && local_sets.iter().any(|s| s.as_ref() == Some(&e.cpus)) {
                 continue;
             }
             local_sets.push(accelerator.is_none().then(|| e.cpus.clone()));
