@@ -152,13 +152,21 @@ pub fn swap(a: SwapArgs) -> Result<()> {
         report.role, report.outside_load, report.priority_detail
     );
     println!(
-        "{:<9} {:<9} {:>6} {:>10} {:>10} {:>7} {:>12}",
-        "from", "to", "done", "ready_ms", "done_ms", "missed", "max_gap_ms"
+        "{:<9} {:<9} {:>6} {:>10} {:>10} {:>7} {:>5} {:>9} {:>12}",
+        "from", "to", "done", "ready_ms", "done_ms", "missed", "late", "rejected", "max_gap_ms"
     );
     for r in &report.rows {
         println!(
-            "{:<9} {:<9} {:>6} {:>10.0} {:>10.0} {:>7} {:>12.1}",
-            r.from, r.to, r.done, r.ready_ms, r.done_ms, r.missed_heartbeats, r.max_setpoint_gap_ms
+            "{:<9} {:<9} {:>6} {:>10.0} {:>10.0} {:>7} {:>5} {:>9} {:>12.1}",
+            r.from,
+            r.to,
+            r.done,
+            r.ready_ms,
+            r.done_ms,
+            r.missed_heartbeats,
+            r.late_decisions,
+            r.rejected_decisions,
+            r.max_setpoint_gap_ms
         );
         if let Some(e) = &r.error {
             println!("  error: {e}");

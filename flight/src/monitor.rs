@@ -518,6 +518,11 @@ impl FlightMonitor {
         (max, percentile(&self.setpoint_gaps_ms, 50.0).unwrap_or(0.0))
     }
 
+    /// Decisions the hub received past their deadline so far (also counted as rejected).
+    pub fn late(&self) -> u64 {
+        self.hub.total(LATE)
+    }
+
     /// Decisions rejected so far (over every hub process of the flight).
     pub fn rejected(&self) -> u64 {
         self.hub.total(REJECTED)

@@ -43,6 +43,10 @@ pub struct SwapRow {
     /// Heartbeats without a fresh valid decision from the swap's start to one heartbeat
     /// after it ended.
     pub missed_heartbeats: u64,
+    /// Decisions the hub received late in that window (past the deadline; either process's).
+    pub late_decisions: u64,
+    /// Decisions the hub rejected in that window (late ones included).
+    pub rejected_decisions: u64,
     /// Longest interval between hub setpoints in that window (ms).
     pub max_setpoint_gap_ms: f64,
     /// Why it failed, if it did.
@@ -89,14 +93,14 @@ enum Phase {
         row: SwapRow,
         started: Instant,
         start_ns: u64,
-        reused_at_start: u64,
+        at_start: [u64; 3],
     },
     /// The swap ended; its window stays open one heartbeat longer.
     Settling {
         row: SwapRow,
         start_ns: u64,
         until: Instant,
-        reused_at_start: u64,
+        at_start: [u64; 3],
     },
 }
 
@@ -139,11 +143,13 @@ impl StepHook for SwapSchedule {
                     ready_ms: 0.0,
                     done_ms: 0.0,
                     missed_heartbeats: 0,
+                    late_decisions: 0,
+                    rejected_decisions: 0,
                     max_setpoint_gap_ms: 0.0,
                     error: None,
                 };
                 let start_ns = monotonic_ns();
-                let reused_at_start = monitor.reused();
+                let at_start = [monitor.reused(), monitor.late(), monitor.rejected()];
                 match ctx
                     .supervisor
                     .begin_swap(&self.role, &to, DEFAULT_SWAP_READY_TIMEOUT)
@@ -154,7 +160,7 @@ impl StepHook for SwapSchedule {
                             row,
                             started: Instant::now(),
                             start_ns,
-                            reused_at_start,
+                            at_start,
                         }
                     }
                     Err(e) => {
@@ -170,7 +176,7 @@ impl StepHook for SwapSchedule {
                 mut row,
                 started,
                 start_ns,
-                reused_at_start,
+                at_start,
             } => {
                 let mut ended = false;
                 for event in ctx.events {
@@ -196,14 +202,14 @@ impl StepHook for SwapSchedule {
                         row,
                         start_ns,
                         until: Instant::now() + self.period,
-                        reused_at_start,
+                        at_start,
                     }
                 } else {
                     Phase::Swapping {
                         row,
                         started,
                         start_ns,
-                        reused_at_start,
+                        at_start,
                     }
                 }
             }
@@ -211,9 +217,11 @@ impl StepHook for SwapSchedule {
                 mut row,
                 start_ns,
                 until,
-                reused_at_start,
+                at_start,
             } if Instant::now() >= until => {
-                row.missed_heartbeats = monitor.reused().saturating_sub(reused_at_start);
+                row.missed_heartbeats = monitor.reused().saturating_sub(at_start[0]);
+                row.late_decisions = monitor.late().saturating_sub(at_start[1]);
+                row.rejected_decisions = monitor.rejected().saturating_sub(at_start[2]);
                 row.max_setpoint_gap_ms = monitor.setpoint_gaps_ms(start_ns, monotonic_ns()).0;
                 ctx.note(format!(
                     "bench swap: {} -> {}: {} ({:.0} ms to ready, {:.0} ms to done), {} missed heartbeats, longest setpoint gap {:.1} ms",
