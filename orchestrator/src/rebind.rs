@@ -92,6 +92,10 @@ pub struct RoleLoad {
     pub crosses_hosts: bool,
     /// It reads frames (a role on another host waits for each to be encoded for the link).
     pub reads_frames: bool,
+    /// Its worker threads (a language model's `threads`): it is never moved live onto fewer
+    /// CPUs (two llama.cpp workers on one CPU spin at their barriers and starve each other;
+    /// a restart elsewhere starts it with as many as it has CPUs).
+    pub threads: usize,
     /// Its kind and variant (`detector`, `yolo`): which accelerators can run it
     /// ([`crate::workflow::runs_on_accelerator`]).
     pub kind_variant: (String, String),

@@ -238,12 +238,17 @@ fn probe_accelerator(
 
 /// Whether `role` may go from `from` to `to`: there only while its link is up, to another
 /// host only a role that may run there, from one other host to a different one only
-/// through the flight's host, and to an accelerator only a model role it can run.
+/// through the flight's host, to an accelerator only a model role it can run, and live
+/// (between CPU executors of one host) only onto at least as many CPUs as its threads.
 fn allowed(role: &RoleLoad, from: Option<&ExecutorLoad>, to: &ExecutorLoad) -> bool {
     let from_host = from.and_then(|e| e.host.as_ref());
     let (kind, variant) = &role.kind_variant;
-    to.accelerator
-        .is_none_or(|a| crate::workflow::runs_on_accelerator(kind, variant, a))
+    let live = from.is_some_and(|f| f.accelerator.is_none() && f.host == to.host)
+        && to.accelerator.is_none();
+    (!live || to.capacity >= role.threads as f64)
+        && to
+            .accelerator
+            .is_none_or(|a| crate::workflow::runs_on_accelerator(kind, variant, a))
         && to.reachable
         && (to.host.is_none() || role.crosses_hosts)
         && (from_host.is_none() || to.host.is_none() || from_host == to.host.as_ref())
@@ -632,5 +637,29 @@ mod tests {
         executors[2].accelerator = Some("cuda:0".parse().unwrap());
         let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]).expect("a probe");
         assert!(plan.probe, "{plan:?}");
+    }
+
+    #[test]
+    fn a_two_thread_reasoner_is_never_moved_live_onto_one_cpu() {
+        // the 2-core VM under load: the reasoner (2 llama.cpp threads) over budget on both
+        // CPUs, a one-CPU executor predicted to fit it better
+        let mut reasoning = role("reasoning", 0, 1000.0, 1157.0, 0.9);
+        reasoning.slowdown = 1.6;
+        reasoning.waiting = 0.5;
+        reasoning.threads = 2;
+        let two = ExecutorLoad {
+            capacity: 2.0,
+            ..ex("reasoning", 2.0)
+        };
+        let roles = vec![reasoning.clone()];
+        let executors = vec![two.clone(), ex("perception", 0.2)];
+        assert_eq!(plan_fewest_moves(&roles, &executors, 0.1, 3, &[]), None);
+        // with one thread it may go
+        let roles = vec![RoleLoad {
+            threads: 1,
+            ..reasoning
+        }];
+        let plan = plan_fewest_moves(&roles, &executors, 0.1, 3, &[]).expect("a plan");
+        assert_eq!(plan.moves[0].to, 1);
     }
 }

@@ -22,6 +22,7 @@ pub(super) fn role(
         movable: true,
         crosses_hosts: true,
         reads_frames: false,
+        threads: 1,
         kind_variant: ("detector".into(), "yolo".into()),
         accelerator_ms: Vec::new(),
         cpu_base_ms: None,

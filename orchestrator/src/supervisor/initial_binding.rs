@@ -225,6 +225,7 @@ impl Supervisor {
                         e != p.home
                             && executors[e].host.is_none()
                             && executors[e].accelerator.is_none()
+                            && executors[e].capacity >= roles[p.role].threads as f64
                     })
                     .map(move |e| (k, e))
             })

@@ -154,6 +154,10 @@ pub struct RoleRuntime {
     pub(super) declared_fallback: Option<PlannedFallback>,
     /// Running its fallback since its link was lost: where it returns when the link is back.
     pub(super) returns_to: Option<ReturnTo>,
+    /// Its worker threads as asked: its `threads` parameter, else 2 for a reasoner (a
+    /// language model's default) and 1 for the others (the policy takes at most the CPUs it
+    /// runs on: a language model starts with no more); never moved live onto fewer CPUs.
+    pub(super) threads: usize,
     /// Its latency (ms) as last measured on each accelerator executor it ran on (by name).
     pub(super) accelerator_ms: Vec<(String, f64)>,
     /// Its own cycle (ms, without slowdown or link) as last measured on a CPU executor.
@@ -293,7 +297,13 @@ impl RoleRuntime {
             held_policy: None,
         });
         let accelerator = spec.accelerator.as_deref().and_then(|a| a.parse().ok());
+        let threads = spec
+            .param_f64("threads")
+            .map_or(if spec.kind == "reasoning" { 2 } else { 1 }, |t| {
+                t.clamp(1.0, 64.0) as usize
+            });
         RoleRuntime {
+            threads,
             accelerator,
             link,
             returns_to: None,
@@ -449,6 +459,7 @@ mod tests {
 
     fn runtime() -> RoleRuntime {
         RoleRuntime {
+            threads: 1,
             accelerator: None,
             link: None,
             returns_to: None,

@@ -298,6 +298,13 @@ impl Supervisor {
                     crosses_hosts: movable_across_hosts(&r.kind),
                     reads_frames: role_kind(&r.kind)
                         .is_some_and(|k| k.subscribes.contains(&topics::CAMERA_RGB)),
+                    // a language model starts with no more threads than it had CPUs (and a
+                    // live move keeps them): at most the CPUs it runs on now
+                    threads: r.threads.min(
+                        r.cpu_set
+                            .as_ref()
+                            .map_or(r.threads, |s| s.cpus().len().max(1)),
+                    ),
                     kind_variant: (r.kind.clone(), r.variant.clone()),
                     accelerator_ms: Vec::new(),
                     cpu_base_ms: None,
