@@ -5,6 +5,7 @@
 use aeris_orchestrator::executors::{AcceleratorInfo, ExecutorRegistry, accelerators_from};
 use aeris_orchestrator::launch::{PlanError, plan_launch};
 use aeris_orchestrator::workflow::Workflow;
+use aeris_runtime::accelerator::AcceleratorKind;
 use aeris_runtime::affinity::CpuSet;
 
 /// What the provisioned ONNX Runtime reports: its execution providers and the accelerator
@@ -52,7 +53,20 @@ pub fn accelerator_line(registry: &ExecutorRegistry) -> String {
         .collect::<Vec<_>>()
         .join(", ");
     if registry.accelerators().is_empty() {
-        return format!("accelerators: none (ONNX Runtime providers: {providers})");
+        // ONNX Runtime lists devices only for the providers it registers itself: a CUDA,
+        // TensorRT or ROCm provider works without its device being listed (seen on an H100)
+        let gpu = registry.providers().is_some_and(|ps| {
+            AcceleratorKind::ALL
+                .iter()
+                .any(|k| ps.iter().any(|p| p == k.provider()))
+        });
+        return if gpu {
+            format!(
+                "accelerators: no device listed by ONNX Runtime; its providers: {providers} (an executor's `accelerator` names the device)"
+            )
+        } else {
+            format!("accelerators: none (ONNX Runtime providers: {providers})")
+        };
     }
     let list = registry
         .accelerators()
