@@ -2,8 +2,9 @@
 # The GPU check of the accelerator executors, on a machine with an NVIDIA GPU:
 #   1. `aeris bench models` on the CPU and with --accelerator cuda:0 (ONNX Runtime's CUDA
 #      provider), idle and beside busy threads;
-#   2. the default flight with its YOLO detector on a `cuda:0` executor (gpu-flight.toml) and
-#      the same flight with the detector on CPUs, flown side by side;
+#   2. the default flight (workflows/default.toml) with a YOLO detector on a `cuda:0`
+#      executor (OUT_DIR/gpu-flight.toml) and the same flight with the detector on CPUs
+#      (OUT_DIR/cpu-flight.toml), flown side by side;
 #   3. llama.cpp's offload: llama_offload.cpp (the llama.cpp aeris links, the model the
 #      reasoning role loads) with no layer and every layer on the GPU, idle and loaded.
 #
@@ -29,7 +30,16 @@ step "machine"
 nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader
 grep -m1 'model name' /proc/cpuinfo
 echo "CPUs: $(nproc); busy threads for the loaded runs: $load"
-"$aeris" validate "$here/gpu-flight.toml" 2>&1 | tail -4
+# the default flight, and a YOLO detector on the GPU (or, for the comparison, on CPUs)
+workflows=$(cd "$here/../../workflows" && pwd)
+flight() {
+    cat "$workflows/default.toml"
+    printf '\n[executors.gpu]\ncpus = "auto"\naccelerator = "cuda:0"\n\n'
+    printf '[[roles]]\nname = "detector"\nkind = "detector"\nvariant = "yolo"\nexecutor = "%s"\n' "$1"
+}
+flight gpu >"$out/gpu-flight.toml"
+flight perception >"$out/cpu-flight.toml"
+"$aeris" validate "$out/gpu-flight.toml" 2>&1 | tail -4
 
 step "models on the CPU, idle"
 "$aeris" bench models --only "$onnx" --runs 20 --json | tee "$out/models-cpu.txt"
@@ -41,8 +51,7 @@ step "models on cuda:0, $load busy threads"
 "$aeris" bench models --only "$onnx" --runs 20 --accelerator cuda:0 --outside-load "$load" --json | tee "$out/models-cuda-load.txt"
 
 step "flights: the detector on cuda:0 and on CPUs, side by side"
-sed 's/^executor = "gpu"$/executor = "perception"/' "$here/gpu-flight.toml" >"$out/cpu-flight.toml"
-"$aeris" run "$here/gpu-flight.toml" --json --flight gpu-check-gpu >"$out/flight-gpu.txt" 2>"$out/flight-gpu.err" &
+"$aeris" run "$out/gpu-flight.toml" --json --flight gpu-check-gpu >"$out/flight-gpu.txt" 2>"$out/flight-gpu.err" &
 gpu_pid=$!
 "$aeris" run "$out/cpu-flight.toml" --json --flight gpu-check-cpu >"$out/flight-cpu.txt" 2>"$out/flight-cpu.err"
 echo "detector on CPUs: exit $?"
