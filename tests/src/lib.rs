@@ -130,6 +130,18 @@ pub fn default_workflow() -> toml::Table {
     text.parse().expect("default workflow parses")
 }
 
+/// Add an executor `gpu` on `accelerator` (`cuda:0`), its processes on any CPU, to a
+/// workflow table.
+pub fn add_gpu_executor(workflow: &mut toml::Table, accelerator: &str) {
+    let mut gpu = toml::Table::new();
+    gpu.insert("cpus".into(), "auto".into());
+    gpu.insert("accelerator".into(), accelerator.into());
+    workflow["executors"]
+        .as_table_mut()
+        .expect("[executors] table")
+        .insert("gpu".into(), toml::Value::Table(gpu));
+}
+
 /// Set `variant` of the role named `role` in a workflow table.
 pub fn set_variant(workflow: &mut toml::Table, role: &str, variant: &str) {
     let roles = workflow

@@ -117,13 +117,7 @@ fn role_on(dir: &std::path::Path, name: &str, accelerator: &str, role: &str) -> 
     )
     .unwrap();
     let mut w: toml::Table = text.parse().unwrap();
-    let mut gpu = toml::Table::new();
-    gpu.insert("cpus".into(), "auto".into());
-    gpu.insert("accelerator".into(), accelerator.into());
-    w["executors"]
-        .as_table_mut()
-        .unwrap()
-        .insert("gpu".into(), toml::Value::Table(gpu));
+    add_gpu_executor(&mut w, accelerator);
     for r in w["roles"].as_array_mut().unwrap() {
         if r["name"].as_str() == Some(role) {
             r.as_table_mut()

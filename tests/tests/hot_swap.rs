@@ -130,13 +130,7 @@ fn roles_are_hot_swapped_during_a_flight_and_broken_variants_roll_back() {
         toml::Value::Array(vec!["compose".into(), "vlm".into()]),
     );
     // an accelerator executor no role starts on: this host's ONNX Runtime has no CUDA
-    let mut gpu = toml::Table::new();
-    gpu.insert("cpus".into(), "auto".into());
-    gpu.insert("accelerator".into(), "cuda:0".into());
-    w["executors"]
-        .as_table_mut()
-        .unwrap()
-        .insert("gpu".into(), toml::Value::Table(gpu));
+    add_gpu_executor(&mut w, "cuda:0");
     let path = write_workflow(&dir.0, "models.toml", &w);
     let mut run = spawn_run(&dir.0, &flight, &[path.to_str().unwrap(), "--no-ds"]);
 

@@ -15,13 +15,7 @@ fn a_model_role_over_budget_is_probed_on_the_accelerator_once_and_stays_when_it_
     let dir = TempDir::new("accel-probe");
     let flight = unique_flight("accel-probe");
     let mut w = default_workflow();
-    let mut gpu = toml::Table::new();
-    gpu.insert("cpus".into(), "auto".into());
-    gpu.insert("accelerator".into(), "cuda:0".into());
-    w["executors"]
-        .as_table_mut()
-        .unwrap()
-        .insert("gpu".into(), toml::Value::Table(gpu));
+    add_gpu_executor(&mut w, "cuda:0");
     let mut detector = toml::Table::new();
     detector.insert("name".into(), "detector".into());
     detector.insert("kind".into(), "detector".into());
