@@ -149,3 +149,13 @@ fn joining_a_flight_logs_nothing_of_iceoryx2s_own() {
     );
     assert!(stderr.trim().is_empty(), "the child logged: {stderr}");
 }
+
+/// Every node of ours waits [`SERVICE_CREATION_TIMEOUT`] (not iceoryx2's 1 s) for a service
+/// another process is still creating: on two busy cores the hub once took longer than 1 s to
+/// create `hub/report`, and `aeris run` failed the flight.
+#[test]
+fn opening_a_service_waits_for_a_slow_creator() {
+    use aeris_runtime::bus::{SERVICE_CREATION_TIMEOUT, iceoryx_config};
+    assert!(SERVICE_CREATION_TIMEOUT >= core::time::Duration::from_secs(10));
+    assert!(iceoryx_config().global.creation_timeout >= SERVICE_CREATION_TIMEOUT);
+}

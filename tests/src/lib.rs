@@ -112,6 +112,34 @@ pub fn poll_until<T>(bound: std::time::Duration, mut cond: impl FnMut() -> Optio
     }
 }
 
+/// Poll `cond` while the flight `run` (started by [`spawn_run`] in `dir`) is running, until it
+/// returns `Some`. Panics, with the flight's output, when `aeris run` exits first (at once, not
+/// after `bound`) or after `bound` (hang guard); `what` names what was awaited.
+pub fn poll_flight<T>(
+    run: &mut ChildGuard,
+    dir: &std::path::Path,
+    what: &str,
+    bound: std::time::Duration,
+    mut cond: impl FnMut() -> Option<T>,
+) -> T {
+    let start = std::time::Instant::now();
+    loop {
+        if let Some(v) = cond() {
+            return v;
+        }
+        if let Ok(Some(status)) = run.0.try_wait() {
+            panic!(
+                "aeris run exited ({status}) before {what}: {:?}",
+                run_output(dir)
+            );
+        }
+        if start.elapsed() > bound {
+            panic!("{what}: not within {bound:?}: {:?}", run_output(dir));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+}
+
 /// The last line of `stdout` parsed as JSON.
 pub fn last_json_line(stdout: &str) -> serde_json::Value {
     let line = stdout

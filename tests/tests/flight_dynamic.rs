@@ -39,13 +39,18 @@ fn a_role_moves_live_and_a_stopped_role_is_replaced_while_the_flight_completes()
         .node_name("test-observer")
         .create()
         .unwrap();
-    let board = poll_until(Duration::from_secs(120), || {
-        observer
-            .read_status_board()
-            .ok()
-            .filter(|b| b.role_count >= 6 && b.roles().iter().all(|r| r.heartbeats > 0))
-    })
-    .unwrap_or_else(|| panic!("flight never came up: {:?}", run_output(&dir.0)));
+    let board = poll_flight(
+        &mut run,
+        &dir.0,
+        "the flight came up",
+        Duration::from_secs(120),
+        || {
+            observer
+                .read_status_board()
+                .ok()
+                .filter(|b| b.role_count >= 6 && b.roles().iter().all(|r| r.heartbeats > 0))
+        },
+    );
     let before = entry(&board, "reasoning").unwrap();
     let hub = entry(&board, "hub").unwrap();
     let heartbeats = observer

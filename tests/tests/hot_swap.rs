@@ -144,10 +144,9 @@ fn roles_are_hot_swapped_during_a_flight_and_broken_variants_roll_back() {
             && b.active_step >= 1
             && b.roles().iter().all(|r| r.pid != 0 && r.heartbeats > 0)
     };
-    let before = poll_until(UP_BOUND, || {
+    let before = poll_flight(&mut run, &dir.0, "the flight came up", UP_BOUND, || {
         observer.read_status_board().ok().filter(board_ok)
-    })
-    .unwrap_or_else(|| panic!("flight never came up: {:?}", run_output(&dir.0)));
+    });
     let telemetry = observer
         .subscriber::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)
         .unwrap();

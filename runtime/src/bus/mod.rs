@@ -43,18 +43,30 @@ pub type Ipc = ipc::Service;
 /// configuration (the clean-up of a dead node whose details are gone) find it set up: no
 /// process logs iceoryx2's "No config file was loaded" warning, which said nothing
 /// actionable in every role and test log.
+///
+/// One setting is raised: how long a process waits for a service another process is still
+/// creating ([`SERVICE_CREATION_TIMEOUT`], iceoryx2's default is 1 s).
 pub fn iceoryx_config() -> &'static Config {
-    static QUIET_SETUP: std::sync::Once = std::sync::Once::new();
-    QUIET_SETUP.call_once(|| {
+    static CONFIG: std::sync::OnceLock<Config> = std::sync::OnceLock::new();
+    CONFIG.get_or_init(|| {
         let level = iceoryx2_log::get_log_level();
         if level < LogLevel::Error as u8 {
             set_log_level(LogLevel::Error);
         }
-        let _ = Config::global_config();
+        let mut config = Config::global_config().clone();
         set_log_level(log_level_from(level));
-    });
-    Config::global_config()
+        config.global.creation_timeout =
+            config.global.creation_timeout.max(SERVICE_CREATION_TIMEOUT);
+        config
+    })
 }
+
+/// How long opening a service waits while another process is creating it. iceoryx2's 1 s
+/// default failed a CI flight: on two cores, with ten roles loading their models, the hub
+/// took over a second to create `hub/report` and `aeris run` gave up on it
+/// (`PublishSubscribeOpenError(DoesNotExist)`). A creator that died half-way still fails
+/// every opener, after this long.
+pub const SERVICE_CREATION_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// The [`LogLevel`] whose number is `level` (iceoryx2 reports its level as a number).
 fn log_level_from(level: u8) -> LogLevel {

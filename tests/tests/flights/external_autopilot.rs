@@ -65,13 +65,18 @@ fn run_flies_an_external_autopilot_over_mavlink() {
         .node_name("test-observer")
         .create()
         .unwrap();
-    let board = poll_until(Duration::from_secs(120), || {
-        observer
-            .read_status_board()
-            .ok()
-            .filter(|b| b.role_count > 0 && b.roles().iter().all(|r| r.heartbeats > 0))
-    })
-    .unwrap_or_else(|| panic!("flight never came up: {:?}", run_output(&dir.0)));
+    let board = poll_flight(
+        &mut run,
+        &dir.0,
+        "the flight came up",
+        Duration::from_secs(120),
+        || {
+            observer
+                .read_status_board()
+                .ok()
+                .filter(|b| b.role_count > 0 && b.roles().iter().all(|r| r.heartbeats > 0))
+        },
+    );
     let names: Vec<&str> = board
         .roles()
         .iter()

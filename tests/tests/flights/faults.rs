@@ -18,10 +18,13 @@ fn every_role_killed_in_turn_is_restarted_and_the_flight_completes() {
     let board_ok = |b: &aeris_schemas::SupervisorStatus| {
         b.role_count >= 6 && b.roles().iter().all(|r| r.pid != 0 && r.heartbeats > 0)
     };
-    poll_until(Duration::from_secs(120), || {
-        observer.read_status_board().ok().filter(board_ok)
-    })
-    .unwrap_or_else(|| panic!("flight never came up: {:?}", run_output(&dir.0)));
+    poll_flight(
+        &mut run,
+        &dir.0,
+        "the flight came up",
+        Duration::from_secs(120),
+        || observer.read_status_board().ok().filter(board_ok),
+    );
 
     for role in [
         "camera",

@@ -82,11 +82,16 @@ fn a_recorded_flight_reads_back_with_the_summarys_counts() {
         .node_name("test-observer")
         .create()
         .unwrap();
-    poll_until(Duration::from_secs(180), || {
-        let b = observer.read_status_board().ok()?;
-        (b.supervisor_pid != 0 && b.roles().iter().all(|r| r.heartbeats > 0)).then_some(())
-    })
-    .unwrap_or_else(|| panic!("the flight never came up: {:?}", run_output(&dir.0)));
+    poll_flight(
+        &mut run,
+        &dir.0,
+        "the flight came up",
+        Duration::from_secs(180),
+        || {
+            let b = observer.read_status_board().ok()?;
+            (b.supervisor_pid != 0 && b.roles().iter().all(|r| r.heartbeats > 0)).then_some(())
+        },
+    );
     let attached = dir.0.join("attached.mcap");
     let attach_out = dir.0.join("attach.stdout");
     let attach_err = dir.0.join("attach.stderr");

@@ -47,12 +47,17 @@ fn the_standby_takes_the_lease_when_the_holder_is_killed_or_stopped() {
     // faults in flight, not during start-up: every role up and a decision committed (CI once
     // killed the holder 0.6 s after the start, before the hub's first setpoint, and once
     // stopped the other controller before its first heartbeat)
-    let board = poll_until(Duration::from_secs(120), || {
-        observer.read_status_board().ok().filter(|b| {
-            b.active_step >= 1 && b.roles().iter().all(|r| r.pid != 0 && r.heartbeats > 0)
-        })
-    })
-    .unwrap_or_else(|| panic!("the flight never came up: {:?}", run_output(&dir.0)));
+    let board = poll_flight(
+        &mut run,
+        &dir.0,
+        "the flight came up",
+        Duration::from_secs(120),
+        || {
+            observer.read_status_board().ok().filter(|b| {
+                b.active_step >= 1 && b.roles().iter().all(|r| r.pid != 0 && r.heartbeats > 0)
+            })
+        },
+    );
     // a holder that tracks the hub's setpoints: its reference is what a takeover adopts
     let holder = poll_until(Duration::from_secs(60), || {
         newest(0).filter(|l| l.flags & aeris_schemas::LEASE_HAS_REFERENCE != 0)
