@@ -106,6 +106,51 @@ pub struct HubRole {
     reports: TypedPublisher<HubReport>,
     /// The occupancy status last logged.
     occupancy: Option<OccupancyStatus>,
+    /// Lines logged about rejected decisions and missed heartbeats (at most
+    /// [`VERDICT_LOG_LINES`]).
+    verdicts_logged: u32,
+}
+
+/// Lines the hub logs, at most, about rejected or late decisions and heartbeats that
+/// closed without a decision: enough to see who was late in a flight, bounded so a reasoner
+/// sending garbage cannot fill the disk.
+pub const VERDICT_LOG_LINES: u32 = 200;
+
+/// Log a rejected or late decision (which instance sent it, which cycle, why), while fewer
+/// than [`VERDICT_LOG_LINES`] lines were logged.
+fn log_verdict(logged: &mut u32, d: &Decision, verdict: &DecisionVerdict) {
+    if *logged >= VERDICT_LOG_LINES {
+        return;
+    }
+    let slot = |report: &Option<HubReport>| {
+        if report.is_some() {
+            "its heartbeat is missed"
+        } else {
+            "no heartbeat missed"
+        }
+    };
+    match verdict {
+        DecisionVerdict::Late { age_ns, report } => eprintln!(
+            "hub: late decision from reasoner instance {} (cycle {}, seq {}): received {:.0} ms after its cycle start; {}",
+            d.source,
+            d.cycle,
+            d.seq,
+            *age_ns as f64 / 1e6,
+            slot(report)
+        ),
+        DecisionVerdict::Rejected { reason, report } => eprintln!(
+            "hub: rejected decision from reasoner instance {} (cycle {}, seq {}): {reason}; {}",
+            d.source,
+            d.cycle,
+            d.seq,
+            slot(report)
+        ),
+        DecisionVerdict::Committed { .. } | DecisionVerdict::Superseded { .. } => return,
+    }
+    *logged += 1;
+    if *logged == VERDICT_LOG_LINES {
+        eprintln!("hub: {VERDICT_LOG_LINES} lines about rejected decisions logged; no more");
+    }
 }
 
 impl HubRole {
@@ -133,6 +178,7 @@ impl Role for HubRole {
             setpoints: ctx.bus.publisher(topics::HUB_SETPOINT)?,
             reports: ctx.bus.publisher(topics::HUB_REPORT)?,
             occupancy: None,
+            verdicts_logged: 0,
         })
     }
 
@@ -183,10 +229,12 @@ impl Role for HubRole {
         }
         let core = &mut self.core;
         let reports = &self.reports;
+        let logged = &mut self.verdicts_logged;
         let decisions = self.decisions.drain(|d| {
             let receive = monotonic_ns();
             let verdict = core.on_decision_timed(d, receive, monotonic_ns);
             gate_ns += monotonic_ns().saturating_sub(receive);
+            log_verdict(logged, d, &verdict);
             let out = match verdict {
                 DecisionVerdict::Committed { report, .. } => Some(report),
                 DecisionVerdict::Rejected { report, .. } | DecisionVerdict::Late { report, .. } => {
@@ -209,6 +257,13 @@ impl Role for HubRole {
         let tick = self.core.on_tick(now);
         gate_ns += monotonic_ns().saturating_sub(now);
         if let Some(r) = tick.report {
+            if r.reused == 1 && r.committed == 0 && self.verdicts_logged < VERDICT_LOG_LINES {
+                self.verdicts_logged += 1;
+                eprintln!(
+                    "hub: a heartbeat closed without a fresh decision from reasoner instance {}: the last one is reused ({} reused in this flight)",
+                    r.decision_source, r.decisions_reused
+                );
+            }
             self.reports.publish(&r)?;
         }
         if let Some(sp) = tick.setpoint {
