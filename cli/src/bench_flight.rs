@@ -173,10 +173,11 @@ pub fn swap(a: SwapArgs) -> Result<()> {
         }
     }
     println!(
-        "swaps {} (failed {}), missed heartbeats {}, longest setpoint gap during swaps {:.1} ms (normal period {:.1} ms, longest in the flight {:.1} ms)",
+        "swaps {} (failed {}), missed heartbeats {} in the swaps ({} in the whole flight), longest setpoint gap during swaps {:.1} ms (normal period {:.1} ms, longest in the flight {:.1} ms)",
         report.swaps,
         report.swaps_failed,
         report.missed_heartbeats,
+        report.flight_missed_heartbeats,
         report.max_setpoint_gap_ms,
         report.setpoint_period_ms,
         report.flight_max_setpoint_gap_ms

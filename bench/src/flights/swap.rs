@@ -41,7 +41,7 @@ pub struct SwapRow {
     /// From the swap's start to the old process's exit (ms).
     pub done_ms: f64,
     /// Heartbeats without a fresh valid decision from the swap's start to one heartbeat
-    /// after it ended.
+    /// and one decision deadline after it ended.
     pub missed_heartbeats: u64,
     /// Decisions the hub received late in that window (past the deadline; either process's).
     pub late_decisions: u64,
@@ -64,6 +64,8 @@ pub struct SwapReport {
     pub swaps_failed: u32,
     /// Heartbeats missed during all swap windows.
     pub missed_heartbeats: u64,
+    /// Heartbeats missed in the whole flight, swap windows or not.
+    pub flight_missed_heartbeats: u64,
     /// Longest setpoint interval during any swap window (ms).
     pub max_setpoint_gap_ms: f64,
     /// Median setpoint interval over the whole flight (ms): the normal period.
@@ -113,8 +115,10 @@ struct SwapSchedule {
     /// The variant running now.
     current: String,
     every: Duration,
-    /// One heartbeat: how long a window stays open after its swap ended.
-    period: Duration,
+    /// How long a window stays open after its swap ended: one heartbeat plus the decision
+    /// deadline, the longest the hub waits before it counts a heartbeat without a decision
+    /// (a swap's miss shows by then).
+    settle: Duration,
     swaps: usize,
     phase: Phase,
     rows: Vec<SwapRow>,
@@ -201,7 +205,7 @@ impl StepHook for SwapSchedule {
                     Phase::Settling {
                         row,
                         start_ns,
-                        until: Instant::now() + self.period,
+                        until: Instant::now() + self.settle,
                         at_start,
                     }
                 } else {
@@ -285,7 +289,11 @@ pub fn run(
         });
     }
     let current = decl.variant.clone();
-    let period = Duration::from_millis(w.timing.heartbeat_period_ms);
+    let settle = Duration::from_millis(
+        w.timing
+            .heartbeat_period_ms
+            .saturating_add(w.timing.decision_deadline_ms),
+    );
     w.mission.max_duration_s = w
         .mission
         .max_duration_s
@@ -296,7 +304,7 @@ pub fn run(
         next: 0,
         current,
         every: Duration::from_secs_f64(config.every_s),
-        period,
+        settle,
         swaps: config.swaps as usize,
         phase: Phase::Waiting {
             since: Instant::now(),
@@ -330,6 +338,7 @@ pub fn run(
         swaps: rows.iter().filter(|r| r.done).count() as u32,
         swaps_failed: rows.iter().filter(|r| !r.done).count() as u32,
         missed_heartbeats: rows.iter().map(|r| r.missed_heartbeats).sum(),
+        flight_missed_heartbeats: outcome.summary.decisions_reused,
         max_setpoint_gap_ms: rows
             .iter()
             .map(|r| r.max_setpoint_gap_ms)
