@@ -10,6 +10,15 @@
 //! the reasoner happened to look: a replayed flight (the same frames at the same relative
 //! times) decides on the same frames, which is what makes its decisions comparable, byte
 //! for byte, with the recorded ones.
+//!
+//! One exception, for a reasoner that starts during a flight (a hot swap, a restart): its
+//! first S_t is the one the topic's history hands it, up to a heartbeat old. A decision on
+//! it would reach the hub after the deadline (measured: 2.2-2.8 s after its capture for
+//! Gemma-3, and the replaced reasoner had already been stopped, so a heartbeat went without
+//! a decision). So such a reasoner takes its first S_t only if it is young enough to be
+//! decided within the deadline ([`HeartbeatClock::first_state_max_age`]); an older one is
+//! counted as its predecessor's cycle, so the next S_t in the flight's rhythm starts its
+//! first. A reasoner at a flight's start (or a replay's) has no such limit.
 
 /// Share of a heartbeat after a cycle's start from which a captured S_t starts the next
 /// cycle (the rest absorbs the jitter of the perception pipeline), as tenths: 9 = 0.9
@@ -38,6 +47,8 @@ pub struct HeartbeatClock {
     last_ns: Option<u64>,
     /// When the last cycle started: its S_t's capture, or the decision itself.
     last_cycle_ns: Option<u64>,
+    /// The oldest the first S_t may be when looked at (ns).
+    first_max_age_ns: u64,
 }
 
 impl HeartbeatClock {
@@ -50,7 +61,16 @@ impl HeartbeatClock {
             started_ns: None,
             last_ns: None,
             last_cycle_ns: None,
+            first_max_age_ns: u64::MAX,
         }
+    }
+
+    /// Take a first S_t only if, when looked at, it is at most `max_age_ns` old: the
+    /// decision deadline less the time a decision takes, so that the first decision of a
+    /// reasoner started during a flight is not late (default: any age).
+    pub fn first_state_max_age(mut self, max_age_ns: u64) -> Self {
+        self.first_max_age_ns = max_age_ns;
+        self
     }
 
     fn tenths(&self, n: u64) -> u64 {
@@ -62,11 +82,19 @@ impl HeartbeatClock {
         self.started_ns.get_or_insert(now_ns);
     }
 
-    /// Whether an S_t captured at `capture_ns` starts the next cycle: the first S_t does;
-    /// after that, one captured at least 0.9 heartbeats after the last cycle's start.
-    pub fn takes(&self, capture_ns: u64) -> bool {
-        self.last_cycle_ns
-            .is_none_or(|last| capture_ns >= last.saturating_add(self.tenths(FRESH_AFTER_TENTHS)))
+    /// Whether an S_t captured at `capture_ns`, looked at `now_ns`, starts the next cycle:
+    /// the first S_t does if it is young enough ([`HeartbeatClock::first_state_max_age`]),
+    /// else it counts as a cycle decided before this reasoner (at `now_ns`); after that, one
+    /// captured at least 0.9 heartbeats after the last cycle's start.
+    pub fn takes(&mut self, capture_ns: u64, now_ns: u64) -> bool {
+        match self.last_cycle_ns {
+            None if now_ns.saturating_sub(capture_ns) <= self.first_max_age_ns => true,
+            None => {
+                self.decided(now_ns, capture_ns);
+                false
+            }
+            Some(last) => capture_ns >= last.saturating_add(self.tenths(FRESH_AFTER_TENTHS)),
+        }
     }
 
     /// Whether to decide now, and on what; `fresh_state` says an S_t the clock
@@ -109,7 +137,7 @@ mod tests {
         for k in 0..10u64 {
             let capture = k * 2 * S;
             let t = capture + if k % 2 == 0 { 190 } else { 260 } * 1_000_000;
-            assert!(c.takes(capture), "state {k}");
+            assert!(c.takes(capture, t), "state {k}");
             assert_eq!(c.due(t, true), Some(Basis::State), "state {k}");
             c.decided(t, capture);
             decided += 1;
@@ -121,7 +149,7 @@ mod tests {
         let mut times = Vec::new();
         for k in 0..200u64 {
             let t = k * S / 10;
-            if c.takes(t) {
+            if c.takes(t, t) {
                 c.decided(t, t);
                 times.push(t);
             }
@@ -139,7 +167,7 @@ mod tests {
             let mut chosen = Vec::new();
             for k in 0..100u64 {
                 let capture = k * S / 10;
-                if c.takes(capture) {
+                if c.takes(capture, capture + latency(k)) {
                     c.decided(capture + latency(k), capture);
                     chosen.push(capture);
                 }
@@ -173,10 +201,34 @@ mod tests {
         );
         assert_eq!(c.due(14 * S, false), Some(Basis::TelemetryOnly));
         assert!(
-            !c.takes(12 * S),
+            !c.takes(12 * S, 13 * S),
             "captured too soon after the cycle's start"
         );
-        assert!(c.takes(11 * S + 18 * S / 10));
+        assert!(c.takes(11 * S + 18 * S / 10, 13 * S));
         assert_eq!(c.due(13 * S, true), Some(Basis::State));
+    }
+
+    #[test]
+    fn a_reasoner_started_during_a_flight_skips_a_first_state_too_old_to_decide_in_time() {
+        // deadline 2 s, decisions take 0.7 s: a first S_t may be at most 1.3 s old
+        let mut c = HeartbeatClock::new(2 * S).first_state_max_age(13 * S / 10);
+        // the topic's history hands it an S_t captured 1.8 s before it looks: skipped, as
+        // its predecessor's cycle
+        assert!(!c.takes(10 * S, 11 * S + 8 * S / 10));
+        c.heard(11 * S + 8 * S / 10);
+        assert_eq!(
+            c.due(12 * S, false),
+            None,
+            "no decision on the telemetry at once"
+        );
+        // one captured out of the flight's rhythm is not taken either
+        assert!(!c.takes(11 * S, 12 * S));
+        // the next in the rhythm, captured 2 s after it and looked at 50 ms later: taken
+        assert!(c.takes(12 * S, 12 * S + S / 20));
+        c.decided(12 * S + S / 20, 12 * S);
+        // after the first cycle the age plays no part: the capture times alone decide
+        assert!(c.takes(14 * S, 20 * S));
+        // by default any first S_t is taken (the first of a flight arrives fresh)
+        assert!(HeartbeatClock::new(2 * S).takes(0, 100 * S));
     }
 }

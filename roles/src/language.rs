@@ -122,6 +122,7 @@ impl Role for LanguageRole {
         let brief = mission_brief(&ctx.spec.mission)?;
         let mut planner = mission_planner(&ctx.spec)?;
         let start = ctx.spec.mission.start;
+        let threads = config.threads;
         let mut reasoner = LanguageReasoner::load(&store, &file, brief, config)
             .map_err(|e| RoleError::step(format!("loading reasoning/{variant} from {file}"), e))?;
         // warm-up: the first decision pays for page faults and graph allocation
@@ -135,11 +136,26 @@ impl Role for LanguageRole {
             previous: None,
             plan: Some(&plan),
         };
+        let (wall, cpu) = (
+            std::time::Instant::now(),
+            aeris_runtime::clock::process_cpu_ns(),
+        );
         reasoner
             .decide(&warm)
             .map_err(|e| RoleError::step(format!("warming up reasoning/{variant}"), e))?;
-        // started during a flight (restart, hot swap): take the mission up where it is
-        let io = ReasonerIo::new(ctx, &mut planner)?;
+        let decision = warm_up_decision_time(
+            wall.elapsed(),
+            aeris_runtime::clock::process_cpu_ns().saturating_sub(cpu),
+            threads,
+        );
+        eprintln!(
+            "reasoning/{variant}: warmed up in {:.0} ms; a decision takes about {:.0} ms on its CPUs",
+            wall.elapsed().as_secs_f64() * 1e3,
+            decision.as_secs_f64() * 1e3
+        );
+        // started during a flight (restart, hot swap): take the mission up where it is, on
+        // a first S_t it can decide on within the deadline
+        let io = ReasonerIo::new(ctx, &mut planner, decision)?;
         Ok(Self {
             reasoner,
             planner,
@@ -205,4 +221,14 @@ impl Role for LanguageRole {
         self.previous = Some(thought.view);
         Ok(CycleOutcome::Worked)
     }
+}
+
+/// What a decision takes when the reasoner has its CPUs, from the warm-up's: its CPU time
+/// over its threads (llama.cpp's workers compute or spin for the whole decision), at most
+/// its wall time. A hot-swapped reasoner warms up under SCHED_IDLE, where the wall time
+/// also counts the time it waited for a CPU (measured under two busy threads: Gemma-3
+/// 2.0-4.8 s of wall time for a decision that takes ~0.9 s).
+fn warm_up_decision_time(wall: Duration, cpu_ns: u64, threads: i32) -> Duration {
+    let on_cpus = Duration::from_nanos(cpu_ns / threads.max(1) as u64);
+    if cpu_ns == 0 { wall } else { on_cpus.min(wall) }
 }

@@ -54,6 +54,23 @@ pub fn hub_active_step(ctx: &RoleContext, wait: Duration) -> Result<Option<u16>,
     }
 }
 
+/// The oldest a reasoner's first S_t may be: the decision deadline less `decision` (what a
+/// decision takes) and the hub's routing margin ([`ROUTING_MARGIN`]).
+fn first_state_max_age(ctx: &RoleContext, decision: Duration) -> u64 {
+    let deadline = ctx
+        .spec
+        .timing
+        .decision_deadline_ms
+        .saturating_mul(1_000_000);
+    deadline
+        .saturating_sub(aeris_runtime::clock::duration_ns(decision))
+        .saturating_sub(aeris_runtime::clock::duration_ns(ROUTING_MARGIN))
+}
+
+/// Time kept free between a decision's publication and its deadline at the hub (the hub
+/// reads decisions every 20 ms).
+pub const ROUTING_MARGIN: Duration = Duration::from_millis(100);
+
 /// A decision due now, and the vehicle's state it is made for (from [`ReasonerIo::poll`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DecisionDue {
@@ -92,15 +109,26 @@ pub struct ReasonerIo {
 impl ReasonerIo {
     /// Resume `planner` at the hub's active step when the flight is under way (waiting up
     /// to [`RESUME_WAIT`] for it), then open the ports; the heartbeat clock starts now.
-    pub fn new(ctx: &mut RoleContext, planner: &mut Planner) -> Result<Self, RoleError> {
+    /// `decision` is how long a decision takes (the warm-up's): started during a flight, the
+    /// reasoner takes its first S_t only if it can decide on it within the deadline, not the
+    /// topic's last, up to a heartbeat old (a flight's or replay's start is unchanged, so a
+    /// replay still decides alike).
+    pub fn new(
+        ctx: &mut RoleContext,
+        planner: &mut Planner,
+        decision: Duration,
+    ) -> Result<Self, RoleError> {
+        let mut clock = HeartbeatClock::new(ctx.spec.timing.heartbeat_period_ms.max(1) * 1_000_000);
         if let Some(step) = hub_active_step(ctx, RESUME_WAIT)? {
             planner.resume(step);
+            // the flight is under way: its S_t's come from the topic's history first
+            clock = clock.first_state_max_age(first_state_max_age(ctx, decision));
         }
         Ok(Self {
             states: ctx.bus.subscriber(topics::PERCEPTION_STATE)?,
             telemetry: ctx.bus.subscriber(topics::VEHICLE_TELEMETRY)?,
             decisions: ctx.bus.publisher(topics::REASONING_DECISION)?,
-            clock: HeartbeatClock::new(ctx.spec.timing.heartbeat_period_ms.max(1) * 1_000_000),
+            clock,
             state: None,
             fresh_state: false,
             telemetry_last: None,
@@ -124,13 +152,13 @@ impl ReasonerIo {
             }
         })?;
         // the first S_t that starts the next cycle, in the order perception published them
-        let (clock, state, fresh) = (&self.clock, &mut self.state, &mut self.fresh_state);
+        let (clock, state, fresh) = (&mut self.clock, &mut self.state, &mut self.fresh_state);
         let heard = heard
             + self.states.drain(|s| {
                 if !*fresh
                     && s.validate().is_ok()
                     && state.as_ref().is_none_or(|old| old.seq != s.seq)
-                    && clock.takes(s.capture_ns)
+                    && clock.takes(s.capture_ns, poll_ns)
                 {
                     *state = Some(*s);
                     *fresh = true;

@@ -47,6 +47,20 @@ pub fn monotonic_ns() -> u64 {
     )
 }
 
+/// CPU time this process has used, all its threads together (ns; CLOCK_PROCESS_CPUTIME_ID).
+/// Never allocates; 0 if the clock cannot be read.
+pub fn process_cpu_ns() -> u64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes into the timespec we own.
+    if unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut ts) } != 0 {
+        return 0;
+    }
+    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
+}
+
 /// `host_ns` of this host's clock on the flight's clock, this host's being `offset_ns`
 /// behind it.
 fn to_flight_clock(host_ns: u64, offset_ns: i64) -> u64 {

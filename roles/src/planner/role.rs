@@ -39,7 +39,8 @@ impl PlannerReasoner {
     /// The mission's planner, resumed where the hub has the flight, and the role's ports.
     pub(crate) fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
         let mut planner = mission_planner(&ctx.spec)?;
-        let io = ReasonerIo::new(ctx, &mut planner)?;
+        // a plan takes microseconds: a first S_t is taken up to the deadline's age
+        let io = ReasonerIo::new(ctx, &mut planner, Duration::ZERO)?;
         Ok(Self {
             planner,
             io,
