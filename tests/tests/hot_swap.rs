@@ -6,7 +6,7 @@
 //! provisioned model cache (`scripts/provision-models.sh`, part of the test command).
 
 use aeris_runtime::bus::{FlightBus, TypedSubscriber};
-use aeris_schemas::{SupervisorStatus, VehicleTelemetry, topics};
+use aeris_schemas::{RoleHeartbeat, RoleStatus, SupervisorStatus, VehicleTelemetry, topics};
 use aeris_tests::*;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -152,11 +152,48 @@ fn roles_are_hot_swapped_during_a_flight_and_broken_variants_roll_back() {
         .unwrap();
     let counters_before = controller_counters(&telemetry);
 
-    // 1. the reasoner: SmolLM2 -> Gemma-3-270M
+    // 1. the reasoner: SmolLM2 -> Gemma-3-270M, its heartbeats watched meanwhile
     let old = entry(&before, "reasoning");
     assert_eq!(old.variant.as_str(), Some("smollm2"));
-    let (ok, out, err) = swap(&flight, "reasoning", "gemma3");
+    let heartbeats = observer
+        .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
+        .unwrap();
+    let swapping = {
+        let flight = flight.clone();
+        std::thread::spawn(move || swap(&flight, "reasoning", "gemma3"))
+    };
+    let mut reasoner_beats = Vec::new();
+    let mut keep = |hb: &RoleHeartbeat| {
+        if hb.role.as_str() == Some("reasoning") {
+            reasoner_beats.push(*hb);
+        }
+    };
+    while !swapping.is_finished() {
+        heartbeats.drain(&mut keep).unwrap();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // the swap is done when the old process has exited: its last heartbeats are sent
+    heartbeats.drain(&mut keep).unwrap();
+    let (ok, out, err) = swapping.join().unwrap();
     assert!(ok, "swap to gemma3 failed: {out}\n{err}");
+    // handed over between cycles: the old reasoner completed a cycle (a decision) after the
+    // new one was ready, and only then was asked to stop
+    let stamp = |pid: u32, f: &dyn Fn(&RoleHeartbeat) -> bool| {
+        reasoner_beats
+            .iter()
+            .find(|h| h.pid == pid && f(h))
+            .map(|h| h.stamp_ns)
+    };
+    let new_ready = reasoner_beats
+        .iter()
+        .find(|h| h.pid != old.pid && h.status == RoleStatus::Running as u8)
+        .map(|h| h.stamp_ns)
+        .expect("the new reasoner's ready heartbeat");
+    let old_worked = stamp(old.pid, &|h| h.worked == 1 && h.stamp_ns > new_ready)
+        .expect("the old reasoner decided after the new one was ready");
+    let old_stopping = stamp(old.pid, &|h| h.status == RoleStatus::Stopping as u8)
+        .expect("the old reasoner's stopping heartbeat");
+    assert!(old_worked < old_stopping);
     let stages: Vec<&str> = out["steps"]
         .as_array()
         .unwrap()

@@ -66,8 +66,17 @@ impl HeartbeatIntake {
                     && swap.ready.is_none()
                 {
                     swap.ready = Some(hb);
+                    swap.ready_at = Some(std::time::Instant::now());
                 }
                 continue;
+            }
+            // the replaced process completed a cycle after the new one was ready: hand over
+            if let Some(swap) = role.swap.as_mut()
+                && role.pid == Some(hb.pid)
+                && hb.worked == 1
+                && swap.ready.is_some_and(|r| hb.stamp_ns > r.stamp_ns)
+            {
+                swap.handover = true;
             }
             if role.old_pids.contains(&hb.pid) {
                 continue; // late heartbeat of a process that already exited

@@ -1,7 +1,9 @@
 //! Hot swap, make-before-break: the new process of a role loads and warms up beside the
-//! running one (under SCHED_IDLE where the supervisor may restore SCHED_OTHER); with its
-//! first working heartbeat it becomes the role and the old process retires (SIGTERM, SIGKILL
-//! after [`RETIRE_GRACE`]); a new process that exits or stays silent is rolled back.
+//! running one (under SCHED_IDLE where the supervisor may restore SCHED_OTHER); once it
+//! is ready (its first heartbeat after warm-up) and the old process has completed one more
+//! cycle (at most [`handover_wait`]), it becomes the role and the old process retires
+//! (SIGTERM, SIGKILL after [`RETIRE_GRACE`]); a new process that exits or stays silent is
+//! rolled back.
 
 use super::Supervisor;
 use super::error::SwapError;
@@ -28,6 +30,20 @@ pub const RETIRE_GRACE: Duration = Duration::from_secs(5);
 /// Lines of a failed swap's log quoted in its reply (the error a role prints is its last).
 const SWAP_LOG_LINES: usize = 4;
 
+/// How long a ready swap waits, at most, for the replaced process to complete one more
+/// cycle before it commits: one heartbeat and the decision deadline, the longest a
+/// reasoner's cycle may take. Committing right after the replaced process's cycle leaves
+/// the new one a whole cycle for its first: a reasoner stopped mid-heartbeat, with its next
+/// decision not made, cost the flight a heartbeat without a decision while the new one
+/// waited for a fresh S_t (measured: one in every few swaps under two busy threads).
+pub(super) fn handover_wait(timing: &aeris_runtime::spec::TimingSpec) -> Duration {
+    Duration::from_millis(
+        timing
+            .heartbeat_period_ms
+            .saturating_add(timing.decision_deadline_ms),
+    )
+}
+
 /// The new side of a make-before-break swap, until its first heartbeat after warm-up.
 #[derive(Debug)]
 pub(super) struct SwapInProgress {
@@ -49,6 +65,13 @@ pub(super) struct SwapInProgress {
     pub(super) deadline: Instant,
     /// Its first working heartbeat: it is ready.
     pub(super) ready: Option<RoleHeartbeat>,
+    /// When it was seen ready.
+    pub(super) ready_at: Option<Instant>,
+    /// The replaced process completed a cycle since then (a worked heartbeat): the swap
+    /// commits now, at the start of the role's next cycle ([`handover_wait`]).
+    pub(super) handover: bool,
+    /// How long it waits for that, at most, once ready.
+    pub(super) handover_wait: Duration,
     /// Set when it runs elsewhere than the role ran (a move between hosts, a fallback).
     pub(super) placement: Option<Placement>,
     /// Set to end the swap at the next step, and why (its host's link was lost).
@@ -235,8 +258,9 @@ impl RoleRuntime {
 impl Supervisor {
     /// Start replacing role `role` by `variant`, make-before-break: a new process (a new
     /// instance number) loads and warms up beside the running one, under SCHED_IDLE so it
-    /// takes only idle CPU; with its first heartbeat it becomes the role (normal policy
-    /// restored) and the old process is stopped ([`SupervisorEvent::SwapReady`], then
+    /// takes only idle CPU; with its first heartbeat, right after the old process's next
+    /// completed cycle, it becomes the role (normal policy restored) and the old process
+    /// is stopped ([`SupervisorEvent::SwapReady`], then
     /// [`SupervisorEvent::SwapDone`]). If it exits
     /// first, or sends no heartbeat within `ready_timeout`, it is stopped and the old process
     /// keeps running ([`SupervisorEvent::SwapFailed`]). Returns the new pid.
@@ -363,6 +387,9 @@ impl Supervisor {
             started: now,
             deadline: now + ready_timeout,
             ready: None,
+            ready_at: None,
+            handover: false,
+            handover_wait: handover_wait(&spec.timing),
             placement,
             abort: None,
         });
@@ -393,12 +420,17 @@ impl Supervisor {
                     RoleExit::from_status(status)
                 )),
                 Err(e) => Some(format!("cannot wait on the new process: {e}")),
-                Ok(None) if swap.ready.is_some() => None,
-                Ok(None) if now >= swap.deadline => Some(format!(
-                    "not ready (loaded, warmed up, first heartbeat) within {:.0} s",
-                    (swap.deadline - swap.started).as_secs_f64()
-                )),
-                Ok(None) => continue,
+                Ok(None) => match swap.ready_at {
+                    // a role whose link is lost sends no heartbeat: its fallback takes over
+                    Some(_) if role.link.as_ref().is_some_and(|l| l.lost) => None,
+                    Some(at) if swap.handover || now >= at + swap.handover_wait => None,
+                    Some(_) => continue,
+                    None if now >= swap.deadline => Some(format!(
+                        "not ready (loaded, warmed up, first heartbeat) within {:.0} s",
+                        (swap.deadline - swap.started).as_secs_f64()
+                    )),
+                    None => continue,
+                },
             };
             let Some(swap) = role.swap.take() else {
                 continue;
@@ -447,7 +479,11 @@ impl Supervisor {
             set_normal_policy(swap.pid);
             let (variant, new_pid, instance) = (swap.variant.clone(), swap.pid, swap.instance);
             let place = swap.placement.as_ref().map(|p| p.place.clone());
-            let ready_ms = swap.started.elapsed().as_millis() as u64;
+            let ready_ms = swap
+                .ready_at
+                .unwrap_or(now)
+                .saturating_duration_since(swap.started)
+                .as_millis() as u64;
             let (old_pid, old_child) = role.take_over(swap, now);
             events.push(SupervisorEvent::SwapReady {
                 name: role.name.clone(),
