@@ -183,6 +183,59 @@ pub fn process_sched_time(pid: u32) -> Option<SchedTime> {
     any.then_some(sum)
 }
 
+/// Each live thread of process `pid` with its scheduler time (time on a CPU plus time
+/// runnable in a run queue, ns), for [`ThreadTimes::progress_since`]; `None` when the
+/// process is gone or the kernel keeps no schedstat.
+pub fn process_thread_times(pid: u32) -> Option<ThreadTimes> {
+    let tasks = std::fs::read_dir(format!("/proc/{pid}/task")).ok()?;
+    let mut threads = Vec::new();
+    for task in tasks.flatten() {
+        let Some(tid) = task
+            .file_name()
+            .to_str()
+            .and_then(|t| t.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        // a thread may exit between the listing and the read
+        if let Some(t) = std::fs::read_to_string(task.path().join("schedstat"))
+            .ok()
+            .and_then(|s| parse_schedstat(&s))
+        {
+            threads.push((tid, t.run_ns + t.wait_ns));
+        }
+    }
+    (!threads.is_empty()).then_some(ThreadTimes { threads })
+}
+
+/// The scheduler time of each live thread of a process at one instant.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct ThreadTimes {
+    /// `(thread id, run + wait ns)`.
+    pub threads: Vec<(u32, u64)>,
+}
+
+impl ThreadTimes {
+    /// Scheduler time the process's threads gained since `earlier` (ns): each thread's
+    /// growth, a thread born since counted whole. Unlike the difference of two sums, a
+    /// thread that exited in between does not hide the others' progress: llama.cpp starts
+    /// and joins a worker thread per graph it computes, and the summed time of a reasoner
+    /// busy deciding once went down, which read as a stalled process and killed it.
+    pub fn progress_since(&self, earlier: &ThreadTimes) -> u64 {
+        self.threads
+            .iter()
+            .map(|&(tid, now)| {
+                let before = earlier
+                    .threads
+                    .iter()
+                    .find(|(t, _)| *t == tid)
+                    .map_or(0, |&(_, ns)| ns);
+                now.saturating_sub(before)
+            })
+            .sum()
+    }
+}
+
 /// The memory of one process.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct ProcessMemory {
@@ -498,5 +551,32 @@ mod tests {
             assert!(whole.run_ns >= own.run_ns);
             assert!(own.run_ns > 0);
         }
+    }
+
+    #[test]
+    fn a_thread_that_exits_does_not_hide_the_others_progress() {
+        // a reasoner mid-decision: its main thread 10 computed 300 ms more, its worker 11
+        // (1.2 s) was joined and worker 12 started: the summed time went down
+        let before = ThreadTimes {
+            threads: vec![(10, 2_000_000_000), (11, 1_200_000_000)],
+        };
+        let after = ThreadTimes {
+            threads: vec![(10, 2_300_000_000), (12, 50_000_000)],
+        };
+        let sum = |t: &ThreadTimes| t.threads.iter().map(|x| x.1).sum::<u64>();
+        assert!(sum(&after) < sum(&before));
+        assert_eq!(after.progress_since(&before), 350_000_000);
+        // a blocked process: the same threads, no time gained
+        assert_eq!(before.progress_since(&before), 0);
+        // this process, read twice around some work: it progressed
+        let pid = std::process::id();
+        let first = process_thread_times(pid).unwrap();
+        let mut x = 0u64;
+        for i in 0..2_000_000u64 {
+            x = x.wrapping_add(std::hint::black_box(i));
+        }
+        std::hint::black_box(x);
+        assert!(process_thread_times(pid).unwrap().progress_since(&first) > 0);
+        assert!(process_thread_times(u32::MAX).is_none());
     }
 }

@@ -136,8 +136,9 @@ pub struct RoleRuntime {
     pub(super) heard_at: Option<Instant>,
     /// When the current process was started (or took over).
     pub(super) started_at: Option<Instant>,
-    /// Run + run-queue wait time of the process when its silence was first noticed.
-    pub(super) silence_probe: Option<u64>,
+    /// Run + run-queue wait time of each thread of the process when its silence was first
+    /// noticed.
+    pub(super) silence_probe: Option<crate::executors::ThreadTimes>,
     /// Scheduler time samples, one per scheduling tick (newest last).
     pub(super) sched: VecDeque<(Instant, SchedTime)>,
     /// Latencies of the last few worked cycles (the DS signal).

@@ -3,7 +3,7 @@
 
 use super::events::SupervisorEvent;
 use super::role_runtime::{RoleRuntime, RoleState};
-use crate::executors::{process_sched_time, process_state};
+use crate::executors::{process_state, process_thread_times};
 use crate::workflow::SchedulingSpec;
 use std::time::{Duration, Instant};
 
@@ -76,13 +76,17 @@ impl StallDetector {
                 continue;
             }
             // time on a CPU plus time runnable in a run queue: grows unless it sleeps
-            let run_ns = process_sched_time(pid).map(|t| t.run_ns + t.wait_ns);
-            let probe = *role.silence_probe.get_or_insert(run_ns.unwrap_or(0));
+            let times = process_thread_times(pid);
+            let probe = role
+                .silence_probe
+                .get_or_insert_with(|| times.clone().unwrap_or_default());
             let state = process_state(pid);
             let why = if matches!(state, Some('T' | 't')) {
                 Some(format!("stopped (state {})", state.unwrap_or('T')))
             } else if silent >= timeout
-                && run_ns.is_some_and(|r| r.saturating_sub(probe) < 1_000_000)
+                && times
+                    .as_ref()
+                    .is_some_and(|t| t.progress_since(probe) < 1_000_000)
             {
                 Some(format!(
                     "neither running nor runnable for {} ms",
