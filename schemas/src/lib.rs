@@ -19,6 +19,7 @@ pub mod accelerator;
 pub mod autopilot_link;
 pub mod control;
 pub mod decision;
+pub mod formation;
 pub mod frame;
 pub mod heartbeat;
 pub mod host_link;
@@ -38,6 +39,10 @@ pub use autopilot_link::{
 pub use control::{CommandKind, ReplyStage, SupervisorCommand, SupervisorReply};
 pub use decision::{
     ActionMode, BLIND_CLIMB_SLACK_M, BLIND_MOVE_M, Decision, DecisionError, DecisionLimits,
+};
+pub use formation::{
+    FormationError, FormationLimits, FormationPhase, FormationProgram, MAX_PHASES, MAX_VEHICLES,
+    PhaseKind, ShapeKind,
 };
 pub use frame::{FrameError, FrameFormat, FrameHeader};
 pub use heartbeat::{HeartbeatError, MAX_STAGES, RoleHeartbeat, RoleStatus, StageTiming};
