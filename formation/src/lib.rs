@@ -4,12 +4,22 @@
 //!
 //! - [`slots`]: where each vehicle of a formation program's `assume` phase goes (`[N, E, U]`);
 //! - [`assign`]: which vehicle takes which slot, so that their straight-line, synchronised
-//!   transitions keep them apart.
+//!   transitions keep them apart;
+//! - [`parse`]: the deterministic parser of formation instructions (`formation/parser`);
+//! - [`check`]: a program flown in simulation before it flies: separation, geofence,
+//!   altitude, duration, and a diagnosis of the first violation;
+//! - [`repair`]: validate, simulate, repair on failure (at most K times), or refuse.
 
 #![deny(missing_docs)]
 
 pub mod assign;
+pub mod check;
+pub mod parse;
+pub mod repair;
 pub mod slots;
 
 pub use assign::{AssignError, Assignment, assign, min_separation_along};
+pub use check::{CheckError, CheckReport, Diagnosis, Dynamics, Violation, check_program};
+pub use parse::{ParseError, parse_instruction};
+pub use repair::{PlanOutcome, Problem, plan_program, repair_by_rule};
 pub use slots::{formation_offsets, slots};
