@@ -55,9 +55,9 @@ enum Command {
         command: TopicCommand,
     },
     /// Replace a running role by another variant of its pool, make-before-break: the new
-    /// process loads and warms up beside the old one, takes over with its first heartbeat,
-    /// then the old one stops. A variant that fails to come up is rolled back and the old
-    /// one keeps running.
+    /// process loads and warms up beside the old one; once it is ready it takes over right
+    /// after the old one's next completed cycle, then the old one stops. A variant that
+    /// fails to come up is rolled back and the old one keeps running.
     Swap {
         /// Role name (see `aeris status`).
         role: String,
