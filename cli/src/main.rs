@@ -11,6 +11,7 @@ mod bench_models;
 #[cfg(feature = "sim")]
 mod eval_cmd;
 mod flight_print;
+mod formation_cmd;
 mod inspect;
 #[cfg(feature = "sim")]
 mod plot_cmd;
@@ -128,6 +129,12 @@ enum Command {
     /// Pictures of a flight or an evaluated episode: heartbeat timing trace, FPV strip
     /// with the active step, top-down map.
     Plot(plot_cmd::PlotArgs),
+    /// Multi-UAV formations: plan a formation program from an instruction (parsed, flown
+    /// in simulation, repaired on failure). Nothing flies yet.
+    Formation {
+        #[command(subcommand)]
+        command: formation_cmd::FormationCommand,
+    },
     /// Run one role in this process (the supervisor starts roles this way).
     #[command(hide = true)]
     Role {
@@ -300,6 +307,7 @@ fn main() -> ExitCode {
         Command::Scene(args) => scene_cmd::scene(args).map(|_| ExitCode::SUCCESS),
         #[cfg(feature = "sim")]
         Command::Plot(args) => plot_cmd::run(args).map(|_| ExitCode::SUCCESS),
+        Command::Formation { command } => formation_cmd::run(command),
         Command::Role { spec, instance } => run_role(spec, instance),
     };
     match result {

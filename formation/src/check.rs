@@ -211,6 +211,15 @@ fn closest_pair(from: &[[f32; 3]], to: &[[f32; 3]], n: usize) -> Option<(usize, 
     best
 }
 
+/// `n` vehicles on the ground in a row along east, `spacing` metres apart, centred on the
+/// origin: the starting positions a plan assumes when the vehicles' own are not known.
+pub fn ground_row(n: usize, spacing: f32) -> Vec<[f32; 3]> {
+    let middle = (n as f32 - 1.0) / 2.0;
+    (0..n)
+        .map(|i| [0.0, (i as f32 - middle) * spacing, 0.0])
+        .collect()
+}
+
 /// Fly `program` from the vehicles' starting positions `starts` (`[N, E, U]`, on the
 /// ground) against `limits` with `dynamics`.
 pub fn check_program(

@@ -19,7 +19,9 @@ pub mod repair;
 pub mod slots;
 
 pub use assign::{AssignError, Assignment, assign, min_separation_along};
-pub use check::{CheckError, CheckReport, Diagnosis, Dynamics, Violation, check_program};
+pub use check::{
+    CheckError, CheckReport, Diagnosis, Dynamics, Violation, check_program, ground_row,
+};
 pub use parse::{ParseError, parse_instruction};
 pub use repair::{PlanOutcome, Problem, plan_program, repair_by_rule};
 pub use slots::{formation_offsets, slots};

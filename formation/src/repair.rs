@@ -58,15 +58,15 @@ pub enum PlanOutcome {
 }
 
 impl PlanOutcome {
-    /// One line for a person: accepted, repaired after k attempts, or refused and why.
+    /// One line for a person: accepted, repaired after k attempts (the problems are in
+    /// `repaired`), or refused and why.
     pub fn summary(&self) -> String {
         match self {
             Self::Accepted { repaired, .. } if repaired.is_empty() => "accepted".into(),
             Self::Accepted { repaired, .. } => format!(
-                "repaired after {} attempt{} (first: {})",
+                "repaired after {} attempt{}",
                 repaired.len(),
                 if repaired.len() == 1 { "" } else { "s" },
-                repaired[0]
             ),
             Self::Refused { problem, .. } => format!("refused: {problem}"),
         }
