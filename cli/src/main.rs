@@ -78,7 +78,8 @@ enum Command {
     /// Move a running role to another executor, CPU list or host. On the flight's host the
     /// move is live: every thread is re-bound, the pid stays, nothing restarts. To another
     /// host (`HOST:EXECUTOR`) and back it is make-before-break: the role starts there, takes
-    /// over with its first heartbeat, and the old process stops. Onto or off an accelerator
+    /// over once ready, right after the old process's next completed cycle, and the old
+    /// process stops. Onto or off an accelerator
     /// executor (`accelerator = "cuda:0"`) it is make-before-break too: the model role
     /// restarts with the other execution provider, refused if ONNX Runtime lacks it. Later
     /// restarts start there.
