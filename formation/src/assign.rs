@@ -97,31 +97,58 @@ fn squared(a: [f32; 3], b: [f32; 3]) -> f64 {
         .sum()
 }
 
-/// The smallest distance between any two vehicles flying straight from `from[v]` to
-/// `to[v]`, all starting and arriving together (the closest approach of each pair, exactly).
-pub fn min_separation_along(from: &[[f32; 3]], to: &[[f32; 3]]) -> f64 {
+/// The closest two vehicles come while flying straight from `from[v]` to `to[v]`, all
+/// starting and arriving together: which pair (0-based), how close (m), and at what share
+/// of the transition (0..=1). Exact: the pair's relative position is linear in the share.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClosestApproach {
+    /// The first vehicle of the pair.
+    pub a: usize,
+    /// The second (`a < b`).
+    pub b: usize,
+    /// Their distance then (m).
+    pub distance_m: f32,
+    /// When, as the share of the transition flown.
+    pub share: f32,
+}
+
+/// The [`ClosestApproach`] of the vehicles moving from `from` to `to` together; `None`
+/// with fewer than two vehicles.
+pub fn closest_approach(from: &[[f32; 3]], to: &[[f32; 3]]) -> Option<ClosestApproach> {
     let n = from.len().min(to.len());
-    let mut min = f64::INFINITY;
+    let mut best: Option<ClosestApproach> = None;
     for i in 0..n {
         for j in i + 1..n {
-            // relative position p(t) = p0 + t * dp, t in [0, 1]
-            let p0: [f64; 3] = core::array::from_fn(|k| f64::from(from[i][k] - from[j][k]));
-            let p1: [f64; 3] = core::array::from_fn(|k| f64::from(to[i][k] - to[j][k]));
-            let dp: [f64; 3] = core::array::from_fn(|k| p1[k] - p0[k]);
-            let dd: f64 = dp.iter().map(|d| d * d).sum();
-            let t = if dd > 0.0 {
-                (-(0..3).map(|k| p0[k] * dp[k]).sum::<f64>() / dd).clamp(0.0, 1.0)
+            // relative position p(s) = p0 + s * dp, s in [0, 1]
+            let p0: [f32; 3] = core::array::from_fn(|k| from[i][k] - from[j][k]);
+            let dp: [f32; 3] = core::array::from_fn(|k| (to[i][k] - to[j][k]) - p0[k]);
+            let dd: f32 = dp.iter().map(|d| d * d).sum();
+            let share = if dd > 0.0 {
+                (-(0..3).map(|k| p0[k] * dp[k]).sum::<f32>() / dd).clamp(0.0, 1.0)
             } else {
                 0.0
             };
-            let d: f64 = (0..3)
-                .map(|k| (p0[k] + t * dp[k]).powi(2))
-                .sum::<f64>()
+            let distance_m = (0..3)
+                .map(|k| (p0[k] + share * dp[k]).powi(2))
+                .sum::<f32>()
                 .sqrt();
-            min = min.min(d);
+            if best.is_none_or(|b| distance_m < b.distance_m) {
+                best = Some(ClosestApproach {
+                    a: i,
+                    b: j,
+                    distance_m,
+                    share,
+                });
+            }
         }
     }
-    min
+    best
+}
+
+/// The smallest distance between any two vehicles flying straight from `from[v]` to
+/// `to[v]`, all starting and arriving together (infinite with fewer than two).
+pub fn min_separation_along(from: &[[f32; 3]], to: &[[f32; 3]]) -> f64 {
+    closest_approach(from, to).map_or(f64::INFINITY, |c| f64::from(c.distance_m))
 }
 
 #[cfg(test)]

@@ -12,7 +12,7 @@
 //! for the formation role's repair ("vehicles 2 and 3 come within 0.8 m at t=4.2 s during
 //! the change to a circle; minimum is 2.0 m").
 
-use crate::assign::{AssignError, assign};
+use crate::assign::{AssignError, ClosestApproach, assign, closest_approach};
 use crate::slots::slots;
 use aeris_schemas::{
     FormationError, FormationLimits, FormationProgram, MAX_VEHICLES, PhaseKind, ShapeKind,
@@ -185,32 +185,6 @@ fn time_at_share(s: f32, d: f32, t: f32, v: f32, a: f32) -> f32 {
     }
 }
 
-/// The closest approach of any pair among `n` vehicles moving together from `from` to
-/// `to`: `(a, b, distance, share of the transition)`.
-fn closest_pair(from: &[[f32; 3]], to: &[[f32; 3]], n: usize) -> Option<(usize, usize, f32, f32)> {
-    let mut best: Option<(usize, usize, f32, f32)> = None;
-    for i in 0..n {
-        for j in i + 1..n {
-            let p0: [f32; 3] = core::array::from_fn(|k| from[i][k] - from[j][k]);
-            let dp: [f32; 3] = core::array::from_fn(|k| (to[i][k] - to[j][k]) - p0[k]);
-            let dd: f32 = dp.iter().map(|d| d * d).sum();
-            let s = if dd > 0.0 {
-                (-(0..3).map(|k| p0[k] * dp[k]).sum::<f32>() / dd).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            let d = (0..3)
-                .map(|k| (p0[k] + s * dp[k]).powi(2))
-                .sum::<f32>()
-                .sqrt();
-            if best.is_none_or(|b| d < b.2) {
-                best = Some((i, j, d, s));
-            }
-        }
-    }
-    best
-}
-
 /// `n` vehicles on the ground in a row along east, `spacing` metres apart, centred on the
 /// origin: the starting positions a plan assumes when the vehicles' own are not known.
 pub fn ground_row(n: usize, spacing: f32) -> Vec<[f32; 3]> {
@@ -342,7 +316,13 @@ pub fn check_program(
             })
             .fold(0.0f32, f32::max);
         let duration = transition_s(longest, speed, a_max);
-        if let Some((a, b, d, s)) = closest_pair(&now, &next, n) {
+        if let Some(ClosestApproach {
+            a,
+            b,
+            distance_m: d,
+            share: s,
+        }) = closest_approach(&now[..n], &next[..n])
+        {
             report.min_separation_m = report.min_separation_m.min(d);
             if d < limits.min_separation_m {
                 report.diagnosis = Some(Diagnosis {

@@ -18,7 +18,9 @@ pub mod parse;
 pub mod repair;
 pub mod slots;
 
-pub use assign::{AssignError, Assignment, assign, min_separation_along};
+pub use assign::{
+    AssignError, Assignment, ClosestApproach, assign, closest_approach, min_separation_along,
+};
 pub use check::{
     CheckError, CheckReport, Diagnosis, Dynamics, Violation, check_program, ground_row,
 };

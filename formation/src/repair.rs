@@ -11,6 +11,7 @@
 //! inside the geofence, and gives up on what it cannot mend (too many vehicles, vehicles
 //! too close on the ground). The language-model variant repairs from the problem's text.
 
+use crate::assign::closest_approach;
 use crate::check::{CheckError, CheckReport, Diagnosis, Dynamics, Violation, check_program};
 use crate::slots::slots;
 use aeris_schemas::{
@@ -116,16 +117,9 @@ pub fn plan_program(
 
 /// The nearest two slots of an `assume` phase for `n` vehicles (m).
 fn nearest_slots(program: &FormationProgram, phase: usize) -> Option<f32> {
-    let n = program.vehicles as usize;
+    let n = (program.vehicles as usize).min(MAX_VEHICLES);
     let s = slots(&program.phases[phase], n)?;
-    let mut min = f32::INFINITY;
-    for i in 0..n.min(MAX_VEHICLES) {
-        for j in i + 1..n.min(MAX_VEHICLES) {
-            let d = ((s[i][0] - s[j][0]).powi(2) + (s[i][1] - s[j][1]).powi(2)).sqrt();
-            min = min.min(d);
-        }
-    }
-    min.is_finite().then_some(min)
+    closest_approach(&s[..n], &s[..n]).map(|c| c.distance_m)
 }
 
 /// The deterministic repair of `problem` in `program` under `limits` (see the module);
