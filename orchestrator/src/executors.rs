@@ -161,34 +161,14 @@ pub fn parse_schedstat(text: &str) -> Option<SchedTime> {
     })
 }
 
-/// The scheduler time of process `pid`, its live threads summed; `None` when the process
-/// is gone or the kernel keeps no schedstat. A thread that exits takes its time with it, so
-/// the sum may go down between two samples: compare samples with checked differences.
-pub fn process_sched_time(pid: u32) -> Option<SchedTime> {
-    let tasks = std::fs::read_dir(format!("/proc/{pid}/task")).ok()?;
-    let mut sum = SchedTime::default();
+/// Call `f` with each live thread of process `pid` and its scheduler time
+/// (`/proc/PID/task/TID/schedstat`); `false` when the process is gone or no thread's
+/// schedstat could be read.
+fn for_each_thread_schedstat(pid: u32, mut f: impl FnMut(u32, SchedTime)) -> bool {
+    let Ok(tasks) = std::fs::read_dir(format!("/proc/{pid}/task")) else {
+        return false;
+    };
     let mut any = false;
-    for task in tasks.flatten() {
-        let path = task.path().join("schedstat");
-        // a thread may exit between the listing and the read
-        if let Some(t) = std::fs::read_to_string(&path)
-            .ok()
-            .and_then(|s| parse_schedstat(&s))
-        {
-            sum.run_ns += t.run_ns;
-            sum.wait_ns += t.wait_ns;
-            any = true;
-        }
-    }
-    any.then_some(sum)
-}
-
-/// Each live thread of process `pid` with its scheduler time (time on a CPU plus time
-/// runnable in a run queue, ns), for [`ThreadTimes::progress_since`]; `None` when the
-/// process is gone or the kernel keeps no schedstat.
-pub fn process_thread_times(pid: u32) -> Option<ThreadTimes> {
-    let tasks = std::fs::read_dir(format!("/proc/{pid}/task")).ok()?;
-    let mut threads = Vec::new();
     for task in tasks.flatten() {
         let Some(tid) = task
             .file_name()
@@ -202,10 +182,32 @@ pub fn process_thread_times(pid: u32) -> Option<ThreadTimes> {
             .ok()
             .and_then(|s| parse_schedstat(&s))
         {
-            threads.push((tid, t.run_ns + t.wait_ns));
+            f(tid, t);
+            any = true;
         }
     }
-    (!threads.is_empty()).then_some(ThreadTimes { threads })
+    any
+}
+
+/// The scheduler time of process `pid`, its live threads summed; `None` when the process
+/// is gone or the kernel keeps no schedstat. A thread that exits takes its time with it, so
+/// the sum may go down between two samples: compare samples with checked differences.
+pub fn process_sched_time(pid: u32) -> Option<SchedTime> {
+    let mut sum = SchedTime::default();
+    for_each_thread_schedstat(pid, |_, t| {
+        sum.run_ns += t.run_ns;
+        sum.wait_ns += t.wait_ns;
+    })
+    .then_some(sum)
+}
+
+/// Each live thread of process `pid` with its scheduler time (time on a CPU plus time
+/// runnable in a run queue, ns), for [`ThreadTimes::progress_since`]; `None` when the
+/// process is gone or the kernel keeps no schedstat.
+pub fn process_thread_times(pid: u32) -> Option<ThreadTimes> {
+    let mut threads = Vec::new();
+    for_each_thread_schedstat(pid, |tid, t| threads.push((tid, t.run_ns + t.wait_ns)))
+        .then_some(ThreadTimes { threads })
 }
 
 /// The scheduler time of each live thread of a process at one instant.
