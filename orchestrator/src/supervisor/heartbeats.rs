@@ -65,8 +65,7 @@ impl HeartbeatIntake {
                 if matches!(status, RoleStatus::Running | RoleStatus::Degraded)
                     && swap.ready.is_none()
                 {
-                    swap.ready = Some(hb);
-                    swap.ready_at = Some(std::time::Instant::now());
+                    swap.ready = Some((hb, std::time::Instant::now()));
                 }
                 continue;
             }
@@ -74,7 +73,7 @@ impl HeartbeatIntake {
             if let Some(swap) = role.swap.as_mut()
                 && role.pid == Some(hb.pid)
                 && hb.worked == 1
-                && swap.ready.is_some_and(|r| hb.stamp_ns > r.stamp_ns)
+                && swap.ready.is_some_and(|(r, _)| hb.stamp_ns > r.stamp_ns)
             {
                 swap.handover = true;
             }

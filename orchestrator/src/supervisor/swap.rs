@@ -63,10 +63,8 @@ pub(super) struct SwapInProgress {
     pub(super) started: Instant,
     /// When it is rolled back if the new process is not ready.
     pub(super) deadline: Instant,
-    /// Its first working heartbeat: it is ready.
-    pub(super) ready: Option<RoleHeartbeat>,
-    /// When it was seen ready.
-    pub(super) ready_at: Option<Instant>,
+    /// Its first working heartbeat, and when it came: it is ready.
+    pub(super) ready: Option<(RoleHeartbeat, Instant)>,
     /// The replaced process completed a cycle since then (a worked heartbeat): the swap
     /// commits now, at the start of the role's next cycle ([`handover_wait`]).
     pub(super) handover: bool,
@@ -221,7 +219,7 @@ impl RoleRuntime {
         self.spec_path = swap.spec_path;
         self.log_path = swap.log_path;
         self.state = RoleState::Running;
-        self.last_heartbeat = swap.ready;
+        self.last_heartbeat = swap.ready.map(|(hb, _)| hb);
         self.heartbeats += 1;
         self.incarnation_heartbeats = 1;
         self.new_incarnation();
@@ -387,7 +385,6 @@ impl Supervisor {
             started: now,
             deadline: now + ready_timeout,
             ready: None,
-            ready_at: None,
             handover: false,
             handover_wait: handover_wait(&spec.timing),
             placement,
@@ -420,7 +417,7 @@ impl Supervisor {
                     RoleExit::from_status(status)
                 )),
                 Err(e) => Some(format!("cannot wait on the new process: {e}")),
-                Ok(None) => match swap.ready_at {
+                Ok(None) => match swap.ready.map(|(_, at)| at) {
                     // a role whose link is lost sends no heartbeat: its fallback takes over
                     Some(_) if role.link.as_ref().is_some_and(|l| l.lost) => None,
                     Some(at) if swap.handover || now >= at + swap.handover_wait => None,
@@ -480,8 +477,8 @@ impl Supervisor {
             let (variant, new_pid, instance) = (swap.variant.clone(), swap.pid, swap.instance);
             let place = swap.placement.as_ref().map(|p| p.place.clone());
             let ready_ms = swap
-                .ready_at
-                .unwrap_or(now)
+                .ready
+                .map_or(now, |(_, at)| at)
                 .saturating_duration_since(swap.started)
                 .as_millis() as u64;
             let (old_pid, old_child) = role.take_over(swap, now);
