@@ -151,8 +151,10 @@ fn shape(w: &[String]) -> Option<(usize, ShapeKind)> {
     })
 }
 
-/// The clauses of an instruction.
-fn clauses(text: &str) -> Vec<String> {
+/// The clauses of an instruction, in order: split at commas, semicolons, line ends and the
+/// words "then", "and", "finally", "afterwards" (the language-model variant lists them for
+/// its model too).
+pub fn clauses(text: &str) -> Vec<String> {
     let mut out = Vec::new();
     for part in text.split([',', ';', '\n']) {
         let mut current = Vec::new();
