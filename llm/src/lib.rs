@@ -7,15 +7,19 @@
 //! validates again. The prompt puts the mission first so its KV-cache entries are reused from
 //! one heartbeat to the next ([`LanguageReasoner`]).
 
+pub mod formation;
 pub mod grammar;
 pub mod prompt;
 pub mod reasoner;
 pub mod view;
 
+pub use formation::{
+    FormationWriter, WriteStats, program_from_json, program_grammar, program_to_json,
+};
 pub use grammar::{GrammarError, decision_grammar};
 pub use prompt::{MissionBrief, Observation, StepBrief, sanitize};
 pub use reasoner::{
-    GEMMA3_270M, GPU_OFFLOAD_BUILT, LanguageReasoner, LlmError, ReasonerConfig, SMOLLM2_135M,
-    SMOLLM2_135M_Q4_1, Thought, check_offload,
+    GEMMA3_270M, GPU_OFFLOAD_BUILT, LanguageReasoner, LlmError, QWEN25_CODER_05B, ReasonerConfig,
+    SMOLLM2_135M, SMOLLM2_135M_Q4_1, Thought, check_offload, variant_model,
 };
 pub use view::{DecisionView, ViewError};

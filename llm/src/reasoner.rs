@@ -30,6 +30,19 @@ pub const SMOLLM2_135M_Q4_1: &str = "llm/smollm2-135m-instruct-q4_1.gguf";
 /// Gemma-3-270M, Q4_K_M.
 pub const GEMMA3_270M: &str = "llm/gemma-3-270m-q4_k_m.gguf";
 
+/// Qwen2.5-Coder-0.5B-Instruct, Q4_K_M.
+pub const QWEN25_CODER_05B: &str = "llm/qwen2.5-coder-0.5b-instruct-q4_k_m.gguf";
+
+/// The default model file of a language-model variant (`smollm2`, `gemma3`, `qwen-coder`).
+pub fn variant_model(variant: &str) -> Option<&'static str> {
+    match variant {
+        "smollm2" => Some(SMOLLM2_135M),
+        "gemma3" => Some(GEMMA3_270M),
+        "qwen-coder" => Some(QWEN25_CODER_05B),
+        _ => None,
+    }
+}
+
 /// Fields of the first verification batch: the semantic choice (step, action). A batch
 /// costs about its length in tokens plus a fixed overhead per evaluation, and a departure
 /// from the draft wastes the rest of its batch. A model that departs from the plan does so
@@ -63,8 +76,8 @@ pub enum LlmError {
     /// No grammar exists for the mission's limits.
     #[error("cannot build the decision grammar")]
     Grammar(#[from] GrammarError),
-    /// llama.cpp rejected the generated grammar (a bug in the generator).
-    #[error("llama.cpp rejected the decision grammar: {0}")]
+    /// llama.cpp rejected a generated grammar (a bug in the generator).
+    #[error("llama.cpp rejected the generated grammar: {0}")]
     GrammarRejected(String),
     /// The chat template could not be applied.
     #[error("chat template: {0}")]
@@ -99,7 +112,7 @@ pub enum LlmError {
     #[error("llama.cpp decode: {0}")]
     Decode(String),
     /// The grammar allowed no token of the vocabulary (a bug in the grammar generator).
-    #[error("the decision grammar allows no token for `{field}`")]
+    #[error("the grammar allows no token for `{field}`")]
     NoAllowedToken {
         /// JSON field being written.
         field: &'static str,
@@ -107,6 +120,18 @@ pub enum LlmError {
     /// The output did not close within the token budget.
     #[error("no complete decision within {0} tokens")]
     Truncated(usize),
+    /// No complete formation program within the token budget.
+    #[error("no complete formation program within {0} tokens")]
+    ProgramTruncated(usize),
+    /// The output is not a formation program (cannot happen under the grammar; checked
+    /// anyway).
+    #[error("output {text:?} is not a formation program")]
+    ProgramOutput {
+        /// What the model wrote.
+        text: String,
+        /// Why it does not parse.
+        source: serde_json::Error,
+    },
     /// The output is not a decision (cannot happen under the grammar; checked anyway).
     #[error("output {text:?} is not a decision")]
     Output {
@@ -163,7 +188,7 @@ pub fn check_offload(accelerator: Accelerator) -> Result<(), LlmError> {
 
 /// The model's load parameters: every layer on the accelerator's device, or none (a CUDA
 /// build would otherwise offload by default, also for a role bound to a CPU set).
-fn model_params(
+pub(crate) fn model_params(
     backend: &LlamaBackend,
     accelerator: Option<Accelerator>,
 ) -> Result<LlamaModelParams, LlmError> {
@@ -221,7 +246,7 @@ impl Thought {
     }
 }
 
-fn backend() -> Result<&'static LlamaBackend, LlmError> {
+pub(crate) fn backend() -> Result<&'static LlamaBackend, LlmError> {
     static BACKEND: OnceLock<Result<LlamaBackend, String>> = OnceLock::new();
     BACKEND
         .get_or_init(|| {
@@ -379,33 +404,11 @@ impl LanguageReasoner {
 
     /// The full prompt text for an observation (chat template applied).
     pub fn prompt(&self, obs: &Observation<'_>) -> Result<String, LlmError> {
-        let template = match self.model.chat_template(None) {
-            Ok(t) => t,
-            // GGUF files without a template in their metadata: llama.cpp's built-in template
-            // of the model family
-            Err(_) => {
-                let arch = self
-                    .model
-                    .meta_val_str("general.architecture")
-                    .unwrap_or_default();
-                let name = if arch.starts_with("gemma") {
-                    "gemma"
-                } else {
-                    "chatml"
-                };
-                LlamaChatTemplate::new(name).map_err(|e| LlmError::Template(e.to_string()))?
-            }
-        };
-        let messages = [
-            LlamaChatMessage::new("system".into(), system_message().into()),
-            LlamaChatMessage::new("user".into(), user_message(&self.mission, obs)),
-        ]
-        .into_iter()
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| LlmError::Template(e.to_string()))?;
-        self.model
-            .apply_chat_template(&template, &messages, true)
-            .map_err(|e| LlmError::Template(e.to_string()))
+        chat_prompt(
+            self.model,
+            system_message(),
+            user_message(&self.mission, obs),
+        )
     }
 
     /// Make one decision.
@@ -695,94 +698,148 @@ impl LanguageReasoner {
         })
     }
 
-    /// Keep the KV entries of the longest common prefix with the last prompt; returns how
-    /// many tokens are reused (at least one token is always evaluated again, for logits).
+    /// Keep the KV entries of the longest common prefix with the last prompt.
     fn reuse_prefix(&mut self, tokens: &[LlamaToken]) -> usize {
-        let mut common = self
-            .cached
-            .iter()
-            .zip(tokens)
-            .take_while(|(a, b)| a == b)
-            .count();
-        if common >= tokens.len() {
-            common = tokens.len().saturating_sub(1);
-        }
-        let removed = self
-            .ctx
-            .clear_kv_cache_seq(Some(0), Some(common as u32), None);
-        if !matches!(removed, Ok(true)) {
-            // a cache kind that cannot drop a suffix (e.g. sliding-window): start over
-            self.ctx.clear_kv_cache();
-            common = 0;
-        }
-        common
+        reuse_prefix(&mut self.ctx, &self.cached, tokens)
     }
 
     /// Evaluate `tokens` at positions `start..`, in batches; logits for the last one only.
     fn eval(&mut self, tokens: &[LlamaToken], start: usize) -> Result<(), LlmError> {
-        let n_batch = BATCH;
-        for (chunk_index, chunk) in tokens.chunks(n_batch).enumerate() {
-            self.batch.clear();
-            let base = start + chunk_index * n_batch;
-            let last_chunk = (chunk_index + 1) * n_batch >= tokens.len();
-            for (i, &t) in chunk.iter().enumerate() {
-                let logits = last_chunk && i + 1 == chunk.len();
-                self.batch
-                    .add(t, (base + i) as i32, &[0], logits)
-                    .map_err(|e| LlmError::Decode(e.to_string()))?;
-            }
-            self.ctx
-                .decode(&mut self.batch)
-                .map_err(|e| LlmError::Decode(e.to_string()))?;
-        }
-        Ok(())
+        eval_tokens(&mut self.ctx, &mut self.batch, tokens, start)
     }
 
-    /// The best token the grammar allows: the top few by logit are tried one by one (the
-    /// common case), the whole vocabulary is filtered only when none of them fits.
-    /// Returns the token and whether the full filter ran.
+    /// The best token field `field`'s grammar allows at batch index `index`, and whether
+    /// the full filter ran ([`greedy_allowed`]).
     fn next_token(&mut self, field: usize, index: i32) -> Result<(LlamaToken, bool), LlmError> {
-        let grammar = &mut self.fields[field].sampler;
         let logits = self.ctx.get_logits_ith(index);
-        let mut top: [(f32, i32); GREEDY_PROBES] = [(f32::NEG_INFINITY, -1); GREEDY_PROBES];
-        for (i, &l) in logits.iter().enumerate() {
-            if l > top[GREEDY_PROBES - 1].0 {
-                let mut j = GREEDY_PROBES - 1;
-                while j > 0 && top[j - 1].0 < l {
-                    top[j] = top[j - 1];
-                    j -= 1;
-                }
-                top[j] = (l, i as i32);
-            }
-        }
-        for &(logit, id) in &top {
-            if id < 0 {
-                break;
-            }
-            let mut one = LlamaTokenDataArray::new(
-                vec![LlamaTokenData::new(LlamaToken(id), logit, 0.0)],
-                false,
-            );
-            one.apply_sampler(grammar);
-            if one.data[0].logit().is_finite() {
-                return Ok((LlamaToken(id), false));
-            }
-        }
-        let mut all = LlamaTokenDataArray::from_iter(
-            logits
-                .iter()
-                .enumerate()
-                .map(|(i, &l)| LlamaTokenData::new(LlamaToken(i as i32), l, 0.0)),
-            false,
-        );
-        all.apply_sampler(grammar);
-        all.data
-            .iter()
-            .filter(|d| d.logit().is_finite())
-            .max_by(|a, b| a.logit().total_cmp(&b.logit()))
-            .map(|d| (d.id(), true))
-            .ok_or(LlmError::NoAllowedToken {
-                field: self.fields[field].spec.key,
-            })
+        greedy_allowed(logits, &mut self.fields[field].sampler).ok_or(LlmError::NoAllowedToken {
+            field: self.fields[field].spec.key,
+        })
     }
+}
+
+/// The chat prompt of `system` and `user` for `model`: its own template, or llama.cpp's
+/// built-in one of its family for GGUF files without a template in their metadata.
+pub(crate) fn chat_prompt(
+    model: &LlamaModel,
+    system: &str,
+    user: String,
+) -> Result<String, LlmError> {
+    let template = match model.chat_template(None) {
+        Ok(t) => t,
+        Err(_) => {
+            let arch = model
+                .meta_val_str("general.architecture")
+                .unwrap_or_default();
+            let name = if arch.starts_with("gemma") {
+                "gemma"
+            } else {
+                "chatml"
+            };
+            LlamaChatTemplate::new(name).map_err(|e| LlmError::Template(e.to_string()))?
+        }
+    };
+    let messages = [
+        LlamaChatMessage::new("system".into(), system.into()),
+        LlamaChatMessage::new("user".into(), user),
+    ]
+    .into_iter()
+    .collect::<Result<Vec<_>, _>>()
+    .map_err(|e| LlmError::Template(e.to_string()))?;
+    model
+        .apply_chat_template(&template, &messages, true)
+        .map_err(|e| LlmError::Template(e.to_string()))
+}
+
+/// Keep the KV entries in `ctx` of the longest common prefix of `tokens` with `cached` (the
+/// last prompt); returns how many tokens are reused (at least one token is always evaluated
+/// again, for logits).
+pub(crate) fn reuse_prefix(
+    ctx: &mut LlamaContext<'static>,
+    cached: &[LlamaToken],
+    tokens: &[LlamaToken],
+) -> usize {
+    let mut common = cached
+        .iter()
+        .zip(tokens)
+        .take_while(|(a, b)| a == b)
+        .count();
+    if common >= tokens.len() {
+        common = tokens.len().saturating_sub(1);
+    }
+    let removed = ctx.clear_kv_cache_seq(Some(0), Some(common as u32), None);
+    if !matches!(removed, Ok(true)) {
+        // a cache kind that cannot drop a suffix (e.g. sliding-window): start over
+        ctx.clear_kv_cache();
+        common = 0;
+    }
+    common
+}
+
+/// Evaluate `tokens` at positions `start..` in `ctx`, in batches of `batch`'s capacity
+/// ([`BATCH`]); logits for the last one only.
+pub(crate) fn eval_tokens(
+    ctx: &mut LlamaContext<'static>,
+    batch: &mut LlamaBatch<'static>,
+    tokens: &[LlamaToken],
+    start: usize,
+) -> Result<(), LlmError> {
+    for (chunk_index, chunk) in tokens.chunks(BATCH).enumerate() {
+        batch.clear();
+        let base = start + chunk_index * BATCH;
+        let last_chunk = (chunk_index + 1) * BATCH >= tokens.len();
+        for (i, &t) in chunk.iter().enumerate() {
+            let logits = last_chunk && i + 1 == chunk.len();
+            batch
+                .add(t, (base + i) as i32, &[0], logits)
+                .map_err(|e| LlmError::Decode(e.to_string()))?;
+        }
+        ctx.decode(batch)
+            .map_err(|e| LlmError::Decode(e.to_string()))?;
+    }
+    Ok(())
+}
+
+/// The best token `grammar` allows after `logits`: the top few by logit are tried one by one
+/// (the common case), the whole vocabulary is filtered only when none of them fits.
+/// Returns the token and whether the full filter ran; `None` when the grammar allows none.
+pub(crate) fn greedy_allowed(
+    logits: &[f32],
+    grammar: &mut LlamaSampler,
+) -> Option<(LlamaToken, bool)> {
+    let mut top: [(f32, i32); GREEDY_PROBES] = [(f32::NEG_INFINITY, -1); GREEDY_PROBES];
+    for (i, &l) in logits.iter().enumerate() {
+        if l > top[GREEDY_PROBES - 1].0 {
+            let mut j = GREEDY_PROBES - 1;
+            while j > 0 && top[j - 1].0 < l {
+                top[j] = top[j - 1];
+                j -= 1;
+            }
+            top[j] = (l, i as i32);
+        }
+    }
+    for &(logit, id) in &top {
+        if id < 0 {
+            break;
+        }
+        let mut one =
+            LlamaTokenDataArray::new(vec![LlamaTokenData::new(LlamaToken(id), logit, 0.0)], false);
+        one.apply_sampler(grammar);
+        if one.data[0].logit().is_finite() {
+            return Some((LlamaToken(id), false));
+        }
+    }
+    let mut all = LlamaTokenDataArray::from_iter(
+        logits
+            .iter()
+            .enumerate()
+            .map(|(i, &l)| LlamaTokenData::new(LlamaToken(i as i32), l, 0.0)),
+        false,
+    );
+    all.apply_sampler(grammar);
+    all.data
+        .iter()
+        .filter(|d| d.logit().is_finite())
+        .max_by(|a, b| a.logit().total_cmp(&b.logit()))
+        .map(|d| (d.id(), true))
 }

@@ -29,8 +29,7 @@ use crate::planner::{Planner, mission_planner};
 use crate::reasoner_io::ReasonerIo;
 use crate::vision::open_store;
 use aeris_llm::{
-    DecisionView, GEMMA3_270M, LanguageReasoner, MissionBrief, Observation, ReasonerConfig,
-    SMOLLM2_135M, StepBrief,
+    DecisionView, LanguageReasoner, MissionBrief, Observation, ReasonerConfig, StepBrief,
 };
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::error_chain::chain;
@@ -64,15 +63,6 @@ pub fn mission_brief(mission: &MissionSpec) -> Result<MissionBrief, RoleError> {
     })
 }
 
-/// The default model file of a language-model variant.
-pub fn default_model(variant: &str) -> Option<&'static str> {
-    match variant {
-        "smollm2" => Some(SMOLLM2_135M),
-        "gemma3" => Some(GEMMA3_270M),
-        _ => None,
-    }
-}
-
 /// The language-model reasoning role.
 pub struct LanguageRole {
     reasoner: LanguageReasoner,
@@ -90,7 +80,7 @@ impl Role for LanguageRole {
         let file = ctx
             .spec
             .param_str("model")
-            .or(default_model(&variant))
+            .or(aeris_llm::variant_model(&variant))
             .ok_or_else(|| RoleError::Config(format!("no model for variant `{variant}`")))?
             .to_string();
         // never more threads than CPUs the process may run on: ggml's workers spin at their

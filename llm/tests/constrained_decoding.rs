@@ -1,15 +1,17 @@
-//! The language models decide through llama.cpp under the decision grammar: every output,
-//! whatever the state says, parses and passes Valid(D_t).
+//! The language models decode under grammars generated from our schemas: every decision,
+//! whatever the state says, parses and passes Valid(D_t); every formation program written
+//! for the benchmark instructions passes `FormationProgram::validate`.
 //!
 //! Needs the provisioned model cache (`scripts/provision-models.sh`, part of the test
 //! command).
 
+use aeris_formation::{BENCHMARK_INSTRUCTIONS, ProgramWriter};
 use aeris_llm::{
-    DecisionView, GEMMA3_270M, LanguageReasoner, MissionBrief, Observation, ReasonerConfig,
-    SMOLLM2_135M, StepBrief,
+    DecisionView, FormationWriter, GEMMA3_270M, LanguageReasoner, MissionBrief, Observation,
+    QWEN25_CODER_05B, ReasonerConfig, SMOLLM2_135M, StepBrief,
 };
 use aeris_models::ModelStore;
-use aeris_schemas::{ActionMode, DecisionLimits, FixedText, PerceptionState};
+use aeris_schemas::{ActionMode, DecisionLimits, FixedText, FormationLimits, PerceptionState};
 
 /// The tests that run a model take this first: two llama.cpp thread pools on the same
 /// cores spin against each other and each runs several times slower.
@@ -256,4 +258,26 @@ fn a_missing_model_is_a_clear_error() {
     };
     assert!(err.contains("provision-models.sh"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_formation_language_model_writes_valid_programs_for_the_benchmark_instructions() {
+    let _cpu = MODEL_CPU.lock().unwrap_or_else(|e| e.into_inner());
+    let store = ModelStore::open(None).unwrap();
+    let limits = FormationLimits::default();
+    // how well they match the instructions is `aeris bench formation`'s to say
+    for (variant, file) in [("qwen-coder", QWEN25_CODER_05B)] {
+        let mut writer = FormationWriter::load(&store, variant, file, 2).unwrap();
+        for text in BENCHMARK_INSTRUCTIONS {
+            let program = writer
+                .write(text, &limits)
+                .unwrap_or_else(|e| panic!("{variant}: {text}: {e}"));
+            if let Err(e) = program.validate(&limits) {
+                panic!(
+                    "{variant}: {text}: {e}\n{}",
+                    aeris_llm::program_to_json(&program).unwrap_or_default()
+                );
+            }
+        }
+    }
 }
