@@ -12,6 +12,8 @@
 //! - [`flights`]: benchmarks that fly the pipeline end to end as supervised flights
 //!   (`aeris-flight`): cycle time and EER, hot swaps, the fault table, dynamic scheduling
 //!   under a CPU hog.
+//! - [`formation`]: formation programs from the benchmark instructions by every variant:
+//!   time to write, valid as written, accepted, repaired or refused.
 //! - [`hosts`]: the default flight with roles on a second host (network namespaces): CT
 //!   across the link vs local, frames across, moves there and back, a link cut.
 //!
@@ -23,6 +25,7 @@ pub mod camera;
 pub mod control;
 pub mod error;
 pub mod flights;
+pub mod formation;
 pub mod gate;
 pub mod hosts;
 pub mod ipc;

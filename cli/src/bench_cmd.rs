@@ -46,6 +46,10 @@ pub enum BenchCommand {
     /// the default flight with the reasoner and perception there vs on board, per link
     /// delay (netem), frames across; the reasoner moved there and back; a link cut.
     Hosts(crate::bench_hosts::HostsArgs),
+    /// Formation programs from the benchmark instructions by every variant (parser,
+    /// language models): time to write, valid as written, accepted, repaired or refused,
+    /// the parser's phases or not, closest approach in simulation.
+    Formation(crate::bench_formation::FormationArgs),
     /// One model of `bench models` (started by it).
     #[command(name = "model-probe", hide = true)]
     ModelProbe(crate::bench_models::ModelProbeArgs),
@@ -162,6 +166,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         BenchCommand::Faults(a) => crate::bench_faults::faults(a),
         BenchCommand::Record(a) => crate::bench_flight::record(a),
         BenchCommand::Hosts(a) => crate::bench_hosts::run(a),
+        BenchCommand::Formation(a) => crate::bench_formation::run(a),
         BenchCommand::ModelProbe(a) => crate::bench_models::probe(a),
         BenchCommand::IpcPong(a) => {
             let spec = PongSpec::from_json(&a.spec).context("bench ipc-pong: bad --spec")?;

@@ -2,18 +2,20 @@
 //! `aeris-formation`; this parses arguments and prints).
 
 use aeris_formation::{
-    Dynamics, PlanOutcome, ground_row, parse_instruction, plan_program, repair_by_rule,
+    Dynamics, ParserWriter, PlanOutcome, ProgramWriter, ground_row, plan_instruction,
 };
+use aeris_llm::FormationWriter;
 use aeris_schemas::{FormationLimits, FormationPhase, FormationProgram, PhaseKind, ShapeKind};
 use anyhow::Context;
 use clap::{Args, Subcommand};
+use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Instant;
 
 /// `aeris formation` subcommands.
 #[derive(Debug, Subcommand)]
 pub enum FormationCommand {
-    /// Turn an instruction into a formation program with the deterministic parser, fly it
+    /// Turn an instruction into a formation program (the deterministic parser, or a language
+    /// model decoding under the program's grammar: --variant), fly it
     /// in simulation (every vehicle, every transition: separation, geofence, altitude,
     /// duration) and repair it on failure; print the program and the outcome (accepted,
     /// repaired after k attempts, or refused with the diagnosis: exit status 1). The
@@ -40,6 +42,17 @@ pub struct PlanArgs {
     /// Repairs tried before the program is refused.
     #[arg(long, value_name = "K", default_value_t = 3)]
     pub max_repairs: usize,
+    /// Who writes the program: `parser` (deterministic; repairs by rule), or a provisioned
+    /// language model, `qwen-coder` (Qwen2.5-Coder 0.5B), `smollm2` or `gemma3` (repairs by
+    /// rewriting the program from the problem's text).
+    #[arg(long, default_value = "parser")]
+    pub variant: String,
+    /// Model cache (default: $AERIS_MODELS or ~/.cache/aeris/models).
+    #[arg(long, value_name = "DIR")]
+    pub models_dir: Option<PathBuf>,
+    /// CPU threads a language model evaluates on.
+    #[arg(long, default_value_t = 2)]
+    pub threads: i32,
     /// Print one JSON object instead of the table.
     #[arg(long)]
     pub json: bool,
@@ -66,37 +79,58 @@ fn plan(a: PlanArgs) -> anyhow::Result<ExitCode> {
             limits.max_spacing_m
         );
     }
-    let t = Instant::now();
-    let program = parse_instruction(&a.instruction, &limits).context("parsing the instruction")?;
-    let parse_us = t.elapsed().as_secs_f64() * 1e6;
+    if a.variant == "parser" {
+        return plan_with(&mut ParserWriter, &a, &limits);
+    }
+    let file = aeris_llm::variant_model(&a.variant).with_context(|| {
+        format!(
+            "--variant {}: the formation variants are parser, qwen-coder, smollm2 and gemma3",
+            a.variant
+        )
+    })?;
+    let store = aeris_models::ModelStore::open(a.models_dir.as_deref())?;
+    eprintln!("formation: loading {} ({file})", a.variant);
+    let mut writer = FormationWriter::load(&store, &a.variant, file, a.threads)
+        .with_context(|| format!("loading the `{}` formation variant", a.variant))?;
+    plan_with(&mut writer, &a, &limits)
+}
+
+/// Plan `a.instruction` with `writer` and print the program and its outcome.
+fn plan_with<W: ProgramWriter>(
+    writer: &mut W,
+    a: &PlanArgs,
+    limits: &FormationLimits,
+) -> anyhow::Result<ExitCode> {
     let spacing = a.start_spacing.unwrap_or((2.0 * a.min_separation).max(4.0));
-    let starts = ground_row(program.vehicles.max(a.vehicles) as usize, spacing);
-    let t = Instant::now();
-    let outcome = plan_program(
-        &program,
+    let starts = ground_row(a.vehicles as usize, spacing);
+    let planned = plan_instruction(
+        writer,
+        &a.instruction,
         &starts,
-        &limits,
+        limits,
         &Dynamics::default(),
         a.max_repairs,
-        |p, problem| repair_by_rule(p, problem, &limits),
-    )
-    .context("checking the program in simulation")?;
-    let plan_us = t.elapsed().as_secs_f64() * 1e6;
-    let (flown, accepted) = match &outcome {
+    )?;
+    let write_ms = planned.write_time.as_secs_f64() * 1e3;
+    let plan_ms = planned.plan_time.as_secs_f64() * 1e3;
+    let outcome = &planned.outcome;
+    let (flown, accepted) = match outcome {
         PlanOutcome::Accepted {
             program, report, ..
         } => (Some((**program, report.clone())), true),
         PlanOutcome::Refused { .. } => (None, false),
     };
-    let repaired = match &outcome {
+    let repaired = match outcome {
         PlanOutcome::Accepted { repaired, .. } | PlanOutcome::Refused { repaired, .. } => {
             repaired.iter().map(|p| p.to_string()).collect::<Vec<_>>()
         }
     };
+    let program = planned.written;
     if a.json {
         let json = serde_json::json!({
             "instruction": a.instruction,
-            "outcome": match &outcome {
+            "variant": writer.name(),
+            "outcome": match outcome {
                 PlanOutcome::Accepted { repaired, .. } if repaired.is_empty() => "accepted",
                 PlanOutcome::Accepted { .. } => "repaired",
                 PlanOutcome::Refused { .. } => "refused",
@@ -107,15 +141,17 @@ fn plan(a: PlanArgs) -> anyhow::Result<ExitCode> {
             "phases": flown.as_ref().map_or_else(|| phases_json(&program), |f| phases_json(&f.0)),
             "duration_s": flown.as_ref().map(|f| f.1.duration_s),
             "min_separation_m": flown.as_ref().map(|f| f.1.min_separation_m),
-            "parse_us": parse_us,
-            "plan_us": plan_us,
+            "write_ms": write_ms,
+            "plan_ms": plan_ms,
         });
         println!("{json}");
     } else {
         let shown = flown.as_ref().map_or(program, |f| f.0);
         println!(
-            "formation program: {} vehicles, {} phases",
-            shown.vehicles, shown.phase_count
+            "formation program ({}): {} vehicles, {} phases",
+            writer.name(),
+            shown.vehicles,
+            shown.phase_count
         );
         for (i, p) in shown.phases().iter().enumerate() {
             println!("  {:>2} {}", i + 1, describe(p));
@@ -130,7 +166,7 @@ fn plan(a: PlanArgs) -> anyhow::Result<ExitCode> {
                 report.duration_s, report.min_separation_m, limits.min_separation_m
             );
         }
-        println!("parse {parse_us:.0} µs, simulate and repair {plan_us:.0} µs");
+        println!("write {write_ms:.1} ms, simulate and repair {plan_ms:.1} ms");
     }
     if accepted {
         Ok(ExitCode::SUCCESS)

@@ -6,6 +6,7 @@ mod bench_cmd;
 mod bench_ds;
 mod bench_faults;
 mod bench_flight;
+mod bench_formation;
 mod bench_hosts;
 mod bench_models;
 #[cfg(feature = "sim")]

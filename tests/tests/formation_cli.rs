@@ -77,4 +77,16 @@ fn instructions_are_accepted_repaired_or_refused_with_the_reason() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(err.contains("`do a barrel roll`: not a take-off"), "{err}");
+
+    // a variant that does not exist is named, with those that do
+    let out = Command::new(aeris_bin())
+        .args(["formation", "plan", "take off, land", "--variant", "gpt5"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("--variant gpt5: the formation variants are parser, qwen-coder"),
+        "{err}"
+    );
 }

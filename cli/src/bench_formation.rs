@@ -1,0 +1,143 @@
+//! `aeris bench formation`: the formation benchmark's program stage (the library is
+//! `aeris_bench::formation`; this parses arguments and prints).
+
+use aeris_bench::formation::{FormationBenchConfig, INSTRUCTION_SETS, bench_programs};
+use anyhow::Context;
+use clap::Args;
+use std::path::PathBuf;
+
+/// Arguments of `aeris bench formation`.
+#[derive(Debug, Args)]
+pub struct FormationArgs {
+    /// Variants that write the programs: parser, qwen-coder, smollm2, gemma3.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "parser,qwen-coder,smollm2,gemma3"
+    )]
+    pub variants: Vec<String>,
+    /// The instruction set: `benchmark` (reported) or `development` (prompts are developed
+    /// on it).
+    #[arg(long, default_value = "benchmark")]
+    pub instructions: String,
+    /// Vehicles the flight has (1-8).
+    #[arg(long, default_value_t = 4)]
+    pub vehicles: u8,
+    /// Repairs tried before a program is refused.
+    #[arg(long, value_name = "K", default_value_t = 3)]
+    pub max_repairs: usize,
+    /// CPU threads a language model evaluates on.
+    #[arg(long, default_value_t = 2)]
+    pub threads: i32,
+    /// Busy threads started outside the benchmark for its whole run (unpinned, normal
+    /// priority).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub outside_load: usize,
+    /// Model cache (default: $AERIS_MODELS or ~/.cache/aeris/models).
+    #[arg(long, value_name = "DIR")]
+    pub models_dir: Option<PathBuf>,
+    /// Print one JSON object on the last line of stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Run `aeris bench formation`.
+pub fn run(a: FormationArgs) -> anyhow::Result<()> {
+    let instructions = INSTRUCTION_SETS
+        .iter()
+        .find(|(name, _)| *name == a.instructions)
+        .map(|(_, set)| *set)
+        .with_context(|| {
+            format!(
+                "--instructions {}: the sets are benchmark and development",
+                a.instructions
+            )
+        })?;
+    let store = aeris_models::ModelStore::open(a.models_dir.as_deref())?;
+    eprintln!(
+        "formation programs: {} {} instructions x {} variants ({}), {} vehicles, {} busy threads outside",
+        instructions.len(),
+        a.instructions,
+        a.variants.len(),
+        a.variants.join(", "),
+        a.vehicles,
+        a.outside_load
+    );
+    let config = FormationBenchConfig {
+        variants: a.variants,
+        vehicles: a.vehicles,
+        max_repairs: a.max_repairs,
+        threads: a.threads,
+        outside_load: a.outside_load,
+        instructions,
+    };
+    let report = bench_programs(&config, &store).context("formation benchmark")?;
+    for (variant, s) in &report.load_s {
+        println!("{variant}: loaded in {s:.2} s");
+    }
+    println!(
+        "{:<10} {:>2} {:>9} {:>6} {:>5} {:<9} {:>7} {:>9} {:>7} {:>8}",
+        "variant",
+        "#",
+        "write ms",
+        "tokens",
+        "valid",
+        "outcome",
+        "repairs",
+        "plan ms",
+        "parser",
+        "closest"
+    );
+    for (i, r) in report.rows.iter().enumerate() {
+        let n = i % instructions.len() + 1;
+        println!(
+            "{:<10} {:>2} {:>9.1} {:>6} {:>5} {:<9} {:>7} {:>9.2} {:>7} {:>8}",
+            r.variant,
+            n,
+            r.write_ms,
+            r.generated_tokens.map_or("-".into(), |t| t.to_string()),
+            if r.valid_as_written { "yes" } else { "no" },
+            r.outcome,
+            r.repairs,
+            r.plan_ms,
+            if r.same_phases_as_parser {
+                "same"
+            } else {
+                "differs"
+            },
+            r.min_separation_m
+                .filter(|m| m.is_finite())
+                .map_or("-".into(), |m| format!("{m:.2} m")),
+        );
+        if let Some(p) = &r.problem {
+            println!("      {p}");
+        }
+    }
+    for variant in &config_variants(&report) {
+        let rows: Vec<_> = report
+            .rows
+            .iter()
+            .filter(|r| &r.variant == variant)
+            .collect();
+        let as_written = rows.iter().filter(|r| r.outcome == "accepted").count();
+        println!(
+            "{variant}: {as_written} of {} accepted as written",
+            rows.len()
+        );
+    }
+    if a.json {
+        println!("{}", serde_json::to_string(&report)?);
+    }
+    Ok(())
+}
+
+/// The variants of `report`'s rows, in order.
+fn config_variants(report: &aeris_bench::formation::FormationReport) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for r in &report.rows {
+        if !out.contains(&r.variant) {
+            out.push(r.variant.clone());
+        }
+    }
+    out
+}
