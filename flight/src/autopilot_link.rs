@@ -66,25 +66,31 @@ impl core::fmt::Display for AutopilotEvent {
 }
 
 /// Follows the controller's link status and says what changed.
+///
+/// The status comes from whichever controller holds the autopilot lease. A standby that
+/// takes the lease while the autopilot is silent starts its own term "up" and judges the
+/// link lost again a timeout later: that is still the one outage, so the flight keeps its
+/// own state (lost or not) and counts a loss once; the link is back only when the same
+/// controller hears the autopilot again.
 #[derive(Debug, Default)]
 pub(crate) struct LinkFollower {
     last: Option<AutopilotLinkStatus>,
     bound: bool,
     refused_seen: u64,
-    losses: u64,
-    losses_base: u64,
     refused_total: u64,
+    /// The link is lost, as the flight sees it.
+    lost: bool,
+    losses: u64,
 }
 
 impl LinkFollower {
     /// Take in `s`, pushing what changed onto `out`.
     pub(crate) fn update(&mut self, s: &AutopilotLinkStatus, out: &mut Vec<AutopilotEvent>) {
-        if let Some(last) = &self.last
-            && s.seq <= last.seq
-        {
-            // a new controller process counts from zero
+        // a sequence that goes back is another controller process (a restart, or the
+        // standby that took the lease): its counters start from zero
+        let same = self.last.filter(|last| s.seq > last.seq);
+        if same.is_none() {
             self.refused_seen = 0;
-            self.losses_base += last.losses;
         }
         let state = s.link_state();
         if !self.bound && s.autopilot != AutopilotKind::Unknown as u8 {
@@ -98,14 +104,19 @@ impl LinkFollower {
                 heard_version: s.heard_version,
             });
         }
-        let was = self.last.and_then(|l| l.link_state());
-        if state == Some(LinkState::Lost) && was != Some(LinkState::Lost) {
+        // a loss and its end both between two statuses read: the controller's count says so
+        let missed = same.is_some_and(|last| s.losses > last.losses);
+        if !self.lost && (state == Some(LinkState::Lost) || missed) {
+            self.lost = true;
+            self.losses += 1;
             out.push(AutopilotEvent::Lost {
                 url: s.url.as_str_lossy().to_string(),
                 timeout_ms: s.timeout_ms,
             });
         }
-        if state == Some(LinkState::Up) && was == Some(LinkState::Lost) {
+        let heard_again = same.is_some_and(|last| s.autopilot_frames > last.autopilot_frames);
+        if self.lost && state == Some(LinkState::Up) && heard_again {
+            self.lost = false;
             out.push(AutopilotEvent::Restored);
         }
         if s.commands_refused > self.refused_seen {
@@ -115,7 +126,6 @@ impl LinkFollower {
                 refusal: s.last_refusal.as_str_lossy().to_string(),
             });
         }
-        self.losses = self.losses_base + s.losses;
         self.last = Some(*s);
     }
 
@@ -125,7 +135,7 @@ impl LinkFollower {
         (s.link_state() == Some(LinkState::Silent)).then(|| silent_diagnosis(&s))
     }
 
-    /// Losses of the link so far (over every controller process).
+    /// Losses of the link so far, as the flight saw them (over every controller process).
     pub(crate) fn losses(&self) -> u64 {
         self.losses
     }
@@ -273,6 +283,7 @@ mod tests {
         let refused = AutopilotLinkStatus {
             seq: 6,
             losses: 1,
+            autopilot_frames: 1,
             commands_refused: 1,
             last_refusal: FixedText::from_str_truncated(
                 "MAV_CMD_COMPONENT_ARM_DISARM: MAV_RESULT_DENIED",
@@ -292,6 +303,38 @@ mod tests {
         // a restarted controller counts from zero again: nothing is lost or doubled
         f.update(&AutopilotLinkStatus { seq: 1, ..up }, &mut out);
         assert_eq!((f.losses(), f.commands_refused(), out.len()), (1, 1, 4));
+    }
+
+    #[test]
+    fn a_lease_handed_over_during_an_outage_is_still_one_loss() {
+        let mut f = LinkFollower::default();
+        let mut out = Vec::new();
+        let holder = |seq, state: LinkState, losses, frames| AutopilotLinkStatus {
+            seq,
+            losses,
+            autopilot_frames: frames,
+            autopilot: AutopilotKind::Px4 as u8,
+            ..status(state)
+        };
+        f.update(&holder(100, LinkState::Up, 0, 500), &mut out);
+        f.update(&holder(101, LinkState::Lost, 1, 500), &mut out);
+        // the standby takes the lease: its own term starts up, then it judges the link lost
+        f.update(&holder(1, LinkState::Up, 0, 0), &mut out);
+        f.update(&holder(2, LinkState::Up, 0, 0), &mut out);
+        f.update(&holder(300, LinkState::Lost, 1, 0), &mut out);
+        assert_eq!(f.losses(), 1, "{out:?}");
+        assert!(!out.contains(&AutopilotEvent::Restored), "{out:?}");
+        // the autopilot is heard again by the holder of the lease
+        f.update(&holder(301, LinkState::Up, 1, 3), &mut out);
+        assert_eq!(out.last(), Some(&AutopilotEvent::Restored));
+        // a loss and its end between two reads still count, once
+        f.update(&holder(302, LinkState::Up, 2, 9), &mut out);
+        assert_eq!(f.losses(), 2, "{out:?}");
+        let lost = out
+            .iter()
+            .filter(|e| matches!(e, AutopilotEvent::Lost { .. }));
+        assert_eq!(lost.count(), 2);
+        assert_eq!(out.last(), Some(&AutopilotEvent::Restored));
     }
 
     #[test]
