@@ -9,10 +9,9 @@
 //! at the 2 m minimum would make it write 10.0-19.9 from its first digit on. The output
 //! goes through [`FormationProgram::validate`] and the simulation like the parser's.
 
+use crate::decode::{BATCH, backend, chat_prompt, eval_tokens, greedy_allowed, reuse_prefix};
 use crate::grammar::{GrammarError, NumberField, number_rule};
-use crate::reasoner::{
-    LlmError, backend, chat_prompt, eval_tokens, greedy_allowed, model_params, reuse_prefix,
-};
+use crate::reasoner::{LlmError, model_params};
 use aeris_formation::{Problem, ProgramWriter, clauses};
 use aeris_models::ModelStore;
 use aeris_schemas::{
@@ -340,7 +339,7 @@ impl FormationWriter {
         let model: &'static LlamaModel = Box::leak(Box::new(model));
         let ctx_params = LlamaContextParams::default()
             .with_n_ctx(NonZeroU32::new(CONTEXT_TOKENS))
-            .with_n_batch(512)
+            .with_n_batch(BATCH as u32)
             .with_n_threads(threads.max(1))
             .with_n_threads_batch(threads.max(1));
         let ctx = model
@@ -352,7 +351,7 @@ impl FormationWriter {
             ctx,
             model,
             grammar,
-            batch: LlamaBatch::new(512, 1),
+            batch: LlamaBatch::new(BATCH, 1),
             cached: Vec::new(),
             variant: variant.to_string(),
             last: WriteStats::default(),

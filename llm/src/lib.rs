@@ -7,6 +7,7 @@
 //! validates again. The prompt puts the mission first so its KV-cache entries are reused from
 //! one heartbeat to the next ([`LanguageReasoner`]).
 
+mod decode;
 pub mod formation;
 pub mod grammar;
 pub mod prompt;

@@ -1,0 +1,160 @@
+//! What both language-model decoders (the reasoner's decisions, the formation writer's
+//! programs) share: llama.cpp's backend, the chat prompt, batch evaluation, KV-prefix reuse
+//! and greedy choice under a grammar.
+
+use crate::reasoner::LlmError;
+use llama_cpp_2::context::LlamaContext;
+use llama_cpp_2::llama_backend::LlamaBackend;
+use llama_cpp_2::llama_batch::LlamaBatch;
+use llama_cpp_2::model::{LlamaChatMessage, LlamaChatTemplate, LlamaModel};
+use llama_cpp_2::sampling::LlamaSampler;
+use llama_cpp_2::token::LlamaToken;
+use llama_cpp_2::token::data::LlamaTokenData;
+use llama_cpp_2::token::data_array::LlamaTokenDataArray;
+use std::sync::OnceLock;
+
+/// Tokens one llama.cpp batch holds (prompt chunks, draft verification).
+pub(crate) const BATCH: usize = 512;
+
+/// Candidates (by logit) tried against the grammar one by one before the whole vocabulary
+/// is filtered.
+const GREEDY_PROBES: usize = 8;
+
+pub(crate) fn backend() -> Result<&'static LlamaBackend, LlmError> {
+    static BACKEND: OnceLock<Result<LlamaBackend, String>> = OnceLock::new();
+    BACKEND
+        .get_or_init(|| {
+            llama_cpp_2::send_logs_to_tracing(
+                llama_cpp_2::LogOptions::default().with_logs_enabled(false),
+            );
+            LlamaBackend::init().map_err(|e| e.to_string())
+        })
+        .as_ref()
+        .map_err(|e| LlmError::Backend(e.clone()))
+}
+
+/// The chat prompt of `system` and `user` for `model`: its own template, or llama.cpp's
+/// built-in one of its family for GGUF files without a template in their metadata.
+pub(crate) fn chat_prompt(
+    model: &LlamaModel,
+    system: &str,
+    user: String,
+) -> Result<String, LlmError> {
+    let template = match model.chat_template(None) {
+        Ok(t) => t,
+        Err(_) => {
+            let arch = model
+                .meta_val_str("general.architecture")
+                .unwrap_or_default();
+            let name = if arch.starts_with("gemma") {
+                "gemma"
+            } else {
+                "chatml"
+            };
+            LlamaChatTemplate::new(name).map_err(|e| LlmError::Template(e.to_string()))?
+        }
+    };
+    let messages = [
+        LlamaChatMessage::new("system".into(), system.into()),
+        LlamaChatMessage::new("user".into(), user),
+    ]
+    .into_iter()
+    .collect::<Result<Vec<_>, _>>()
+    .map_err(|e| LlmError::Template(e.to_string()))?;
+    model
+        .apply_chat_template(&template, &messages, true)
+        .map_err(|e| LlmError::Template(e.to_string()))
+}
+
+/// Keep the KV entries in `ctx` of the longest common prefix of `tokens` with `cached` (the
+/// last prompt); returns how many tokens are reused (at least one token is always evaluated
+/// again, for logits).
+pub(crate) fn reuse_prefix(
+    ctx: &mut LlamaContext<'static>,
+    cached: &[LlamaToken],
+    tokens: &[LlamaToken],
+) -> usize {
+    let mut common = cached
+        .iter()
+        .zip(tokens)
+        .take_while(|(a, b)| a == b)
+        .count();
+    if common >= tokens.len() {
+        common = tokens.len().saturating_sub(1);
+    }
+    let removed = ctx.clear_kv_cache_seq(Some(0), Some(common as u32), None);
+    if !matches!(removed, Ok(true)) {
+        // a cache kind that cannot drop a suffix (e.g. sliding-window): start over
+        ctx.clear_kv_cache();
+        common = 0;
+    }
+    common
+}
+
+/// Evaluate `tokens` at positions `start..` in `ctx`, in batches of `batch`'s capacity
+/// ([`BATCH`]); logits for the last one only.
+pub(crate) fn eval_tokens(
+    ctx: &mut LlamaContext<'static>,
+    batch: &mut LlamaBatch<'static>,
+    tokens: &[LlamaToken],
+    start: usize,
+) -> Result<(), LlmError> {
+    for (chunk_index, chunk) in tokens.chunks(BATCH).enumerate() {
+        batch.clear();
+        let base = start + chunk_index * BATCH;
+        let last_chunk = (chunk_index + 1) * BATCH >= tokens.len();
+        for (i, &t) in chunk.iter().enumerate() {
+            let logits = last_chunk && i + 1 == chunk.len();
+            batch
+                .add(t, (base + i) as i32, &[0], logits)
+                .map_err(|e| LlmError::Decode(e.to_string()))?;
+        }
+        ctx.decode(batch)
+            .map_err(|e| LlmError::Decode(e.to_string()))?;
+    }
+    Ok(())
+}
+
+/// The best token `grammar` allows after `logits`: the top few by logit are tried one by one
+/// (the common case), the whole vocabulary is filtered only when none of them fits.
+/// Returns the token and whether the full filter ran; `None` when the grammar allows none.
+pub(crate) fn greedy_allowed(
+    logits: &[f32],
+    grammar: &mut LlamaSampler,
+) -> Option<(LlamaToken, bool)> {
+    let mut top: [(f32, i32); GREEDY_PROBES] = [(f32::NEG_INFINITY, -1); GREEDY_PROBES];
+    for (i, &l) in logits.iter().enumerate() {
+        if l > top[GREEDY_PROBES - 1].0 {
+            let mut j = GREEDY_PROBES - 1;
+            while j > 0 && top[j - 1].0 < l {
+                top[j] = top[j - 1];
+                j -= 1;
+            }
+            top[j] = (l, i as i32);
+        }
+    }
+    for &(logit, id) in &top {
+        if id < 0 {
+            break;
+        }
+        let mut one =
+            LlamaTokenDataArray::new(vec![LlamaTokenData::new(LlamaToken(id), logit, 0.0)], false);
+        one.apply_sampler(grammar);
+        if one.data[0].logit().is_finite() {
+            return Some((LlamaToken(id), false));
+        }
+    }
+    let mut all = LlamaTokenDataArray::from_iter(
+        logits
+            .iter()
+            .enumerate()
+            .map(|(i, &l)| LlamaTokenData::new(LlamaToken(i as i32), l, 0.0)),
+        false,
+    );
+    all.apply_sampler(grammar);
+    all.data
+        .iter()
+        .filter(|d| d.logit().is_finite())
+        .max_by(|a, b| a.logit().total_cmp(&b.logit()))
+        .map(|d| (d.id(), true))
+}
