@@ -436,7 +436,7 @@ fn migrate(
             steps.iter().find(|s| {
                 s["message"]
                     .as_str()
-                    .is_some_and(|m| m.contains("is ready after"))
+                    .is_some_and(|m| m.contains("was ready after"))
             })
         })
         .and_then(|s| s["elapsed_ms"].as_u64())
@@ -594,7 +594,7 @@ fn cut(config: &HostsBenchConfig) -> Result<CutFigures, HostsBenchError> {
     let cut_at = Instant::now();
     s.hosts.set_link(false)?;
     let lost = flight.wait_line("link to host `ground` lost")?;
-    let ready = flight.wait_line("on the flight's host (executor perception) is ready after")?;
+    let ready = flight.wait_line("on the flight's host (executor perception) was ready after")?;
     let restored_at = Instant::now();
     s.hosts.set_link(true)?;
     let back = flight.wait_line("move of `planner` to host `ground` (executor gs) done")?;

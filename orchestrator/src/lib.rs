@@ -37,8 +37,8 @@ pub mod workflow;
 pub use launch::{LaunchPlan, PlanError, PlannedRole, plan_launch};
 pub use restart::{RestartDecision, RestartPolicy, RoleExit, restart_decision};
 pub use supervisor::{
-    RoleRuntime, RoleState, ShutdownEntry, ShutdownOutcome, ShutdownReport, SilentRole, Supervisor,
-    SupervisorError, SupervisorEvent, SupervisorOptions, SwapError,
+    Handover, RoleRuntime, RoleState, ShutdownEntry, ShutdownOutcome, ShutdownReport, SilentRole,
+    Supervisor, SupervisorError, SupervisorEvent, SupervisorOptions, SwapError,
 };
 pub use workflow::{
     Executor, ExecutorCpus, RoleDecl, SchedulingSpec, Workflow, WorkflowError, WorkflowFileError,

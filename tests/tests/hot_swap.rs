@@ -178,23 +178,57 @@ fn roles_are_hot_swapped_during_a_flight_and_broken_variants_roll_back() {
     let (ok, out, err) = swapping.join().unwrap();
     assert!(ok, "swap to gemma3 failed: {out}\n{err}");
     // handed over between cycles: the old reasoner completed a cycle (a decision) after the
-    // new one was ready, and only then was asked to stop
+    // new one was ready, and only then was asked to stop; or, if it completed none, only
+    // after the whole hand-over wait (one heartbeat and the decision deadline)
     let stamp = |pid: u32, f: &dyn Fn(&RoleHeartbeat) -> bool| {
         reasoner_beats
             .iter()
             .find(|h| h.pid == pid && f(h))
             .map(|h| h.stamp_ns)
     };
+    let logs = || run_logs_tail(&dir.0, 12);
     let new_ready = reasoner_beats
         .iter()
         .find(|h| h.pid != old.pid && h.status == RoleStatus::Running as u8)
         .map(|h| h.stamp_ns)
         .expect("the new reasoner's ready heartbeat");
-    let old_worked = stamp(old.pid, &|h| h.worked == 1 && h.stamp_ns > new_ready)
-        .expect("the old reasoner decided after the new one was ready");
     let old_stopping = stamp(old.pid, &|h| h.status == RoleStatus::Stopping as u8)
         .expect("the old reasoner's stopping heartbeat");
-    assert!(old_worked < old_stopping);
+    let handover = out["steps"]
+        .as_array()
+        .and_then(|steps| steps.iter().find(|s| s["stage"] == "ready"))
+        .and_then(|s| s["message"].as_str())
+        .unwrap_or_default()
+        .to_string();
+    eprintln!("hot_swap: {handover}");
+    if handover.contains("after a cycle of the old process") {
+        let old_worked = stamp(old.pid, &|h| h.worked == 1 && h.stamp_ns > new_ready)
+            .unwrap_or_else(|| {
+                panic!(
+                    "the supervisor handed over after a cycle the old reasoner did not complete \
+                     after the new one was ready: {out}\n{}",
+                    logs()
+                )
+            });
+        assert!(old_worked < old_stopping);
+    } else {
+        assert!(
+            handover.contains("completed no cycle"),
+            "{handover:?}: {out}"
+        );
+        // waited a heartbeat (2 s) and the deadline set above (8 s) before stopping it
+        assert!(
+            old_stopping - new_ready >= 10_000_000_000,
+            "the old reasoner was stopped {} ms after the new one was ready, before the \
+             hand-over wait: {out}\n{}",
+            (old_stopping - new_ready) / 1_000_000,
+            logs()
+        );
+        eprintln!(
+            "hot_swap: the old reasoner completed no cycle in the hand-over wait; its log:\n{}",
+            logs()
+        );
+    }
     let stages: Vec<&str> = out["steps"]
         .as_array()
         .unwrap()

@@ -4,6 +4,44 @@
 use crate::ladder::StepDirection;
 use crate::restart::RoleExit;
 
+/// How a make-before-break swap handed the role over once its new process was ready.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Handover {
+    /// The old process completed one more cycle, `after_ms` after the new one was ready.
+    AfterCycle {
+        /// Milliseconds from the new process's ready heartbeat to the hand-over.
+        after_ms: u64,
+    },
+    /// The old process completed no cycle within the hand-over wait (one heartbeat and the
+    /// decision deadline): the role was handed over without it.
+    Waited {
+        /// Milliseconds from the new process's ready heartbeat to the hand-over.
+        after_ms: u64,
+    },
+    /// The role's host link was lost: handed over at once, no cycle waited for.
+    LinkLost,
+    /// There was no old process to wait for (the role was down).
+    NoOldProcess,
+}
+
+impl core::fmt::Display for Handover {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Handover::AfterCycle { after_ms } => write!(
+                f,
+                "handed over {after_ms} ms later, after a cycle of the old process; stopping it"
+            ),
+            Handover::Waited { after_ms } => write!(
+                f,
+                "handed over {after_ms} ms later: the old process completed no cycle in that \
+                 time; stopping it"
+            ),
+            Handover::LinkLost => write!(f, "handed over at once: the old process's link is lost"),
+            Handover::NoOldProcess => write!(f, "handed over: the role had no process"),
+        }
+    }
+}
+
 /// Something that happened to a role during a [`Supervisor::step`](super::Supervisor::step).
 #[derive(Debug, Clone, PartialEq)]
 pub enum SupervisorEvent {
@@ -89,6 +127,8 @@ pub enum SupervisorEvent {
         instance: u32,
         /// Milliseconds from the start of the swap to the new process's first heartbeat.
         ready_ms: u64,
+        /// How the role was handed over once the new process was ready.
+        handover: Handover,
         /// Where it runs, when it moved the role to another host or back.
         place: Option<String>,
     },
@@ -333,6 +373,7 @@ impl core::fmt::Display for SupervisorEvent {
                 variant,
                 new_pid,
                 ready_ms,
+                handover,
                 place,
                 ..
             } => {
@@ -340,7 +381,7 @@ impl core::fmt::Display for SupervisorEvent {
                 if let Some(place) = place {
                     write!(f, "on {place} ")?;
                 }
-                write!(f, "is ready after {ready_ms} ms; stopping the old process")
+                write!(f, "was ready after {ready_ms} ms; {handover}")
             }
             SupervisorEvent::SwapDone {
                 name,

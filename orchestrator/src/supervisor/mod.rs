@@ -58,7 +58,7 @@ mod swap;
 mod variants;
 
 pub use error::{MigrateError, SilentRole, SupervisorError, SwapError};
-pub use events::{Migration, MigrationTrigger, SupervisorEvent};
+pub use events::{Handover, Migration, MigrationTrigger, SupervisorEvent};
 pub use logs::{LOG_TAIL_LINES, log_tail};
 pub use migration::RoleMove;
 pub use role_runtime::{LATENCY_WINDOW, RoleRuntime, RoleState};

@@ -7,7 +7,7 @@
 
 use super::Supervisor;
 use super::error::SwapError;
-use super::events::SupervisorEvent;
+use super::events::{Handover, SupervisorEvent};
 use super::logs::{log_tail, open_log, quote_tail};
 use super::role_runtime::{LATENCY_WINDOW, RemoteLink, ReturnTo, RoleRuntime, RoleState};
 use super::spawn::{LoadPolicy, may_leave_idle, set_normal_policy};
@@ -476,11 +476,18 @@ impl Supervisor {
             set_normal_policy(swap.pid);
             let (variant, new_pid, instance) = (swap.variant.clone(), swap.pid, swap.instance);
             let place = swap.placement.as_ref().map(|p| p.place.clone());
-            let ready_ms = swap
-                .ready
-                .map_or(now, |(_, at)| at)
-                .saturating_duration_since(swap.started)
-                .as_millis() as u64;
+            let ready_at = swap.ready.map_or(now, |(_, at)| at);
+            let ready_ms = ready_at.saturating_duration_since(swap.started).as_millis() as u64;
+            let after_ms = now.saturating_duration_since(ready_at).as_millis() as u64;
+            let handover = if role.child.is_none() {
+                Handover::NoOldProcess
+            } else if swap.handover {
+                Handover::AfterCycle { after_ms }
+            } else if role.link.as_ref().is_some_and(|l| l.lost) {
+                Handover::LinkLost
+            } else {
+                Handover::Waited { after_ms }
+            };
             let (old_pid, old_child) = role.take_over(swap, now);
             events.push(SupervisorEvent::SwapReady {
                 name: role.name.clone(),
@@ -489,6 +496,7 @@ impl Supervisor {
                 new_pid,
                 instance,
                 ready_ms,
+                handover,
                 place: place.clone(),
             });
             // then stop the old one; the swap is done when it has exited
