@@ -71,7 +71,8 @@ impl core::fmt::Display for AutopilotEvent {
 /// takes the lease while the autopilot is silent starts its own term "up" and judges the
 /// link lost again a timeout later: that is still the one outage, so the flight keeps its
 /// own state (lost or not) and counts a loss once; the link is back only when the same
-/// controller hears the autopilot again.
+/// controller hears the autopilot again. Holders are told apart by their lease epoch, so a
+/// former holder's status read late changes nothing.
 #[derive(Debug, Default)]
 pub(crate) struct LinkFollower {
     last: Option<AutopilotLinkStatus>,
@@ -86,9 +87,19 @@ pub(crate) struct LinkFollower {
 impl LinkFollower {
     /// Take in `s`, pushing what changed onto `out`.
     pub(crate) fn update(&mut self, s: &AutopilotLinkStatus, out: &mut Vec<AutopilotEvent>) {
-        // a sequence that goes back is another controller process (a restart, or the
-        // standby that took the lease): its counters start from zero
-        let same = self.last.filter(|last| s.seq > last.seq);
+        // statuses of two holders may be read out of order (a hand-over, a migration): a
+        // former holder's, read after the holder's, is old news
+        if self
+            .last
+            .is_some_and(|last| s.lease_epoch < last.lease_epoch)
+        {
+            return;
+        }
+        // another epoch, or a sequence that goes back, is another controller process (a
+        // restart, the standby that took the lease): its counters start from zero
+        let same = self
+            .last
+            .filter(|last| last.lease_epoch == s.lease_epoch && s.seq > last.seq);
         if same.is_none() {
             self.refused_seen = 0;
         }
@@ -309,15 +320,20 @@ mod tests {
     fn a_lease_handed_over_during_an_outage_is_still_one_loss() {
         let mut f = LinkFollower::default();
         let mut out = Vec::new();
-        let holder = |seq, state: LinkState, losses, frames| AutopilotLinkStatus {
+        let first = |seq, state: LinkState, losses, frames| AutopilotLinkStatus {
             seq,
+            lease_epoch: 1000,
             losses,
             autopilot_frames: frames,
             autopilot: AutopilotKind::Px4 as u8,
             ..status(state)
         };
-        f.update(&holder(100, LinkState::Up, 0, 500), &mut out);
-        f.update(&holder(101, LinkState::Lost, 1, 500), &mut out);
+        let holder = |seq, state, losses, frames| AutopilotLinkStatus {
+            lease_epoch: 2000,
+            ..first(seq, state, losses, frames)
+        };
+        f.update(&first(100, LinkState::Up, 0, 500), &mut out);
+        f.update(&first(101, LinkState::Lost, 1, 500), &mut out);
         // the standby takes the lease: its own term starts up, then it judges the link lost
         f.update(&holder(1, LinkState::Up, 0, 0), &mut out);
         f.update(&holder(2, LinkState::Up, 0, 0), &mut out);
@@ -327,6 +343,12 @@ mod tests {
         // the autopilot is heard again by the holder of the lease
         f.update(&holder(301, LinkState::Up, 1, 3), &mut out);
         assert_eq!(out.last(), Some(&AutopilotEvent::Restored));
+        // the former holder's last statuses, read late (its losses above the holder's):
+        // neither a loss nor anything else
+        let events = out.len();
+        f.update(&first(102, LinkState::Lost, 1, 500), &mut out);
+        f.update(&first(103, LinkState::Up, 1, 501), &mut out);
+        assert_eq!((f.losses(), out.len()), (1, events), "{out:?}");
         // a loss and its end between two reads still count, once
         f.update(&holder(302, LinkState::Up, 2, 9), &mut out);
         assert_eq!(f.losses(), 2, "{out:?}");

@@ -85,7 +85,7 @@ fn type_name_of<T: ZeroCopySend>() -> &'static str {
 }
 
 impl Payload {
-    /// The iceoryx2 type name (`aeris::Decision@s7`).
+    /// The iceoryx2 type name (`aeris::Decision@s8`).
     pub fn type_name(self) -> &'static str {
         match self {
             Payload::Frame => type_name_of::<FrameHeader>(),

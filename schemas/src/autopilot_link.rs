@@ -85,11 +85,15 @@ impl AutopilotKind {
 /// What the lease-holding controller knows of its autopilot link, every control tick.
 /// Counters count from the controller process's start.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("aeris::AutopilotLinkStatus@s7")]
+#[type_name("aeris::AutopilotLinkStatus@s8")]
 #[repr(C)]
 pub struct AutopilotLinkStatus {
     /// Publisher sequence number.
     pub seq: u64,
+    /// The autopilot-lease epoch of the controller that published it: a controller that
+    /// takes the lease holds a higher one, so a reader tells the holders' statuses apart
+    /// (and drops a former holder's late ones) whatever order they are read in.
+    pub lease_epoch: u64,
     /// CLOCK_MONOTONIC ns at publication.
     pub stamp_ns: u64,
     /// Frames received and decoded, from anyone.
@@ -154,6 +158,7 @@ impl Default for AutopilotLinkStatus {
     fn default() -> Self {
         Self {
             seq: 0,
+            lease_epoch: 0,
             stamp_ns: 0,
             frames: 0,
             autopilot_frames: 0,

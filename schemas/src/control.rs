@@ -36,7 +36,7 @@ impl CommandKind {
 
 /// A command to the supervisor.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
-#[type_name("aeris::SupervisorCommand@s7")]
+#[type_name("aeris::SupervisorCommand@s8")]
 #[repr(C)]
 pub struct SupervisorCommand {
     /// [`CommandKind`] wire byte.
@@ -113,7 +113,7 @@ impl ReplyStage {
 
 /// One reply of the supervisor.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
-#[type_name("aeris::SupervisorReply@s7")]
+#[type_name("aeris::SupervisorReply@s8")]
 #[repr(C)]
 pub struct SupervisorReply {
     /// [`ReplyStage`] wire byte.

@@ -69,7 +69,7 @@ impl ActionMode {
 /// `action` is a raw byte on purpose: a decision comes from another process (possibly a
 /// language model) and must be validated, never transmuted into an enum.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("aeris::Decision@s7")]
+#[type_name("aeris::Decision@s8")]
 #[repr(C)]
 pub struct Decision {
     /// Publisher sequence number (monotone per publisher, starting at 1).

@@ -106,7 +106,7 @@ impl ShapeKind {
 
 /// One phase of a [`FormationProgram`]. Fields a kind does not use stay 0.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("aeris::FormationPhase@s7")]
+#[type_name("aeris::FormationPhase@s8")]
 #[repr(C)]
 pub struct FormationPhase {
     /// [`PhaseKind`] wire byte.
@@ -135,7 +135,7 @@ pub struct FormationPhase {
 /// A formation program: its phases, in order, for `vehicles`
 /// vehicles.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("aeris::FormationProgram@s7")]
+#[type_name("aeris::FormationProgram@s8")]
 #[repr(C)]
 pub struct FormationProgram {
     /// Publisher sequence number.

@@ -38,7 +38,7 @@ impl FrameFormat {
 
 /// User header of a frame sample (`camera/rgb`, `camera/depth`).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("aeris::FrameHeader@s7")]
+#[type_name("aeris::FrameHeader@s8")]
 #[repr(C)]
 pub struct FrameHeader {
     /// Frame sequence number (monotone per camera, from 1).

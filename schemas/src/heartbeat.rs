@@ -58,7 +58,7 @@ pub struct StageTiming {
 
 /// A role's heartbeat (`heartbeat`).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("aeris::RoleHeartbeat@s7")]
+#[type_name("aeris::RoleHeartbeat@s8")]
 #[repr(C)]
 pub struct RoleHeartbeat {
     /// Role instance name (unique in the flight).

@@ -17,7 +17,7 @@ pub const MAX_HOSTS: usize = 4;
 
 /// One link's figures (`hosts/link`, one sample per probe answered or lost).
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("aeris::HostLinkStatus@s7")]
+#[type_name("aeris::HostLinkStatus@s8")]
 #[repr(C)]
 pub struct HostLinkStatus {
     /// The other host's name (`[hosts.NAME]`).

@@ -24,7 +24,7 @@ pub mod clamp {
 
 /// Hub report (`hub/report`), published once per committed or reused cycle.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("aeris::HubReport@s7")]
+#[type_name("aeris::HubReport@s8")]
 #[repr(C)]
 pub struct HubReport {
     /// Publisher sequence number.

@@ -18,7 +18,7 @@ pub const LEASE_HAS_HOLD: u8 = 2;
 /// One poll's claim of the autopilot by its holder, with the tracking state a standby needs
 /// to go on from exactly where the holder was.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("aeris::ControllerLease@s7")]
+#[type_name("aeris::ControllerLease@s8")]
 #[repr(C)]
 pub struct ControllerLease {
     /// Term of this holder: one more than the highest epoch its claimant had seen.

@@ -7,7 +7,7 @@ use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
 /// An executable control target produced by the hub's decision gate (`hub/setpoint`).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("aeris::BoundSetpoint@s7")]
+#[type_name("aeris::BoundSetpoint@s8")]
 #[repr(C)]
 pub struct BoundSetpoint {
     /// Publisher sequence number.

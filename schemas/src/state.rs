@@ -206,7 +206,7 @@ impl OccupancyGrid {
 
 /// The typed state S_t (`perception/state`).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("aeris::PerceptionState@s7")]
+#[type_name("aeris::PerceptionState@s8")]
 #[repr(C)]
 pub struct PerceptionState {
     /// Publisher sequence number.

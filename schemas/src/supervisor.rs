@@ -54,7 +54,7 @@ pub const BINDING_TEXT_MAX: usize = 96;
 
 /// The whole board (`aeris/{flight}/supervisor`, a blackboard entry).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("aeris::SupervisorStatus@s7")]
+#[type_name("aeris::SupervisorStatus@s8")]
 #[repr(C)]
 pub struct SupervisorStatus {
     /// Board update counter.

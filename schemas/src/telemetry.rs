@@ -6,7 +6,7 @@ use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
 /// What the controller knows about the vehicle (`vehicle/telemetry`).
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("aeris::VehicleTelemetry@s7")]
+#[type_name("aeris::VehicleTelemetry@s8")]
 #[repr(C)]
 pub struct VehicleTelemetry {
     /// Publisher sequence number.

@@ -17,7 +17,7 @@ use iceoryx2_bb_derive_macros::ZeroCopySend;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
 /// Version of the message schema. Bump on any change of a payload type.
-pub const SCHEMA_VERSION: u32 = 7;
+pub const SCHEMA_VERSION: u32 = 8;
 
 const fn fnv1a(mut h: u64, v: u64) -> u64 {
     let mut i = 0;

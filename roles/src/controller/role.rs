@@ -255,6 +255,7 @@ impl ControllerRole {
             link.map_or((0, 0), |l| l.signing_refused());
         let status = AutopilotLinkStatus {
             seq: self.link_seq,
+            lease_epoch: self.arbiter.epoch(),
             unsigned_refused,
             bad_signature_refused,
             crc_failures: link.map_or(0, |l| l.crc_failures()),

@@ -121,6 +121,6 @@ fn run_flies_an_external_autopilot_over_mavlink() {
     assert!(status.success(), "aeris run failed: {status}\n{stderr}");
     let summary = last_json_line(&stdout);
     assert_eq!(summary["reached_goal"], true, "{summary}\n{stderr}");
-    assert_eq!(summary["autopilot_link_losses"], 1, "{summary}");
+    assert_eq!(summary["autopilot_link_losses"], 1, "{summary}\n{stderr}");
     assert!(stderr.contains("autopilot link back"), "{stderr}");
 }
