@@ -3,13 +3,15 @@
 //! ([`BENCHMARK_INSTRUCTIONS`], or the development set); each goes through validation, the simulation and the
 //! repair loop. Per instruction: time to write, whether it was valid as written, the outcome
 //! (accepted as written, repaired after k attempts, refused), whether its phases are the
-//! parser's (the oracle), the closest two vehicles came in simulation.
+//! parser's (the oracle), the closest two vehicles came as planned and as the built-in
+//! multirotor model flew it (50 Hz slots with feed-forward), how long the slowest phase
+//! took to settle, and how far a vehicle fell behind its slot.
 
 use crate::error::BenchError;
 use crate::flights::BusyThreads;
 use aeris_formation::{
-    BENCHMARK_INSTRUCTIONS, DEVELOPMENT_INSTRUCTIONS, Dynamics, ParserWriter, PlanOutcome,
-    ProgramWriter, ground_row, parse_instruction, plan_instruction,
+    BENCHMARK_INSTRUCTIONS, DEVELOPMENT_INSTRUCTIONS, ParserWriter, PlanOutcome, ProgramWriter,
+    Simulation, ground_row, parse_instruction, plan_instruction,
 };
 use aeris_llm::FormationWriter;
 use aeris_models::ModelStore;
@@ -55,8 +57,17 @@ pub struct ProgramRow {
     pub plan_ms: f64,
     /// The first program's phase kinds and shapes are the parser's.
     pub same_phases_as_parser: bool,
-    /// Closest two vehicles in the simulation of the accepted program (m).
+    /// Closest two vehicles in the planned transitions of the accepted program (m).
     pub min_separation_m: Option<f32>,
+    /// Closest two vehicles as the vehicle model flew the accepted program (m).
+    pub flown_min_separation_m: Option<f32>,
+    /// The longest any phase took, after its planned end, until every vehicle was within
+    /// tolerance of its slot (s; vehicle model).
+    pub settle_max_s: Option<f32>,
+    /// The furthest a vehicle fell behind its slot while flying (m; vehicle model).
+    pub max_tracking_error_m: Option<f32>,
+    /// How long the vehicle model took to fly the accepted program (s).
+    pub flown_s: Option<f32>,
     /// The last problem (refused) or why nothing was written (failed).
     pub problem: Option<String>,
     /// The first program in its JSON form (as a language model writes it).
@@ -74,6 +85,19 @@ pub struct FormationReport {
     pub load_s: Vec<(String, f64)>,
     /// One row per variant and instruction.
     pub rows: Vec<ProgramRow>,
+}
+
+/// The simulation a program goes through before it is accepted: with the built-in
+/// multirotor flying it where this build has the simulator (the exact check alone where not).
+pub fn simulation() -> Simulation {
+    #[cfg(feature = "sim")]
+    {
+        aeris_sim::formation_vehicle::multirotor_simulation()
+    }
+    #[cfg(not(feature = "sim"))]
+    {
+        Simulation::default()
+    }
 }
 
 /// The instruction sets: the benchmark's, reported, and the development set.
@@ -104,14 +128,8 @@ fn rows_of<W: ProgramWriter>(
         .map(|text| {
             let oracle = parse_instruction(text, limits).ok();
             let tokens_before = tokens(writer);
-            let planned = plan_instruction(
-                writer,
-                text,
-                &starts,
-                limits,
-                &Dynamics::default(),
-                max_repairs,
-            );
+            let planned =
+                plan_instruction(writer, text, &starts, limits, &simulation(), max_repairs);
             let mut row = ProgramRow {
                 variant: writer.name().to_string(),
                 instruction: text.to_string(),
@@ -123,6 +141,10 @@ fn rows_of<W: ProgramWriter>(
                 plan_ms: 0.0,
                 same_phases_as_parser: false,
                 min_separation_m: None,
+                flown_min_separation_m: None,
+                settle_max_s: None,
+                max_tracking_error_m: None,
+                flown_s: None,
                 problem: None,
                 program: None,
             };
@@ -141,8 +163,17 @@ fn rows_of<W: ProgramWriter>(
                 oracle.is_some_and(|o| skeleton(&o) == skeleton(&planned.written));
             match planned.outcome {
                 PlanOutcome::Accepted {
-                    report, repaired, ..
+                    report,
+                    flown,
+                    repaired,
+                    ..
                 } => {
+                    if let Some(flown) = flown {
+                        row.flown_min_separation_m = flown.closest.map(|c| c.distance_m);
+                        row.settle_max_s = flown.settled_after_s.iter().copied().reduce(f32::max);
+                        row.max_tracking_error_m = Some(flown.max_tracking_error_m);
+                        row.flown_s = Some(flown.duration_s);
+                    }
                     row.outcome = if repaired.is_empty() {
                         "accepted"
                     } else {

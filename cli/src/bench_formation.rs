@@ -76,7 +76,7 @@ pub fn run(a: FormationArgs) -> anyhow::Result<()> {
         println!("{variant}: loaded in {s:.2} s");
     }
     println!(
-        "{:<10} {:>2} {:>9} {:>6} {:>5} {:<9} {:>7} {:>9} {:>7} {:>8}",
+        "{:<10} {:>2} {:>9} {:>6} {:>5} {:<9} {:>7} {:>9} {:>7} {:>8} {:>8} {:>7} {:>6}",
         "variant",
         "#",
         "write ms",
@@ -86,12 +86,15 @@ pub fn run(a: FormationArgs) -> anyhow::Result<()> {
         "repairs",
         "plan ms",
         "parser",
-        "closest"
+        "closest",
+        "flown",
+        "settle",
+        "lag"
     );
     for (i, r) in report.rows.iter().enumerate() {
         let n = i % instructions.len() + 1;
         println!(
-            "{:<10} {:>2} {:>9.1} {:>6} {:>5} {:<9} {:>7} {:>9.2} {:>7} {:>8}",
+            "{:<10} {:>2} {:>9.1} {:>6} {:>5} {:<9} {:>7} {:>9.2} {:>7} {:>8} {:>8} {:>7} {:>6}",
             r.variant,
             n,
             r.write_ms,
@@ -107,6 +110,11 @@ pub fn run(a: FormationArgs) -> anyhow::Result<()> {
             },
             r.min_separation_m
                 .filter(|m| m.is_finite())
+                .map_or("-".into(), |m| format!("{m:.2} m")),
+            r.flown_min_separation_m
+                .map_or("-".into(), |m| format!("{m:.2} m")),
+            r.settle_max_s.map_or("-".into(), |s| format!("{s:.1} s")),
+            r.max_tracking_error_m
                 .map_or("-".into(), |m| format!("{m:.2} m")),
         );
         if let Some(p) = &r.problem {

@@ -1,9 +1,7 @@
 //! `aeris formation`: formation programs from instructions (the library is
 //! `aeris-formation`; this parses arguments and prints).
 
-use aeris_formation::{
-    Dynamics, ParserWriter, PlanOutcome, ProgramWriter, ground_row, plan_instruction,
-};
+use aeris_formation::{ParserWriter, PlanOutcome, ProgramWriter, ground_row, plan_instruction};
 use aeris_llm::FormationWriter;
 use aeris_schemas::{FormationLimits, FormationPhase, FormationProgram, PhaseKind, ShapeKind};
 use anyhow::Context;
@@ -108,7 +106,7 @@ fn plan_with<W: ProgramWriter>(
         &a.instruction,
         &starts,
         limits,
-        &Dynamics::default(),
+        &aeris_bench::formation::simulation(),
         a.max_repairs,
     )?;
     let write_ms = planned.write_time.as_secs_f64() * 1e3;
@@ -116,8 +114,11 @@ fn plan_with<W: ProgramWriter>(
     let outcome = &planned.outcome;
     let (flown, accepted) = match outcome {
         PlanOutcome::Accepted {
-            program, report, ..
-        } => (Some((**program, report.clone())), true),
+            program,
+            report,
+            flown,
+            ..
+        } => (Some((**program, report.clone(), flown.clone())), true),
         PlanOutcome::Refused { .. } => (None, false),
     };
     let repaired = match outcome {
@@ -141,6 +142,12 @@ fn plan_with<W: ProgramWriter>(
             "phases": flown.as_ref().map_or_else(|| phases_json(&program), |f| phases_json(&f.0)),
             "duration_s": flown.as_ref().map(|f| f.1.duration_s),
             "min_separation_m": flown.as_ref().map(|f| f.1.min_separation_m),
+            "flown": flown.as_ref().and_then(|f| f.2.as_ref()).map(|f| serde_json::json!({
+                "duration_s": f.duration_s,
+                "min_separation_m": f.closest.map(|c| c.distance_m),
+                "max_tracking_error_m": f.max_tracking_error_m,
+                "settled_after_s": f.settled_after_s,
+            })),
             "write_ms": write_ms,
             "plan_ms": plan_ms,
         });
@@ -160,10 +167,21 @@ fn plan_with<W: ProgramWriter>(
         for (k, r) in repaired.iter().enumerate() {
             println!("  problem {} (repaired): {r}", k + 1);
         }
-        if let Some((_, report)) = &flown {
+        if let Some((_, report, _)) = &flown {
             println!(
-                "simulated: {:.1} s, closest two vehicles {:.2} m (minimum {:.1} m)",
+                "planned: {:.1} s, closest two vehicles {:.2} m (minimum {:.1} m)",
                 report.duration_s, report.min_separation_m, limits.min_separation_m
+            );
+        }
+        if let Some(flown) = flown.as_ref().and_then(|f| f.2.as_ref()) {
+            let settle = flown.settled_after_s.iter().fold(0.0f32, |a, b| a.max(*b));
+            println!(
+                "flown by the vehicle model: {:.1} s, closest two vehicles {:.2} m, furthest \
+                 from a slot {:.2} m, slowest phase settled {:.1} s after its end",
+                flown.duration_s,
+                flown.closest.map_or(f32::INFINITY, |c| c.distance_m),
+                flown.max_tracking_error_m,
+                settle
             );
         }
         println!("write {write_ms:.1} ms, simulate and repair {plan_ms:.1} ms");

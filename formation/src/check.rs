@@ -14,6 +14,7 @@
 
 use crate::assign::{AssignError, ClosestApproach, assign, closest_approach};
 use crate::slots::slots;
+use crate::trajectory::{Segment, Trajectory};
 use aeris_schemas::{
     FormationError, FormationLimits, FormationProgram, MAX_VEHICLES, PhaseKind, ShapeKind,
 };
@@ -66,6 +67,16 @@ pub enum Violation {
         /// Its height (m).
         height_m: f32,
     },
+    /// A vehicle, flown by the vehicle model, did not reach its slot in time
+    /// ([`crate::flown`]).
+    OffSlot {
+        /// The vehicle (1-based).
+        vehicle: usize,
+        /// How far from its slot it still was (m).
+        error_m: f32,
+        /// How long it was waited for after the phase's end (s).
+        waited_s: f32,
+    },
 }
 
 /// The first violation, where and when.
@@ -101,6 +112,15 @@ impl core::fmt::Display for Diagnosis {
                 "vehicle {vehicle} would fly at {height_m:.1} m, outside the altitude band, in {} (phase {})",
                 self.during, self.phase
             ),
+            Violation::OffSlot {
+                vehicle,
+                error_m,
+                waited_s,
+            } => write!(
+                f,
+                "vehicle {vehicle} is still {error_m:.1} m from its slot {waited_s:.0} s after {} (phase {}) should have ended",
+                self.during, self.phase
+            ),
         }
     }
 }
@@ -117,6 +137,8 @@ pub struct CheckReport {
     pub duration_s: f32,
     /// Each vehicle's position at the end of each phase flown.
     pub ends: Vec<[[f32; 3]; MAX_VEHICLES]>,
+    /// The phases flown, as functions of time (what the formation executor flies).
+    pub trajectory: Trajectory,
 }
 
 impl CheckReport {
@@ -146,6 +168,22 @@ pub enum CheckError {
     /// The dynamics are not positive, finite numbers.
     #[error("the vehicle dynamics are not positive numbers")]
     Dynamics,
+}
+
+/// What phase `phase` of a program does, as a diagnosis says it ("take-off", "the change to
+/// a circle", "the hold", "the move", "landing").
+pub fn phase_description(phase: &aeris_schemas::FormationPhase) -> String {
+    match PhaseKind::from_u8(phase.kind) {
+        Some(PhaseKind::TakeOff) => "take-off".into(),
+        Some(PhaseKind::Land) => "landing".into(),
+        Some(PhaseKind::Hold) => "the hold".into(),
+        Some(PhaseKind::Move) => "the move".into(),
+        Some(PhaseKind::Assume) => format!(
+            "the change to a {}",
+            ShapeKind::from_u8(phase.shape).map_or("?", ShapeKind::name)
+        ),
+        None => "an unknown phase".into(),
+    }
 }
 
 /// Duration of a synchronised straight transition whose longest path is `d` (m): a
@@ -227,7 +265,11 @@ pub fn check_program(
         diagnosis: None,
         min_separation_m: f32::INFINITY,
         duration_s: 0.0,
-        ends: Vec::new(),
+        ends: Vec::with_capacity(program.phases().len()),
+        trajectory: Trajectory {
+            vehicles: n,
+            segments: Vec::with_capacity(program.phases().len()),
+        },
     };
     // the formation's centre as flown (moves translate it)
     let mut centre: Option<[f32; 2]> = None;
@@ -242,15 +284,21 @@ pub fn check_program(
                 for p in next.iter_mut().take(n) {
                     p[2] = phase.height_m;
                 }
-                ("take-off".to_string(), v_vertical, true)
+                (phase_description(phase), v_vertical, true)
             }
             PhaseKind::Land => {
                 for p in next.iter_mut().take(n) {
                     p[2] = 0.0;
                 }
-                ("landing".to_string(), v_vertical, true)
+                (phase_description(phase), v_vertical, true)
             }
             PhaseKind::Hold => {
+                report.trajectory.segments.push(Segment::stay(
+                    index + 1,
+                    report.duration_s,
+                    phase.hold_s,
+                    now,
+                ));
                 report.duration_s += phase.hold_s;
                 report.ends.push(now);
                 continue;
@@ -265,8 +313,7 @@ pub fn check_program(
                     next[v] = slots[s];
                 }
                 centre = Some(phase.centre);
-                let shape = ShapeKind::from_u8(phase.shape).map_or("?", ShapeKind::name);
-                (format!("the change to a {shape}"), v_max, false)
+                (phase_description(phase), v_max, false)
             }
             PhaseKind::Move => {
                 let from = centre.unwrap_or(phase.centre);
@@ -276,7 +323,7 @@ pub fn check_program(
                     p[1] += shift[1];
                 }
                 centre = Some(phase.centre);
-                ("the move".to_string(), phase.speed_mps.min(v_max), false)
+                (phase_description(phase), phase.speed_mps.min(v_max), false)
             }
         };
         // the slots: inside the geofence and the altitude band
@@ -339,6 +386,16 @@ pub fn check_program(
                 return Ok(report);
             }
         }
+        report.trajectory.segments.push(Segment {
+            phase: index + 1,
+            start_s: report.duration_s,
+            duration_s: duration,
+            from: now,
+            to: next,
+            longest_m: longest,
+            speed_mps: speed,
+            accel_mps2: a_max,
+        });
         report.duration_s += duration;
         now = next;
         report.ends.push(now);

@@ -1,6 +1,7 @@
 //! # aeris-formation
 //!
-//! Multi-UAV formations (the paper's formation experiment), as pure functions:
+//! Multi-UAV formations (the paper's formation experiment), as pure functions (no simulator:
+//! a vehicle model is handed in):
 //!
 //! - [`slots`]: where each vehicle of a formation program's `assume` phase goes (`[N, E, U]`);
 //! - [`assign`]: which vehicle takes which slot, so that their straight-line, synchronised
@@ -8,6 +9,10 @@
 //! - [`parse`]: the deterministic parser of formation instructions (`formation/parser`);
 //! - [`check`]: a program flown in simulation before it flies: separation, geofence,
 //!   altitude, duration, and a diagnosis of the first violation;
+//! - [`trajectory`]: a checked program's slots as functions of time, and the executor that
+//!   flies them (waiting at each phase's end for every vehicle to reach its slot);
+//! - [`flown`]: a checked program flown by a vehicle model (the built-in multirotor's is in
+//!   `aeris-sim`), faster than real time: separation, settling and tracking as they fly it;
 //! - [`repair`]: validate, simulate, repair on failure (at most K times), or refuse;
 //! - [`writer`]: the formation role's variants ([`ProgramWriter`]; the parser's here, the
 //!   language model's in `aeris-llm`) and [`plan_instruction`], instruction to outcome.
@@ -16,9 +21,11 @@
 
 pub mod assign;
 pub mod check;
+pub mod flown;
 pub mod parse;
 pub mod repair;
 pub mod slots;
+pub mod trajectory;
 pub mod writer;
 
 pub use assign::{
@@ -26,10 +33,16 @@ pub use assign::{
 };
 pub use check::{
     CheckError, CheckReport, Diagnosis, Dynamics, Violation, check_program, ground_row,
+    phase_description,
+};
+pub use flown::{
+    Closest, FlownConfig, FlownReport, TrackPoint, VehicleFactory, VehicleModel, flown_diagnosis,
+    fly_trajectory,
 };
 pub use parse::{ParseError, clauses, parse_instruction};
-pub use repair::{PlanOutcome, Problem, plan_program, repair_by_rule};
+pub use repair::{PlanOutcome, Problem, Simulation, plan_program, repair_by_rule};
 pub use slots::{formation_offsets, slots};
+pub use trajectory::{ExecutorState, FormationExecutor, Segment, Slot, Tolerance, Trajectory};
 pub use writer::{
     BENCHMARK_INSTRUCTIONS, DEVELOPMENT_INSTRUCTIONS, ParserWriter, PlanInstructionError,
     PlannedInstruction, ProgramWriter, plan_instruction,

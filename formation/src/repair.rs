@@ -1,7 +1,8 @@
 //! Validated in simulation, repaired on failure: the loop a formation program goes through
 //! before anything flies.
 //!
-//! [`plan_program`] validates the program and flies it in simulation ([`check_program`]);
+//! [`plan_program`] validates the program, checks its transitions exactly
+//! ([`check_program`]) and flies them with the vehicle model ([`fly_trajectory`]);
 //! a [`Problem`] (invalid, or unsafe with its [`Diagnosis`]) goes to a repairer with the
 //! program, at most `max_repairs` times. The result is accepted as asked, accepted after k
 //! repairs, or refused with the last problem: never flown unsafely.
@@ -13,6 +14,7 @@
 
 use crate::assign::closest_approach;
 use crate::check::{CheckError, CheckReport, Diagnosis, Dynamics, Violation, check_program};
+use crate::flown::{FlownConfig, FlownReport, flown_diagnosis, fly_trajectory};
 use crate::slots::slots;
 use aeris_schemas::{
     FormationError, FormationLimits, FormationProgram, MAX_PHASES, MAX_VEHICLES, PhaseKind,
@@ -44,8 +46,10 @@ pub enum PlanOutcome {
     Accepted {
         /// The program to fly.
         program: Box<FormationProgram>,
-        /// Its simulated flight.
+        /// Its check: the transitions as planned, and their trajectory.
         report: CheckReport,
+        /// Its flight by the vehicle model (`None` when none was given).
+        flown: Option<Box<FlownReport>>,
         /// The problems repaired on the way, in order.
         repaired: Vec<Problem>,
     },
@@ -74,6 +78,17 @@ impl PlanOutcome {
     }
 }
 
+/// How a program is simulated before it flies: its transitions checked exactly against
+/// kinematic limits, then (when a vehicle model is given) flown by that model.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Simulation {
+    /// The limits the exact check of the transitions plans with.
+    pub dynamics: Dynamics,
+    /// The vehicle model that then flies the planned trajectory; `None`: the exact check
+    /// alone (a build without the simulator).
+    pub flight: Option<FlownConfig>,
+}
+
 /// Validate `program`, fly it in simulation from `starts`, and hand each problem to
 /// `repair` (with the program), at most `max_repairs` times. A repair that returns `None`
 /// gives up: the program is refused with that problem.
@@ -81,21 +96,37 @@ pub fn plan_program(
     program: &FormationProgram,
     starts: &[[f32; 3]],
     limits: &FormationLimits,
-    dynamics: &Dynamics,
+    simulation: &Simulation,
     max_repairs: usize,
     mut repair: impl FnMut(&FormationProgram, &Problem) -> Option<FormationProgram>,
 ) -> Result<PlanOutcome, CheckError> {
     let mut program = *program;
     let mut repaired = Vec::new();
     loop {
-        let problem = match check_program(&program, starts, limits, dynamics) {
+        let problem = match check_program(&program, starts, limits, &simulation.dynamics) {
             Ok(report) => match report.diagnosis.clone() {
                 None => {
-                    return Ok(PlanOutcome::Accepted {
-                        program: Box::new(program),
-                        report,
-                        repaired,
-                    });
+                    let flown = match &simulation.flight {
+                        Some(config) => Some(
+                            fly_trajectory(&report.trajectory, starts, config)
+                                .ok_or(CheckError::Dynamics)?,
+                        ),
+                        None => None,
+                    };
+                    match flown
+                        .as_ref()
+                        .and_then(|f| flown_diagnosis(f, &program, limits))
+                    {
+                        None => {
+                            return Ok(PlanOutcome::Accepted {
+                                program: Box::new(program),
+                                report,
+                                flown: flown.map(Box::new),
+                                repaired,
+                            });
+                        }
+                        Some(d) => Problem::Unsafe(d),
+                    }
                 }
                 Some(d) => Problem::Unsafe(d),
             },
@@ -213,9 +244,14 @@ mod tests {
 
     fn plan(text: &str, limits: &FormationLimits, starts: &[[f32; 3]]) -> PlanOutcome {
         let p = parse_instruction(text, limits).unwrap();
-        plan_program(&p, starts, limits, &Dynamics::default(), 3, |p, problem| {
-            repair_by_rule(p, problem, limits)
-        })
+        plan_program(
+            &p,
+            starts,
+            limits,
+            &Simulation::default(),
+            3,
+            |p, problem| repair_by_rule(p, problem, limits),
+        )
         .unwrap()
     }
 
@@ -243,6 +279,7 @@ mod tests {
             program,
             report,
             repaired,
+            ..
         } = &out
         else {
             panic!("{}", out.summary());
@@ -269,6 +306,7 @@ mod tests {
             program,
             report,
             repaired,
+            ..
         } = &out
         else {
             panic!("{}", out.summary());
@@ -311,7 +349,7 @@ mod tests {
         // a repairer that keeps failing is stopped after max_repairs
         let p = parse_instruction("take off, a line 1 m apart, land", &limits).unwrap();
         let mut calls = 0;
-        let out = plan_program(&p, &row(4), &limits, &Dynamics::default(), 2, |p, _| {
+        let out = plan_program(&p, &row(4), &limits, &Simulation::default(), 2, |p, _| {
             calls += 1;
             let mut q = *p;
             q.phases[1].spacing_m = 1.0 - 0.1 * calls as f32;

@@ -5,9 +5,9 @@
 //! and [`repair_by_rule`]); the language-model variant lives in `aeris-llm`.
 //! [`plan_instruction`] runs one instruction through write, validate, simulate and repair.
 
-use crate::check::{CheckError, Dynamics};
+use crate::check::CheckError;
 use crate::parse::{ParseError, parse_instruction};
-use crate::repair::{PlanOutcome, Problem, plan_program, repair_by_rule};
+use crate::repair::{PlanOutcome, Problem, Simulation, plan_program, repair_by_rule};
 use aeris_schemas::{FormationLimits, FormationProgram};
 use std::time::{Duration, Instant};
 
@@ -105,7 +105,7 @@ pub fn plan_instruction<W: ProgramWriter>(
     instruction: &str,
     starts: &[[f32; 3]],
     limits: &FormationLimits,
-    dynamics: &Dynamics,
+    simulation: &Simulation,
     max_repairs: usize,
 ) -> Result<PlannedInstruction, PlanInstructionError<W::Error>> {
     let t = Instant::now();
@@ -122,7 +122,7 @@ pub fn plan_instruction<W: ProgramWriter>(
         &written,
         starts,
         limits,
-        dynamics,
+        simulation,
         max_repairs,
         |program, problem| writer.repair(instruction, program, problem, limits),
     )
@@ -180,7 +180,7 @@ mod tests {
                 text,
                 &starts,
                 &limits,
-                &Dynamics::default(),
+                &Simulation::default(),
                 3,
             )
             .unwrap();

@@ -6,6 +6,8 @@
 //! - [`scene_gen`]: seeded open and dense scenes for evaluation (`open-7`, `dense-42`);
 //! - [`render`]: a CPU ray-caster producing FPV RGB and depth frames of a world;
 //! - [`multirotor`]: simple multirotor kinematics with velocity and acceleration limits;
+//! - [`formation_vehicle`]: the multirotor as the vehicle model that flies formation
+//!   programs before they fly;
 //! - [`mav_vehicle`]: a MAVLink v2 endpoint that behaves like a PX4 multirotor in offboard mode
 //!   (on the links of `aeris-mavlink`).
 //!
@@ -15,6 +17,7 @@
 
 #![deny(missing_docs)]
 
+pub mod formation_vehicle;
 pub mod mav_vehicle;
 pub mod multirotor;
 pub mod render;
