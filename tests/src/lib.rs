@@ -158,6 +158,47 @@ pub fn default_workflow() -> toml::Table {
     text.parse().expect("default workflow parses")
 }
 
+/// Replace the mission of a workflow table by a short hop in the same world: take off to 12
+/// m, fly 30 m north along the road, land on it (about a third of the default mission's
+/// flight time). For tests whose subject is not the mission (an autopilot link, a router, a
+/// recording): the suite's time goes to what each test checks.
+pub fn short_hop(workflow: &mut toml::Table) {
+    let hop = r#"
+world = "village"
+instruction = "Take off from the helipad to 12 metres, fly north along the road for 30 metres, and land on the road."
+start = [0.0, 0.0, 0.0]
+cruise_speed = 5.0
+acceptance_radius_m = 3.0
+max_duration_s = 120.0
+
+[[subgoals]]
+text = "take off from the helipad to 12 metres"
+action = "takeoff"
+waypoint = [0.0, 0.0, 12.0]
+
+[[subgoals]]
+text = "fly north along the road for 30 metres"
+action = "goto"
+waypoint = [30.0, 0.0, 12.0]
+
+[[subgoals]]
+text = "land on the road"
+action = "land"
+waypoint = [30.0, 0.0, 0.0]
+"#;
+    let mut mission: toml::Table = hop.parse().expect("the short hop parses");
+    let limits = workflow["mission"]["limits"].clone();
+    mission.insert("limits".into(), limits);
+    workflow.insert("mission".into(), toml::Value::Table(mission));
+}
+
+/// The default workflow flying [`short_hop`], written to `dir/hop.toml`.
+pub fn short_hop_workflow(dir: &std::path::Path) -> PathBuf {
+    let mut w = default_workflow();
+    short_hop(&mut w);
+    write_workflow(dir, "hop", &w)
+}
+
 /// Add an executor `gpu` on `accelerator` (`cuda:0`), its processes on any CPU, to a
 /// workflow table.
 pub fn add_gpu_executor(workflow: &mut toml::Table, accelerator: &str) {

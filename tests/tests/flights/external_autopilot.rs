@@ -22,6 +22,7 @@ fn run_flies_an_external_autopilot_over_mavlink() {
     .unwrap();
     let key = key_path.to_str().unwrap();
     let mut wf = default_workflow();
+    short_hop(&mut wf);
     for role in wf["roles"].as_array_mut().unwrap() {
         let t = role.as_table_mut().unwrap();
         if t["kind"].as_str() == Some("controller") {

@@ -75,7 +75,17 @@ fn assert_well_formed(read: &Value, what: &str) {
 fn a_recorded_flight_reads_back_with_the_summarys_counts() {
     let dir = TempDir::new("record");
     let flight = unique_flight("record");
-    let mut run = spawn_run(&dir.0, &flight, &["--record", "--record-frame-every", "10"]);
+    let hop = short_hop_workflow(&dir.0);
+    let mut run = spawn_run(
+        &dir.0,
+        &flight,
+        &[
+            hop.to_str().unwrap(),
+            "--record",
+            "--record-frame-every",
+            "10",
+        ],
+    );
     // `aeris record` attaches a second recorder to the running flight, which stops when
     // the flight ends
     let observer = FlightBus::builder(&flight)
