@@ -13,11 +13,12 @@ use std::process::ExitCode;
 #[derive(Debug, Subcommand)]
 pub enum FormationCommand {
     /// Turn an instruction into a formation program (the deterministic parser, or a language
-    /// model decoding under the program's grammar: --variant), fly it
-    /// in simulation (every vehicle, every transition: separation, geofence, altitude,
-    /// duration) and repair it on failure; print the program and the outcome (accepted,
-    /// repaired after k attempts, or refused with the diagnosis: exit status 1). The
-    /// vehicles start on the ground in a row along east, centred on the origin.
+    /// model decoding under the program's grammar: --variant), check it in simulation (every
+    /// transition exactly: separation, geofence, altitude, duration; then flown by the
+    /// built-in multirotor model at 50 Hz: separation as flown, every vehicle reaching every
+    /// slot) and repair it on failure; print the program and the outcome (accepted, repaired
+    /// after k attempts, or refused with the diagnosis: exit status 1). The vehicles start on
+    /// the ground in a row along east, centred on the origin.
     Plan(PlanArgs),
 }
 
@@ -51,6 +52,10 @@ pub struct PlanArgs {
     /// CPU threads a language model evaluates on.
     #[arg(long, default_value_t = 2)]
     pub threads: i32,
+    /// Write the simulated flight of the accepted program to DIR/formation.json (draw it
+    /// with `aeris plot formation --run DIR`).
+    #[arg(long, value_name = "DIR")]
+    pub run: Option<PathBuf>,
     /// Print one JSON object instead of the table.
     #[arg(long)]
     pub json: bool,
@@ -186,12 +191,71 @@ fn plan_with<W: ProgramWriter>(
         }
         println!("write {write_ms:.1} ms, simulate and repair {plan_ms:.1} ms");
     }
+    if let Some(dir) = &a.run {
+        match flown.as_ref().and_then(|f| Some((f.0, f.2.as_deref()?))) {
+            Some((program, tracks)) => {
+                let path = write_tracks(dir, &a.instruction, &program, tracks)?;
+                if !a.json {
+                    println!("tracks: {}", path.display());
+                }
+            }
+            None => eprintln!("aeris: no flight to write to {}", dir.display()),
+        }
+    }
     if accepted {
         Ok(ExitCode::SUCCESS)
     } else {
         eprintln!("aeris: formation {}", outcome.summary());
         Ok(ExitCode::FAILURE)
     }
+}
+
+/// Write the simulated flight `flown` of `program` to DIR/formation.json.
+#[cfg(feature = "sim")]
+fn write_tracks(
+    dir: &std::path::Path,
+    instruction: &str,
+    program: &FormationProgram,
+    flown: &aeris_formation::FlownReport,
+) -> anyhow::Result<PathBuf> {
+    use aeris_eval::formation_plot::{FORMATION_TRACKS_FILE, FormationTracks, TrackSample};
+    let n = program.vehicles as usize;
+    let tracks = FormationTracks {
+        instruction: instruction.to_string(),
+        vehicles: n,
+        phases: program
+            .phases()
+            .iter()
+            .map(aeris_formation::phase_description)
+            .collect(),
+        source: "the built-in multirotor model at 50 Hz, by aeris formation plan".into(),
+        points: flown
+            .tracks
+            .iter()
+            .map(|p| TrackSample {
+                t_s: p.t_s,
+                phase: p.phase,
+                positions: p.positions[..n].to_vec(),
+                slots: p.slots[..n].to_vec(),
+            })
+            .collect(),
+    };
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let path = dir.join(FORMATION_TRACKS_FILE);
+    std::fs::write(&path, serde_json::to_string(&tracks)?)
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(path)
+}
+
+/// A build without the simulator has no flight to write.
+#[cfg(not(feature = "sim"))]
+fn write_tracks(
+    _dir: &std::path::Path,
+    _instruction: &str,
+    _program: &FormationProgram,
+    _flown: &aeris_formation::FlownReport,
+) -> anyhow::Result<PathBuf> {
+    anyhow::bail!("--run: this build has no simulator (build with the default `sim` feature)")
 }
 
 /// One phase in words.

@@ -60,11 +60,43 @@ enum PlotCommand {
         #[arg(long, default_value = "map.png")]
         out: PathBuf,
     },
+    /// A formation flight: one top-down panel per phase, each vehicle's track in its colour
+    /// and the slots the phase ends on (`formation.json` of the run folder, written by
+    /// `aeris formation plan --run DIR`).
+    Formation {
+        /// The run folder (holds formation.json).
+        #[arg(long)]
+        run: PathBuf,
+        /// Output PNG.
+        #[arg(long, default_value = "formation.png")]
+        out: PathBuf,
+    },
 }
 
 /// Run `aeris plot`.
 pub fn run(args: PlotArgs) -> Result<()> {
     match args.command {
+        PlotCommand::Formation { run, out } => {
+            use aeris_eval::formation_plot::{
+                FORMATION_TRACKS_FILE, FormationTracks, formation_chart,
+            };
+            let path = run.join(FORMATION_TRACKS_FILE);
+            let text = std::fs::read_to_string(&path)
+                .with_context(|| format!("reading {}", path.display()))?;
+            let tracks: FormationTracks = serde_json::from_str(&text).with_context(|| {
+                format!("{} is not a formation flight's tracks", path.display())
+            })?;
+            save_png(&formation_chart(&tracks)?, &out)?;
+            println!(
+                "{} vehicles, {} phases, {:.1} s ({})",
+                tracks.vehicles,
+                tracks.phases.len(),
+                tracks.points.last().map_or(0.0, |p| p.t_s),
+                tracks.source
+            );
+            println!("wrote {}", out.display());
+            Ok(())
+        }
         PlotCommand::Timing { run, out } => {
             let trace = read_trace(&run)?;
             let spec = read_spec(&run)?;

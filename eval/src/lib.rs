@@ -9,12 +9,14 @@
 //! - [`metrics`]: NE, SR, OSR, nDTW, SPL and ASR, exactly as the paper defines them;
 //! - [`mission`]: the mission G an agent is given for an episode (oracle, random);
 //! - [`plot`]: top-down maps of a scene with trajectories, as PNG;
+//! - [`formation_plot`]: a formation flight's tracks and slots, one panel per phase;
 //! - [`runner`]: episodes flown through the full multi-process pipeline (a supervised
 //!   flight of `aeris-flight` each) and scored, per airspace (`aeris eval`).
 
 #![deny(missing_docs)]
 
 pub mod episode;
+pub mod formation_plot;
 pub mod generate;
 pub mod metrics;
 pub mod mission;

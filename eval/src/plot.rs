@@ -43,6 +43,9 @@ pub enum PlotError {
         /// Height.
         height: u32,
     },
+    /// There is nothing to draw.
+    #[error("nothing to draw: {0}")]
+    Empty(&'static str),
     /// Writing the PNG failed.
     #[error("cannot write {path}")]
     Write {

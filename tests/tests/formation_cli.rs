@@ -90,3 +90,64 @@ fn instructions_are_accepted_repaired_or_refused_with_the_reason() {
         "{err}"
     );
 }
+
+#[test]
+fn an_accepted_program_is_flown_by_the_vehicle_model_and_its_tracks_are_plotted() {
+    let dir = TempDir::new("formation-plot");
+    let run = dir.0.join("run");
+    let (ok, out, err) = plan(
+        "four drones take off to 5 m in a line 3 m apart, then form a V heading north, \
+         hold 10 s, then a circle of radius 6 m, and land",
+        &["--run", run.to_str().unwrap()],
+    );
+    assert!(ok, "{out}\n{err}");
+    // flown by the multirotor: every phase settled, apart as flown
+    let flown = &out["flown"];
+    assert_eq!(
+        flown["settled_after_s"].as_array().unwrap().len(),
+        6,
+        "{out}"
+    );
+    assert!(flown["min_separation_m"].as_f64().unwrap() >= 2.0, "{out}");
+    let tracks: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("formation.json")).unwrap())
+            .unwrap();
+    assert_eq!(tracks["vehicles"], 4);
+    assert_eq!(
+        tracks["phases"][2], "the change to a wedge",
+        "{}",
+        tracks["phases"]
+    );
+    let points = tracks["points"].as_array().unwrap();
+    assert!(points.len() > 100, "{} points", points.len());
+    assert_eq!(points[0]["positions"].as_array().unwrap().len(), 4);
+
+    let png = dir.0.join("formation.png");
+    let plot = |run: &std::path::Path| {
+        Command::new(aeris_bin())
+            .args(["plot", "formation", "--run"])
+            .arg(run)
+            .arg("--out")
+            .arg(&png)
+            .output()
+            .unwrap()
+    };
+    let done = plot(&run);
+    assert!(
+        done.status.success(),
+        "{}",
+        String::from_utf8_lossy(&done.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&done.stdout);
+    assert!(stdout.contains("4 vehicles, 6 phases"), "{stdout}");
+    let bytes = std::fs::read(&png).unwrap();
+    assert!(bytes.starts_with(b"\x89PNG"), "not a PNG");
+
+    // a folder without a formation flight: the file is named
+    let empty = dir.0.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let failed = plot(&empty);
+    let err = String::from_utf8_lossy(&failed.stderr);
+    assert!(!failed.status.success());
+    assert!(err.contains("empty/formation.json"), "{err}");
+}
