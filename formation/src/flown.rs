@@ -35,6 +35,8 @@ pub struct FlownConfig {
     pub tolerance: Tolerance,
     /// Seconds between two recorded track points.
     pub track_every_s: f32,
+    /// Stop this many seconds into the flight, wherever it is (`None`: fly to the end).
+    pub stop_after_s: Option<f32>,
 }
 
 impl FlownConfig {
@@ -45,6 +47,7 @@ impl FlownConfig {
             rate_hz: 50.0,
             tolerance: Tolerance::default(),
             track_every_s: 0.1,
+            stop_after_s: None,
         }
     }
 }
@@ -80,7 +83,8 @@ pub struct Closest {
 /// What flying the program showed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FlownReport {
-    /// How it ended: [`ExecutorState::Done`], or [`ExecutorState::Stuck`] naming the vehicle.
+    /// How it ended: [`ExecutorState::Done`], [`ExecutorState::Stuck`] naming the vehicle,
+    /// or where it was when stopped ([`FlownConfig::stop_after_s`]).
     pub end: ExecutorState,
     /// How long it took (s).
     pub duration_s: f32,
@@ -157,7 +161,9 @@ pub fn fly_trajectory(
                 }
             }
         }
-        if t >= next_track || matches!(state, ExecutorState::Done | ExecutorState::Stuck { .. }) {
+        let ending = matches!(state, ExecutorState::Done | ExecutorState::Stuck { .. })
+            || config.stop_after_s.is_some_and(|s| t >= s);
+        if t >= next_track || ending {
             let mut point = TrackPoint {
                 t_s: t,
                 phase,
@@ -170,7 +176,7 @@ pub fn fly_trajectory(
             report.tracks.push(point);
             next_track += config.track_every_s.max(dt);
         }
-        if matches!(state, ExecutorState::Done | ExecutorState::Stuck { .. }) || t > bound_s {
+        if ending || t > bound_s {
             report.end = state;
             break;
         }

@@ -14,6 +14,8 @@
 //! - [`flown`]: a checked program flown by a vehicle model (the built-in multirotor's is in
 //!   `aeris-sim`), faster than real time: separation, settling and tracking as they fly it;
 //! - [`repair`]: validate, simulate, repair on failure (at most K times), or refuse;
+//! - [`replan`]: runtime faults (a vehicle lost, or stuck off its slot) planned around: the
+//!   rest of the program for the vehicles that remain, or their landing;
 //! - [`writer`]: the formation role's variants ([`ProgramWriter`]; the parser's here, the
 //!   language model's in `aeris-llm`) and [`plan_instruction`], instruction to outcome.
 
@@ -24,6 +26,7 @@ pub mod check;
 pub mod flown;
 pub mod parse;
 pub mod repair;
+pub mod replan;
 pub mod slots;
 pub mod trajectory;
 pub mod writer;
@@ -41,6 +44,10 @@ pub use flown::{
 };
 pub use parse::{ParseError, clauses, parse_instruction};
 pub use repair::{PlanOutcome, Problem, Simulation, plan_program, repair_by_rule};
+pub use replan::{
+    FaultDiagnosis, InFlight, ReplanError, Replanned, RuntimeFault, replan_after_fault,
+    rest_of_program,
+};
 pub use slots::{formation_offsets, slots};
 pub use trajectory::{ExecutorState, FormationExecutor, Segment, Slot, Tolerance, Trajectory};
 pub use writer::{

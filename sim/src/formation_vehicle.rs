@@ -168,4 +168,67 @@ mod tests {
         assert_eq!(flown.end, ExecutorState::Done);
         assert!(flown.closest.unwrap().distance_m >= limits.min_separation_m);
     }
+
+    #[test]
+    fn a_vehicle_lost_mid_formation_leaves_the_others_to_re_form_and_land() {
+        use aeris_formation::{InFlight, PlanOutcome, RuntimeFault, replan_after_fault};
+        let limits = FormationLimits::default();
+        let program = parse_instruction(
+            "four drones take off to 5 m in a line 3 m apart, then form a V heading north, \
+             hold 10 s, then a circle of radius 6 m, and land",
+            &limits,
+        )
+        .unwrap();
+        let checked = check_program(&program, &starts(), &limits, &Dynamics::default()).unwrap();
+        // flown until halfway through the change to the circle (phase 5)
+        let circle = checked.trajectory.segments[4];
+        assert_eq!(circle.phase, 5);
+        let config = FlownConfig {
+            stop_after_s: Some(circle.start_s + circle.duration_s / 2.0),
+            ..FlownConfig::new(multirotor)
+        };
+        let before = fly_trajectory(&checked.trajectory, &starts(), &config).unwrap();
+        assert_eq!(before.end, ExecutorState::Flying { segment: 4 });
+        let at = before.tracks.last().unwrap().positions;
+        // vehicle 3 is lost there: the other three take up the circle and land
+        let r = replan_after_fault(
+            &InFlight {
+                program: &program,
+                phase: 5,
+                positions: &at[..4],
+            },
+            RuntimeFault::Lost { vehicle: 2 },
+            &limits,
+            &multirotor_simulation(),
+            3,
+            |p, problem| aeris_formation::repair_by_rule(p, problem, &limits),
+        )
+        .unwrap();
+        assert_eq!(r.remaining, [0, 1, 3]);
+        assert!(!r.landing);
+        let PlanOutcome::Accepted {
+            program: rest,
+            report,
+            flown,
+            repaired,
+        } = &r.outcome
+        else {
+            panic!("{}", r.outcome.summary());
+        };
+        assert_eq!(rest.vehicles, 3);
+        // the circle asked for, now of three (wider only if a repair had to widen it)
+        let circle = rest.phases[1];
+        assert_eq!(circle.shape, program.phases[4].shape, "{repaired:?}");
+        assert!(circle.spacing_m >= 6.0, "{repaired:?}");
+        let flown = flown.as_ref().unwrap();
+        assert_eq!(flown.end, ExecutorState::Done);
+        assert!(flown.closest.unwrap().distance_m >= limits.min_separation_m);
+        for (v, p) in report.ends[1].iter().take(3).enumerate() {
+            let d = (p[0].powi(2) + p[1].powi(2)).sqrt();
+            assert!(
+                (d - circle.spacing_m).abs() < 1e-3,
+                "vehicle {v} {d} m from the centre"
+            );
+        }
+    }
 }
