@@ -23,6 +23,8 @@ fn garbage_decisions_never_reach_the_autopilot() {
         .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
         .unwrap();
     let mut workflow = default_workflow();
+    // the subject is the gate, not the mission: a short hop
+    short_hop(&mut workflow);
     set_variant(&mut workflow, "reasoning", "garbage");
     let path = write_workflow(&dir.0, "garbage", &workflow);
     let mut run = spawn_run(&dir.0, &flight, &[path.to_str().unwrap()]);

@@ -188,6 +188,8 @@ fn rgb_perception_builds_s_t_from_the_decoded_video_and_the_mission_reaches_its_
     let flight = unique_flight("flight-video-rgb");
     let port = free_udp_port();
     let mut workflow = video_workflow(port);
+    // S_t from decoded video is the subject: a short hop
+    short_hop(&mut workflow);
     let roles = workflow["roles"].as_array_mut().unwrap();
     roles.retain(|r| r.get("name").and_then(|n| n.as_str()) != Some("perception"));
     for (name, kind, variant) in [
