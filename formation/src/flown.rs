@@ -8,7 +8,7 @@
 //! settle, how far a vehicle falls behind; and records the tracks for a plot.
 
 use crate::check::{Diagnosis, Violation, phase_description};
-use crate::trajectory::{ExecutorState, FormationExecutor, Slot, Tolerance, Trajectory};
+use crate::trajectory::{ExecutorState, FormationExecutor, Slot, Tolerance, Trajectory, distance};
 use aeris_schemas::{FormationLimits, FormationProgram, MAX_VEHICLES};
 
 /// A vehicle that flies toward the slot it is given (the built-in multirotor is one:
@@ -240,8 +240,4 @@ pub fn flown_diagnosis(
         });
     }
     None
-}
-
-fn distance(a: [f32; 3], b: [f32; 3]) -> f32 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }

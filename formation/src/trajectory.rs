@@ -74,7 +74,20 @@ impl Segment {
 
     /// Vehicle `v`'s slot and slot velocity `t` seconds into the segment.
     pub fn slot_at(&self, v: usize, t: f32) -> Slot {
-        let (s, rate) = self.share_at(t);
+        self.slot_on(v, self.share_at(t))
+    }
+
+    /// The first `n` vehicles' slots `t` seconds into the segment, written to `out` (the
+    /// profile is evaluated once for all of them).
+    pub fn slots_at(&self, t: f32, n: usize, out: &mut [Slot; MAX_VEHICLES]) {
+        let share = self.share_at(t);
+        for (v, slot) in out.iter_mut().enumerate().take(n) {
+            *slot = self.slot_on(v, share);
+        }
+    }
+
+    /// Vehicle `v`'s slot at `(share, rate)` of the profile.
+    fn slot_on(&self, v: usize, (s, rate): (f32, f32)) -> Slot {
         let (from, to) = (self.from[v], self.to[v]);
         let mut slot = Slot::default();
         for k in 0..3 {
@@ -124,9 +137,7 @@ impl Trajectory {
         else {
             return;
         };
-        for (v, slot) in out.iter_mut().enumerate().take(self.vehicles) {
-            *slot = seg.slot_at(v, t - seg.start_s);
-        }
+        seg.slots_at(t - seg.start_s, self.vehicles, out);
     }
 }
 
@@ -291,15 +302,14 @@ impl FormationExecutor {
             ),
         };
         if let Some(seg) = self.trajectory.segments.get(segment) {
-            for (v, slot) in out.iter_mut().enumerate().take(n) {
-                *slot = seg.slot_at(v, t);
-            }
+            seg.slots_at(t, n, out);
         }
         self.state
     }
 }
 
-fn distance(a: [f32; 3], b: [f32; 3]) -> f32 {
+/// The distance between two points `[N, E, U]` (m).
+pub(crate) fn distance(a: [f32; 3], b: [f32; 3]) -> f32 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 

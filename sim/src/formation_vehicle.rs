@@ -58,16 +58,28 @@ mod tests {
         (0..4).map(|i| [0.0, -6.0 + 4.0 * i as f32, 0.0]).collect()
     }
 
-    #[test]
-    fn four_vehicles_fly_line_v_circle_and_land_reaching_every_slot_apart() {
-        let limits = FormationLimits::default();
+    /// The issue's program (line, V, hold, circle, land) for four vehicles from [`starts`],
+    /// and its exact check.
+    fn issue_program_checked(
+        limits: &FormationLimits,
+    ) -> (
+        aeris_schemas::FormationProgram,
+        aeris_formation::CheckReport,
+    ) {
         let program = parse_instruction(
             "four drones take off to 5 m in a line 3 m apart, then form a V heading north, \
              hold 10 s, then a circle of radius 6 m, and land",
-            &limits,
+            limits,
         )
         .unwrap();
-        let checked = check_program(&program, &starts(), &limits, &Dynamics::default()).unwrap();
+        let checked = check_program(&program, &starts(), limits, &Dynamics::default()).unwrap();
+        (program, checked)
+    }
+
+    #[test]
+    fn four_vehicles_fly_line_v_circle_and_land_reaching_every_slot_apart() {
+        let limits = FormationLimits::default();
+        let (program, checked) = issue_program_checked(&limits);
         assert!(checked.accepted());
         let config = FlownConfig::new(multirotor);
         let flown = fly_trajectory(&checked.trajectory, &starts(), &config).unwrap();
@@ -173,13 +185,7 @@ mod tests {
     fn a_vehicle_lost_mid_formation_leaves_the_others_to_re_form_and_land() {
         use aeris_formation::{InFlight, PlanOutcome, RuntimeFault, replan_after_fault};
         let limits = FormationLimits::default();
-        let program = parse_instruction(
-            "four drones take off to 5 m in a line 3 m apart, then form a V heading north, \
-             hold 10 s, then a circle of radius 6 m, and land",
-            &limits,
-        )
-        .unwrap();
-        let checked = check_program(&program, &starts(), &limits, &Dynamics::default()).unwrap();
+        let (program, checked) = issue_program_checked(&limits);
         // flown until halfway through the change to the circle (phase 5)
         let circle = checked.trajectory.segments[4];
         assert_eq!(circle.phase, 5);
