@@ -46,6 +46,28 @@ impl FlightWatcher for FlightPrinter {
                 eprintln!("aeris: roles' priority over outside work: {priority}");
             }
             FlightEvent::Supervisor(event) => print_supervisor_event(event),
+            FlightEvent::Progress(p) if self.progress && p.fleet.is_some() => {
+                if let Some(f) = &p.fleet {
+                    let heights: Vec<String> = f
+                        .positions
+                        .iter()
+                        .map(|q| q.map_or_else(|| "?".into(), |q| format!("{:.1}", q[2])))
+                        .collect();
+                    eprintln!(
+                        "[{:6.1} s] formation phase {} {}  vehicles {}  heights [{}] m  closest {}  replans {}  restarts {}",
+                        p.elapsed_s,
+                        f.phase,
+                        f.state,
+                        f.in_formation,
+                        heights.join(", "),
+                        f.closest_m
+                            .map(|d| format!("{d:.2} m"))
+                            .unwrap_or_else(|| "?".into()),
+                        f.replans,
+                        p.restarts,
+                    );
+                }
+            }
             FlightEvent::Progress(p) if self.progress => {
                 let text = p
                     .step_text

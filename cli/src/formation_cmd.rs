@@ -20,6 +20,15 @@ pub enum FormationCommand {
     /// after k attempts, or refused with the diagnosis: exit status 1). The vehicles start on
     /// the ground in a row along east, centred on the origin.
     Plan(PlanArgs),
+    /// Fly a formation: built-in simulated vehicles (each its own vehicle and controller
+    /// process, MAVLink system ids 1..N, services under FLIGHT/v1 .. FLIGHT/vN) and the
+    /// formation role, which writes the program (--variant), checks and repairs it, then
+    /// flies every vehicle's slot at 50 Hz through its controller, waiting at each phase's
+    /// end until all are within 0.5 m; a vehicle lost in flight (link silent 1 s) or stuck
+    /// off its slot is planned around. Ends when every vehicle has landed (exit status 0),
+    /// on a collision (two vehicles under 1 m) or when the program is refused (1).
+    #[cfg(feature = "sim")]
+    Fly(crate::formation_fly::FlyArgs),
 }
 
 /// Arguments of `aeris formation plan`.
@@ -65,6 +74,8 @@ pub struct PlanArgs {
 pub fn run(command: FormationCommand) -> anyhow::Result<ExitCode> {
     match command {
         FormationCommand::Plan(args) => plan(args),
+        #[cfg(feature = "sim")]
+        FormationCommand::Fly(args) => crate::formation_fly::fly(args),
     }
 }
 

@@ -13,6 +13,8 @@ mod bench_models;
 mod eval_cmd;
 mod flight_print;
 mod formation_cmd;
+#[cfg(feature = "sim")]
+mod formation_fly;
 mod inspect;
 #[cfg(feature = "sim")]
 mod plot_cmd;
@@ -132,7 +134,7 @@ enum Command {
     /// with the active step, top-down map.
     Plot(plot_cmd::PlotArgs),
     /// Multi-UAV formations: plan a formation program from an instruction (parsed, flown
-    /// in simulation, repaired on failure). Nothing flies yet.
+    /// in simulation, repaired on failure), or fly one with several built-in vehicles.
     Formation {
         #[command(subcommand)]
         command: formation_cmd::FormationCommand,

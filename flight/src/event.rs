@@ -42,6 +42,8 @@ pub enum FlightFailure {
         /// The URL, the timeout and what was heard instead.
         diagnosis: String,
     },
+    /// Two vehicles of the flight collided ([`crate::fleet::COLLISION_DISTANCE_M`]).
+    Collision(crate::fleet::Collision),
 }
 
 impl core::fmt::Display for FlightFailure {
@@ -63,6 +65,17 @@ impl core::fmt::Display for FlightFailure {
             FlightFailure::Stopped => f.write_str("stopped"),
             FlightFailure::Interrupted => f.write_str("interrupted"),
             FlightFailure::AutopilotSilent { diagnosis } => f.write_str(diagnosis),
+            FlightFailure::Collision(c) => write!(
+                f,
+                "vehicles {} and {} collided: {:.2} m apart at [{:.1}, {:.1}, {:.1}] (under {} m)",
+                c.vehicles.0,
+                c.vehicles.1,
+                c.distance_m,
+                c.position[0],
+                c.position[1],
+                c.position[2],
+                crate::fleet::COLLISION_DISTANCE_M
+            ),
         }
     }
 }
@@ -90,6 +103,25 @@ pub struct FlightProgress {
     pub rejected: u64,
     /// Role restarts so far.
     pub restarts: u32,
+    /// A flight of several vehicles: where they are and how the formation goes.
+    pub fleet: Option<FleetProgress>,
+}
+
+/// Where the vehicles of a formation flight are.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FleetProgress {
+    /// Each vehicle's position `[N, E, U]` (vehicle 1 first; `None` before its telemetry).
+    pub positions: Vec<Option<[f32; 3]>>,
+    /// The closest two vehicles with live links came so far (m).
+    pub closest_m: Option<f32>,
+    /// The formation role's phase (1-based; 0 before it flies).
+    pub phase: u64,
+    /// What its executor does: `waiting`, `flying`, `settling`, `done`, `stuck`.
+    pub state: &'static str,
+    /// Vehicles in the formation (fewer after a vehicle was lost).
+    pub in_formation: u64,
+    /// Runtime replans so far.
+    pub replans: u64,
 }
 
 /// Something that happened to a flight, in order.

@@ -47,6 +47,7 @@
 pub mod autopilot_link;
 pub mod event;
 pub mod executors;
+pub mod fleet;
 mod handle;
 pub mod hook;
 pub mod memory;
@@ -59,9 +60,11 @@ mod video_start;
 
 pub use autopilot_link::{AutopilotEvent, silent_diagnosis};
 pub use event::{
-    FlightEvent, FlightFailure, FlightPhase, FlightProgress, FlightStatus, FlightWatcher,
+    FleetProgress, FlightEvent, FlightFailure, FlightPhase, FlightProgress, FlightStatus,
+    FlightWatcher,
     RoleSnapshot, StopRule,
 };
+pub use fleet::{COLLISION_DISTANCE_M, Collision, FleetMonitor, FleetSummary, VehicleSummary};
 pub use handle::{Flight, FlightBuilder, FlightError, FlightOutcome};
 pub use hook::{FnHook, HookError, NoHook, StepContext, StepHook};
 pub use memory::{MemorySummary, RoleMemory};

@@ -115,6 +115,10 @@ pub struct FlightSummary {
     pub priority_detail: String,
     /// The memory the roles on the flight's host held: each role's peak, and the flight's.
     pub memory: crate::memory::MemorySummary,
+    /// A flight of several vehicles: each vehicle's controller, the closest two came,
+    /// collisions (`None` for one vehicle).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fleet: Option<crate::fleet::FleetSummary>,
 }
 
 /// A link to another host at the end of a flight, as its bridge measured it.
@@ -168,7 +172,7 @@ pub struct StageMeans {
 /// counters (and its sequence numbers) from zero, so the totals of the earlier processes are
 /// kept as a base.
 #[derive(Debug, Clone, Copy)]
-struct RestartSafeCounters<const N: usize> {
+pub(crate) struct RestartSafeCounters<const N: usize> {
     base: [u64; N],
     last: [u64; N],
     last_seq: u64,
@@ -186,7 +190,7 @@ impl<const N: usize> Default for RestartSafeCounters<N> {
 
 impl<const N: usize> RestartSafeCounters<N> {
     /// Record the counters of a sample with publisher sequence `seq`.
-    fn update(&mut self, seq: u64, counters: [u64; N]) {
+    pub(crate) fn update(&mut self, seq: u64, counters: [u64; N]) {
         if seq <= self.last_seq {
             // a new process: bank what the old one had counted
             for (b, l) in self.base.iter_mut().zip(self.last) {
@@ -197,7 +201,7 @@ impl<const N: usize> RestartSafeCounters<N> {
         self.last = counters;
     }
 
-    fn total(&self, i: usize) -> u64 {
+    pub(crate) fn total(&self, i: usize) -> u64 {
         self.base[i].saturating_add(self.last[i])
     }
 }
@@ -283,9 +287,24 @@ pub struct FlightMonitor {
     airborne: bool,
     commits_without_occupancy: u64,
     no_occupancy_clamps: u64,
+    fleet: Option<crate::fleet::FleetMonitor>,
 }
 
 impl FlightMonitor {
+    /// Also watch every vehicle of a flight of `vehicles` (more than one): their
+    /// controllers, separation and collisions; the flight has landed when all have.
+    pub fn watch_fleet(&mut self, bus: &FlightBus, vehicles: u8) -> Result<(), BusError> {
+        self.fleet = (vehicles > 1)
+            .then(|| crate::fleet::FleetMonitor::new(bus, vehicles))
+            .transpose()?;
+        Ok(())
+    }
+
+    /// The fleet's watch, in a flight of several vehicles.
+    pub fn fleet(&self) -> Option<&crate::fleet::FleetMonitor> {
+        self.fleet.as_ref()
+    }
+
     /// Watch the flight on `bus` flying `mission`.
     pub fn new(bus: &FlightBus, mission: &MissionSpec) -> Result<Self, BusError> {
         let land_goal = mission
@@ -319,6 +338,7 @@ impl FlightMonitor {
             airborne: false,
             commits_without_occupancy: 0,
             no_occupancy_clamps: 0,
+            fleet: None,
             trace: Vec::new(),
             started_ns: aeris_runtime::clock::monotonic_ns(),
             invalid_reports: 0,
@@ -328,6 +348,9 @@ impl FlightMonitor {
     /// Drain new reports and telemetry.
     pub fn poll(&mut self) -> Result<(), BusError> {
         self.video_start.poll()?;
+        if let Some(fleet) = &mut self.fleet {
+            fleet.poll()?;
+        }
         while let Some(r) = self.reports.next()? {
             if r.validate().is_err() {
                 self.invalid_reports += 1;
@@ -450,6 +473,9 @@ impl FlightMonitor {
 
     /// `true` when the vehicle is on the ground after having flown (the agent stopped).
     pub fn landed_after_flight(&self) -> bool {
+        if let Some(fleet) = &self.fleet {
+            return fleet.all_landed_after_flight();
+        }
         self.airborne && self.last_telemetry.is_some_and(|t| t.landed == 1)
     }
 
@@ -594,6 +620,7 @@ impl FlightMonitor {
             priority: String::new(),
             priority_detail: String::new(),
             memory: Default::default(),
+            fleet: self.fleet.as_ref().map(|f| f.summary()),
         }
     }
 }

@@ -190,6 +190,7 @@ pub fn attach_spec(
         heartbeat_pid: None,
         flight_clock_offset_ns: 0,
         accelerator: None,
+        vehicle: None,
     })
 }
 

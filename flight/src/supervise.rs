@@ -2,7 +2,8 @@
 //! stop rule, a failure, the time limit or a stop request; stop every role; write the trace.
 
 use crate::event::{
-    FlightEvent, FlightFailure, FlightPhase, FlightProgress, FlightStatus, RoleSnapshot, StopRule,
+    FleetProgress, FlightEvent, FlightFailure, FlightPhase, FlightProgress, FlightStatus,
+    RoleSnapshot, StopRule,
 };
 use crate::executors::{accelerator_line, onnx_accelerators};
 use crate::handle::{FlightError, FlightOutcome};
@@ -129,6 +130,7 @@ pub(crate) fn supervise<H: StepHook>(
         let _ = events.send(event);
     };
     let mission = workflow.mission.clone();
+    let vehicles = workflow.fleet.vehicles;
     let max_duration = Duration::from_secs_f64(mission.max_duration_s);
     crate::executors::check_accelerators(&workflow)
         .map_err(|e| FlightError::Accelerator(Box::new(e)))?;
@@ -163,6 +165,9 @@ pub(crate) fn supervise<H: StepHook>(
     send(FlightEvent::Ready);
     shared.set_phase(FlightPhase::Flying);
     let mut monitor = FlightMonitor::new(sup.bus(), &mission).map_err(FlightError::Subscribe)?;
+    monitor
+        .watch_fleet(sup.bus(), vehicles)
+        .map_err(FlightError::Subscribe)?;
     let start = Instant::now();
     let mut last_progress = Instant::now();
     let mut failure: Option<FlightFailure> = None;
@@ -194,6 +199,9 @@ pub(crate) fn supervise<H: StepHook>(
         if let Some(diagnosis) = monitor.silent_autopilot() {
             failure = Some(FlightFailure::AutopilotSilent { diagnosis });
         }
+        if let Some(collision) = monitor.fleet().and_then(|f| f.collision()) {
+            failure = Some(FlightFailure::Collision(collision));
+        }
         let hook_done = hook
             .step(&mut StepContext {
                 supervisor: &mut sup,
@@ -202,7 +210,7 @@ pub(crate) fn supervise<H: StepHook>(
                 events_out: events,
             })
             .map_err(FlightError::Hook)?;
-        let progress = progress(&monitor, &mission, start, sup.total_restarts());
+        let progress = progress(&monitor, &mission, start, &sup);
         sup.set_progress(
             progress.step,
             progress.steps,
@@ -296,9 +304,33 @@ fn progress(
     monitor: &FlightMonitor,
     mission: &MissionSpec,
     start: Instant,
-    restarts: u32,
+    sup: &Supervisor,
 ) -> FlightProgress {
+    let restarts = sup.total_restarts();
     let (step, steps) = monitor.active_step();
+    let fleet = monitor.fleet().map(|fleet| {
+        // the formation role's heartbeat counters (`aeris_roles::formation_role`)
+        let counters = sup
+            .roles()
+            .iter()
+            .find(|r| r.kind() == aeris_orchestrator::workflow::FORMATION_KIND)
+            .and_then(|r| r.last_heartbeat())
+            .map_or([0; 8], |h| h.counters);
+        FleetProgress {
+            positions: fleet.positions(),
+            closest_m: fleet.summary().min_separation_m,
+            phase: counters[0],
+            state: match counters[1] {
+                1 => "flying",
+                2 => "settling",
+                3 => "done",
+                4 => "stuck",
+                _ => "waiting",
+            },
+            in_formation: counters[5],
+            replans: counters[2],
+        }
+    });
     FlightProgress {
         elapsed_s: start.elapsed().as_secs_f64(),
         step,
@@ -313,6 +345,7 @@ fn progress(
         eer: monitor.eer(),
         rejected: monitor.rejected(),
         restarts,
+        fleet,
     }
 }
 

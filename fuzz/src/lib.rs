@@ -24,6 +24,7 @@ pub fn default_controller_spec() -> RoleSpec {
         heartbeat_pid: None,
         flight_clock_offset_ns: 0,
         accelerator: None,
+        vehicle: None,
     }
 }
 

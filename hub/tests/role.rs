@@ -52,6 +52,7 @@ fn spec(flight: &str) -> RoleSpec {
         heartbeat_pid: None,
         flight_clock_offset_ns: 0,
         accelerator: None,
+        vehicle: None,
     }
 }
 

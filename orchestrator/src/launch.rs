@@ -6,11 +6,12 @@
 
 use crate::restart::RestartPolicy;
 use crate::workflow::{
-    BRIDGE_KIND, Executor, ExecutorCpus, RECORDER_KIND, RoleDecl, Workflow, WorkflowError,
+    BRIDGE_KIND, Executor, ExecutorCpus, FORMATION_KIND, RECORDER_KIND, RoleDecl, Workflow,
+    WorkflowError,
     remote_cpus,
 };
 use aeris_runtime::affinity::CpuSet;
-use aeris_runtime::spec::{RemoteSpec, RoleSpec};
+use aeris_runtime::spec::{MissionSpec, RemoteSpec, RoleSpec};
 use aeris_schemas::topics;
 
 /// One role ready to start.
@@ -175,6 +176,23 @@ pub fn free_udp_port() -> std::io::Result<u16> {
     Ok(socket.local_addr()?.port())
 }
 
+/// A port from `free_port` that is none of `taken` (a released port may come back).
+fn distinct_port(
+    free_port: &mut impl FnMut() -> std::io::Result<u16>,
+    taken: &[u16],
+) -> std::io::Result<u16> {
+    let mut last = 0;
+    for _ in 0..8 {
+        last = free_port()?;
+        if !taken.contains(&last) {
+            return Ok(last);
+        }
+    }
+    Err(std::io::Error::other(format!(
+        "no free UDP port other than {last} for the next vehicle"
+    )))
+}
+
 /// Plan the flight `flight` of `workflow`.
 ///
 /// With `autopilot = Some(url)` the vehicle roles are dropped and every controller gets
@@ -188,7 +206,7 @@ pub fn plan_launch(
     flight: &str,
     autopilot: Option<&str>,
     online: &CpuSet,
-    free_port: impl FnOnce() -> std::io::Result<u16>,
+    mut free_port: impl FnMut() -> std::io::Result<u16>,
 ) -> Result<LaunchPlan, PlanError> {
     if !topics::is_valid_flight_name(flight) {
         return Err(PlanError::FlightName(flight.to_string()));
@@ -207,20 +225,43 @@ pub fn plan_launch(
             }
         }
         None if w.needs_builtin_vehicle() => {
-            let port = free_port().map_err(PlanError::VehicleLink)?;
-            vehicle_port = Some(port);
-            for r in w.roles.iter_mut() {
-                let (key, url) = match r.kind.as_str() {
-                    "vehicle" => ("listen", format!("udpin:127.0.0.1:{port}")),
-                    "controller" => ("autopilot", format!("udpout:127.0.0.1:{port}")),
-                    _ => continue,
-                };
-                if r.param_str(key).is_none_or(|v| v == "auto") {
-                    r.params.insert(key.into(), url.into());
+            // one link per vehicle: each vehicle's roles share a port of their own
+            let scopes: Vec<Option<u8>> = match w.fleet.vehicles {
+                1 => vec![None],
+                n => (1..=n).map(Some).collect(),
+            };
+            let mut taken = Vec::with_capacity(scopes.len());
+            for scope in scopes {
+                let port = distinct_port(&mut free_port, &taken).map_err(PlanError::VehicleLink)?;
+                taken.push(port);
+                vehicle_port.get_or_insert(port);
+                for r in w.roles.iter_mut().filter(|r| r.vehicle == scope) {
+                    let (key, url) = match r.kind.as_str() {
+                        "vehicle" => ("listen", format!("udpin:127.0.0.1:{port}")),
+                        "controller" => ("autopilot", format!("udpout:127.0.0.1:{port}")),
+                        _ => continue,
+                    };
+                    if r.param_str(key).is_none_or(|v| v == "auto") {
+                        r.params.insert(key.into(), url.into());
+                    }
+                    // vehicle K is MAVLink system K
+                    if let (Some(k), "vehicle") = (scope, r.kind.as_str()) {
+                        r.params.entry("system_id").or_insert(k.into());
+                    }
                 }
             }
         }
         None => {}
+    }
+    // the formation role flies the fleet from where it starts
+    let starts = w.fleet.starts(w.mission.start);
+    for r in w.roles.iter_mut().filter(|r| r.kind == FORMATION_KIND) {
+        r.params
+            .insert("vehicles".into(), w.fleet.vehicles.into());
+        r.params.insert(
+            "starts".into(),
+            serde_json::to_value(&starts).unwrap_or_default(),
+        );
     }
     // a recorder subscribes to the topics it was fitted to (`Workflow::fit_recorders`)
     for r in w.roles.iter_mut().filter(|r| r.kind == RECORDER_KIND) {
@@ -261,13 +302,21 @@ pub fn plan_launch(
                     cpus: cpus.as_ref().map(|c| c.to_string()).unwrap_or_default(),
                     timing: w.timing.clone(),
                     camera: w.camera.clone(),
-                    mission: w.mission.clone(),
+                    mission: match r.vehicle {
+                        // each vehicle starts where the fleet puts it
+                        Some(k) => MissionSpec {
+                            start: w.fleet.start(k, w.mission.start),
+                            ..w.mission.clone()
+                        },
+                        None => w.mission.clone(),
+                    },
                     params: r.params.clone(),
                     instance: 0,
                     remote,
                     heartbeat_pid: None,
                     flight_clock_offset_ns: 0,
                     accelerator: executor.and_then(|e| e.accelerator).map(|a| a.to_string()),
+                    vehicle: r.vehicle,
                 },
                 cpus,
                 executor: r.executor.clone(),

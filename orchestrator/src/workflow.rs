@@ -15,10 +15,11 @@ mod hosts;
 mod parse;
 mod validate;
 
-pub use builtin::{DEFAULT_WORKFLOW_TOML, MODELS_WORKFLOW_TOML};
+pub use builtin::{DEFAULT_WORKFLOW_TOML, FORMATION_WORKFLOW_TOML, MODELS_WORKFLOW_TOML};
 pub use hosts::{BridgePlan, SUPERVISOR_READS, movable_across_hosts, remote_cpus};
 pub use validate::{
-    LANGUAGE_MODEL_VARIANTS, ONNX_MODEL_VARIANTS, REQUIRED_KINDS, runs_on_accelerator,
+    FORMATION_KIND, LANGUAGE_MODEL_VARIANTS, ONNX_MODEL_VARIANTS, REQUIRED_KINDS,
+    runs_on_accelerator,
 };
 
 use crate::restart::RestartPolicy;
@@ -145,6 +146,10 @@ pub struct RoleDecl {
     /// For a role on another host: the variant that takes over on the flight's host when the
     /// link to that host is lost (`fallback`, `fallback_executor`).
     pub fallback: Option<RoleFallback>,
+    /// The vehicle whose scope it runs in (1-based), in a flight of several vehicles: a
+    /// role declared `per_vehicle = true`, once per vehicle. `None`: a role of the whole
+    /// flight (or of the only vehicle).
+    pub vehicle: Option<u8>,
 }
 
 /// What replaces a role on another host when the link to that host is lost.
@@ -158,6 +163,15 @@ pub struct RoleFallback {
 }
 
 impl RoleDecl {
+    /// `true` when this role and `other` can exchange a topic: the same vehicle's scope, or
+    /// either of them a role of the whole flight (no vehicle).
+    pub fn shares_scope_with(&self, other: &RoleDecl) -> bool {
+        match (self.vehicle, other.vehicle) {
+            (Some(a), Some(b)) => a == b,
+            _ => true,
+        }
+    }
+
     /// A role of `kind` running `variant` (its only variant), with the workflow defaults:
     /// no ladder, restarted on failure within the default budget and back-off, the kind's
     /// default latency budget, and the catalog's topics (none for an unknown kind, which
@@ -190,6 +204,7 @@ impl RoleDecl {
             subscribes: topics(|k| k.subscribes),
             publishes: topics(|k| k.publishes),
             fallback: None,
+            vehicle: None,
         }
     }
 
@@ -227,6 +242,50 @@ pub struct Workflow {
     pub roles: Vec<RoleDecl>,
     /// Dynamic scheduling and stall detection (`[scheduling]`).
     pub scheduling: SchedulingSpec,
+    /// How many vehicles fly, and where they start (`[flight] vehicles`).
+    pub fleet: Fleet,
+}
+
+/// The vehicles of a flight (`[flight] vehicles = N`, `vehicle_spacing_m`). With more than
+/// one, every role declared `per_vehicle = true` runs once per vehicle, in that vehicle's
+/// scope (`{name}-v{K}`, services `FLIGHT/v{K}/{topic}`), and vehicle K starts on the
+/// ground in a row along east centred on the mission's start.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fleet {
+    /// Vehicles, 1..=[`aeris_schemas::topics::MAX_FLIGHT_VEHICLES`].
+    pub vehicles: u8,
+    /// Distance between neighbours at the start (m).
+    pub spacing_m: f32,
+}
+
+impl Default for Fleet {
+    /// One vehicle; 4 m apart when there are more.
+    fn default() -> Self {
+        Self {
+            vehicles: 1,
+            spacing_m: DEFAULT_VEHICLE_SPACING_M,
+        }
+    }
+}
+
+/// Distance between neighbouring vehicles at the start when the workflow gives none (m).
+pub const DEFAULT_VEHICLE_SPACING_M: f32 = 4.0;
+
+impl Fleet {
+    /// Where vehicle `k` (1-based) starts, given the mission's start: a row along east
+    /// centred on it, `spacing_m` apart. One vehicle starts at the mission's start.
+    pub fn start(&self, k: u8, mission_start: [f32; 3]) -> [f32; 3] {
+        let middle = (f32::from(self.vehicles) - 1.0) / 2.0;
+        let offset = (f32::from(k) - 1.0 - middle) * self.spacing_m;
+        [mission_start[0], mission_start[1] + offset, mission_start[2]]
+    }
+
+    /// Every vehicle's start, vehicle 1 first.
+    pub fn starts(&self, mission_start: [f32; 3]) -> Vec<[f32; 3]> {
+        (1..=self.vehicles)
+            .map(|k| self.start(k, mission_start))
+            .collect()
+    }
 }
 
 /// The `[scheduling]` table: latency-driven re-binding and stall detection.
@@ -568,6 +627,27 @@ pub enum WorkflowError {
         topic: String,
         /// Known topics, comma-separated.
         known: String,
+    },
+    /// `[flight] vehicles` or `vehicle_spacing_m` is out of range.
+    #[error(
+        "[flight] vehicles = {vehicles}, vehicle_spacing_m = {spacing_m}: a flight has 1 to {max} vehicles, a positive distance apart",
+        max = aeris_schemas::topics::MAX_FLIGHT_VEHICLES
+    )]
+    BadFleet {
+        /// The vehicles asked for.
+        vehicles: u8,
+        /// The spacing asked for (m).
+        spacing_m: f32,
+    },
+    /// A vehicle or controller of a flight of several vehicles is not declared per vehicle.
+    #[error(
+        "role `{role}` flies one vehicle of {vehicles}: declare it with per_vehicle = true, so that each vehicle has its own"
+    )]
+    NotPerVehicle {
+        /// The role.
+        role: String,
+        /// The flight's vehicles.
+        vehicles: u8,
     },
     /// A required role kind is missing.
     #[error("the workflow has no role of kind `{kind}`{hint}")]

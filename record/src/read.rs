@@ -501,6 +501,7 @@ mod tests {
             heartbeat_pid: None,
             flight_clock_offset_ns: 0,
             accelerator: None,
+            vehicle: None,
         };
         let ours = flight_metadata(&spec);
         let good = dir.path().join("good.mcap");

@@ -11,6 +11,8 @@
 //! - [`reasoner_io`]: what every reasoning variant does around its decision (inputs, when to
 //!   decide, stamping and publishing);
 //! - [`controller`]: tracks bound setpoints at the control rate over MAVLink;
+//! - [`formation_role`]: the ground station of a flight of several vehicles (a formation
+//!   program written, checked and flown slot by slot through every vehicle's controller);
 //! - [`gstreamer_camera`]: a real camera (any GStreamer pipeline ending in an appsink);
 //! - the flight recorder (kind `recorder`) is `aeris-record`'s, dispatched here.
 
@@ -21,6 +23,7 @@ pub mod controller;
 pub mod cues;
 pub mod depth_occupancy;
 pub mod detector;
+pub mod formation_role;
 pub mod grounding;
 pub mod gstreamer_camera;
 pub mod heartbeat_clock;
@@ -51,6 +54,9 @@ pub fn runner(kind: &str, variant: &str) -> Option<RoleRunner> {
         ("occupancy", "depth" | "onnx") => RoleHost::run::<occupancy::OccupancyRole>,
         ("image-to-text", "compose" | "vlm") => RoleHost::run::<compose::ComposeRole>,
         ("controller", "mavlink") => RoleHost::run::<controller::ControllerRole>,
+        ("formation", "parser" | "qwen-coder" | "smollm2" | "gemma3") => {
+            RoleHost::run::<formation_role::FormationRole>
+        }
         ("camera", "gstreamer") => RoleHost::run::<gstreamer_camera::GstreamerCameraRole>,
         ("recorder", "mcap") => RoleHost::run::<aeris_record::RecorderRole>,
         ("replay", "mcap") => RoleHost::run::<aeris_record::replay::ReplaySource>,

@@ -44,6 +44,7 @@ fn default_spec() -> RoleSpec {
         heartbeat_pid: None,
         flight_clock_offset_ns: 0,
         accelerator: None,
+        vehicle: None,
     }
 }
 

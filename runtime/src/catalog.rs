@@ -165,6 +165,14 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         summary: "the camera and the vehicle of a replayed flight: a recording's exact frames and telemetry at their recorded times (`aeris replay`)",
         swap_refusal: Some("two sources would publish the recording twice"),
     },
+    RoleKind {
+        kind: "formation",
+        variants: &["parser", "qwen-coder", "smollm2", "gemma3"],
+        subscribes: &[topics::VEHICLE_TELEMETRY],
+        publishes: &[topics::HUB_SETPOINT],
+        summary: "flies several vehicles in formation from the mission's instruction: writes a formation program (parser or a GGUF model under a grammar), checks and repairs it in simulation, then tracks every vehicle's slot at the control rate (the vehicles' `hub/setpoint`), replanning when a vehicle is lost",
+        swap_refusal: Some("the program being flown lives in the formation process"),
+    },
 ];
 
 /// The catalog entry of `kind`.

@@ -143,6 +143,7 @@ impl RoleHost {
             .map_err(|e| RoleError::Fatal(format!("cannot install signal handlers: {e}")))?;
         let bus = FlightBus::builder(&spec.flight)
             .node_name(&spec.name)
+            .vehicle(spec.vehicle)
             .create()?;
         let heartbeats: TypedPublisher<RoleHeartbeat> = bus.publisher(topics::HEARTBEAT)?;
         let mut ctx = RoleContext {

@@ -284,6 +284,11 @@ pub struct RoleSpec {
     /// a model role runs its sessions there; `None` runs them on its CPUs.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub accelerator: Option<String>,
+    /// The vehicle (1-based) whose scope the role's topics are in, in a flight of several
+    /// vehicles ([`crate::bus::FlightBusBuilder::vehicle`]); `None` in a one-vehicle flight
+    /// and for a role of the whole flight (the formation role).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vehicle: Option<u8>,
 }
 
 fn is_zero(v: &i64) -> bool {

@@ -75,3 +75,59 @@ pub fn is_valid_flight_name(name: &str) -> bool {
 pub fn is_known_topic(topic: &str) -> bool {
     ALL.contains(&topic)
 }
+
+/// Most vehicles one flight may have (system ids and vehicle scopes `v1`..`v8`); the same
+/// bound as a formation program's [`crate::MAX_VEHICLES`].
+pub const MAX_FLIGHT_VEHICLES: u8 = crate::formation::MAX_VEHICLES as u8;
+
+/// `true` for a topic of the whole flight, never of one vehicle: the roles' heartbeats, the
+/// supervisor's board and control service, the links to other hosts. Every other topic of
+/// a flight with several vehicles lives in one vehicle's scope ([`in_vehicle`]).
+pub fn is_flight_wide(topic: &str) -> bool {
+    matches!(topic, HEARTBEAT | SUPERVISOR_CONTROL | HOSTS_LINK | "supervisor")
+}
+
+/// `topic` in the scope of vehicle `vehicle` (1-based): `v2/vehicle/telemetry`. A flight of
+/// several vehicles names its services `aeris/s{V}/{flight}/v{K}/{topic}`, so each
+/// vehicle's roles run unchanged in their own scope. A flight-wide topic
+/// ([`is_flight_wide`]) is returned as it is.
+pub fn in_vehicle(vehicle: u8, topic: &str) -> String {
+    if is_flight_wide(topic) {
+        topic.to_string()
+    } else {
+        format!("v{vehicle}/{topic}")
+    }
+}
+
+/// The topic without its vehicle scope (`v2/vehicle/telemetry` -> `vehicle/telemetry`), and
+/// the vehicle; `(None, topic)` for a topic in no vehicle's scope.
+pub fn split_vehicle(topic: &str) -> (Option<u8>, &str) {
+    let Some(rest) = topic.strip_prefix('v') else {
+        return (None, topic);
+    };
+    let Some((digits, base)) = rest.split_once('/') else {
+        return (None, topic);
+    };
+    match digits.parse::<u8>() {
+        Ok(k) if (1..=MAX_FLIGHT_VEHICLES).contains(&k) && !digits.starts_with('0') => {
+            (Some(k), base)
+        }
+        _ => (None, topic),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_vehicle_scope_round_trips_and_leaves_flight_wide_topics_alone() {
+        assert_eq!(in_vehicle(3, VEHICLE_TELEMETRY), "v3/vehicle/telemetry");
+        assert_eq!(split_vehicle("v3/vehicle/telemetry"), (Some(3), VEHICLE_TELEMETRY));
+        assert_eq!(in_vehicle(3, HEARTBEAT), HEARTBEAT);
+        assert_eq!(split_vehicle(HUB_SETPOINT), (None, HUB_SETPOINT));
+        for odd in ["v0/hub/setpoint", "v9/hub/setpoint", "v03/hub/setpoint", "vx/a"] {
+            assert_eq!(split_vehicle(odd), (None, odd), "{odd}");
+        }
+    }
+}

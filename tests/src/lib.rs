@@ -311,6 +311,7 @@ pub fn role_spec(
         heartbeat_pid: None,
         flight_clock_offset_ns: 0,
         accelerator: None,
+        vehicle: None,
     }
 }
 

@@ -327,6 +327,7 @@ pub fn replay_workflow(
         executors,
         hosts: Vec::new(),
         roles,
+        fleet: Default::default(),
     };
     workflow.validate()?;
     Ok(workflow)

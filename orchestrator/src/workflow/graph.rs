@@ -9,7 +9,9 @@ impl Workflow {
     /// Service dependency edges `(from, to, topic)`: role `to` subscribes to `topic` that role
     /// `from` publishes. Feedback topics and `heartbeat` make no edges, nor does a topic
     /// that `to` publishes itself: peers exchanging one topic (the controllers'
-    /// `controller/lease`) have no order between them.
+    /// `controller/lease`) have no order between them. In a flight of several vehicles, a
+    /// topic joins roles of the same vehicle, or a role of the whole flight and any
+    /// vehicle's ([`super::RoleDecl::shares_scope_with`]).
     pub fn service_edges(&self) -> Vec<(usize, usize, String)> {
         let mut edges = Vec::new();
         for (from, a) in self.roles.iter().enumerate() {
@@ -21,6 +23,7 @@ impl Workflow {
                     // the recorder is nobody's dependant: it may start first and see the
                     // flight from its first message
                     if b.kind != RECORDER_KIND
+                        && a.shares_scope_with(b)
                         && b.subscribes.contains(topic)
                         && !b.publishes.contains(topic)
                         && !edges.iter().any(|(f, t, _)| *f == from && *t == to)

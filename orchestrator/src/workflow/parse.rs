@@ -59,6 +59,8 @@ struct RawFlight {
     setpoint_timeout_ms: Option<u64>,
     idle_heartbeat_ms: Option<u64>,
     feedback: Option<Vec<String>>,
+    vehicles: Option<u8>,
+    vehicle_spacing_m: Option<f32>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -102,6 +104,8 @@ struct RawRole {
     publishes: Option<Vec<String>>,
     fallback: Option<String>,
     fallback_executor: Option<String>,
+    #[serde(default)]
+    per_vehicle: bool,
 }
 
 /// 1-based (line, column) of byte offset `at` in `text`, without slicing `text`.
@@ -230,9 +234,30 @@ impl Workflow {
             });
         }
 
+        let fleet = super::Fleet {
+            vehicles: raw.flight.vehicles.unwrap_or(1),
+            spacing_m: raw
+                .flight
+                .vehicle_spacing_m
+                .unwrap_or(super::DEFAULT_VEHICLE_SPACING_M),
+        };
+        if !(1..=topics::MAX_FLIGHT_VEHICLES).contains(&fleet.vehicles)
+            || !(fleet.spacing_m.is_finite() && fleet.spacing_m > 0.0)
+        {
+            return Err(WorkflowError::BadFleet {
+                vehicles: fleet.vehicles,
+                spacing_m: fleet.spacing_m,
+            });
+        }
         let mut roles = Vec::with_capacity(raw.roles.len());
         let mut fit_recorders = false;
         for r in raw.roles {
+            // one per vehicle, each in its vehicle's scope, when there are several
+            let scopes: Vec<Option<u8>> = if r.per_vehicle && fleet.vehicles > 1 {
+                (1..=fleet.vehicles).map(Some).collect()
+            } else {
+                vec![None]
+            };
             let restart = match &r.restart {
                 None => RestartPolicy::default(),
                 Some(v) => {
@@ -256,7 +281,7 @@ impl Workflow {
                 variant,
                 executor: r.fallback_executor,
             });
-            roles.push(RoleDecl {
+            let role = RoleDecl {
                 fallback,
                 variants: r.variants.unwrap_or_else(|| vec![r.variant.clone()]),
                 ladder: r.ladder.unwrap_or_default(),
@@ -271,7 +296,16 @@ impl Workflow {
                 params: r.params,
                 subscribes,
                 publishes,
-            });
+                vehicle: None,
+            };
+            for vehicle in scopes {
+                let mut role = role.clone();
+                if let Some(k) = vehicle {
+                    role.name = format!("{}-v{k}", role.name);
+                    role.vehicle = Some(k);
+                }
+                roles.push(role);
+            }
         }
         let d = SchedulingSpec::defaults(&timing);
         let rs = raw.scheduling;
@@ -307,6 +341,7 @@ impl Workflow {
             executors,
             roles,
             scheduling,
+            fleet,
         };
         if fit_recorders {
             // a recorder records what this flight publishes, not the catalog's every topic

@@ -15,6 +15,10 @@ use aeris_schemas::{MAX_ROLES, topics};
 /// `perception/state` either way.
 pub const REQUIRED_KINDS: [&str; 4] = ["hub", "reasoning", "controller", "camera"];
 
+/// The role kind that flies a formation of several vehicles (`aeris-roles`' formation
+/// role); a flight with one replaces [`REQUIRED_KINDS`] by it and a controller per vehicle.
+pub const FORMATION_KIND: &str = "formation";
+
 fn known_topics() -> String {
     topics::ALL.join(", ")
 }
@@ -381,9 +385,40 @@ impl Workflow {
         let has = |kind: &str| self.roles.iter().any(|r| r.kind == kind);
         // a replayed flight's camera and vehicle are its recording (`aeris replay`)
         let replayed = |kind: &str| matches!(kind, "controller" | "camera") && has("replay");
-        for kind in REQUIRED_KINDS {
-            if !has(kind) && !replayed(kind) {
-                return Err(WorkflowError::MissingRole { kind, hint: "" });
+        if self.fleet.vehicles > 1 || has(FORMATION_KIND) {
+            // a formation flight: the formation role flies every vehicle's controller
+            if !has(FORMATION_KIND) {
+                return Err(WorkflowError::MissingRole {
+                    kind: FORMATION_KIND,
+                    hint: " ([flight] vehicles > 1: a formation role flies them)",
+                });
+            }
+            if let Some(r) = self.roles.iter().find(|r| {
+                self.fleet.vehicles > 1
+                    && r.vehicle.is_none()
+                    && matches!(r.kind.as_str(), "vehicle" | "controller")
+            }) {
+                return Err(WorkflowError::NotPerVehicle {
+                    role: r.name.clone(),
+                    vehicles: self.fleet.vehicles,
+                });
+            }
+            let controlled = |k: u8| {
+                self.roles
+                    .iter()
+                    .any(|r| r.kind == "controller" && r.vehicle.is_none_or(|v| v == k))
+            };
+            if !(1..=self.fleet.vehicles).all(controlled) {
+                return Err(WorkflowError::MissingRole {
+                    kind: "controller",
+                    hint: " for every vehicle (declare it with per_vehicle = true)",
+                });
+            }
+        } else {
+            for kind in REQUIRED_KINDS {
+                if !has(kind) && !replayed(kind) {
+                    return Err(WorkflowError::MissingRole { kind, hint: "" });
+                }
             }
         }
         if self.needs_builtin_vehicle() && !has("vehicle") {
@@ -397,15 +432,14 @@ impl Workflow {
     }
 
     fn validate_topics(&self) -> Result<(), WorkflowError> {
-        let published = |topic: &str| {
+        let published = |by: &super::RoleDecl, topic: &str| {
             topic == topics::HEARTBEAT
-                || self
-                    .roles
-                    .iter()
-                    .any(|r| r.publishes.iter().any(|t| t == topic))
+                || self.roles.iter().any(|r| {
+                    r.shares_scope_with(by) && r.publishes.iter().any(|t| t == topic)
+                })
         };
         for r in &self.roles {
-            if let Some(t) = r.subscribes.iter().find(|t| !published(t)) {
+            if let Some(t) = r.subscribes.iter().find(|t| !published(r, t)) {
                 return Err(WorkflowError::Unpublished {
                     role: r.name.clone(),
                     topic: t.clone(),

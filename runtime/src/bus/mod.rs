@@ -206,9 +206,19 @@ pub struct FlightBusBuilder {
     node_name: String,
     cleanup_dead_nodes: bool,
     join: bool,
+    vehicle: Option<u8>,
 }
 
 impl FlightBusBuilder {
+    /// Open every topic that is not flight-wide in vehicle `vehicle`'s scope
+    /// (`aeris/s{V}/{flight}/v{K}/{topic}`, [`topics::in_vehicle`]): what a role of one
+    /// vehicle of a flight with several does, so its code stays that of a one-vehicle
+    /// flight. `None` (the default): no scope.
+    pub fn vehicle(mut self, vehicle: Option<u8>) -> Self {
+        self.vehicle = vehicle;
+        self
+    }
+
     /// Name of this process's node inside the flight (e.g. the role name).
     pub fn node_name(mut self, name: &str) -> Self {
         self.node_name = name.to_string();
@@ -254,6 +264,7 @@ impl FlightBusBuilder {
             flight: self.flight,
             cleaned_dead_nodes: cleaned,
             manifest: None,
+            vehicle: self.vehicle,
         };
         if self.join {
             bus.join_flight()?;
@@ -275,7 +286,7 @@ where
     P: Debug + iceoryx2::prelude::IceoryxSend + ?Sized,
     H: Debug + ZeroCopySend,
 {
-    let q = qos(topic);
+    let q = qos(topics::split_vehicle(topic).1);
     builder
         .history_size(q.history)
         .subscriber_max_buffer_size(q.buffer)
@@ -301,6 +312,7 @@ pub struct FlightBus {
     flight: String,
     cleaned_dead_nodes: u64,
     manifest: Option<ManifestService>,
+    vehicle: Option<u8>,
 }
 
 impl Debug for FlightBus {
@@ -340,6 +352,7 @@ impl FlightBus {
             node_name: format!("pid{}", std::process::id()),
             cleanup_dead_nodes: true,
             join: true,
+            vehicle: None,
         }
     }
 
@@ -358,9 +371,18 @@ impl FlightBus {
         &self.node
     }
 
-    /// The full iceoryx2 service name of `topic` in this flight.
+    /// The vehicle whose scope this node opens its topics in ([`FlightBusBuilder::vehicle`]).
+    pub fn vehicle(&self) -> Option<u8> {
+        self.vehicle
+    }
+
+    /// The full iceoryx2 service name of `topic` in this flight (in this node's vehicle
+    /// scope, if it has one and the topic is not flight-wide).
     pub fn service_name(&self, topic: &str) -> String {
-        service_name(&self.flight, topic)
+        match self.vehicle {
+            Some(k) => service_name(&self.flight, &topics::in_vehicle(k, topic)),
+            None => service_name(&self.flight, topic),
+        }
     }
 
     fn iox_name(name: &str) -> Result<ServiceName, BusError> {

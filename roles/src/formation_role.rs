@@ -1,0 +1,527 @@
+//! The formation role (kind `formation`): the ground station of a flight of several
+//! vehicles. It runs for the whole flight, outside every vehicle's scope.
+//!
+//! At start it writes a formation program for the mission's instruction (variant `parser`,
+//! the deterministic parser, or a GGUF model under the program grammar: `qwen-coder`,
+//! `smollm2`, `gemma3`), validates it, checks it in simulation (every transition's
+//! separation, the geofence, the altitude band, the time) and repairs it, at most
+//! `max_repairs` times; a program that stays unsafe is refused and nothing flies (the role
+//! stops with the diagnosis). Then, every control period, it reads every vehicle's
+//! `v{K}/vehicle/telemetry`, steps the [`FormationExecutor`] (a phase in time; at its end,
+//! a wait until every vehicle is within tolerance of its slot) and publishes each vehicle's
+//! slot on `v{K}/hub/setpoint`, which that vehicle's controller tracks; the land phase is
+//! sent as a landing. It finishes when every vehicle has landed.
+//!
+//! **Runtime faults feed the same loop.** A vehicle whose telemetry stops, or whose
+//! controller has no autopilot, for `lost_after_ms` is lost; one the executor waited for past
+//! its settle timeout is off its slot. Either leaves the formation: the rest of the program
+//! is planned again for the vehicles that remain, from where they are
+//! ([`replan_after_fault`]: the same check and repair), or their landing where they are; the
+//! lost vehicle's controller gets no more setpoints and holds. That path allocates (it is a
+//! new plan); the control period's does not.
+//!
+//! Parameters: `vehicles` and `starts` (set by the launch plan from `[flight] vehicles`),
+//! `min_separation_m` (2), `max_repairs` (3), `lost_after_ms` (1000), `model`, `threads` (1),
+//! `models_dir` for the model variants.
+//!
+//! Heartbeat counters: 0 the phase flown (1-based), 1 the executor's state (0 waiting for
+//! the vehicles, 1 flying, 2 settling, 3 landing done, 4 stuck), 2 runtime replans, 3
+//! setpoints published, 4 the longest wait at a phase's end (ms), 5 vehicles in the
+//! formation, 6 the closest two vehicles came, by their telemetry (cm), 7 vehicles lost.
+
+use crate::vision::open_store;
+use aeris_formation::{
+    Dynamics, ExecutorState, FormationExecutor, InFlight, ParserWriter, PlanOutcome,
+    ProgramWriter, RuntimeFault, Simulation, Slot, Tolerance, Trajectory, phase_description,
+    plan_instruction, replan_after_fault,
+};
+use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
+use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::{
+    ActionMode, BoundSetpoint, FormationLimits, FormationProgram, MAX_VEHICLES, PhaseKind,
+    VehicleTelemetry, topics,
+};
+use std::time::Duration;
+
+/// One vehicle as the formation role sees it.
+struct VehicleLink {
+    /// Its number in the flight (1-based): its scope `v{K}`.
+    number: u8,
+    setpoints: TypedPublisher<BoundSetpoint>,
+    telemetry: TypedSubscriber<VehicleTelemetry>,
+    /// Newest telemetry, and when it arrived (ns).
+    last: Option<(VehicleTelemetry, u64)>,
+    /// Since when its controller has reported no autopilot (ns).
+    silent_since: Option<u64>,
+    /// Has been in the air.
+    flew: bool,
+    /// Left the formation (lost or off its slot).
+    left: bool,
+}
+
+/// The program being flown and its vehicles.
+struct Flying {
+    program: FormationProgram,
+    executor: FormationExecutor,
+    /// The program's vehicle `k` is `links[members[k]]`.
+    members: Vec<usize>,
+}
+
+/// The formation role.
+pub struct FormationRole {
+    links: Vec<VehicleLink>,
+    flying: Flying,
+    limits: FormationLimits,
+    max_repairs: usize,
+    lost_after_ns: u64,
+    period: Duration,
+    started: bool,
+    last_tick_ns: u64,
+    seq: u64,
+    slots: [Slot; MAX_VEHICLES],
+    positions: [[f32; 3]; MAX_VEHICLES],
+    counters: [u64; 8],
+    min_separation_m: f32,
+    done: bool,
+}
+
+/// The `FormationLimits` of a flight: its mission's band, speed and geofence, `vehicles`
+/// vehicles, `min_separation_m` apart.
+pub fn flight_limits(
+    mission: &aeris_runtime::spec::MissionSpec,
+    vehicles: u8,
+    min_separation_m: f32,
+) -> FormationLimits {
+    let l = mission.decision_limits();
+    let d = FormationLimits::default();
+    FormationLimits {
+        vehicles,
+        h_min: l.h_min.max(d.h_min),
+        h_max: l.h_max.min(d.h_max),
+        min_separation_m,
+        v_max: l.v_max.min(d.v_max),
+        geofence_min: [l.geofence_min[0], l.geofence_min[1]],
+        geofence_max: [l.geofence_max[0], l.geofence_max[1]],
+        ..d
+    }
+}
+
+fn config_error(what: &str) -> RoleError {
+    RoleError::Config(what.to_string())
+}
+
+/// Write and plan the program with `writer`; the accepted program and its trajectory, or
+/// the refusal as an error.
+fn plan<W: ProgramWriter>(
+    writer: &mut W,
+    instruction: &str,
+    starts: &[[f32; 3]],
+    limits: &FormationLimits,
+    max_repairs: usize,
+) -> Result<(FormationProgram, Trajectory), RoleError> {
+    let planned = plan_instruction(
+        writer,
+        instruction,
+        starts,
+        limits,
+        &Simulation::default(),
+        max_repairs,
+    )
+    .map_err(|e| RoleError::step("planning the formation", e))?;
+    eprintln!(
+        "formation: {} (written in {:.0} ms, checked in {:.1} ms)",
+        planned.outcome.summary(),
+        planned.write_time.as_secs_f64() * 1e3,
+        planned.plan_time.as_secs_f64() * 1e3
+    );
+    match planned.outcome {
+        PlanOutcome::Accepted {
+            program, report, ..
+        } => {
+            for (i, phase) in program.phases().iter().enumerate() {
+                eprintln!("formation: phase {}: {}", i + 1, phase_description(phase));
+            }
+            Ok((*program, report.trajectory))
+        }
+        PlanOutcome::Refused { problem, .. } => Err(RoleError::Fatal(format!(
+            "the formation program was refused, nothing flies: {problem}"
+        ))),
+    }
+}
+
+impl Role for FormationRole {
+    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+        let spec = &ctx.spec;
+        let vehicles = spec
+            .param_f64("vehicles")
+            .filter(|v| (1.0..=MAX_VEHICLES as f64).contains(v))
+            .ok_or_else(|| config_error("param `vehicles` must be 1..=8 (the launch plan sets it)"))?
+            as u8;
+        let starts: Vec<[f32; 3]> = spec
+            .params
+            .get("starts")
+            .and_then(|v| serde_json::from_value(v.clone()).ok())
+            .filter(|s: &Vec<[f32; 3]>| s.len() == vehicles as usize)
+            .ok_or_else(|| config_error("param `starts` must list one [N, E, U] per vehicle"))?;
+        let min_separation_m = spec.param_f64("min_separation_m").unwrap_or(2.0) as f32;
+        let max_repairs = spec.param_f64("max_repairs").unwrap_or(3.0).clamp(0.0, 10.0) as usize;
+        let lost_after_ms = spec.param_f64("lost_after_ms").unwrap_or(1000.0).max(100.0);
+        let limits = flight_limits(&spec.mission, vehicles, min_separation_m);
+        if !limits.is_coherent() {
+            return Err(RoleError::Config(format!(
+                "the mission's limits give no room for a formation of {vehicles}: {limits:?}"
+            )));
+        }
+        let instruction = spec.mission.instruction.clone();
+        let (program, trajectory) = match spec.variant.as_str() {
+            "parser" => plan(&mut ParserWriter, &instruction, &starts, &limits, max_repairs)?,
+            variant => {
+                let file = spec
+                    .param_str("model")
+                    .or(aeris_llm::variant_model(variant))
+                    .ok_or_else(|| RoleError::Config(format!("no model for variant `{variant}`")))?
+                    .to_string();
+                let threads = spec.param_f64("threads").unwrap_or(1.0).clamp(1.0, 64.0) as i32;
+                let store = open_store(ctx)?;
+                let mut writer = aeris_llm::FormationWriter::load(&store, variant, &file, threads)
+                    .map_err(|e| {
+                        RoleError::step(format!("loading formation/{variant} from {file}"), e)
+                    })?;
+                plan(&mut writer, &instruction, &starts, &limits, max_repairs)?
+            }
+        };
+        let mut links = Vec::with_capacity(vehicles as usize);
+        for k in 1..=vehicles {
+            links.push(VehicleLink {
+                number: k,
+                setpoints: ctx
+                    .bus
+                    .publisher(&topics::in_vehicle(k, topics::HUB_SETPOINT))?,
+                telemetry: ctx
+                    .bus
+                    .subscriber(&topics::in_vehicle(k, topics::VEHICLE_TELEMETRY))?,
+                last: None,
+                silent_since: None,
+                flew: false,
+                left: false,
+            });
+        }
+        let rate = ctx.spec.timing.control_rate_hz;
+        let period = Duration::from_secs_f64(if rate.is_finite() && rate > 0.0 {
+            1.0 / rate
+        } else {
+            0.02
+        });
+        let mut counters = [0u64; 8];
+        counters[5] = u64::from(vehicles);
+        Ok(Self {
+            links,
+            flying: Flying {
+                program,
+                executor: FormationExecutor::new(trajectory, Tolerance::default()),
+                members: (0..vehicles as usize).collect(),
+            },
+            limits,
+            max_repairs,
+            lost_after_ns: (lost_after_ms * 1e6) as u64,
+            period,
+            started: false,
+            last_tick_ns: 0,
+            seq: 0,
+            slots: [Slot::default(); MAX_VEHICLES],
+            positions: [[0.0; 3]; MAX_VEHICLES],
+            counters,
+            min_separation_m: f32::INFINITY,
+            done: false,
+        })
+    }
+
+    fn period(&self) -> Duration {
+        self.period
+    }
+
+    fn cycle(
+        &mut self,
+        _ctx: &mut RoleContext,
+        report: &mut CycleReport,
+    ) -> Result<CycleOutcome, RoleError> {
+        let now = monotonic_ns();
+        self.read_telemetry(now)?;
+        if !self.started {
+            // every vehicle heard from, and every controller bound to its autopilot
+            if !self.links.iter().all(|l| l.last.is_some_and(|(t, _)| t.link_up == 1)) {
+                report.counters = self.counters;
+                return Ok(CycleOutcome::Idle);
+            }
+            eprintln!(
+                "formation: every vehicle's controller reports its autopilot; flying {} phases",
+                self.flying.program.phases().len()
+            );
+            self.started = true;
+            self.last_tick_ns = now;
+        }
+        if let Some(fault) = self.fault(now) {
+            self.replan(fault, now);
+        }
+        let dt = now.saturating_sub(self.last_tick_ns) as f32 * 1e-9;
+        self.last_tick_ns = now;
+        for (k, &member) in self.flying.members.iter().enumerate() {
+            if let Some((t, _)) = self.links[member].last {
+                self.positions[k] = t.position;
+            }
+        }
+        let n = self.flying.members.len();
+        let state = self
+            .flying
+            .executor
+            .tick(dt, &self.positions[..n], &mut self.slots);
+        let segment = match state {
+            ExecutorState::Flying { segment }
+            | ExecutorState::Settling { segment, .. }
+            | ExecutorState::Stuck { segment, .. } => segment,
+            ExecutorState::Done => self.flying.executor.trajectory().segments.len().saturating_sub(1),
+        };
+        let phase = self
+            .flying
+            .executor
+            .trajectory()
+            .segments
+            .get(segment)
+            .map_or(0, |s| s.phase);
+        let landing = self
+            .flying
+            .program
+            .phases()
+            .get(phase.saturating_sub(1))
+            .is_some_and(|p| p.kind == PhaseKind::Land as u8);
+        self.publish(now, phase, landing)?;
+        self.counters[0] = phase as u64;
+        self.counters[1] = match state {
+            ExecutorState::Flying { .. } => 1,
+            ExecutorState::Settling { .. } => 2,
+            ExecutorState::Done => 3,
+            ExecutorState::Stuck { .. } => 4,
+        };
+        let settle_ms = self
+            .flying
+            .executor
+            .settled_after_s()
+            .iter()
+            .fold(0.0f32, |a, b| a.max(*b))
+            * 1e3;
+        self.counters[4] = self.counters[4].max(settle_ms as u64);
+        if self.min_separation_m.is_finite() {
+            self.counters[6] = (self.min_separation_m * 100.0) as u64;
+        }
+        report.counters = self.counters;
+        let all_landed = self
+            .flying
+            .members
+            .iter()
+            .all(|&m| self.links[m].flew && self.links[m].last.is_some_and(|(t, _)| t.landed == 1));
+        if state == ExecutorState::Done && all_landed && !self.done {
+            self.done = true;
+            eprintln!(
+                "formation: every vehicle landed; closest two {:.2} m apart",
+                self.min_separation_m
+            );
+            return Ok(CycleOutcome::Finished);
+        }
+        Ok(CycleOutcome::Worked)
+    }
+}
+
+impl FormationRole {
+    /// Take every vehicle's newest telemetry; the closest pair so far.
+    fn read_telemetry(&mut self, now: u64) -> Result<(), RoleError> {
+        for link in &mut self.links {
+            if let Some(t) = link.telemetry.latest()? {
+                link.last = Some((t, now));
+                link.flew |= t.landed == 0 && t.armed == 1;
+                link.silent_since = match (t.link_up, link.silent_since) {
+                    (1, _) => None,
+                    (_, Some(since)) => Some(since),
+                    (_, None) => Some(now),
+                };
+            }
+        }
+        for (i, a) in self.links.iter().enumerate() {
+            for b in &self.links[i + 1..] {
+                if let (Some((ta, _)), Some((tb, _))) = (a.last, b.last)
+                    && !a.left
+                    && !b.left
+                {
+                    let d = (0..3)
+                        .map(|j| (ta.position[j] - tb.position[j]).powi(2))
+                        .sum::<f32>()
+                        .sqrt();
+                    self.min_separation_m = self.min_separation_m.min(d);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The first vehicle of the formation that is lost or stuck, if any.
+    fn fault(&self, now: u64) -> Option<RuntimeFault> {
+        for (k, &member) in self.flying.members.iter().enumerate() {
+            let link = &self.links[member];
+            let stale = link
+                .last
+                .is_none_or(|(_, at)| now.saturating_sub(at) > self.lost_after_ns);
+            let silent = link
+                .silent_since
+                .is_some_and(|since| now.saturating_sub(since) > self.lost_after_ns);
+            if stale || silent {
+                return Some(RuntimeFault::Lost { vehicle: k });
+            }
+        }
+        match self.flying.executor.state() {
+            ExecutorState::Stuck {
+                vehicle, error_m, ..
+            } => Some(RuntimeFault::OffSlot { vehicle, error_m }),
+            _ => None,
+        }
+    }
+
+    /// Plan the rest of the program without the faulty vehicle (see the module).
+    fn replan(&mut self, fault: RuntimeFault, now: u64) {
+        let lost = self.flying.members[fault.vehicle()];
+        self.links[lost].left = true;
+        self.counters[2] += 1;
+        self.counters[7] += 1;
+        let n = self.flying.members.len();
+        let phase = self.counters[0].max(1) as usize;
+        let positions: Vec<[f32; 3]> = self.positions[..n].to_vec();
+        let flight = InFlight {
+            program: &self.flying.program,
+            phase,
+            positions: &positions,
+        };
+        let remaining_members = |remaining: &[usize]| -> Vec<usize> {
+            remaining.iter().map(|&k| self.flying.members[k]).collect()
+        };
+        match replan_after_fault(
+            &flight,
+            fault,
+            &self.limits,
+            &Simulation {
+                dynamics: Dynamics::default(),
+                flight: None,
+            },
+            self.max_repairs,
+            |_, _| None,
+        ) {
+            Ok(replanned) => {
+                eprintln!(
+                    "formation: vehicle {}: {}",
+                    self.links[lost].number, replanned.diagnosis
+                );
+                let members = remaining_members(&replanned.remaining);
+                match replanned.outcome {
+                    PlanOutcome::Accepted {
+                        program, report, ..
+                    } => {
+                        eprintln!(
+                            "formation: {} for the {} that remain ({})",
+                            if replanned.landing {
+                                "landing where they are"
+                            } else {
+                                "the rest of the program replanned"
+                            },
+                            members.len(),
+                            program
+                                .phases()
+                                .iter()
+                                .map(phase_description)
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        );
+                        self.flying = Flying {
+                            program: *program,
+                            executor: FormationExecutor::new(
+                                report.trajectory,
+                                Tolerance::default(),
+                            ),
+                            members,
+                        };
+                        self.counters[5] = self.flying.members.len() as u64;
+                        self.last_tick_ns = now;
+                    }
+                    PlanOutcome::Refused { problem, .. } => {
+                        // not even a landing is safe: hold where they are
+                        eprintln!(
+                            "formation: no safe plan for the {} that remain ({problem}); holding",
+                            members.len()
+                        );
+                        self.hold(members);
+                    }
+                }
+            }
+            Err(e) => {
+                eprintln!(
+                    "formation: vehicle {} left the formation; no plan for the rest ({}); holding",
+                    self.links[lost].number,
+                    aeris_runtime::error_chain::chain(&e)
+                );
+                let members: Vec<usize> = self
+                    .flying
+                    .members
+                    .iter()
+                    .copied()
+                    .filter(|m| *m != lost)
+                    .collect();
+                self.hold(members);
+            }
+        }
+    }
+
+    /// Keep `members` where they are: an empty trajectory whose slots are their positions.
+    fn hold(&mut self, members: Vec<usize>) {
+        let mut at = [[0.0f32; 3]; MAX_VEHICLES];
+        for (k, &m) in members.iter().enumerate() {
+            if let Some((t, _)) = self.links[m].last {
+                at[k] = t.position;
+            }
+        }
+        let trajectory = Trajectory {
+            vehicles: members.len(),
+            segments: vec![aeris_formation::Segment::stay(1, 0.0, f32::INFINITY, at)],
+        };
+        self.flying = Flying {
+            program: self.flying.program,
+            executor: FormationExecutor::new(trajectory, Tolerance::default()),
+            members,
+        };
+        self.counters[5] = self.flying.members.len() as u64;
+    }
+
+    /// Each vehicle of the formation its slot.
+    fn publish(&mut self, now: u64, phase: usize, landing: bool) -> Result<(), RoleError> {
+        let v_max = self.limits.v_max;
+        for (k, &member) in self.flying.members.iter().enumerate() {
+            let slot = self.slots[k];
+            self.seq += 1;
+            let sp = BoundSetpoint {
+                seq: self.seq,
+                decision_seq: phase as u64,
+                publish_ns: now,
+                position: slot.position,
+                yaw: 0.0,
+                speed: v_max,
+                acceptance_radius: Tolerance::default().distance_m,
+                active_step: phase.min(u16::MAX as usize) as u16,
+                mode: if landing {
+                    ActionMode::Land as u8
+                } else {
+                    ActionMode::Goto as u8
+                },
+                ..BoundSetpoint::default()
+            };
+            self.links[member].setpoints.publish(&sp)?;
+            self.counters[3] += 1;
+        }
+        Ok(())
+    }
+}
