@@ -53,17 +53,18 @@ impl FlightWatcher for FlightPrinter {
                         .iter()
                         .map(|q| q.map_or_else(|| "?".into(), |q| format!("{:.1}", q[2])))
                         .collect();
+                    let t = &f.formation;
                     eprintln!(
                         "[{:6.1} s] formation phase {} {}  vehicles {}  heights [{}] m  closest {}  replans {}  restarts {}",
                         p.elapsed_s,
-                        f.phase,
-                        f.state,
-                        f.in_formation,
+                        t.phase,
+                        t.state,
+                        t.in_formation,
                         heights.join(", "),
                         f.closest_m
                             .map(|d| format!("{d:.2} m"))
                             .unwrap_or_else(|| "?".into()),
-                        f.replans,
+                        t.replans,
                         p.restarts,
                     );
                 }

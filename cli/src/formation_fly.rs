@@ -98,6 +98,18 @@ fn print_summary(name: &str, summary: &FlightSummary, failure: Option<String>) {
         }
         _ => println!("  closest two vehicles: no telemetry"),
     }
+    if let Some(t) = &fleet.formation {
+        println!(
+            "  formation: phase {} {}, {} vehicles in it ({} left), {} replans, longest wait at a phase's end {:.1} s, {} setpoints",
+            t.phase,
+            t.state,
+            t.in_formation,
+            t.lost,
+            t.replans,
+            t.settle_max_ms as f64 / 1e3,
+            t.setpoints
+        );
+    }
     for v in &fleet.vehicles {
         println!(
             "  vehicle {}: controller ticks {} missed {}, setpoints refused {}, hold ticks {}, {}{}",

@@ -114,14 +114,8 @@ pub struct FleetProgress {
     pub positions: Vec<Option<[f32; 3]>>,
     /// The closest two vehicles with live links came so far (m).
     pub closest_m: Option<f32>,
-    /// The formation role's phase (1-based; 0 before it flies).
-    pub phase: u64,
-    /// What its executor does: `waiting`, `flying`, `settling`, `done`, `stuck`.
-    pub state: &'static str,
-    /// Vehicles in the formation (fewer after a vehicle was lost).
-    pub in_formation: u64,
-    /// Runtime replans so far.
-    pub replans: u64,
+    /// The formation role's last report.
+    pub formation: crate::fleet::FormationTally,
 }
 
 /// Something that happened to a flight, in order.

@@ -44,6 +44,47 @@ pub struct VehicleSummary {
     pub link_lost: bool,
 }
 
+/// What the formation role reports in its heartbeat (`aeris_roles::formation_role`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct FormationTally {
+    /// The phase flown (1-based; 0 before it flies).
+    pub phase: u64,
+    /// What its executor does: `waiting`, `flying`, `settling`, `done`, `stuck`.
+    pub state: &'static str,
+    /// Runtime replans (a vehicle lost or off its slot).
+    pub replans: u64,
+    /// Setpoints it published.
+    pub setpoints: u64,
+    /// The longest wait at a phase's end until every vehicle was within tolerance of its
+    /// slot (ms).
+    pub settle_max_ms: u64,
+    /// Vehicles in the formation.
+    pub in_formation: u64,
+    /// Vehicles that left it.
+    pub lost: u64,
+}
+
+impl FormationTally {
+    /// Read from the formation role's heartbeat counters.
+    pub fn from_counters(c: [u64; 8]) -> Self {
+        Self {
+            phase: c[0],
+            state: match c[1] {
+                1 => "flying",
+                2 => "settling",
+                3 => "done",
+                4 => "stuck",
+                _ => "waiting",
+            },
+            replans: c[2],
+            setpoints: c[3],
+            settle_max_ms: c[4],
+            in_formation: c[5],
+            lost: c[7],
+        }
+    }
+}
+
 /// The vehicles of a flight at its end.
 #[derive(Debug, Clone, Serialize)]
 pub struct FleetSummary {
@@ -55,6 +96,8 @@ pub struct FleetSummary {
     pub closest_pair: Option<(u8, u8)>,
     /// The first collision, if any.
     pub collision: Option<Collision>,
+    /// The formation role's last report.
+    pub formation: Option<FormationTally>,
 }
 
 struct VehicleWatch {
@@ -179,6 +222,7 @@ impl FleetMonitor {
             min_separation_m: self.closest.map(|(d, _)| d),
             closest_pair: self.closest.map(|(_, p)| p),
             collision: self.collision,
+            formation: None,
         }
     }
 }

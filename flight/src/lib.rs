@@ -64,7 +64,9 @@ pub use event::{
     FlightWatcher,
     RoleSnapshot, StopRule,
 };
-pub use fleet::{COLLISION_DISTANCE_M, Collision, FleetMonitor, FleetSummary, VehicleSummary};
+pub use fleet::{
+    COLLISION_DISTANCE_M, Collision, FleetMonitor, FleetSummary, FormationTally, VehicleSummary,
+};
 pub use handle::{Flight, FlightBuilder, FlightError, FlightOutcome};
 pub use hook::{FnHook, HookError, NoHook, StepContext, StepHook};
 pub use memory::{MemorySummary, RoleMemory};

@@ -263,6 +263,9 @@ pub(crate) fn supervise<H: StepHook>(
     summary.priority = sup.priority().mechanism().to_string();
     summary.priority_detail = sup.priority().to_string();
     summary.memory = memory.summary();
+    if let Some(fleet) = summary.fleet.as_mut() {
+        fleet.formation = Some(formation_tally(&sup));
+    }
     let recorder_heartbeat = record.as_ref().and_then(|(_, role)| {
         sup.roles()
             .iter()
@@ -299,6 +302,17 @@ pub(crate) fn supervise<H: StepHook>(
     Ok((outcome, hook))
 }
 
+/// The formation role's last heartbeat counters, read.
+fn formation_tally(sup: &Supervisor) -> crate::fleet::FormationTally {
+    let counters = sup
+        .roles()
+        .iter()
+        .find(|r| r.kind() == aeris_orchestrator::workflow::FORMATION_KIND)
+        .and_then(|r| r.last_heartbeat())
+        .map_or([0; 8], |h| h.counters);
+    crate::fleet::FormationTally::from_counters(counters)
+}
+
 /// Where the flight is now.
 fn progress(
     monitor: &FlightMonitor,
@@ -308,28 +322,10 @@ fn progress(
 ) -> FlightProgress {
     let restarts = sup.total_restarts();
     let (step, steps) = monitor.active_step();
-    let fleet = monitor.fleet().map(|fleet| {
-        // the formation role's heartbeat counters (`aeris_roles::formation_role`)
-        let counters = sup
-            .roles()
-            .iter()
-            .find(|r| r.kind() == aeris_orchestrator::workflow::FORMATION_KIND)
-            .and_then(|r| r.last_heartbeat())
-            .map_or([0; 8], |h| h.counters);
-        FleetProgress {
-            positions: fleet.positions(),
-            closest_m: fleet.summary().min_separation_m,
-            phase: counters[0],
-            state: match counters[1] {
-                1 => "flying",
-                2 => "settling",
-                3 => "done",
-                4 => "stuck",
-                _ => "waiting",
-            },
-            in_formation: counters[5],
-            replans: counters[2],
-        }
+    let fleet = monitor.fleet().map(|fleet| FleetProgress {
+        positions: fleet.positions(),
+        closest_m: fleet.summary().min_separation_m,
+        formation: formation_tally(sup),
     });
     FlightProgress {
         elapsed_s: start.elapsed().as_secs_f64(),

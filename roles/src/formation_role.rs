@@ -414,9 +414,10 @@ impl FormationRole {
             |_, _| None,
         ) {
             Ok(replanned) => {
+                // (the diagnosis numbers vehicles in the program flown, 1-based)
                 eprintln!(
-                    "formation: vehicle {}: {}",
-                    self.links[lost].number, replanned.diagnosis
+                    "formation: {} (the flight's vehicle {})",
+                    replanned.diagnosis, self.links[lost].number
                 );
                 let members = remaining_members(&replanned.remaining);
                 match replanned.outcome {

@@ -236,10 +236,25 @@ pub fn write_workflow(dir: &std::path::Path, name: &str, workflow: &toml::Table)
 /// Start `aeris run --json --flight FLIGHT [extra..]` with stdout/stderr captured to files in
 /// `dir` (so a long flight never blocks on a full pipe).
 pub fn spawn_run(dir: &std::path::Path, flight: &str, extra: &[&str]) -> ChildGuard {
+    spawn_flight(dir, &["run"], flight, extra)
+}
+
+/// `aeris formation fly --json --flight FLIGHT --run-dir DIR/run EXTRA...` (the built-in
+/// formation flight), its output captured like [`spawn_run`]'s.
+pub fn spawn_formation_fly(dir: &std::path::Path, flight: &str, extra: &[&str]) -> ChildGuard {
+    spawn_flight(dir, &["formation", "fly"], flight, extra)
+}
+
+fn spawn_flight(
+    dir: &std::path::Path,
+    command: &[&str],
+    flight: &str,
+    extra: &[&str],
+) -> ChildGuard {
     let out = std::fs::File::create(dir.join("run.stdout")).expect("stdout file");
     let err = std::fs::File::create(dir.join("run.stderr")).expect("stderr file");
     let mut cmd = Command::new(aeris_bin());
-    cmd.arg("run")
+    cmd.args(command)
         .arg("--json")
         .arg("--flight")
         .arg(flight)
@@ -249,7 +264,7 @@ pub fn spawn_run(dir: &std::path::Path, flight: &str, extra: &[&str]) -> ChildGu
         .stdin(std::process::Stdio::null())
         .stdout(out)
         .stderr(err);
-    ChildGuard::spawn(&mut cmd).expect("spawn aeris run")
+    ChildGuard::spawn(&mut cmd).unwrap_or_else(|e| panic!("spawn aeris {command:?}: {e}"))
 }
 
 /// Read the captured stdout and stderr of [`spawn_run`].

@@ -14,6 +14,7 @@ mod ardupilot;
 mod default;
 mod external_autopilot;
 mod faults;
+mod formation;
 mod garbage;
 mod hosts;
 mod ladder;

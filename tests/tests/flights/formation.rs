@@ -1,0 +1,133 @@
+//! Formation flights end to end (`aeris formation fly`): four built-in vehicles, each its own
+//! vehicle and controller process on its own MAVLink link, services in its own scope
+//! (`FLIGHT/v1` .. `FLIGHT/v4`), flown by the formation role from the built-in instruction
+//! (take off, a line, a V, a hold, a circle of radius 6 m, land) written by the
+//! deterministic parser. One flight flies it whole; in the other, vehicle 3's process is
+//! killed during the hold and the three that remain must re-form and land.
+
+use aeris_runtime::bus::FlightBus;
+use aeris_schemas::{RoleHeartbeat, topics};
+use aeris_tests::*;
+use serde_json::Value;
+use std::time::Duration;
+
+/// The program's minimum separation (`FormationLimits::default`, the role's default).
+const MIN_SEPARATION_M: f64 = 2.0;
+
+/// The fleet part of the flight's summary, after checks every formation flight must pass:
+/// exit status 0 (every linked vehicle landed), no collision, no setpoint refused, never
+/// two vehicles closer than the program's minimum.
+fn landed_fleet(dir: &std::path::Path, status: std::process::ExitStatus) -> Value {
+    let (stdout, stderr) = run_output(dir);
+    let logs = run_logs_tail(dir, 30);
+    assert!(status.success(), "formation fly failed: {status}\n{stderr}\n{logs}");
+    let summary = last_json_line(&stdout);
+    let fleet = summary["fleet"].clone();
+    assert!(fleet["collision"].is_null(), "{fleet}");
+    let closest = fleet["min_separation_m"].as_f64().expect("separation measured");
+    assert!(closest >= MIN_SEPARATION_M, "closest {closest} m\n{fleet}\n{logs}");
+    for v in fleet["vehicles"].as_array().expect("vehicles") {
+        assert_eq!(v["setpoints_refused"], 0, "{v}");
+        assert!(v["controller_ticks"].as_u64().unwrap() > 0, "{v}");
+    }
+    eprintln!("{stderr}");
+    fleet
+}
+
+/// Horizontal `[N, E]` of a vehicle's last position.
+fn ground_position(v: &Value) -> [f64; 2] {
+    let p = &v["final_position"];
+    [p[0].as_f64().unwrap(), p[1].as_f64().unwrap()]
+}
+
+#[test]
+fn four_vehicles_fly_line_v_hold_circle_and_land_from_the_parsers_program() {
+    let dir = TempDir::new("formation");
+    let flight = unique_flight("formation");
+    let mut run = spawn_formation_fly(&dir.0, &flight, &[]);
+    let status = wait_bounded(&mut run.0, Duration::from_secs(600)).expect("flight finished");
+    let fleet = landed_fleet(&dir.0, status);
+    // the executor moves to a phase only once every vehicle is within 0.5 m of its slot
+    // at the end of the one before: reaching the sixth (landing) with no replan means every
+    // vehicle reached every slot
+    let formation = &fleet["formation"];
+    assert_eq!(formation["phase"], 6, "{formation}");
+    assert_eq!(formation["replans"], 0, "{formation}");
+    assert_eq!(formation["in_formation"], 4, "{formation}");
+    assert_ne!(formation["state"], "stuck", "{formation}");
+    // ... and they landed on the circle: radius 6 m around the row's centre
+    for v in fleet["vehicles"].as_array().unwrap() {
+        assert_eq!(v["landed_after_flight"], true, "{v}");
+        let [n, e] = ground_position(v);
+        let r = n.hypot(e);
+        assert!((r - 6.0).abs() <= 0.5, "vehicle {} landed {r:.2} m out: {v}", v["vehicle"]);
+    }
+}
+
+#[test]
+fn a_vehicle_killed_mid_formation_leaves_three_that_reform_and_land() {
+    let dir = TempDir::new("formation-kill");
+    let flight = unique_flight("formation-kill");
+    let mut run = spawn_formation_fly(&dir.0, &flight, &[]);
+    let observer = FlightBus::builder(&flight)
+        .node_name("test-observer")
+        .create()
+        .unwrap();
+    let heartbeats = observer
+        .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
+        .unwrap();
+    // the formation role reports the phase it flies in counter 0: wait for the hold (4)
+    poll_flight(
+        &mut run,
+        &dir.0,
+        "the formation reached its hold",
+        Duration::from_secs(180),
+        || {
+            let mut phase = 0;
+            heartbeats
+                .drain(|h| {
+                    if h.role.as_str() == Some("formation") {
+                        phase = phase.max(h.counters[0]);
+                    }
+                })
+                .unwrap();
+            (phase >= 4).then_some(())
+        },
+    );
+    let board = observer.read_status_board().unwrap();
+    let victim = board
+        .roles()
+        .iter()
+        .find(|r| r.name.as_str() == Some("vehicle-v3"))
+        .map(|r| r.pid)
+        .filter(|p| *p != 0)
+        .expect("vehicle-v3 runs");
+    // SAFETY: kill(2) with a pid the supervisor reports for a child it owns.
+    assert_eq!(unsafe { libc::kill(victim as i32, libc::SIGKILL) }, 0);
+    let status = wait_bounded(&mut run.0, Duration::from_secs(600)).expect("flight finished");
+    let fleet = landed_fleet(&dir.0, status);
+    let formation = &fleet["formation"];
+    assert_eq!(formation["replans"], 1, "{formation}");
+    assert_eq!(formation["lost"], 1, "{formation}");
+    assert_eq!(formation["in_formation"], 3, "{formation}");
+    let vehicles = fleet["vehicles"].as_array().unwrap();
+    assert_eq!(vehicles[2]["link_lost"], true, "{}", vehicles[2]);
+    // the three that remain took up the circle again (an equilateral triangle inscribed in
+    // radius 6 m: 6·√3 m apart) and landed
+    let remaining: Vec<&Value> = vehicles.iter().filter(|v| v["vehicle"] != 3).collect();
+    for v in &remaining {
+        assert_eq!(v["landed_after_flight"], true, "{v}");
+    }
+    for (i, a) in remaining.iter().enumerate() {
+        for b in &remaining[i + 1..] {
+            let ([an, ae], [bn, be]) = (ground_position(a), ground_position(b));
+            let d = (an - bn).hypot(ae - be);
+            assert!(
+                (d - 6.0 * 3f64.sqrt()).abs() <= 1.0,
+                "vehicles {} and {} landed {d:.2} m apart\n{fleet}",
+                a["vehicle"],
+                b["vehicle"]
+            );
+        }
+    }
+}
