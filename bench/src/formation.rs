@@ -85,6 +85,8 @@ pub struct FormationReport {
     pub load_s: Vec<(String, f64)>,
     /// One row per variant and instruction.
     pub rows: Vec<ProgramRow>,
+    /// The flight stage (`--fly`): one row per instruction flown by real processes.
+    pub flights: Vec<crate::flights::FormationFlightRow>,
 }
 
 /// The simulation a program goes through before it is accepted: with the built-in
@@ -214,6 +216,7 @@ pub fn bench_programs(
         outside_load: config.outside_load,
         load_s: Vec::new(),
         rows: Vec::new(),
+        flights: Vec::new(),
     };
     for variant in &config.variants {
         if variant == "parser" {

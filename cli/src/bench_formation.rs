@@ -1,6 +1,9 @@
-//! `aeris bench formation`: the formation benchmark's program stage (the library is
-//! `aeris_bench::formation`; this parses arguments and prints).
+//! `aeris bench formation`: the formation benchmark's program stage and, with `--fly`, its
+//! flight stage (the library is `aeris_bench::formation` and
+//! `aeris_bench::flights::formation`; this parses arguments and prints).
 
+use crate::flight_print::FlightPrinter;
+use aeris_bench::flights::FormationFlightConfig;
 use aeris_bench::formation::{FormationBenchConfig, INSTRUCTION_SETS, bench_programs};
 use anyhow::Context;
 use clap::Args;
@@ -36,6 +39,16 @@ pub struct FormationArgs {
     /// Model cache (default: $AERIS_MODELS or ~/.cache/aeris/models).
     #[arg(long, value_name = "DIR")]
     pub models_dir: Option<PathBuf>,
+    /// Then fly each instruction with real processes (the built-in formation flight: a
+    /// vehicle and a controller process per vehicle, as many vehicles as the parser reads
+    /// in the instruction, at most --vehicles), the program written in flight by
+    /// --fly-variant: time, the longest wait at a phase's end, the closest two vehicles came,
+    /// every controller's missed ticks.
+    #[arg(long)]
+    pub fly: bool,
+    /// Who writes the program in the flights of --fly.
+    #[arg(long, default_value = "parser", requires = "fly")]
+    pub fly_variant: String,
     /// Print one JSON object on the last line of stdout.
     #[arg(long)]
     pub json: bool,
@@ -71,7 +84,24 @@ pub fn run(a: FormationArgs) -> anyhow::Result<()> {
         outside_load: a.outside_load,
         instructions,
     };
-    let report = bench_programs(&config, &store).context("formation benchmark")?;
+    let mut report = bench_programs(&config, &store).context("formation benchmark")?;
+    if a.fly {
+        let flights = FormationFlightConfig {
+            instructions: instructions.iter().map(|s| s.to_string()).collect(),
+            variant: a.fly_variant.clone(),
+            vehicles: a.vehicles,
+            outside_load: a.outside_load,
+        };
+        eprintln!(
+            "formation flights: {} instructions, programs written by {}, {} busy threads outside",
+            flights.instructions.len(),
+            flights.variant,
+            flights.outside_load
+        );
+        let mut printer = FlightPrinter::new(false, "")?;
+        report.flights = aeris_bench::flights::formation::run(&flights, &mut printer)
+            .context("formation flights")?;
+    }
     for (variant, s) in &report.load_s {
         println!("{variant}: loaded in {s:.2} s");
     }
@@ -132,6 +162,35 @@ pub fn run(a: FormationArgs) -> anyhow::Result<()> {
             "{variant}: {as_written} of {} accepted as written",
             rows.len()
         );
+    }
+    if !report.flights.is_empty() {
+        println!(
+            "{:>2} {:>8} {:<8} {:>8} {:>6} {:>7} {:>8} {:>9}  {}",
+            "#", "vehicles", "outcome", "time", "phases", "replans", "settle", "closest", "missed ticks per vehicle (of ticks)"
+        );
+    }
+    for (i, f) in report.flights.iter().enumerate() {
+        println!(
+            "{:>2} {:>8} {:<8} {:>6.1} s {:>6} {:>7} {:>6.1} s {:>9}  {}",
+            i + 1,
+            f.vehicles,
+            if f.landed { "landed" } else { "FAILED" },
+            f.duration_s,
+            f.phases,
+            f.replans,
+            f.settle_max_s,
+            f.min_separation_m
+                .map_or("-".into(), |m| format!("{m:.2} m")),
+            f.missed_ticks
+                .iter()
+                .zip(&f.controller_ticks)
+                .map(|(m, t)| format!("{m}/{t}"))
+                .collect::<Vec<_>>()
+                .join(" ")
+        );
+        if let Some(why) = &f.failure {
+            println!("      {why}");
+        }
     }
     if a.json {
         println!("{}", serde_json::to_string(&report)?);

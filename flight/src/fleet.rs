@@ -188,10 +188,16 @@ impl FleetMonitor {
     }
 
     /// Every vehicle whose controller still has its autopilot is on the ground, after at
-    /// least one flew: the formation has landed.
+    /// least one flew: the formation has landed (a vehicle the program did not fly stayed
+    /// on the ground).
     pub fn all_landed_after_flight(&self) -> bool {
-        let linked = || self.vehicles.iter().filter_map(|v| v.last.map(|t| (v, t))).filter(|(_, t)| t.link_up == 1);
-        linked().any(|(v, _)| v.flew) && linked().all(|(v, t)| v.flew && t.landed == 1)
+        let linked = || {
+            self.vehicles
+                .iter()
+                .filter_map(|v| v.last.map(|t| (v, t)))
+                .filter(|(_, t)| t.link_up == 1)
+        };
+        linked().any(|(v, _)| v.flew) && linked().all(|(_, t)| t.landed == 1)
     }
 
     /// Where each vehicle is (vehicle 1 first; `None` before its first telemetry).

@@ -213,14 +213,24 @@ impl Role for FormationRole {
         } else {
             0.02
         });
+        // a program for fewer vehicles than the flight has flies the first ones; the rest
+        // stay where they are, on the ground
+        let flying = program.vehicles.min(vehicles);
+        if flying < vehicles {
+            eprintln!(
+                "formation: the program flies {flying} of the flight's {vehicles} vehicles; \
+                 vehicles {}..{vehicles} stay on the ground",
+                flying + 1
+            );
+        }
         let mut counters = [0u64; 8];
-        counters[5] = u64::from(vehicles);
+        counters[5] = u64::from(flying);
         Ok(Self {
             links,
             flying: Flying {
                 program,
                 executor: FormationExecutor::new(trajectory, Tolerance::default()),
-                members: (0..vehicles as usize).collect(),
+                members: (0..flying as usize).collect(),
             },
             limits,
             max_repairs,
@@ -249,8 +259,13 @@ impl Role for FormationRole {
         let now = monotonic_ns();
         self.read_telemetry(now)?;
         if !self.started {
-            // every vehicle heard from, and every controller bound to its autopilot
-            if !self.links.iter().all(|l| l.last.is_some_and(|(t, _)| t.link_up == 1)) {
+            // every vehicle of the program heard from, and its controller bound to its
+            // autopilot
+            let members = &self.flying.members;
+            if !members
+                .iter()
+                .all(|&m| self.links[m].last.is_some_and(|(t, _)| t.link_up == 1))
+            {
                 report.counters = self.counters;
                 return Ok(CycleOutcome::Idle);
             }

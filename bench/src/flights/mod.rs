@@ -7,7 +7,9 @@
 //! - [`faults`]: the fault-injection table (SIGKILL, SIGSTOP, a garbage reasoner, a removed
 //!   service) over one flight of the default workflow;
 //! - [`ds`]: dynamic scheduling on and off under a CPU hog;
-//! - [`record`]: what recording costs: flights with and without the recorder.
+//! - [`record`]: what recording costs: flights with and without the recorder;
+//! - [`formation`]: formation flights of several vehicles (separation, settling, every
+//!   controller's missed ticks).
 //!
 //! Each takes a config and a [`aeris_flight::FlightWatcher`] that gets every event of its
 //! flights (the benchmark's own progress lines arrive as [`aeris_flight::FlightEvent::Note`])
@@ -16,12 +18,14 @@
 pub mod cycle;
 pub mod ds;
 pub mod faults;
+pub mod formation;
 pub mod record;
 pub mod swap;
 
 pub use cycle::{CycleConfig, CycleReport, RoleLatency};
 pub use ds::{DsConfig, DsReport, DsRun};
 pub use faults::{FaultError, FaultKind, FaultRow, FaultsConfig, FaultsReport};
+pub use formation::{FormationFlightConfig, FormationFlightRow};
 pub use record::{RecordBenchConfig, RecordBenchReport, RecordRow};
 pub use swap::{SwapConfig, SwapReport, SwapRow};
 
