@@ -29,6 +29,25 @@ pub enum FormationCommand {
     /// on a collision (two vehicles under 1 m) or when the program is refused (1).
     #[cfg(feature = "sim")]
     Fly(crate::formation_fly::FlyArgs),
+    /// Give the formation in flight a new instruction ("form a circle of radius 8 m, hold
+    /// 5 s, and land"): its formation role writes it for the vehicles in the air (a
+    /// take-off to their height put first when it has none), checks and repairs it, and
+    /// flies it at once without landing; prints the answer (accepted, repaired: what is
+    /// flown now; refused: why, and the formation flies on as before: exit status 1).
+    Say(SayArgs),
+}
+
+/// Arguments of `aeris formation say`.
+#[derive(Debug, Args)]
+pub struct SayArgs {
+    /// The new instruction.
+    pub instruction: String,
+    /// The flight (default: the only one running).
+    #[arg(long)]
+    pub flight: Option<String>,
+    /// How long to wait for the answer (s).
+    #[arg(long, value_name = "SECONDS", default_value_t = 60.0)]
+    pub timeout: f64,
 }
 
 /// Arguments of `aeris formation plan`.
@@ -76,7 +95,25 @@ pub fn run(command: FormationCommand) -> anyhow::Result<ExitCode> {
         FormationCommand::Plan(args) => plan(args),
         #[cfg(feature = "sim")]
         FormationCommand::Fly(args) => crate::formation_fly::fly(args),
+        FormationCommand::Say(args) => say(args),
     }
+}
+
+fn say(a: SayArgs) -> anyhow::Result<ExitCode> {
+    if !(a.timeout.is_finite() && a.timeout > 0.0) {
+        anyhow::bail!("--timeout {}: give a positive number of seconds", a.timeout);
+    }
+    let flight = crate::inspect::resolve_flight(a.flight)?;
+    let answer = aeris_flight::say(
+        &flight,
+        &a.instruction,
+        std::time::Duration::from_secs_f64(a.timeout),
+    )?;
+    println!("formation {flight}: {}", answer.text);
+    Ok(match answer.outcome {
+        aeris_schemas::SayOutcome::Refused => ExitCode::FAILURE,
+        _ => ExitCode::SUCCESS,
+    })
 }
 
 fn plan(a: PlanArgs) -> anyhow::Result<ExitCode> {

@@ -63,7 +63,11 @@ pub fn fly(a: FlyArgs) -> anyhow::Result<ExitCode> {
     if a.json {
         println!("{}", serde_json::to_string(summary)?);
     } else {
-        print_summary(&name, summary, outcome.failure.as_ref().map(|f| f.to_string()));
+        print_summary(
+            &name,
+            summary,
+            outcome.failure.as_ref().map(|f| f.to_string()),
+        );
         println!(
             "  the program and every replan: {}",
             logs.join("formation.log").display()

@@ -48,6 +48,7 @@ pub mod autopilot_link;
 pub mod event;
 pub mod executors;
 pub mod fleet;
+pub mod formation_say;
 mod handle;
 pub mod hook;
 pub mod memory;
@@ -61,12 +62,12 @@ mod video_start;
 pub use autopilot_link::{AutopilotEvent, silent_diagnosis};
 pub use event::{
     FleetProgress, FlightEvent, FlightFailure, FlightPhase, FlightProgress, FlightStatus,
-    FlightWatcher,
-    RoleSnapshot, StopRule,
+    FlightWatcher, RoleSnapshot, StopRule,
 };
 pub use fleet::{
     COLLISION_DISTANCE_M, Collision, FleetMonitor, FleetSummary, FormationTally, VehicleSummary,
 };
+pub use formation_say::{SayAnswer, SayError, say};
 pub use handle::{Flight, FlightBuilder, FlightError, FlightOutcome};
 pub use hook::{FnHook, HookError, NoHook, StepContext, StepHook};
 pub use memory::{MemorySummary, RoleMemory};

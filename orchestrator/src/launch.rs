@@ -7,8 +7,7 @@
 use crate::restart::RestartPolicy;
 use crate::workflow::{
     BRIDGE_KIND, Executor, ExecutorCpus, FORMATION_KIND, RECORDER_KIND, RoleDecl, Workflow,
-    WorkflowError,
-    remote_cpus,
+    WorkflowError, remote_cpus,
 };
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::spec::{MissionSpec, RemoteSpec, RoleSpec};
@@ -256,8 +255,7 @@ pub fn plan_launch(
     // the formation role flies the fleet from where it starts
     let starts = w.fleet.starts(w.mission.start);
     for r in w.roles.iter_mut().filter(|r| r.kind == FORMATION_KIND) {
-        r.params
-            .insert("vehicles".into(), w.fleet.vehicles.into());
+        r.params.insert("vehicles".into(), w.fleet.vehicles.into());
         r.params.insert(
             "starts".into(),
             serde_json::to_value(&starts).unwrap_or_default(),

@@ -277,7 +277,11 @@ impl Fleet {
     pub fn start(&self, k: u8, mission_start: [f32; 3]) -> [f32; 3] {
         let middle = (f32::from(self.vehicles) - 1.0) / 2.0;
         let offset = (f32::from(k) - 1.0 - middle) * self.spacing_m;
-        [mission_start[0], mission_start[1] + offset, mission_start[2]]
+        [
+            mission_start[0],
+            mission_start[1] + offset,
+            mission_start[2],
+        ]
     }
 
     /// Every vehicle's start, vehicle 1 first.

@@ -20,6 +20,11 @@
 //! lost vehicle's controller gets no more setpoints and holds. That path allocates (it is a
 //! new plan); the control period's does not.
 //!
+//! **Reshaped on demand.** A new instruction on `formation/say` (`aeris formation say`) is
+//! written for the vehicles in the formation, planned from where they are through the same
+//! check and repair, and flown at once without landing; refused, the formation flies on.
+//! The answer goes to `formation/reply`.
+//!
 //! Parameters: `vehicles` and `starts` (set by the launch plan from `[flight] vehicles`),
 //! `min_separation_m` (2), `max_repairs` (3), `lost_after_ms` (1000), `model`, `threads` (1),
 //! `models_dir` for the model variants.
@@ -31,18 +36,68 @@
 
 use crate::vision::open_store;
 use aeris_formation::{
-    Dynamics, ExecutorState, FormationExecutor, InFlight, ParserWriter, PlanOutcome,
+    Dynamics, ExecutorState, FormationExecutor, InFlight, ParserWriter, PlanOutcome, Problem,
     ProgramWriter, RuntimeFault, Simulation, Slot, Tolerance, Trajectory, phase_description,
-    plan_instruction, replan_after_fault,
+    plan_instruction, plan_program, replan_after_fault,
 };
-use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
+use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{
-    ActionMode, BoundSetpoint, FormationLimits, FormationProgram, MAX_VEHICLES, PhaseKind,
-    VehicleTelemetry, topics,
+    ActionMode, BoundSetpoint, FormationCommand, FormationLimits, FormationPhase, FormationProgram,
+    FormationReply, MAX_PHASES, MAX_VEHICLES, PhaseKind, SayOutcome, VehicleTelemetry, topics,
 };
 use std::time::Duration;
+
+/// Who writes the formation's programs: the variant.
+enum Writer {
+    Parser(ParserWriter),
+    Model(Box<aeris_llm::FormationWriter>),
+}
+
+/// Why a variant wrote no program.
+#[derive(Debug, thiserror::Error)]
+enum WriteError {
+    #[error(transparent)]
+    Parse(#[from] aeris_formation::ParseError),
+    #[error(transparent)]
+    Model(#[from] aeris_llm::LlmError),
+}
+
+impl ProgramWriter for Writer {
+    type Error = WriteError;
+
+    fn name(&self) -> &str {
+        match self {
+            Self::Parser(w) => w.name(),
+            Self::Model(w) => w.name(),
+        }
+    }
+
+    fn write(
+        &mut self,
+        instruction: &str,
+        limits: &FormationLimits,
+    ) -> Result<FormationProgram, WriteError> {
+        Ok(match self {
+            Self::Parser(w) => w.write(instruction, limits)?,
+            Self::Model(w) => w.write(instruction, limits)?,
+        })
+    }
+
+    fn repair(
+        &mut self,
+        instruction: &str,
+        program: &FormationProgram,
+        problem: &Problem,
+        limits: &FormationLimits,
+    ) -> Option<FormationProgram> {
+        match self {
+            Self::Parser(w) => w.repair(instruction, program, problem, limits),
+            Self::Model(w) => w.repair(instruction, program, problem, limits),
+        }
+    }
+}
 
 /// One vehicle as the formation role sees it.
 struct VehicleLink {
@@ -70,6 +125,9 @@ struct Flying {
 
 /// The formation role.
 pub struct FormationRole {
+    writer: Writer,
+    say: TypedSubscriber<FormationCommand>,
+    reply: TypedPublisher<FormationReply>,
     links: Vec<VehicleLink>,
     flying: Flying,
     limits: FormationLimits,
@@ -113,8 +171,8 @@ fn config_error(what: &str) -> RoleError {
 
 /// Write and plan the program with `writer`; the accepted program and its trajectory, or
 /// the refusal as an error.
-fn plan<W: ProgramWriter>(
-    writer: &mut W,
+fn plan(
+    writer: &mut Writer,
     instruction: &str,
     starts: &[[f32; 3]],
     limits: &FormationLimits,
@@ -156,8 +214,9 @@ impl Role for FormationRole {
         let vehicles = spec
             .param_f64("vehicles")
             .filter(|v| (1.0..=MAX_VEHICLES as f64).contains(v))
-            .ok_or_else(|| config_error("param `vehicles` must be 1..=8 (the launch plan sets it)"))?
-            as u8;
+            .ok_or_else(|| {
+                config_error("param `vehicles` must be 1..=8 (the launch plan sets it)")
+            })? as u8;
         let starts: Vec<[f32; 3]> = spec
             .params
             .get("starts")
@@ -165,7 +224,10 @@ impl Role for FormationRole {
             .filter(|s: &Vec<[f32; 3]>| s.len() == vehicles as usize)
             .ok_or_else(|| config_error("param `starts` must list one [N, E, U] per vehicle"))?;
         let min_separation_m = spec.param_f64("min_separation_m").unwrap_or(2.0) as f32;
-        let max_repairs = spec.param_f64("max_repairs").unwrap_or(3.0).clamp(0.0, 10.0) as usize;
+        let max_repairs = spec
+            .param_f64("max_repairs")
+            .unwrap_or(3.0)
+            .clamp(0.0, 10.0) as usize;
         let lost_after_ms = spec.param_f64("lost_after_ms").unwrap_or(1000.0).max(100.0);
         let limits = flight_limits(&spec.mission, vehicles, min_separation_m);
         if !limits.is_coherent() {
@@ -174,8 +236,8 @@ impl Role for FormationRole {
             )));
         }
         let instruction = spec.mission.instruction.clone();
-        let (program, trajectory) = match spec.variant.as_str() {
-            "parser" => plan(&mut ParserWriter, &instruction, &starts, &limits, max_repairs)?,
+        let mut writer = match spec.variant.as_str() {
+            "parser" => Writer::Parser(ParserWriter),
             variant => {
                 let file = spec
                     .param_str("model")
@@ -184,13 +246,16 @@ impl Role for FormationRole {
                     .to_string();
                 let threads = spec.param_f64("threads").unwrap_or(1.0).clamp(1.0, 64.0) as i32;
                 let store = open_store(ctx)?;
-                let mut writer = aeris_llm::FormationWriter::load(&store, variant, &file, threads)
+                let model = aeris_llm::FormationWriter::load(&store, variant, &file, threads)
                     .map_err(|e| {
                         RoleError::step(format!("loading formation/{variant} from {file}"), e)
                     })?;
-                plan(&mut writer, &instruction, &starts, &limits, max_repairs)?
+                Writer::Model(Box::new(model))
             }
         };
+        let (program, trajectory) = plan(&mut writer, &instruction, &starts, &limits, max_repairs)?;
+        let say = ctx.bus.subscriber(topics::FORMATION_SAY)?;
+        let reply = ctx.bus.publisher(topics::FORMATION_REPLY)?;
         let mut links = Vec::with_capacity(vehicles as usize);
         for k in 1..=vehicles {
             links.push(VehicleLink {
@@ -226,6 +291,9 @@ impl Role for FormationRole {
         let mut counters = [0u64; 8];
         counters[5] = u64::from(flying);
         Ok(Self {
+            writer,
+            say,
+            reply,
             links,
             flying: Flying {
                 program,
@@ -279,6 +347,9 @@ impl Role for FormationRole {
         if let Some(fault) = self.fault(now) {
             self.replan(fault, now);
         }
+        if let Some(command) = self.say.latest()? {
+            self.reshape(&command, now)?;
+        }
         let dt = now.saturating_sub(self.last_tick_ns) as f32 * 1e-9;
         self.last_tick_ns = now;
         for (k, &member) in self.flying.members.iter().enumerate() {
@@ -295,7 +366,13 @@ impl Role for FormationRole {
             ExecutorState::Flying { segment }
             | ExecutorState::Settling { segment, .. }
             | ExecutorState::Stuck { segment, .. } => segment,
-            ExecutorState::Done => self.flying.executor.trajectory().segments.len().saturating_sub(1),
+            ExecutorState::Done => self
+                .flying
+                .executor
+                .trajectory()
+                .segments
+                .len()
+                .saturating_sub(1),
         };
         let phase = self
             .flying
@@ -330,11 +407,10 @@ impl Role for FormationRole {
             self.counters[6] = (self.min_separation_m * 100.0) as u64;
         }
         report.counters = self.counters;
-        let all_landed = self
-            .flying
-            .members
-            .iter()
-            .all(|&m| self.links[m].flew && self.links[m].last.is_some_and(|(t, _)| t.landed == 1));
+        let all_landed =
+            self.flying.members.iter().all(|&m| {
+                self.links[m].flew && self.links[m].last.is_some_and(|(t, _)| t.landed == 1)
+            });
         if state == ExecutorState::Done && all_landed && !self.done {
             self.done = true;
             eprintln!(
@@ -491,6 +567,128 @@ impl FormationRole {
                 self.hold(members);
             }
         }
+    }
+
+    /// A new instruction in flight (`aeris formation say`): written for the vehicles of the
+    /// formation, a take-off to their height put first when it has none (from the air it is
+    /// a climb or descent to one height), planned from where they are through the same
+    /// check and repair, and flown at once; refused, the formation flies on as before. The
+    /// answer goes to `formation/reply`. A language model writes for seconds, during which
+    /// the controllers hold their positions (no fresh setpoints).
+    fn reshape(&mut self, command: &FormationCommand, now: u64) -> Result<(), RoleError> {
+        let text = command.text.as_str_lossy();
+        eprintln!("formation: new instruction {}: {text:?}", command.id);
+        let (outcome, answer) = match self.plan_in_flight(text) {
+            Ok((written, outcome)) => {
+                let shown = match &outcome {
+                    PlanOutcome::Accepted { program, .. } => **program,
+                    PlanOutcome::Refused { .. } => written,
+                };
+                let answer = format!(
+                    "{}: {}",
+                    outcome.summary(),
+                    shown
+                        .phases()
+                        .iter()
+                        .map(phase_description)
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
+                let said = match outcome {
+                    PlanOutcome::Accepted {
+                        program,
+                        report,
+                        repaired,
+                        ..
+                    } => {
+                        let members = std::mem::take(&mut self.flying.members);
+                        self.flying = Flying {
+                            program: *program,
+                            executor: FormationExecutor::new(
+                                report.trajectory,
+                                Tolerance::default(),
+                            ),
+                            members,
+                        };
+                        self.last_tick_ns = now;
+                        if repaired.is_empty() {
+                            SayOutcome::Accepted
+                        } else {
+                            SayOutcome::Repaired
+                        }
+                    }
+                    PlanOutcome::Refused { .. } => SayOutcome::Refused,
+                };
+                (said, answer)
+            }
+            Err(why) => (SayOutcome::Refused, format!("refused: {why}")),
+        };
+        eprintln!("formation: instruction {}: {answer}", command.id);
+        let mut reply = FormationReply {
+            id: command.id,
+            outcome: outcome as u8,
+            ..FormationReply::default()
+        };
+        reply.text.set(&answer);
+        self.reply.publish(&reply)?;
+        Ok(())
+    }
+
+    /// Write and plan `text` for the formation in the air (see [`Self::reshape`]).
+    fn plan_in_flight(&mut self, text: &str) -> Result<(FormationProgram, PlanOutcome), String> {
+        let n = self.flying.members.len();
+        let limits = FormationLimits {
+            vehicles: n as u8,
+            ..self.limits
+        };
+        let mut program = self.writer.write(text, &limits).map_err(|e| {
+            format!(
+                "no program was written: {}",
+                aeris_runtime::error_chain::chain(&e)
+            )
+        })?;
+        if usize::from(program.vehicles) != n {
+            return Err(format!(
+                "the instruction is for {} vehicles; {n} fly in the formation",
+                program.vehicles
+            ));
+        }
+        let starts: Vec<[f32; 3]> = self.positions[..n].to_vec();
+        let height = (starts.iter().map(|p| p[2]).sum::<f32>() / n.max(1) as f32)
+            .max(limits.h_min)
+            .min(limits.h_max);
+        let first = program.phases().first().map(|p| p.kind);
+        if first != Some(PhaseKind::TakeOff as u8) {
+            let count = usize::from(program.phase_count);
+            if count >= MAX_PHASES {
+                return Err(format!(
+                    "{count} phases and a take-off do not fit in {MAX_PHASES}"
+                ));
+            }
+            program.phases.copy_within(0..count, 1);
+            program.phases[0] = FormationPhase {
+                kind: PhaseKind::TakeOff as u8,
+                height_m: height,
+                ..FormationPhase::default()
+            };
+            program.phase_count += 1;
+        }
+        let writer = &mut self.writer;
+        let outcome = plan_program(
+            &program,
+            &starts,
+            &limits,
+            &Simulation::default(),
+            self.max_repairs,
+            |p, problem| writer.repair(text, p, problem, &limits),
+        )
+        .map_err(|e| {
+            format!(
+                "the check could not run: {}",
+                aeris_runtime::error_chain::chain(&e)
+            )
+        })?;
+        Ok((program, outcome))
     }
 
     /// Keep `members` where they are: an empty trajectory whose slots are their positions.

@@ -20,6 +20,7 @@ pub mod autopilot_link;
 pub mod control;
 pub mod decision;
 pub mod formation;
+pub mod formation_command;
 pub mod frame;
 pub mod heartbeat;
 pub mod host_link;
@@ -43,6 +44,9 @@ pub use decision::{
 pub use formation::{
     FormationError, FormationLimits, FormationPhase, FormationProgram, MAX_PHASES, MAX_VEHICLES,
     PhaseKind, ShapeKind,
+};
+pub use formation_command::{
+    FORMATION_INSTRUCTION_MAX, FORMATION_REPLY_MAX, FormationCommand, FormationReply, SayOutcome,
 };
 pub use frame::{FrameError, FrameFormat, FrameHeader};
 pub use heartbeat::{HeartbeatError, MAX_STAGES, RoleHeartbeat, RoleStatus, StageTiming};

@@ -40,6 +40,13 @@ pub const HEARTBEAT: &str = "heartbeat";
 /// [`crate::SupervisorReply`] stream. Not a publish-subscribe topic, so not in [`ALL`].
 pub const SUPERVISOR_CONTROL: &str = "supervisor/control";
 
+/// A new instruction for the formation in flight: [`crate::FormationCommand`]
+/// (`aeris formation say`). Flight-wide; written by a tool, not a role, so not in [`ALL`].
+pub const FORMATION_SAY: &str = "formation/say";
+
+/// The formation role's answer: [`crate::FormationReply`]. Flight-wide; not in [`ALL`].
+pub const FORMATION_REPLY: &str = "formation/reply";
+
 /// Every versioned topic, for listing and validation.
 pub const ALL: [&str; 15] = [
     CAMERA_RGB,
@@ -84,7 +91,15 @@ pub const MAX_FLIGHT_VEHICLES: u8 = crate::formation::MAX_VEHICLES as u8;
 /// supervisor's board and control service, the links to other hosts. Every other topic of
 /// a flight with several vehicles lives in one vehicle's scope ([`in_vehicle`]).
 pub fn is_flight_wide(topic: &str) -> bool {
-    matches!(topic, HEARTBEAT | SUPERVISOR_CONTROL | HOSTS_LINK | "supervisor")
+    matches!(
+        topic,
+        HEARTBEAT
+            | SUPERVISOR_CONTROL
+            | HOSTS_LINK
+            | FORMATION_SAY
+            | FORMATION_REPLY
+            | "supervisor"
+    )
 }
 
 /// `topic` in the scope of vehicle `vehicle` (1-based): `v2/vehicle/telemetry`. A flight of
@@ -123,10 +138,18 @@ mod tests {
     #[test]
     fn a_vehicle_scope_round_trips_and_leaves_flight_wide_topics_alone() {
         assert_eq!(in_vehicle(3, VEHICLE_TELEMETRY), "v3/vehicle/telemetry");
-        assert_eq!(split_vehicle("v3/vehicle/telemetry"), (Some(3), VEHICLE_TELEMETRY));
+        assert_eq!(
+            split_vehicle("v3/vehicle/telemetry"),
+            (Some(3), VEHICLE_TELEMETRY)
+        );
         assert_eq!(in_vehicle(3, HEARTBEAT), HEARTBEAT);
         assert_eq!(split_vehicle(HUB_SETPOINT), (None, HUB_SETPOINT));
-        for odd in ["v0/hub/setpoint", "v9/hub/setpoint", "v03/hub/setpoint", "vx/a"] {
+        for odd in [
+            "v0/hub/setpoint",
+            "v9/hub/setpoint",
+            "v03/hub/setpoint",
+            "vx/a",
+        ] {
             assert_eq!(split_vehicle(odd), (None, odd), "{odd}");
         }
     }

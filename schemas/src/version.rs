@@ -57,6 +57,10 @@ const fn layout_hash() -> u64 {
         core::mem::align_of::<AutopilotLinkStatus>(),
         core::mem::size_of::<HostLinkStatus>(),
         core::mem::align_of::<HostLinkStatus>(),
+        core::mem::size_of::<crate::FormationCommand>(),
+        core::mem::align_of::<crate::FormationCommand>(),
+        core::mem::size_of::<crate::FormationReply>(),
+        core::mem::align_of::<crate::FormationReply>(),
     ];
     let mut h = fnv1a(0xcbf2_9ce4_8422_2325, SCHEMA_VERSION as u64);
     let mut i = 0;

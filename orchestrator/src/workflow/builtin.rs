@@ -29,13 +29,14 @@ impl Workflow {
         instruction: Option<&str>,
         variant: &str,
     ) -> Result<Self, WorkflowError> {
-        let mut table: toml::Table = FORMATION_WORKFLOW_TOML
-            .parse()
-            .map_err(|e: toml::de::Error| WorkflowError::Syntax {
-                line: 0,
-                column: 0,
-                message: e.message().to_string(),
-            })?;
+        let mut table: toml::Table =
+            FORMATION_WORKFLOW_TOML
+                .parse()
+                .map_err(|e: toml::de::Error| WorkflowError::Syntax {
+                    line: 0,
+                    column: 0,
+                    message: e.message().to_string(),
+                })?;
         if let Some(flight) = table.get_mut("flight").and_then(|t| t.as_table_mut()) {
             flight.insert("vehicles".into(), i64::from(vehicles).into());
         }
@@ -129,7 +130,12 @@ mod tests {
         // side by side on the ground, 4 m apart, centred on the start
         assert_eq!(
             w.fleet.starts(w.mission.start),
-            vec![[0.0, -6.0, 0.0], [0.0, -2.0, 0.0], [0.0, 2.0, 0.0], [0.0, 6.0, 0.0]]
+            vec![
+                [0.0, -6.0, 0.0],
+                [0.0, -2.0, 0.0],
+                [0.0, 2.0, 0.0],
+                [0.0, 6.0, 0.0]
+            ]
         );
     }
 }

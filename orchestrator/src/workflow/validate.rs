@@ -434,9 +434,10 @@ impl Workflow {
     fn validate_topics(&self) -> Result<(), WorkflowError> {
         let published = |by: &super::RoleDecl, topic: &str| {
             topic == topics::HEARTBEAT
-                || self.roles.iter().any(|r| {
-                    r.shares_scope_with(by) && r.publishes.iter().any(|t| t == topic)
-                })
+                || self
+                    .roles
+                    .iter()
+                    .any(|r| r.shares_scope_with(by) && r.publishes.iter().any(|t| t == topic))
         };
         for r in &self.roles {
             if let Some(t) = r.subscribes.iter().find(|t| !published(r, t)) {

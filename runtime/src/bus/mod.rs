@@ -192,6 +192,9 @@ pub fn qos(topic: &str) -> Qos {
         // history 1: a watcher that joins late sees where the link is
         topics::CONTROLLER_LINK => q(1, 16, 4, 9),
         topics::HEARTBEAT => q(0, 1024, 32, 9),
+        // no history: an instruction is for the formation flying now, never a later one
+        topics::FORMATION_SAY => q(0, 4, 4, 9),
+        topics::FORMATION_REPLY => q(0, 8, 4, 9),
         _ => q(1, 16, 4, 9),
     }
 }

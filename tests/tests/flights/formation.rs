@@ -3,10 +3,11 @@
 //! (`FLIGHT/v1` .. `FLIGHT/v4`), flown by the formation role from [`INSTRUCTION`] (take off,
 //! a line, a V, a circle of radius 6 m, land: the built-in instruction without its 10 s hold,
 //! which the suite's time cannot spare) written by the deterministic parser. One flight flies
-//! it whole; in the other, vehicle 3's process is killed during the change to the V and the
-//! three that remain must re-form and land.
+//! it whole. The other flies a line and a long hold, is given a circle instead during the
+//! hold (`aeris formation say`), and loses vehicle 3's process in the change to the circle:
+//! the three that remain must re-form and land.
 
-/// What both flights fly.
+/// What the first flight flies.
 const INSTRUCTION: &str = "four drones take off to 5 m in a line 3 m apart, then form a V \
                            heading north, then a circle of radius 6 m, and land";
 
@@ -25,12 +26,20 @@ const MIN_SEPARATION_M: f64 = 2.0;
 fn landed_fleet(dir: &std::path::Path, status: std::process::ExitStatus) -> Value {
     let (stdout, stderr) = run_output(dir);
     let logs = run_logs_tail(dir, 30);
-    assert!(status.success(), "formation fly failed: {status}\n{stderr}\n{logs}");
+    assert!(
+        status.success(),
+        "formation fly failed: {status}\n{stderr}\n{logs}"
+    );
     let summary = last_json_line(&stdout);
     let fleet = summary["fleet"].clone();
     assert!(fleet["collision"].is_null(), "{fleet}");
-    let closest = fleet["min_separation_m"].as_f64().expect("separation measured");
-    assert!(closest >= MIN_SEPARATION_M, "closest {closest} m\n{fleet}\n{logs}");
+    let closest = fleet["min_separation_m"]
+        .as_f64()
+        .expect("separation measured");
+    assert!(
+        closest >= MIN_SEPARATION_M,
+        "closest {closest} m\n{fleet}\n{logs}"
+    );
     for v in fleet["vehicles"].as_array().expect("vehicles") {
         assert_eq!(v["setpoints_refused"], 0, "{v}");
         assert!(v["controller_ticks"].as_u64().unwrap() > 0, "{v}");
@@ -65,15 +74,36 @@ fn four_vehicles_fly_line_v_circle_and_land_from_the_parsers_program() {
         assert_eq!(v["landed_after_flight"], true, "{v}");
         let [n, e] = ground_position(v);
         let r = n.hypot(e);
-        assert!((r - 6.0).abs() <= 0.5, "vehicle {} landed {r:.2} m out: {v}", v["vehicle"]);
+        assert!(
+            (r - 6.0).abs() <= 0.5,
+            "vehicle {} landed {r:.2} m out: {v}",
+            v["vehicle"]
+        );
     }
 }
 
+/// The formation role's phase (heartbeat counter 0), newest first seen in `heartbeats`.
+fn formation_phase(heartbeats: &aeris_runtime::bus::TypedSubscriber<RoleHeartbeat>) -> Option<u64> {
+    let mut phase = None;
+    heartbeats
+        .drain(|h| {
+            if h.role.as_str() == Some("formation") {
+                phase = Some(h.counters[0]);
+            }
+        })
+        .unwrap();
+    phase
+}
+
 #[test]
-fn a_vehicle_killed_mid_formation_leaves_three_that_reform_and_land() {
-    let dir = TempDir::new("formation-kill");
-    let flight = unique_flight("formation-kill");
-    let mut run = spawn_formation_fly(&dir.0, &flight, &[INSTRUCTION]);
+fn a_formation_reshaped_in_flight_then_a_vehicle_killed_reforms_and_lands() {
+    let dir = TempDir::new("formation-say");
+    let flight = unique_flight("formation-say");
+    let mut run = spawn_formation_fly(
+        &dir.0,
+        &flight,
+        &["four drones take off to 5 m in a line 3 m apart, then hold 40 s, and land"],
+    );
     let observer = FlightBus::builder(&flight)
         .node_name("test-observer")
         .create()
@@ -81,24 +111,33 @@ fn a_vehicle_killed_mid_formation_leaves_three_that_reform_and_land() {
     let heartbeats = observer
         .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
         .unwrap();
-    // the formation role reports the phase it flies in counter 0: wait for the change to
-    // the V (3)
+    // in the hold (phase 3), a new instruction: a circle instead, without landing first
     poll_flight(
         &mut run,
         &dir.0,
-        "the formation began its change to the V",
+        "the formation began its hold",
         Duration::from_secs(180),
-        || {
-            let mut phase = 0;
-            heartbeats
-                .drain(|h| {
-                    if h.role.as_str() == Some("formation") {
-                        phase = phase.max(h.counters[0]);
-                    }
-                })
-                .unwrap();
-            (phase >= 3).then_some(())
-        },
+        || formation_phase(&heartbeats).filter(|p| *p == 3),
+    );
+    let said = std::process::Command::new(aeris_bin())
+        .args(["formation", "say", "--flight", &flight])
+        .arg("form a circle of radius 6 m, hold 4 s, and land")
+        .output()
+        .expect("run aeris formation say");
+    let answer = String::from_utf8_lossy(&said.stdout);
+    assert!(
+        said.status.success() && answer.contains("accepted") && answer.contains("circle"),
+        "{answer}{}",
+        String::from_utf8_lossy(&said.stderr)
+    );
+    // the new program's change to the circle (its phase 2, after a take-off in place):
+    // vehicle 3 is lost in the middle of it
+    poll_flight(
+        &mut run,
+        &dir.0,
+        "the change to the circle began",
+        Duration::from_secs(60),
+        || formation_phase(&heartbeats).filter(|p| *p == 2),
     );
     let board = observer.read_status_board().unwrap();
     let victim = board
