@@ -165,16 +165,8 @@ pub fn run(a: FormationArgs) -> anyhow::Result<()> {
     }
     if !report.flights.is_empty() {
         println!(
-            "{:>2} {:>8} {:<8} {:>8} {:>6} {:>7} {:>8} {:>9}  {}",
-            "#",
-            "vehicles",
-            "outcome",
-            "time",
-            "phases",
-            "replans",
-            "settle",
-            "closest",
-            "missed ticks per vehicle (of ticks)"
+            "{:>2} {:>8} {:<8} {:>8} {:>6} {:>7} {:>8} {:>9}  missed ticks per vehicle (of ticks)",
+            "#", "vehicles", "outcome", "time", "phases", "replans", "settle", "closest",
         );
     }
     for (i, f) in report.flights.iter().enumerate() {

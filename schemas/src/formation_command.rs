@@ -12,7 +12,7 @@ pub const FORMATION_INSTRUCTION_MAX: usize = 512;
 pub const FORMATION_REPLY_MAX: usize = 384;
 
 /// A new instruction for the formation in flight (`formation/say`).
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
 #[type_name("aeris::FormationCommand@s8")]
 #[repr(C)]
 pub struct FormationCommand {
@@ -57,7 +57,7 @@ impl SayOutcome {
 }
 
 /// The formation role's answer to a [`FormationCommand`] (`formation/reply`).
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
 #[type_name("aeris::FormationReply@s8")]
 #[repr(C)]
 pub struct FormationReply {
@@ -69,24 +69,4 @@ pub struct FormationReply {
     pub reserved: [u8; 7],
     /// What was planned, or why it was refused.
     pub text: FixedText<FORMATION_REPLY_MAX>,
-}
-
-impl Default for FormationCommand {
-    fn default() -> Self {
-        Self {
-            id: 0,
-            text: FixedText::new(),
-        }
-    }
-}
-
-impl Default for FormationReply {
-    fn default() -> Self {
-        Self {
-            id: 0,
-            outcome: 0,
-            reserved: [0; 7],
-            text: FixedText::new(),
-        }
-    }
 }

@@ -88,6 +88,27 @@ fn every_kind_of_bad_input_names_its_offender_once() {
     hosts.insert("ground".into(), toml::Value::Table(host));
     w.insert("hosts".into(), toml::Value::Table(hosts));
     let endpoint = write_workflow(d, "endpoint", &w);
+    // a flight of more vehicles than a flight may have
+    let mut w = default_workflow();
+    let vehicles = |w: &mut toml::Table, n: i64| {
+        w["flight"]
+            .as_table_mut()
+            .expect("[flight]")
+            .insert("vehicles".into(), toml::Value::Integer(n));
+    };
+    vehicles(&mut w, 9);
+    let fleet = write_workflow(d, "fleet", &w);
+    // several vehicles, but one vehicle role and one controller for all of them
+    let mut w = default_workflow();
+    vehicles(&mut w, 2);
+    let formation: toml::Table = "name = \"formation\"\nkind = \"formation\"\nvariant = \"parser\""
+        .parse()
+        .unwrap();
+    w["roles"]
+        .as_array_mut()
+        .expect("roles")
+        .push(toml::Value::Table(formation));
+    let shared_controller = write_workflow(d, "shared-controller", &w);
 
     // episode files: JSON syntax, a missing field, a missing file
     let episodes_syntax = d.join("episodes-syntax.json");
@@ -121,6 +142,16 @@ fn every_kind_of_bad_input_names_its_offender_once() {
         ));
         cases.push(case("bad CPU list", &[cmd, &path_str(&cpus)], "0-x"));
         cases.push(case(
+            "too many vehicles",
+            &[cmd, &path_str(&fleet)],
+            "vehicles = 9",
+        ));
+        cases.push(case(
+            "a vehicle role for several vehicles",
+            &[cmd, &path_str(&shared_controller)],
+            "`vehicle`",
+        ));
+        cases.push(case(
             "bad host endpoint",
             &[cmd, &path_str(&endpoint)],
             "udp/10.0.0.2:7447",
@@ -144,6 +175,17 @@ fn every_kind_of_bad_input_names_its_offender_once() {
         "agent endpoint",
         &["agent", "--host", "ground", "--listen", "udp/0.0.0.0:7447"],
         "udp/0.0.0.0:7447",
+    ));
+    cases.push(case(
+        "formation say to no flight",
+        &[
+            "formation",
+            "say",
+            "--flight",
+            "no-such-formation",
+            "form a line",
+        ],
+        "no-such-formation",
     ));
     cases.push(case(
         "--variant argument",

@@ -241,9 +241,10 @@ impl Workflow {
                 .vehicle_spacing_m
                 .unwrap_or(super::DEFAULT_VEHICLE_SPACING_M),
         };
-        if !(1..=topics::MAX_FLIGHT_VEHICLES).contains(&fleet.vehicles)
-            || !(fleet.spacing_m.is_finite() && fleet.spacing_m > 0.0)
-        {
+        let fleet_ok = (1..=topics::MAX_FLIGHT_VEHICLES).contains(&fleet.vehicles)
+            && fleet.spacing_m.is_finite()
+            && fleet.spacing_m > 0.0;
+        if !fleet_ok {
             return Err(WorkflowError::BadFleet {
                 vehicles: fleet.vehicles,
                 spacing_m: fleet.spacing_m,
