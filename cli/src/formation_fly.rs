@@ -104,14 +104,14 @@ fn print_summary(name: &str, summary: &FlightSummary, failure: Option<String>) {
     }
     if let Some(t) = &fleet.formation {
         println!(
-            "  formation: phase {} {}, {} vehicles in it ({} left), {} replans, longest wait at a phase's end {:.1} s, {} setpoints",
+            "  formation: phase {} {}, {} vehicles in it ({} left, each replanned around), longest wait at a phase's end {:.1} s, {} setpoints ({} slots refused by the gate)",
             t.phase,
             t.state,
             t.in_formation,
-            t.lost,
             t.replans,
             t.settle_max_ms as f64 / 1e3,
-            t.setpoints
+            t.setpoints,
+            t.refused_slots
         );
     }
     for v in &fleet.vehicles {

@@ -51,7 +51,8 @@ pub struct FormationTally {
     pub phase: u64,
     /// What its executor does: `waiting`, `flying`, `settling`, `done`, `stuck`.
     pub state: &'static str,
-    /// Runtime replans (a vehicle lost or off its slot).
+    /// Vehicles that left the formation (lost, or off their slot), each one replanned
+    /// around.
     pub replans: u64,
     /// Setpoints it published.
     pub setpoints: u64,
@@ -60,8 +61,8 @@ pub struct FormationTally {
     pub settle_max_ms: u64,
     /// Vehicles in the formation.
     pub in_formation: u64,
-    /// Vehicles that left it.
-    pub lost: u64,
+    /// Slots the hub's program gate refused to bind (never sent; that controller held).
+    pub refused_slots: u64,
 }
 
 impl FormationTally {
@@ -80,7 +81,7 @@ impl FormationTally {
             setpoints: c[3],
             settle_max_ms: c[4],
             in_formation: c[5],
-            lost: c[7],
+            refused_slots: c[7],
         }
     }
 }

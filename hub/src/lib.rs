@@ -10,6 +10,8 @@
 //!   the altitude band and the occupancy grid (clamp or reject), and binds it to a
 //!   [`aeris_schemas::BoundSetpoint`];
 //! - [`ordering`]: [`ordering::SequenceTracker`] (gaps, reorders, duplicates, restarts);
+//! - [`program_gate`]: [`program_gate::ProgramGate`], the gate of formation programs and of
+//!   the slots a formation role sends each vehicle's controller;
 //! - [`att`]: instruction segmentation, the pluggable [`att::AttentionScorer`], the lexical
 //!   scorer and the [`att::Attention`] state machine with its trace;
 //! - [`core`]: [`core::HubCore`], the state machine that ties them together;
@@ -24,6 +26,7 @@ pub mod att;
 pub mod core;
 pub mod gate;
 pub mod ordering;
+pub mod program_gate;
 #[cfg(feature = "role")]
 pub mod role;
 pub mod testing;

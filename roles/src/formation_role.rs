@@ -29,10 +29,17 @@
 //! `min_separation_m` (2), `max_repairs` (3), `lost_after_ms` (1000), `model`, `threads` (1),
 //! `models_dir` for the model variants.
 //!
-//! Heartbeat counters: 0 the phase flown (1-based), 1 the executor's state (0 waiting for
-//! the vehicles, 1 flying, 2 settling, 3 landing done, 4 stuck), 2 runtime replans, 3
+//! Every program flies only once the hub's program gate admits it
+//! ([`aeris_hub::program_gate`]: valid under the flight's limits), and every slot goes to a
+//! controller only as the setpoint the gate binds it to (one the controller would refuse is
+//! not sent).
+//!
+//! Heartbeat counters: 0 the phase flown (1-based; a replan or a new instruction starts a
+//! new program), 1 the executor's state (0 waiting for the vehicles, 1 flying, 2 settling,
+//! 3 done, 4 stuck), 2 vehicles that left the formation (each one replanned around), 3
 //! setpoints published, 4 the longest wait at a phase's end (ms), 5 vehicles in the
-//! formation, 6 the closest two vehicles came, by their telemetry (cm), 7 vehicles lost.
+//! formation, 6 the closest two vehicles came, by their telemetry (cm), 7 slots the gate
+//! refused to bind.
 
 use crate::vision::open_store;
 use aeris_formation::{
@@ -40,11 +47,12 @@ use aeris_formation::{
     ProgramWriter, RuntimeFault, Simulation, Slot, Tolerance, Trajectory, phase_description,
     plan_instruction, plan_program, replan_after_fault,
 };
+use aeris_hub::program_gate::ProgramGate;
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{
-    ActionMode, BoundSetpoint, FormationCommand, FormationLimits, FormationPhase, FormationProgram,
+    BoundSetpoint, FormationCommand, FormationLimits, FormationPhase, FormationProgram,
     FormationReply, MAX_PHASES, MAX_VEHICLES, PhaseKind, SayOutcome, VehicleTelemetry, topics,
 };
 use std::time::Duration;
@@ -130,7 +138,7 @@ pub struct FormationRole {
     reply: TypedPublisher<FormationReply>,
     links: Vec<VehicleLink>,
     flying: Flying,
-    limits: FormationLimits,
+    gate: ProgramGate,
     max_repairs: usize,
     lost_after_ns: u64,
     period: Duration,
@@ -144,27 +152,6 @@ pub struct FormationRole {
     done: bool,
 }
 
-/// The `FormationLimits` of a flight: its mission's band, speed and geofence, `vehicles`
-/// vehicles, `min_separation_m` apart.
-pub fn flight_limits(
-    mission: &aeris_runtime::spec::MissionSpec,
-    vehicles: u8,
-    min_separation_m: f32,
-) -> FormationLimits {
-    let l = mission.decision_limits();
-    let d = FormationLimits::default();
-    FormationLimits {
-        vehicles,
-        h_min: l.h_min.max(d.h_min),
-        h_max: l.h_max.min(d.h_max),
-        min_separation_m,
-        v_max: l.v_max.min(d.v_max),
-        geofence_min: [l.geofence_min[0], l.geofence_min[1]],
-        geofence_max: [l.geofence_max[0], l.geofence_max[1]],
-        ..d
-    }
-}
-
 fn config_error(what: &str) -> RoleError {
     RoleError::Config(what.to_string())
 }
@@ -175,14 +162,14 @@ fn plan(
     writer: &mut Writer,
     instruction: &str,
     starts: &[[f32; 3]],
-    limits: &FormationLimits,
+    gate: &ProgramGate,
     max_repairs: usize,
 ) -> Result<(FormationProgram, Trajectory), RoleError> {
     let planned = plan_instruction(
         writer,
         instruction,
         starts,
-        limits,
+        gate.limits(),
         &Simulation::default(),
         max_repairs,
     )
@@ -197,6 +184,9 @@ fn plan(
         PlanOutcome::Accepted {
             program, report, ..
         } => {
+            gate.admit(&program).map_err(|e| {
+                RoleError::Fatal(format!("the hub's program gate refused the program: {e}"))
+            })?;
             for (i, phase) in program.phases().iter().enumerate() {
                 eprintln!("formation: phase {}: {}", i + 1, phase_description(phase));
             }
@@ -229,12 +219,9 @@ impl Role for FormationRole {
             .unwrap_or(3.0)
             .clamp(0.0, 10.0) as usize;
         let lost_after_ms = spec.param_f64("lost_after_ms").unwrap_or(1000.0).max(100.0);
-        let limits = flight_limits(&spec.mission, vehicles, min_separation_m);
-        if !limits.is_coherent() {
-            return Err(RoleError::Config(format!(
-                "the mission's limits give no room for a formation of {vehicles}: {limits:?}"
-            )));
-        }
+        let gate =
+            ProgramGate::for_flight(&spec.mission.decision_limits(), vehicles, min_separation_m)
+                .map_err(|e| RoleError::Config(e.to_string()))?;
         let instruction = spec.mission.instruction.clone();
         let mut writer = match spec.variant.as_str() {
             "parser" => Writer::Parser(ParserWriter),
@@ -253,7 +240,7 @@ impl Role for FormationRole {
                 Writer::Model(Box::new(model))
             }
         };
-        let (program, trajectory) = plan(&mut writer, &instruction, &starts, &limits, max_repairs)?;
+        let (program, trajectory) = plan(&mut writer, &instruction, &starts, &gate, max_repairs)?;
         let say = ctx.bus.subscriber(topics::FORMATION_SAY)?;
         let reply = ctx.bus.publisher(topics::FORMATION_REPLY)?;
         let mut links = Vec::with_capacity(vehicles as usize);
@@ -300,7 +287,7 @@ impl Role for FormationRole {
                 executor: FormationExecutor::new(trajectory, Tolerance::default()),
                 members: (0..flying as usize).collect(),
             },
-            limits,
+            gate,
             max_repairs,
             lost_after_ns: (lost_after_ms * 1e6) as u64,
             period,
@@ -481,7 +468,6 @@ impl FormationRole {
         let lost = self.flying.members[fault.vehicle()];
         self.links[lost].left = true;
         self.counters[2] += 1;
-        self.counters[7] += 1;
         let n = self.flying.members.len();
         let phase = self.counters[0].max(1) as usize;
         let positions: Vec<[f32; 3]> = self.positions[..n].to_vec();
@@ -493,10 +479,11 @@ impl FormationRole {
         let remaining_members = |remaining: &[usize]| -> Vec<usize> {
             remaining.iter().map(|&k| self.flying.members[k]).collect()
         };
+        let limits = *self.gate.limits();
         match replan_after_fault(
             &flight,
             fault,
-            &self.limits,
+            &limits,
             &Simulation {
                 dynamics: Dynamics::default(),
                 flight: None,
@@ -514,7 +501,7 @@ impl FormationRole {
                 match replanned.outcome {
                     PlanOutcome::Accepted {
                         program, report, ..
-                    } => {
+                    } if self.gate.admit(&program).is_ok() => {
                         eprintln!(
                             "formation: {} for the {} that remain ({})",
                             if replanned.landing {
@@ -541,11 +528,13 @@ impl FormationRole {
                         self.counters[5] = self.flying.members.len() as u64;
                         self.last_tick_ns = now;
                     }
-                    PlanOutcome::Refused { problem, .. } => {
-                        // not even a landing is safe: hold where they are
+                    outcome => {
+                        // not even a landing is safe (or the gate refused it): hold where
+                        // they are
                         eprintln!(
-                            "formation: no safe plan for the {} that remain ({problem}); holding",
-                            members.len()
+                            "formation: no safe plan for the {} that remain ({}); holding",
+                            members.len(),
+                            outcome.summary()
                         );
                         self.hold(members);
                     }
@@ -595,6 +584,9 @@ impl FormationRole {
                         .join(", ")
                 );
                 let said = match outcome {
+                    PlanOutcome::Accepted { program, .. } if self.gate.admit(&program).is_err() => {
+                        SayOutcome::Refused
+                    }
                     PlanOutcome::Accepted {
                         program,
                         report,
@@ -637,10 +629,7 @@ impl FormationRole {
     /// Write and plan `text` for the formation in the air (see [`Self::reshape`]).
     fn plan_in_flight(&mut self, text: &str) -> Result<(FormationProgram, PlanOutcome), String> {
         let n = self.flying.members.len();
-        let limits = FormationLimits {
-            vehicles: n as u8,
-            ..self.limits
-        };
+        let limits = *self.gate.with_vehicles(n as u8).limits();
         let mut program = self.writer.write(text, &limits).map_err(|e| {
             format!(
                 "no program was written: {}",
@@ -711,30 +700,22 @@ impl FormationRole {
         self.counters[5] = self.flying.members.len() as u64;
     }
 
-    /// Each vehicle of the formation its slot.
+    /// Each vehicle of the formation its slot, bound by the hub's program gate; a slot the
+    /// gate refuses is not sent (that controller holds) and counted.
     fn publish(&mut self, now: u64, phase: usize, landing: bool) -> Result<(), RoleError> {
-        let v_max = self.limits.v_max;
+        let phase = phase.min(u16::MAX as usize) as u16;
         for (k, &member) in self.flying.members.iter().enumerate() {
-            let slot = self.slots[k];
             self.seq += 1;
-            let sp = BoundSetpoint {
-                seq: self.seq,
-                decision_seq: phase as u64,
-                publish_ns: now,
-                position: slot.position,
-                yaw: 0.0,
-                speed: v_max,
-                acceptance_radius: Tolerance::default().distance_m,
-                active_step: phase.min(u16::MAX as usize) as u16,
-                mode: if landing {
-                    ActionMode::Land as u8
-                } else {
-                    ActionMode::Goto as u8
-                },
-                ..BoundSetpoint::default()
-            };
-            self.links[member].setpoints.publish(&sp)?;
-            self.counters[3] += 1;
+            match self
+                .gate
+                .bind_slot(self.slots[k].position, phase, landing, self.seq, now)
+            {
+                Ok(sp) => {
+                    self.links[member].setpoints.publish(&sp)?;
+                    self.counters[3] += 1;
+                }
+                Err(_) => self.counters[7] += 1,
+            }
         }
         Ok(())
     }
