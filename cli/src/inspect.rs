@@ -257,7 +257,7 @@ fn print_links(links: &[serde_json::Value]) {
 }
 
 fn type_of(topic: &str) -> &'static str {
-    match topic {
+    match topics::split_vehicle(topic).1 {
         topics::CAMERA_RGB | topics::CAMERA_DEPTH => "[u8] + FrameHeader",
         topics::PERCEPTION_STATE
         | topics::PERCEPTION_TEXT
@@ -273,6 +273,8 @@ fn type_of(topic: &str) -> &'static str {
         topics::HOSTS_LINK => "HostLinkStatus",
         topics::HEARTBEAT => "RoleHeartbeat",
         "supervisor" => "SupervisorStatus (blackboard)",
+        topics::FORMATION_SAY => "FormationCommand",
+        topics::FORMATION_REPLY => "FormationReply",
         _ => "?",
     }
 }
@@ -312,7 +314,9 @@ fn each_sample(
         let sub = bus.subscriber::<T>(topic)?;
         Ok(Box::new(move || Ok(sub.next()?.map(|v| format!("{v:?}")))))
     }
-    let mut next: Box<dyn FnMut() -> Result<Option<String>>> = match topic {
+    // `v2/vehicle/telemetry`: vehicle 2's telemetry in a flight of several vehicles
+    let mut next: Box<dyn FnMut() -> Result<Option<String>>> = match topics::split_vehicle(topic).1
+    {
         topics::CAMERA_RGB | topics::CAMERA_DEPTH => {
             let sub = bus.frame_subscriber(topic)?;
             Box::new(move || {
@@ -335,8 +339,9 @@ fn each_sample(
         topics::CONTROLLER_LINK => typed::<AutopilotLinkStatus>(bus, topic)?,
         topics::HOSTS_LINK => typed::<HostLinkStatus>(bus, topic)?,
         topics::HEARTBEAT => typed::<RoleHeartbeat>(bus, topic)?,
-        other => bail!(
-            "unknown topic `{other}`; known topics: {}",
+        _ => bail!(
+            "unknown topic `{topic}`; known topics: {} (in a flight of several vehicles, \
+             vehicle K's are vK/TOPIC)",
             topics::ALL.join(", ")
         ),
     };

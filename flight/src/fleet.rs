@@ -233,3 +233,64 @@ impl FleetMonitor {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn telemetry(seq: u64, position: [f32; 3], landed: bool) -> VehicleTelemetry {
+        VehicleTelemetry {
+            seq,
+            stamp_ns: 1,
+            link_up: 1,
+            armed: u8::from(!landed),
+            landed: u8::from(landed),
+            position,
+            ..VehicleTelemetry::default()
+        }
+    }
+
+    #[test]
+    fn two_vehicles_under_a_metre_apart_collide_and_a_lost_one_is_not_counted() {
+        let flight = format!("t-fleet-{}", std::process::id());
+        let watcher = FlightBus::builder(&flight).node_name("w").create().unwrap();
+        let mut fleet = FleetMonitor::new(&watcher, 3).unwrap();
+        let vehicle = |k: u8| {
+            let bus = FlightBus::builder(&flight)
+                .node_name(&format!("c{k}"))
+                .vehicle(Some(k))
+                .create()
+                .unwrap();
+            let publisher = bus
+                .publisher::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)
+                .unwrap();
+            (bus, publisher)
+        };
+        let (_b1, v1) = vehicle(1);
+        let (_b2, v2) = vehicle(2);
+        let (_b3, v3) = vehicle(3);
+        v1.publish(&telemetry(1, [0.0, 0.0, 5.0], false)).unwrap();
+        v2.publish(&telemetry(1, [0.0, 3.0, 5.0], false)).unwrap();
+        // vehicle 3's controller lost its autopilot: where it was last is not where it is
+        let mut lost = telemetry(1, [0.0, 0.5, 5.0], false);
+        lost.link_up = 0;
+        v3.publish(&lost).unwrap();
+        fleet.poll().unwrap();
+        assert_eq!(fleet.collision(), None);
+        assert_eq!(fleet.summary().min_separation_m, Some(3.0));
+        assert!(!fleet.all_landed_after_flight());
+        v2.publish(&telemetry(2, [0.0, 0.6, 5.0], false)).unwrap();
+        fleet.poll().unwrap();
+        let c = fleet.collision().expect("a collision");
+        assert_eq!(c.vehicles, (1, 2));
+        assert!((c.distance_m - 0.6).abs() < 1e-5);
+        // both on the ground: landed (the lost one does not hold the flight up)
+        v1.publish(&telemetry(2, [0.0, 0.0, 0.0], true)).unwrap();
+        v2.publish(&telemetry(3, [0.0, 3.0, 0.0], true)).unwrap();
+        fleet.poll().unwrap();
+        assert!(fleet.all_landed_after_flight());
+        let s = fleet.summary();
+        assert!(s.vehicles[2].link_lost && !s.vehicles[2].landed_after_flight);
+        assert!(s.vehicles[0].landed_after_flight && s.vehicles[1].landed_after_flight);
+    }
+}

@@ -74,6 +74,14 @@ pub enum PlanError {
     /// The workflow (after applying the external autopilot) is invalid.
     #[error(transparent)]
     Workflow(#[from] WorkflowError),
+    /// `--autopilot URL` names one autopilot for a flight of several vehicles.
+    #[error(
+        "one autopilot URL for {vehicles} vehicles: give each vehicle's in its controller's per_vehicle_params.autopilot instead"
+    )]
+    OneAutopilotForSeveral {
+        /// The flight's vehicles.
+        vehicles: u8,
+    },
     /// No free UDP port for the built-in vehicle link.
     #[error("cannot find a free UDP port on 127.0.0.1 for the built-in vehicle link: {0}")]
     VehicleLink(std::io::Error),
@@ -213,6 +221,11 @@ pub fn plan_launch(
     let mut w = workflow.clone();
     let mut vehicle_port = None;
     match autopilot {
+        Some(_) if w.fleet.vehicles > 1 => {
+            return Err(PlanError::OneAutopilotForSeveral {
+                vehicles: w.fleet.vehicles,
+            });
+        }
         Some(url) => {
             w.roles.retain(|r| r.kind != "vehicle");
             // a hot standby shares the link only where two processes can each open it
@@ -381,6 +394,79 @@ mod tests {
         // one CPU: both share it
         let ex = resolve_executors(&w, &CpuSet::parse("5").unwrap());
         assert!(ex.iter().all(|(_, s)| s.cpus() == [5]));
+    }
+
+    #[test]
+    fn each_vehicle_of_a_formation_gets_its_own_link_scope_start_and_system_id() {
+        let w = Workflow::builtin_formation().unwrap();
+        let mut ports = 15000..;
+        let plan = plan_launch(&w, "fleet", None, &four_cpus(), || {
+            Ok(ports.next().unwrap())
+        })
+        .unwrap();
+        let spec = |name: &str| {
+            &plan
+                .roles
+                .iter()
+                .find(|r| r.spec.name == name)
+                .unwrap()
+                .spec
+        };
+        for k in 1..=4u8 {
+            let vehicle = spec(&format!("vehicle-v{k}"));
+            let controller = spec(&format!("controller-v{k}"));
+            let port = 15000 + u16::from(k) - 1;
+            assert_eq!(vehicle.params["listen"], format!("udpin:127.0.0.1:{port}"));
+            assert_eq!(
+                controller.params["autopilot"],
+                format!("udpout:127.0.0.1:{port}")
+            );
+            assert_eq!(vehicle.params["system_id"], u64::from(k));
+            assert_eq!((vehicle.vehicle, controller.vehicle), (Some(k), Some(k)));
+            assert_eq!(vehicle.mission.start, w.fleet.start(k, w.mission.start));
+            assert_eq!(controller.mission.start, vehicle.mission.start);
+        }
+        let formation = spec("formation");
+        assert_eq!(formation.vehicle, None);
+        assert_eq!(formation.params["vehicles"], 4);
+        assert_eq!(
+            formation.params["starts"],
+            serde_json::to_value(w.fleet.starts(w.mission.start)).unwrap()
+        );
+        // one URL cannot be four autopilots
+        assert!(matches!(
+            plan_launch(
+                &w,
+                "fleet",
+                Some("udpout:10.0.0.9:14550"),
+                &four_cpus(),
+                || Ok(1)
+            ),
+            Err(PlanError::OneAutopilotForSeveral { vehicles: 4 })
+        ));
+    }
+
+    #[test]
+    fn per_vehicle_params_give_each_vehicle_its_own_autopilot() {
+        let toml = crate::workflow::FORMATION_WORKFLOW_TOML
+            .replace(
+                "params = { autopilot = \"auto\" }",
+                "per_vehicle_params = { autopilot = [\"udpout:10.0.0.1:14550\", \"udpout:10.0.0.2:14550\", \"udpout:10.0.0.3:14550\", \"udpout:10.0.0.4:14550\"] }",
+            );
+        let w = Workflow::from_toml_str(&toml).unwrap();
+        for k in 1..=4 {
+            let c = w.role(&format!("controller-v{k}")).unwrap();
+            assert_eq!(
+                c.param_str("autopilot"),
+                Some(format!("udpout:10.0.0.{k}:14550").as_str())
+            );
+        }
+        assert!(!w.needs_builtin_vehicle());
+        let short = toml.replace(", \"udpout:10.0.0.4:14550\"", "");
+        assert!(matches!(
+            Workflow::from_toml_str(&short),
+            Err(WorkflowError::PerVehicleParam { vehicles: 4, .. })
+        ));
     }
 
     #[test]

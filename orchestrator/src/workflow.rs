@@ -653,6 +653,18 @@ pub enum WorkflowError {
         /// The flight's vehicles.
         vehicles: u8,
     },
+    /// A `per_vehicle_params` entry is not one value per vehicle of a `per_vehicle` role.
+    #[error(
+        "role `{role}`: per_vehicle_params.{key} must be a list of {vehicles} values (one per vehicle) of a role with per_vehicle = true"
+    )]
+    PerVehicleParam {
+        /// The role.
+        role: String,
+        /// The parameter.
+        key: String,
+        /// The flight's vehicles.
+        vehicles: u8,
+    },
     /// A required role kind is missing.
     #[error("the workflow has no role of kind `{kind}`{hint}")]
     MissingRole {

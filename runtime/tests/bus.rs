@@ -50,6 +50,57 @@ fn flights_do_not_cross_talk() {
 }
 
 #[test]
+fn a_vehicles_roles_talk_in_its_scope_and_the_flights_roles_reach_every_scope() {
+    use aeris_schemas::RoleHeartbeat;
+    let f = flight("scope");
+    let v1 = FlightBus::builder(&f)
+        .node_name("c1")
+        .vehicle(Some(1))
+        .create()
+        .unwrap();
+    let v2 = FlightBus::builder(&f)
+        .node_name("c2")
+        .vehicle(Some(2))
+        .create()
+        .unwrap();
+    let ground = FlightBus::builder(&f).node_name("ground").create().unwrap();
+    // vehicle 2's role publishes "reasoning/decision" as if it were alone in the flight
+    let from_v2 = v2
+        .publisher::<Decision>(topics::REASONING_DECISION)
+        .unwrap();
+    let at_v1 = v1
+        .subscriber::<Decision>(topics::REASONING_DECISION)
+        .unwrap();
+    let at_ground = ground
+        .subscriber::<Decision>(&topics::in_vehicle(2, topics::REASONING_DECISION))
+        .unwrap();
+    let unscoped = ground
+        .subscriber::<Decision>(topics::REASONING_DECISION)
+        .unwrap();
+    from_v2
+        .publish(&Decision {
+            seq: 7,
+            ..Decision::default()
+        })
+        .unwrap();
+    assert_eq!(at_ground.next().unwrap().map(|d| d.seq), Some(7));
+    assert_eq!(at_v1.next().unwrap(), None, "vehicle 1 heard vehicle 2");
+    assert_eq!(
+        unscoped.next().unwrap(),
+        None,
+        "the flight's own topic heard vehicle 2"
+    );
+    assert!(list_flight_services(&f).contains(&"v2/reasoning/decision".to_string()));
+    // heartbeats stay flight-wide: the supervisor hears every vehicle's roles
+    let beats = ground
+        .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
+        .unwrap();
+    let beat = v1.publisher::<RoleHeartbeat>(topics::HEARTBEAT).unwrap();
+    beat.publish(&RoleHeartbeat::default()).unwrap();
+    assert!(beats.next().unwrap().is_some());
+}
+
+#[test]
 fn frames_travel_with_their_header() {
     let f = flight("frames");
     let a = FlightBus::builder(&f).node_name("cam").create().unwrap();

@@ -106,6 +106,8 @@ struct RawRole {
     fallback_executor: Option<String>,
     #[serde(default)]
     per_vehicle: bool,
+    #[serde(default)]
+    per_vehicle_params: serde_json::Map<String, serde_json::Value>,
 }
 
 /// 1-based (line, column) of byte offset `at` in `text`, without slicing `text`.
@@ -299,11 +301,30 @@ impl Workflow {
                 publishes,
                 vehicle: None,
             };
+            for (key, values) in &r.per_vehicle_params {
+                let fits = values
+                    .as_array()
+                    .is_some_and(|v| v.len() == usize::from(fleet.vehicles));
+                if !(r.per_vehicle && fits) {
+                    return Err(WorkflowError::PerVehicleParam {
+                        role: role.name.clone(),
+                        key: key.clone(),
+                        vehicles: fleet.vehicles,
+                    });
+                }
+            }
             for vehicle in scopes {
                 let mut role = role.clone();
                 if let Some(k) = vehicle {
                     role.name = format!("{}-v{k}", role.name);
                     role.vehicle = Some(k);
+                }
+                // vehicle K's own value of each per-vehicle parameter (one vehicle: the first)
+                let index = usize::from(vehicle.unwrap_or(1)) - 1;
+                for (key, values) in &r.per_vehicle_params {
+                    if let Some(v) = values.as_array().and_then(|a| a.get(index)) {
+                        role.params.insert(key.clone(), v.clone());
+                    }
                 }
                 roles.push(role);
             }
