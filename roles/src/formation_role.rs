@@ -150,6 +150,8 @@ pub struct FormationRole {
     counters: [u64; 8],
     min_separation_m: f32,
     done: bool,
+    /// Phases of the program flown whose settling was logged.
+    settled_logged: usize,
 }
 
 fn config_error(what: &str) -> RoleError {
@@ -299,6 +301,7 @@ impl Role for FormationRole {
             counters,
             min_separation_m: f32::INFINITY,
             done: false,
+            settled_logged: 0,
         })
     }
 
@@ -382,13 +385,20 @@ impl Role for FormationRole {
             ExecutorState::Done => 3,
             ExecutorState::Stuck { .. } => 4,
         };
-        let settle_ms = self
-            .flying
-            .executor
-            .settled_after_s()
-            .iter()
-            .fold(0.0f32, |a, b| a.max(*b))
-            * 1e3;
+        let settled = self.flying.executor.settled_after_s();
+        if settled.len() > self.settled_logged {
+            // a phase just ended with every vehicle at its slot
+            let segments = &self.flying.executor.trajectory().segments;
+            for (i, wait) in settled.iter().enumerate().skip(self.settled_logged) {
+                let phase = segments.get(i).map_or(0, |s| s.phase);
+                eprintln!(
+                    "formation: phase {phase}: every vehicle within {} m of its slot {wait:.2} s after the phase's end",
+                    Tolerance::default().distance_m
+                );
+            }
+            self.settled_logged = settled.len();
+        }
+        let settle_ms = settled.iter().fold(0.0f32, |a, b| a.max(*b)) * 1e3;
         self.counters[4] = self.counters[4].max(settle_ms as u64);
         if self.min_separation_m.is_finite() {
             self.counters[6] = (self.min_separation_m * 100.0) as u64;
@@ -517,7 +527,8 @@ impl FormationRole {
                                 .collect::<Vec<_>>()
                                 .join(", ")
                         );
-                        self.flying = Flying {
+                        self.settled_logged = 0;
+        self.flying = Flying {
                             program: *program,
                             executor: FormationExecutor::new(
                                 report.trajectory,
@@ -594,7 +605,8 @@ impl FormationRole {
                         ..
                     } => {
                         let members = std::mem::take(&mut self.flying.members);
-                        self.flying = Flying {
+                        self.settled_logged = 0;
+        self.flying = Flying {
                             program: *program,
                             executor: FormationExecutor::new(
                                 report.trajectory,
@@ -692,6 +704,7 @@ impl FormationRole {
             vehicles: members.len(),
             segments: vec![aeris_formation::Segment::stay(1, 0.0, f32::INFINITY, at)],
         };
+        self.settled_logged = 0;
         self.flying = Flying {
             program: self.flying.program,
             executor: FormationExecutor::new(trajectory, Tolerance::default()),
