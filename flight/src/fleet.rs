@@ -3,7 +3,7 @@
 //! collisions. A collision (two vehicles with live links closer than
 //! [`COLLISION_DISTANCE_M`]) ends the flight as failed.
 
-use crate::monitor::RestartSafeCounters;
+use crate::monitor::{RestartSafeCounters, controller_counters, in_the_air};
 use aeris_runtime::bus::{BusError, FlightBus, TypedSubscriber};
 use aeris_schemas::{VehicleTelemetry, topics};
 use serde::Serialize;
@@ -143,16 +143,8 @@ impl FleetMonitor {
             if let Some(t) = v.telemetry.latest()?
                 && t.validate().is_ok()
             {
-                v.controller.update(
-                    t.seq,
-                    [
-                        t.controller_ticks,
-                        t.controller_missed_ticks,
-                        t.setpoints_refused,
-                        t.hold_ticks,
-                    ],
-                );
-                v.flew |= t.position[2] > 1.0 && t.landed == 0;
+                v.controller.update(t.seq, controller_counters(&t));
+                v.flew |= in_the_air(&t);
                 v.last = Some(t);
             }
         }

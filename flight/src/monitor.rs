@@ -206,6 +206,22 @@ impl<const N: usize> RestartSafeCounters<N> {
     }
 }
 
+/// The controller's counters a telemetry sample carries, in the order the monitors keep
+/// them: ticks, missed ticks, refused setpoints, hold ticks.
+pub(crate) fn controller_counters(t: &VehicleTelemetry) -> [u64; 4] {
+    [
+        t.controller_ticks,
+        t.controller_missed_ticks,
+        t.setpoints_refused,
+        t.hold_ticks,
+    ]
+}
+
+/// The vehicle is flying: above 1 m and not landed.
+pub(crate) fn in_the_air(t: &VehicleTelemetry) -> bool {
+    t.position[2] > 1.0 && t.landed == 0
+}
+
 // Indices into the hub counters.
 const RECEIVED: usize = 0;
 const COMMITTED: usize = 1;
@@ -409,16 +425,8 @@ impl FlightMonitor {
         if let Some(t) = self.telemetry.latest()?
             && t.validate().is_ok()
         {
-            self.controller.update(
-                t.seq,
-                [
-                    t.controller_ticks,
-                    t.controller_missed_ticks,
-                    t.setpoints_refused,
-                    t.hold_ticks,
-                ],
-            );
-            self.airborne |= t.position[2] > 1.0 && t.landed == 0;
+            self.controller.update(t.seq, controller_counters(&t));
+            self.airborne |= in_the_air(&t);
             self.last_telemetry = Some(t);
         }
         let (follower, news) = (&mut self.link_follower, &mut self.autopilot_events);

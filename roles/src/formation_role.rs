@@ -154,6 +154,16 @@ pub struct FormationRole {
     settled_logged: usize,
 }
 
+/// `take-off, the change to a line, ...`.
+fn describe_phases(program: &FormationProgram) -> String {
+    program
+        .phases()
+        .iter()
+        .map(phase_description)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 fn config_error(what: &str) -> RoleError {
     RoleError::Config(what.to_string())
 }
@@ -520,24 +530,9 @@ impl FormationRole {
                                 "the rest of the program replanned"
                             },
                             members.len(),
-                            program
-                                .phases()
-                                .iter()
-                                .map(phase_description)
-                                .collect::<Vec<_>>()
-                                .join(", ")
+                            describe_phases(&program)
                         );
-                        self.settled_logged = 0;
-        self.flying = Flying {
-                            program: *program,
-                            executor: FormationExecutor::new(
-                                report.trajectory,
-                                Tolerance::default(),
-                            ),
-                            members,
-                        };
-                        self.counters[5] = self.flying.members.len() as u64;
-                        self.last_tick_ns = now;
+                        self.fly(*program, report.trajectory, members, now);
                     }
                     outcome => {
                         // not even a landing is safe (or the gate refused it): hold where
@@ -547,7 +542,7 @@ impl FormationRole {
                             members.len(),
                             outcome.summary()
                         );
-                        self.hold(members);
+                        self.hold(members, now);
                     }
                 }
             }
@@ -564,7 +559,7 @@ impl FormationRole {
                     .copied()
                     .filter(|m| *m != lost)
                     .collect();
-                self.hold(members);
+                self.hold(members, now);
             }
         }
     }
@@ -584,16 +579,7 @@ impl FormationRole {
                     PlanOutcome::Accepted { program, .. } => **program,
                     PlanOutcome::Refused { .. } => written,
                 };
-                let answer = format!(
-                    "{}: {}",
-                    outcome.summary(),
-                    shown
-                        .phases()
-                        .iter()
-                        .map(phase_description)
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                );
+                let answer = format!("{}: {}", outcome.summary(), describe_phases(&shown));
                 let said = match outcome {
                     PlanOutcome::Accepted { program, .. } if self.gate.admit(&program).is_err() => {
                         SayOutcome::Refused
@@ -605,16 +591,7 @@ impl FormationRole {
                         ..
                     } => {
                         let members = std::mem::take(&mut self.flying.members);
-                        self.settled_logged = 0;
-        self.flying = Flying {
-                            program: *program,
-                            executor: FormationExecutor::new(
-                                report.trajectory,
-                                Tolerance::default(),
-                            ),
-                            members,
-                        };
-                        self.last_tick_ns = now;
+                        self.fly(*program, report.trajectory, members, now);
                         if repaired.is_empty() {
                             SayOutcome::Accepted
                         } else {
@@ -693,7 +670,7 @@ impl FormationRole {
     }
 
     /// Keep `members` where they are: an empty trajectory whose slots are their positions.
-    fn hold(&mut self, members: Vec<usize>) {
+    fn hold(&mut self, members: Vec<usize>, now: u64) {
         let mut at = [[0.0f32; 3]; MAX_VEHICLES];
         for (k, &m) in members.iter().enumerate() {
             if let Some((t, _)) = self.links[m].last {
@@ -704,13 +681,25 @@ impl FormationRole {
             vehicles: members.len(),
             segments: vec![aeris_formation::Segment::stay(1, 0.0, f32::INFINITY, at)],
         };
+        self.fly(self.flying.program, trajectory, members, now);
+    }
+
+    /// From now on fly `trajectory` (of `program`) with `members`.
+    fn fly(
+        &mut self,
+        program: FormationProgram,
+        trajectory: Trajectory,
+        members: Vec<usize>,
+        now: u64,
+    ) {
+        self.counters[5] = members.len() as u64;
         self.settled_logged = 0;
         self.flying = Flying {
-            program: self.flying.program,
+            program,
             executor: FormationExecutor::new(trajectory, Tolerance::default()),
             members,
         };
-        self.counters[5] = self.flying.members.len() as u64;
+        self.last_tick_ns = now;
     }
 
     /// Each vehicle of the formation its slot, bound by the hub's program gate; a slot the
