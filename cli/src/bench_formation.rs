@@ -165,16 +165,17 @@ pub fn run(a: FormationArgs) -> anyhow::Result<()> {
     }
     if !report.flights.is_empty() {
         println!(
-            "{:>2} {:>8} {:<8} {:>8} {:>6} {:>7} {:>8} {:>9}  missed ticks per vehicle (of ticks)",
-            "#", "vehicles", "outcome", "time", "phases", "replans", "settle", "closest",
+            "{:>2} {:>8} {:<8} {:>8} {:>8} {:>6} {:>7} {:>8} {:>9}  missed ticks per vehicle (of ticks)",
+            "#", "vehicles", "outcome", "program", "time", "phases", "replans", "settle", "closest",
         );
     }
     for (i, f) in report.flights.iter().enumerate() {
         println!(
-            "{:>2} {:>8} {:<8} {:>6.1} s {:>6} {:>7} {:>6.1} s {:>9}  {}",
+            "{:>2} {:>8} {:<8} {:>6.1} s {:>6.1} s {:>6} {:>7} {:>6.1} s {:>9}  {}",
             i + 1,
             f.vehicles,
             if f.landed { "landed" } else { "FAILED" },
+            f.program_s,
             f.duration_s,
             f.phases,
             f.replans,

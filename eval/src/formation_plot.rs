@@ -5,44 +5,16 @@
 //!
 //! Its input is [`FormationTracks`], the file a formation flight writes to its run folder
 //! ([`FORMATION_TRACKS_FILE`]): `aeris formation plan --run DIR` writes the simulated flight
-//! of the program it accepts there, `aeris plot formation --run DIR` draws it.
+//! of the program it accepts there, the formation role of `aeris formation fly` the flight of
+//! its vehicles (their telemetry) to the flight's run folder; `aeris plot formation --run
+//! DIR` draws it.
 
 use crate::plot::{PlotError, draw_text, text_width};
 use image::{Rgb, RgbImage};
 use imageproc::drawing::{draw_filled_rect_mut, draw_hollow_rect_mut, draw_line_segment_mut};
 use imageproc::rect::Rect;
-use serde::{Deserialize, Serialize};
 
-/// The file name of a formation flight's tracks in its run folder.
-pub const FORMATION_TRACKS_FILE: &str = "formation.json";
-
-/// A formation flight's tracks.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct FormationTracks {
-    /// The instruction the program came from.
-    pub instruction: String,
-    /// Vehicles flown.
-    pub vehicles: usize,
-    /// What each phase does, in order ("take-off", "the change to a wedge", ...).
-    pub phases: Vec<String>,
-    /// Where the tracks come from ("the built-in multirotor model, 50 Hz").
-    pub source: String,
-    /// The track points, in time order.
-    pub points: Vec<TrackSample>,
-}
-
-/// Every vehicle's position and slot at one instant.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct TrackSample {
-    /// Time from the start (s).
-    pub t_s: f32,
-    /// The phase flown (1-based).
-    pub phase: usize,
-    /// Each vehicle's position `[N, E, U]`.
-    pub positions: Vec<[f32; 3]>,
-    /// Each vehicle's slot `[N, E, U]`.
-    pub slots: Vec<[f32; 3]>,
-}
+pub use aeris_formation::{FORMATION_TRACKS_FILE, FormationTracks, TrackSample};
 
 /// Colours of the vehicles, in order (repeated past eight).
 pub const VEHICLE_COLOURS: [[u8; 3]; 8] = [

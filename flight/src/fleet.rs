@@ -63,6 +63,8 @@ pub struct FormationTally {
     pub in_formation: u64,
     /// Slots the hub's program gate refused to bind (never sent; that controller held).
     pub refused_slots: u64,
+    /// The first program's time to write, check and repair (ms).
+    pub program_ms: u64,
 }
 
 impl FormationTally {
@@ -82,6 +84,7 @@ impl FormationTally {
             settle_max_ms: c[4],
             in_formation: c[5],
             refused_slots: c[7],
+            program_ms: c[6],
         }
     }
 }

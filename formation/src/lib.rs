@@ -16,6 +16,7 @@
 //! - [`repair`]: validate, simulate, repair on failure (at most K times), or refuse;
 //! - [`replan`]: runtime faults (a vehicle lost, or stuck off its slot) planned around: the
 //!   rest of the program for the vehicles that remain, or their landing;
+//! - [`tracks`]: a formation flight's tracks, the file `aeris plot formation` draws;
 //! - [`writer`]: the formation role's variants ([`ProgramWriter`]; the parser's here, the
 //!   language model's in `aeris-llm`) and [`plan_instruction`], instruction to outcome.
 
@@ -28,6 +29,7 @@ pub mod parse;
 pub mod repair;
 pub mod replan;
 pub mod slots;
+pub mod tracks;
 pub mod trajectory;
 pub mod writer;
 
@@ -49,6 +51,7 @@ pub use replan::{
     rest_of_program,
 };
 pub use slots::{formation_offsets, slots};
+pub use tracks::{FORMATION_TRACKS_FILE, FormationTracks, TrackSample};
 pub use trajectory::{ExecutorState, FormationExecutor, Segment, Slot, Tolerance, Trajectory};
 pub use writer::{
     BENCHMARK_INSTRUCTIONS, DEVELOPMENT_INSTRUCTIONS, ParserWriter, PlanInstructionError,

@@ -38,14 +38,14 @@
 //! new program), 1 the executor's state (0 waiting for the vehicles, 1 flying, 2 settling,
 //! 3 done, 4 stuck), 2 vehicles that left the formation (each one replanned around), 3
 //! setpoints published, 4 the longest wait at a phase's end (ms), 5 vehicles in the
-//! formation, 6 the closest two vehicles came, by their telemetry (cm), 7 slots the gate
-//! refused to bind.
+//! formation, 6 the time the first program took to write, check and repair (ms), 7 slots
+//! the gate refused to bind.
 
 use crate::vision::open_store;
 use aeris_formation::{
-    Dynamics, ExecutorState, FormationExecutor, InFlight, ParserWriter, PlanOutcome, Problem,
-    ProgramWriter, RuntimeFault, Simulation, Slot, Tolerance, Trajectory, phase_description,
-    plan_instruction, plan_program, replan_after_fault,
+    Dynamics, ExecutorState, FormationExecutor, FormationTracks, InFlight, ParserWriter,
+    PlanOutcome, Problem, ProgramWriter, RuntimeFault, Simulation, Slot, Tolerance, TrackSample,
+    Trajectory, phase_description, plan_instruction, plan_program, replan_after_fault,
 };
 use aeris_hub::program_gate::ProgramGate;
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
@@ -123,6 +123,97 @@ struct VehicleLink {
     left: bool,
 }
 
+/// The vehicles' tracks, kept for the run folder's `formation.json`: a sample every
+/// [`TRACK_EVERY_NS`] into buffers sized for the mission's time limit at start (pushes
+/// within their capacity do not allocate; a flight past it stops recording).
+struct TrackRecorder {
+    file: Option<std::path::PathBuf>,
+    instruction: String,
+    /// Every program's phases, one program after the other.
+    phases: Vec<String>,
+    /// Where the current program's phases start in `phases`.
+    offset: usize,
+    /// `(t_s, phase)` of each sample.
+    samples: Vec<(f32, usize)>,
+    /// Each sample's positions then slots, one per vehicle of the flight.
+    points: Vec<[f32; 3]>,
+    next_ns: u64,
+    start_ns: u64,
+    written: bool,
+}
+
+/// A track sample every 0.2 s.
+const TRACK_EVERY_NS: u64 = 200_000_000;
+
+impl TrackRecorder {
+    fn new(
+        file: Option<std::path::PathBuf>,
+        instruction: &str,
+        vehicles: usize,
+        max_s: f64,
+    ) -> Self {
+        let samples = if file.is_some() {
+            (max_s.clamp(1.0, 3600.0) / (TRACK_EVERY_NS as f64 * 1e-9)) as usize + 1
+        } else {
+            0
+        };
+        Self {
+            file,
+            instruction: instruction.to_string(),
+            phases: Vec::new(),
+            offset: 0,
+            samples: Vec::with_capacity(samples),
+            points: Vec::with_capacity(samples * vehicles * 2),
+            next_ns: 0,
+            start_ns: 0,
+            written: false,
+        }
+    }
+
+    /// A new program is flown from now on.
+    fn program(&mut self, program: &FormationProgram) {
+        self.offset = self.phases.len();
+        self.phases
+            .extend(program.phases().iter().map(phase_description));
+    }
+
+    /// Write the file once (a failure is logged: the flight does not depend on it).
+    fn write(&mut self, vehicles: usize) {
+        let Some(file) = self.file.as_ref().filter(|_| !self.written) else {
+            return;
+        };
+        self.written = true;
+        let points = self
+            .samples
+            .iter()
+            .zip(self.points.chunks_exact(vehicles * 2))
+            .map(|(&(t_s, phase), p)| TrackSample {
+                t_s,
+                phase,
+                positions: p[..vehicles].to_vec(),
+                slots: p[vehicles..].to_vec(),
+            })
+            .collect();
+        let tracks = FormationTracks {
+            instruction: self.instruction.clone(),
+            vehicles,
+            phases: self.phases.clone(),
+            source: "the vehicles' telemetry in a flight of processes, every 0.2 s".into(),
+            points,
+        };
+        let written = serde_json::to_string(&tracks)
+            .map_err(std::io::Error::other)
+            .and_then(|text| std::fs::write(file, text));
+        match written {
+            Ok(()) => eprintln!("formation: tracks in {}", file.display()),
+            Err(e) => eprintln!(
+                "formation: cannot write the tracks to {}: {e}",
+                file.display()
+            ),
+        }
+    }
+}
+
 /// The program being flown and its vehicles.
 struct Flying {
     program: FormationProgram,
@@ -152,6 +243,7 @@ pub struct FormationRole {
     done: bool,
     /// Phases of the program flown whose settling was logged.
     settled_logged: usize,
+    tracks: TrackRecorder,
 }
 
 /// `take-off, the change to a line, ...`.
@@ -252,7 +344,16 @@ impl Role for FormationRole {
                 Writer::Model(Box::new(model))
             }
         };
+        let planning = std::time::Instant::now();
         let (program, trajectory) = plan(&mut writer, &instruction, &starts, &gate, max_repairs)?;
+        let program_ms = planning.elapsed().as_millis() as u64;
+        let mut tracks = TrackRecorder::new(
+            spec.param_str("tracks_file").map(std::path::PathBuf::from),
+            &instruction,
+            usize::from(vehicles),
+            spec.mission.max_duration_s,
+        );
+        tracks.program(&program);
         let say = ctx.bus.subscriber(topics::FORMATION_SAY)?;
         let reply = ctx.bus.publisher(topics::FORMATION_REPLY)?;
         let mut links = Vec::with_capacity(vehicles as usize);
@@ -289,6 +390,7 @@ impl Role for FormationRole {
         }
         let mut counters = [0u64; 8];
         counters[5] = u64::from(flying);
+        counters[6] = program_ms;
         Ok(Self {
             writer,
             say,
@@ -312,6 +414,7 @@ impl Role for FormationRole {
             min_separation_m: f32::INFINITY,
             done: false,
             settled_logged: 0,
+            tracks,
         })
     }
 
@@ -343,6 +446,7 @@ impl Role for FormationRole {
             );
             self.started = true;
             self.last_tick_ns = now;
+            self.tracks.start_ns = now;
         }
         if let Some(fault) = self.fault(now) {
             self.replan(fault, now);
@@ -388,6 +492,7 @@ impl Role for FormationRole {
             .get(phase.saturating_sub(1))
             .is_some_and(|p| p.kind == PhaseKind::Land as u8);
         self.publish(now, phase, landing)?;
+        self.record(now, phase);
         self.counters[0] = phase as u64;
         self.counters[1] = match state {
             ExecutorState::Flying { .. } => 1,
@@ -410,9 +515,6 @@ impl Role for FormationRole {
         }
         let settle_ms = settled.iter().fold(0.0f32, |a, b| a.max(*b)) * 1e3;
         self.counters[4] = self.counters[4].max(settle_ms as u64);
-        if self.min_separation_m.is_finite() {
-            self.counters[6] = (self.min_separation_m * 100.0) as u64;
-        }
         report.counters = self.counters;
         let all_landed =
             self.flying.members.iter().all(|&m| {
@@ -424,13 +526,44 @@ impl Role for FormationRole {
                 "formation: every vehicle landed; closest two {:.2} m apart",
                 self.min_separation_m
             );
+            self.tracks.write(self.links.len());
             return Ok(CycleOutcome::Finished);
         }
         Ok(CycleOutcome::Worked)
     }
+
+    fn shutdown(&mut self, _ctx: &mut RoleContext) {
+        self.tracks.write(self.links.len());
+    }
 }
 
 impl FormationRole {
+    /// Keep a track sample when one is due (no allocation: see [`TrackRecorder`]).
+    fn record(&mut self, now: u64, phase: usize) {
+        let t = &mut self.tracks;
+        if t.file.is_none() || now < t.next_ns || t.samples.len() == t.samples.capacity() {
+            return;
+        }
+        t.next_ns = now + TRACK_EVERY_NS;
+        t.samples.push((
+            now.saturating_sub(t.start_ns) as f32 * 1e-9,
+            t.offset + phase.max(1),
+        ));
+        let position = |l: &VehicleLink| l.last.map_or([0.0; 3], |(tel, _)| tel.position);
+        for l in &self.links {
+            t.points.push(position(l));
+        }
+        for (i, l) in self.links.iter().enumerate() {
+            let slot = self
+                .flying
+                .members
+                .iter()
+                .position(|&m| m == i)
+                .map_or_else(|| position(l), |k| self.slots[k].position);
+            t.points.push(slot);
+        }
+    }
+
     /// Take every vehicle's newest telemetry; the closest pair so far.
     fn read_telemetry(&mut self, now: u64) -> Result<(), RoleError> {
         for link in &mut self.links {
@@ -694,6 +827,9 @@ impl FormationRole {
     ) {
         self.counters[5] = members.len() as u64;
         self.settled_logged = 0;
+        if program != self.flying.program {
+            self.tracks.program(&program);
+        }
         self.flying = Flying {
             program,
             executor: FormationExecutor::new(trajectory, Tolerance::default()),

@@ -38,8 +38,11 @@ pub struct FormationFlightRow {
     pub landed: bool,
     /// Why not, when not.
     pub failure: Option<String>,
-    /// Wall time of the flight, from every role up (s).
+    /// Wall time of the flight, from every role up (s): the program's writing and check
+    /// included.
     pub duration_s: f64,
+    /// The formation role's time to write, check and repair the program (s).
+    pub program_s: f64,
     /// Phases of the program flown (the last one reached).
     pub phases: u64,
     /// Runtime replans.
@@ -101,6 +104,7 @@ pub fn run(
             landed: outcome.failure.is_none(),
             failure: outcome.failure.as_ref().map(|f| f.to_string()),
             duration_s: s.duration_s,
+            program_s: formation.map_or(0.0, |f| f.program_ms as f64 / 1e3),
             phases: formation.map_or(0, |f| f.phase),
             replans: formation.map_or(0, |f| f.replans),
             settle_max_s: formation.map_or(0.0, |f| f.settle_max_ms as f64 / 1e3),

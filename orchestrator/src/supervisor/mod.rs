@@ -208,6 +208,20 @@ impl Supervisor {
                     .insert("state_file".into(), path.display().to_string().into());
             }
         }
+        // the formation role writes its vehicles' tracks to the run folder (`aeris plot
+        // formation --run RUN_DIR` draws them)
+        for r in plan
+            .roles
+            .iter_mut()
+            .filter(|r| r.spec.kind == crate::workflow::FORMATION_KIND)
+        {
+            if !r.spec.params.contains_key("tracks_file") {
+                let path = run_dir.join("formation.json");
+                r.spec
+                    .params
+                    .insert("tracks_file".into(), path.display().to_string().into());
+            }
+        }
         // each role's ladder length and starting rung (its declared variant)
         let ladders: Vec<(usize, usize)> = plan
             .roles

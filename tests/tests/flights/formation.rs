@@ -81,6 +81,32 @@ fn four_vehicles_fly_line_v_circle_and_land_from_the_parsers_program() {
             v["vehicle"]
         );
     }
+    // the formation role left the vehicles' tracks in the run folder, and they draw
+    let run_dir = dir.0.join("run");
+    let text = std::fs::read_to_string(run_dir.join("formation.json")).expect("tracks written");
+    let tracks: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(tracks["vehicles"], 4);
+    assert_eq!(
+        tracks["phases"].as_array().map(Vec::len),
+        Some(5),
+        "{}",
+        tracks["phases"]
+    );
+    let points = tracks["points"].as_array().unwrap();
+    assert!(points.len() > 10, "{} track points", points.len());
+    let png = dir.0.join("formation.png");
+    let plotted = std::process::Command::new(aeris_bin())
+        .args(["plot", "formation", "--run"])
+        .arg(&run_dir)
+        .arg("--out")
+        .arg(&png)
+        .output()
+        .expect("run aeris plot formation");
+    assert!(
+        plotted.status.success() && png.exists(),
+        "{}",
+        String::from_utf8_lossy(&plotted.stderr)
+    );
 }
 
 /// The formation role's phase (heartbeat counter 0), newest first seen in `heartbeats`.
