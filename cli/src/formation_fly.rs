@@ -16,7 +16,7 @@ pub struct FlyArgs {
     /// m apart, then form a V heading north, hold 10 s, then a circle of radius 6 m, and
     /// land.").
     pub instruction: Option<String>,
-    /// Vehicles (2-7: each has a vehicle and a controller process, and a flight has at
+    /// Vehicles (1-7: each has a vehicle and a controller process, and a flight has at
     /// most 16 roles).
     #[arg(long, default_value_t = 4)]
     pub vehicles: u8,

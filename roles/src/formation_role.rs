@@ -356,16 +356,20 @@ impl Role for FormationRole {
         tracks.program(&program);
         let say = ctx.bus.subscriber(topics::FORMATION_SAY)?;
         let reply = ctx.bus.publisher(topics::FORMATION_REPLY)?;
+        // vehicle K's topic; a flight of one vehicle has no vehicle scopes
+        let topic = |k: u8, t: &str| {
+            if vehicles > 1 {
+                topics::in_vehicle(k, t)
+            } else {
+                t.to_string()
+            }
+        };
         let mut links = Vec::with_capacity(vehicles as usize);
         for k in 1..=vehicles {
             links.push(VehicleLink {
                 number: k,
-                setpoints: ctx
-                    .bus
-                    .publisher(&topics::in_vehicle(k, topics::HUB_SETPOINT))?,
-                telemetry: ctx
-                    .bus
-                    .subscriber(&topics::in_vehicle(k, topics::VEHICLE_TELEMETRY))?,
+                setpoints: ctx.bus.publisher(&topic(k, topics::HUB_SETPOINT))?,
+                telemetry: ctx.bus.subscriber(&topic(k, topics::VEHICLE_TELEMETRY))?,
                 last: None,
                 silent_since: None,
                 flew: false,

@@ -192,6 +192,13 @@ waypoint = [30.0, 0.0, 0.0]
     workflow.insert("mission".into(), toml::Value::Table(mission));
 }
 
+/// The default workflow flying [`short_hop`], as TOML text.
+pub fn short_hop_text() -> String {
+    let mut w = default_workflow();
+    short_hop(&mut w);
+    toml::to_string(&w).expect("serialise workflow")
+}
+
 /// The default workflow flying [`short_hop`], written to `dir/hop.toml`.
 pub fn short_hop_workflow(dir: &std::path::Path) -> PathBuf {
     let mut w = default_workflow();
