@@ -41,71 +41,26 @@
 //! formation, 6 the time the first program took to write, check and repair (ms), 7 slots
 //! the gate refused to bind.
 
+mod tracks;
+mod writer;
+
 use crate::vision::open_store;
 use aeris_formation::{
-    Dynamics, ExecutorState, FormationExecutor, FormationTracks, InFlight, ParserWriter,
-    PlanOutcome, Problem, ProgramWriter, RuntimeFault, Simulation, Slot, Tolerance, TrackSample,
-    Trajectory, phase_description, plan_instruction, plan_program, replan_after_fault,
+    Dynamics, ExecutorState, FormationExecutor, InFlight, ParserWriter, PlanOutcome, ProgramWriter,
+    RuntimeFault, Simulation, Slot, Tolerance, Trajectory, phase_description, plan_instruction,
+    plan_program, replan_after_fault,
 };
 use aeris_hub::program_gate::ProgramGate;
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{
-    BoundSetpoint, FormationCommand, FormationLimits, FormationPhase, FormationProgram,
-    FormationReply, MAX_PHASES, MAX_VEHICLES, PhaseKind, SayOutcome, VehicleTelemetry, topics,
+    BoundSetpoint, FormationCommand, FormationPhase, FormationProgram, FormationReply, MAX_PHASES,
+    MAX_VEHICLES, PhaseKind, SayOutcome, VehicleTelemetry, topics,
 };
 use std::time::Duration;
-
-/// Who writes the formation's programs: the variant.
-enum Writer {
-    Parser(ParserWriter),
-    Model(Box<aeris_llm::FormationWriter>),
-}
-
-/// Why a variant wrote no program.
-#[derive(Debug, thiserror::Error)]
-enum WriteError {
-    #[error(transparent)]
-    Parse(#[from] aeris_formation::ParseError),
-    #[error(transparent)]
-    Model(#[from] aeris_llm::LlmError),
-}
-
-impl ProgramWriter for Writer {
-    type Error = WriteError;
-
-    fn name(&self) -> &str {
-        match self {
-            Self::Parser(w) => w.name(),
-            Self::Model(w) => w.name(),
-        }
-    }
-
-    fn write(
-        &mut self,
-        instruction: &str,
-        limits: &FormationLimits,
-    ) -> Result<FormationProgram, WriteError> {
-        Ok(match self {
-            Self::Parser(w) => w.write(instruction, limits)?,
-            Self::Model(w) => w.write(instruction, limits)?,
-        })
-    }
-
-    fn repair(
-        &mut self,
-        instruction: &str,
-        program: &FormationProgram,
-        problem: &Problem,
-        limits: &FormationLimits,
-    ) -> Option<FormationProgram> {
-        match self {
-            Self::Parser(w) => w.repair(instruction, program, problem, limits),
-            Self::Model(w) => w.repair(instruction, program, problem, limits),
-        }
-    }
-}
+use tracks::{TRACK_EVERY_NS, TrackRecorder};
+use writer::Writer;
 
 /// One vehicle as the formation role sees it.
 struct VehicleLink {
@@ -121,97 +76,6 @@ struct VehicleLink {
     flew: bool,
     /// Left the formation (lost or off its slot).
     left: bool,
-}
-
-/// The vehicles' tracks, kept for the run folder's `formation.json`: a sample every
-/// [`TRACK_EVERY_NS`] into buffers sized for the mission's time limit at start (pushes
-/// within their capacity do not allocate; a flight past it stops recording).
-struct TrackRecorder {
-    file: Option<std::path::PathBuf>,
-    instruction: String,
-    /// Every program's phases, one program after the other.
-    phases: Vec<String>,
-    /// Where the current program's phases start in `phases`.
-    offset: usize,
-    /// `(t_s, phase)` of each sample.
-    samples: Vec<(f32, usize)>,
-    /// Each sample's positions then slots, one per vehicle of the flight.
-    points: Vec<[f32; 3]>,
-    next_ns: u64,
-    start_ns: u64,
-    written: bool,
-}
-
-/// A track sample every 0.2 s.
-const TRACK_EVERY_NS: u64 = 200_000_000;
-
-impl TrackRecorder {
-    fn new(
-        file: Option<std::path::PathBuf>,
-        instruction: &str,
-        vehicles: usize,
-        max_s: f64,
-    ) -> Self {
-        let samples = if file.is_some() {
-            (max_s.clamp(1.0, 3600.0) / (TRACK_EVERY_NS as f64 * 1e-9)) as usize + 1
-        } else {
-            0
-        };
-        Self {
-            file,
-            instruction: instruction.to_string(),
-            phases: Vec::new(),
-            offset: 0,
-            samples: Vec::with_capacity(samples),
-            points: Vec::with_capacity(samples * vehicles * 2),
-            next_ns: 0,
-            start_ns: 0,
-            written: false,
-        }
-    }
-
-    /// A new program is flown from now on.
-    fn program(&mut self, program: &FormationProgram) {
-        self.offset = self.phases.len();
-        self.phases
-            .extend(program.phases().iter().map(phase_description));
-    }
-
-    /// Write the file once (a failure is logged: the flight does not depend on it).
-    fn write(&mut self, vehicles: usize) {
-        let Some(file) = self.file.as_ref().filter(|_| !self.written) else {
-            return;
-        };
-        self.written = true;
-        let points = self
-            .samples
-            .iter()
-            .zip(self.points.chunks_exact(vehicles * 2))
-            .map(|(&(t_s, phase), p)| TrackSample {
-                t_s,
-                phase,
-                positions: p[..vehicles].to_vec(),
-                slots: p[vehicles..].to_vec(),
-            })
-            .collect();
-        let tracks = FormationTracks {
-            instruction: self.instruction.clone(),
-            vehicles,
-            phases: self.phases.clone(),
-            source: "the vehicles' telemetry in a flight of processes, every 0.2 s".into(),
-            points,
-        };
-        let written = serde_json::to_string(&tracks)
-            .map_err(std::io::Error::other)
-            .and_then(|text| std::fs::write(file, text));
-        match written {
-            Ok(()) => eprintln!("formation: tracks in {}", file.display()),
-            Err(e) => eprintln!(
-                "formation: cannot write the tracks to {}: {e}",
-                file.display()
-            ),
-        }
-    }
 }
 
 /// The program being flown and its vehicles.
