@@ -133,7 +133,8 @@ fn print_supervisor_event(event: &SupervisorEvent) {
         | SupervisorEvent::BindingProbed { .. }
         | SupervisorEvent::InitialBinding { .. }
         | SupervisorEvent::RoleDegraded { .. }
-        | SupervisorEvent::RoleRecovered { .. } => eprintln!("aeris: {event}"),
+        | SupervisorEvent::RoleRecovered { .. }
+        | SupervisorEvent::Unwatched { .. } => eprintln!("aeris: {event}"),
         // the start line says these (no wildcard: a new event is printed or left out here
         // on purpose; a wildcard hid the accelerator moves and the failed restarts)
         SupervisorEvent::RoleStarted { .. } | SupervisorEvent::FirstHeartbeat { .. } => {}

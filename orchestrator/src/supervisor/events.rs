@@ -96,6 +96,12 @@ pub enum SupervisorEvent {
         /// Role name.
         name: String,
     },
+    /// The supervisor itself did not run for a while (the machine paused or starved it): the
+    /// roles' silence in that time is not counted against them (stalls, lost links).
+    Unwatched {
+        /// Milliseconds between two steps of the supervisor.
+        gap_ms: u64,
+    },
     /// A hot swap started the new process; the old one keeps running.
     SwapStarted {
         /// Role name.
@@ -351,6 +357,10 @@ impl core::fmt::Display for SupervisorEvent {
             SupervisorEvent::RoleRecovered { name } => {
                 write!(f, "role `{name}` runs normally again")
             }
+            SupervisorEvent::Unwatched { gap_ms } => write!(
+                f,
+                "the supervisor did not run for {gap_ms} ms (the machine paused or starved it): the roles' silence in that time is not held against them"
+            ),
             SupervisorEvent::SwapStarted {
                 name,
                 variant,

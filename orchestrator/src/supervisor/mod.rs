@@ -82,7 +82,7 @@ use initial_binding::InitialCheck;
 use scheduling::rebind_config;
 use service_audit::ServiceAudit;
 use spawn::{Launcher, write_spec};
-use stalls::StallDetector;
+use stalls::{StallDetector, WatchClock};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use swap::RetiringProcesses;
@@ -138,6 +138,8 @@ pub struct Supervisor {
     scheduling: SchedulingSpec,
     /// Stall thresholds.
     stalls: StallDetector,
+    /// When the supervisor last stepped (its own absences are not the roles' silence).
+    watch_clock: WatchClock,
     /// The re-binding policy.
     policy: RebindPolicy,
     /// The variant ladder.
@@ -275,6 +277,7 @@ impl Supervisor {
             ladder: VariantLadder::new(ladder_config(&scheduling), &ladders),
             variant_steps: 0,
             stalls: StallDetector::new(idle_heartbeat_ms, &scheduling),
+            watch_clock: WatchClock::default(),
             scheduling,
             next_tick: Instant::now(),
             initial: InitialCheck::default(),
@@ -336,6 +339,7 @@ impl Supervisor {
     /// policy, start due restarts, update the status board. Call it every ~20 ms.
     pub fn step(&mut self) -> Result<Vec<SupervisorEvent>, SupervisorError> {
         let mut events = core::mem::take(&mut self.pending);
+        self.watch_clock.discount(&mut self.roles, &mut events);
         self.serve_control(&mut events)?;
         self.drain_heartbeats(&mut events)?;
         self.reap(&mut events)?;

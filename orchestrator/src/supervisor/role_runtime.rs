@@ -437,7 +437,7 @@ impl RoleRuntime {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
     fn hb(pid: u32, seq: u64, latency_ns: u64) -> RoleHeartbeat {
@@ -458,7 +458,8 @@ mod tests {
         }
     }
 
-    fn runtime() -> RoleRuntime {
+    /// A role that never ran (for the supervisor's unit tests).
+    pub(in crate::supervisor) fn runtime() -> RoleRuntime {
         RoleRuntime {
             threads: 1,
             accelerator: None,

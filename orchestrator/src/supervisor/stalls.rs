@@ -1,11 +1,55 @@
 //! Stall detection: a running role that is alive but silent (stopped, blocked, or silent
-//! past the hard timeout) is killed, so that its restart policy applies.
+//! past the hard timeout) is killed, so that its restart policy applies. Silence counts
+//! only while the supervisor watches: a pause of the supervisor itself (a virtual machine
+//! descheduled, a machine starved) is discounted from every role's silence ([`WatchClock`]),
+//! so a pause of the whole machine does not read as a stall or a lost link.
 
 use super::events::SupervisorEvent;
 use super::role_runtime::{RoleRuntime, RoleState};
 use crate::executors::{process_state, process_thread_times};
 use crate::workflow::SchedulingSpec;
 use std::time::{Duration, Instant};
+
+/// A pause between two supervisor steps (called every ~20 ms) longer than this is time the
+/// supervisor did not watch.
+pub(super) const UNWATCHED_GAP: Duration = Duration::from_millis(300);
+
+/// When the supervisor last stepped.
+#[derive(Debug, Default)]
+pub(super) struct WatchClock {
+    last_step: Option<Instant>,
+}
+
+impl WatchClock {
+    /// Call at the start of every step: after a pause longer than [`UNWATCHED_GAP`], every
+    /// role's last heartbeat moves forward by the pause (its silence is what the supervisor
+    /// saw), its CPU probe starts again, and [`SupervisorEvent::Unwatched`] says so. In a
+    /// pause of the whole machine the roles made no progress either, and the heartbeats they
+    /// send as it ends may not have arrived yet.
+    pub(super) fn discount(
+        &mut self,
+        roles: &mut [RoleRuntime],
+        events: &mut Vec<SupervisorEvent>,
+    ) {
+        let now = Instant::now();
+        let Some(last) = self.last_step.replace(now) else {
+            return;
+        };
+        let gap = now.saturating_duration_since(last);
+        if gap <= UNWATCHED_GAP {
+            return;
+        }
+        for role in roles {
+            if let Some(heard) = role.heard_at.as_mut() {
+                *heard = (*heard + gap).min(now);
+            }
+            role.silence_probe = None;
+        }
+        events.push(SupervisorEvent::Unwatched {
+            gap_ms: gap.as_millis() as u64,
+        });
+    }
+}
 
 /// The flight's stall thresholds.
 #[derive(Debug, Clone, Copy)]
@@ -32,7 +76,7 @@ impl StallDetector {
     /// Kill running roles that are alive but silent: stopped (SIGSTOP, state `T`) after
     /// three idle-heartbeat periods of silence (or of life, before a first heartbeat); silent for `stall_timeout_ms` neither running
     /// nor waiting for a CPU (blocked, deadlocked: a role starved by a loaded machine waits in
-    /// a run queue and is not stalled); or silent for `stall_hard_timeout_ms` whatever it does.
+    /// a run queue and is not stalled, nor is one waiting for the disk, state `D`); or silent for `stall_hard_timeout_ms` whatever it does.
     /// The exit is reaped by the next step and the restart policy applies.
     pub(super) fn check(&self, roles: &mut [RoleRuntime], events: &mut Vec<SupervisorEvent>) {
         let now = Instant::now();
@@ -84,6 +128,9 @@ impl StallDetector {
             let why = if matches!(state, Some('T' | 't')) {
                 Some(format!("stopped (state {})", state.unwrap_or('T')))
             } else if silent >= timeout
+                // waiting in the kernel for the disk or a page (state D) is the machine's
+                // slowness, not a deadlock of the role: the hard timeout decides
+                && state != Some('D')
                 && times
                     .as_ref()
                     .is_some_and(|t| t.progress_since(probe) < 1_000_000)
@@ -111,5 +158,53 @@ impl StallDetector {
                 why,
             });
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::supervisor::role_runtime::tests::runtime;
+
+    #[test]
+    fn a_pause_of_the_supervisor_is_not_the_roles_silence() {
+        let now = Instant::now();
+        let mut roles = [runtime(), runtime()];
+        roles[0].heard_at = Some(now - Duration::from_millis(2_500));
+        roles[1].heard_at = None;
+        let mut events = Vec::new();
+        // the last step 2 s ago: 2 s were not watched
+        let mut clock = WatchClock {
+            last_step: Some(now - Duration::from_secs(2)),
+        };
+        clock.discount(&mut roles, &mut events);
+        let heard = roles[0].heard_at.unwrap();
+        let silent = heard.elapsed();
+        assert!(
+            silent >= Duration::from_millis(500) && silent < Duration::from_millis(1_500),
+            "{silent:?}"
+        );
+        assert_eq!(roles[1].heard_at, None);
+        assert!(
+            matches!(events[..], [SupervisorEvent::Unwatched { gap_ms }] if gap_ms >= 2_000),
+            "{events:?}"
+        );
+        // the next step follows at once: nothing more is discounted
+        events.clear();
+        clock.discount(&mut roles, &mut events);
+        assert_eq!(roles[0].heard_at, Some(heard));
+        assert!(events.is_empty(), "{events:?}");
+    }
+
+    #[test]
+    fn a_heartbeat_is_never_moved_past_now() {
+        let now = Instant::now();
+        let mut roles = [runtime()];
+        roles[0].heard_at = Some(now - Duration::from_millis(100));
+        let mut clock = WatchClock {
+            last_step: Some(now - Duration::from_secs(5)),
+        };
+        clock.discount(&mut roles, &mut Vec::new());
+        assert!(roles[0].heard_at.unwrap() <= Instant::now());
     }
 }
