@@ -158,9 +158,12 @@ pub fn default_workflow() -> toml::Table {
     text.parse().expect("default workflow parses")
 }
 
+/// The top of the short hop's altitude band (m).
+pub const HOP_CEILING_M: f64 = 20.0;
+
 /// Replace the mission of a workflow table by a short hop in the same world: take off to 12
 /// m, fly 30 m north along the road, land on it (about a third of the default mission's
-/// flight time). For tests whose subject is not the mission (an autopilot link, a router, a
+/// flight time), under a ceiling of [`HOP_CEILING_M`]. For tests whose subject is not the mission (an autopilot link, a router, a
 /// recording): the suite's time goes to what each test checks.
 pub fn short_hop(workflow: &mut toml::Table) {
     let hop = r#"
@@ -187,7 +190,11 @@ action = "land"
 waypoint = [30.0, 0.0, 0.0]
 "#;
     let mut mission: toml::Table = hop.parse().expect("the short hop parses");
-    let limits = workflow["mission"]["limits"].clone();
+    let mut limits = workflow["mission"]["limits"].clone();
+    // the altitude band's top at 20 m (the default's 60 m): a flight without occupancy keeps
+    // to the top, and from 60 m its landing alone took a minute
+    limits["h_max"] = toml::Value::Float(HOP_CEILING_M);
+    limits["geofence_max"][2] = toml::Value::Float(HOP_CEILING_M);
     mission.insert("limits".into(), limits);
     workflow.insert("mission".into(), toml::Value::Table(mission));
 }

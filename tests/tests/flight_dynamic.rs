@@ -1,4 +1,5 @@
-//! Dynamic scheduling and stall handling end to end, in one flight of the default workflow:
+//! Dynamic scheduling and stall handling end to end, in one flight of the default workflow
+//! (on a short hop):
 //! - `aeris migrate` moves the running reasoner, live, to the control executor: same pid,
 //!   every thread reports the new affinity, so do its heartbeats, no decision is lost;
 //! - a role stopped with SIGSTOP (alive, silent) is detected as stalled, killed and
@@ -34,7 +35,9 @@ fn thread_affinities(pid: u32) -> Vec<(i32, CpuSet)> {
 fn a_role_moves_live_and_a_stopped_role_is_replaced_while_the_flight_completes() {
     let dir = TempDir::new("dynamic");
     let flight = unique_flight("dynamic");
-    let mut run = spawn_run(&dir.0, &flight, &[]);
+    // the move and the stall are the subject, not the route: a short hop
+    let hop = short_hop_workflow(&dir.0);
+    let mut run = spawn_run(&dir.0, &flight, &[hop.to_str().unwrap()]);
     let observer = FlightBus::builder(&flight)
         .node_name("test-observer")
         .create()

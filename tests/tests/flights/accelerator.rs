@@ -14,7 +14,9 @@ const FLIGHT_BOUND: Duration = Duration::from_secs(900);
 fn a_model_role_over_budget_is_probed_on_the_accelerator_once_and_stays_when_it_cannot_run_there() {
     let dir = TempDir::new("accel-probe");
     let flight = unique_flight("accel-probe");
+    // the policy's probe is the subject, not the route: a short hop
     let mut w = default_workflow();
+    short_hop(&mut w);
     add_gpu_executor(&mut w, "cuda:0");
     let mut detector = toml::Table::new();
     detector.insert("name".into(), "detector".into());

@@ -1,4 +1,4 @@
-//! The role-adaptive model stack end to end. The default flight starts its reasoner on
+//! The role-adaptive model stack end to end. The default flight (on a short hop) starts its reasoner on
 //! SmolLM2 (a real language model, from the provisioned cache) with the ladder
 //! `["smollm2", "planner"]` and a 1 ms latency budget, which no language model meets. The
 //! supervisor must step the reasoner down its ladder by itself: a make-before-break swap to
@@ -23,7 +23,9 @@ fn reasoning(board: &SupervisorStatus) -> Option<(String, u32)> {
 fn a_reasoner_over_its_budget_steps_down_its_ladder_and_the_flight_completes() {
     let dir = TempDir::new("ladder");
     let flight = unique_flight("ladder");
+    // the ladder is the subject, not the route: a short hop
     let mut w = default_workflow();
+    short_hop(&mut w);
     let roles = w["roles"].as_array_mut().unwrap();
     let r = roles
         .iter_mut()

@@ -1,6 +1,6 @@
 //! A flight whose eyes are a video file and which has no depth source: the camera is the
 //! `gstreamer` variant on `filesrc ! decodebin` of an H.264 MP4 that `aeris scene video`
-//! rendered along the default mission's route (a recorded FPV video played back at its own
+//! rendered along the short hop's route (a recorded FPV video played back at its own
 //! rate), with no `depth_pipeline`; perception is the model pipeline's layout (the YOLO
 //! detector on the decoded frames + compose) instead of the geometric perception, and there is no occupancy role, so S_t
 //! never carries occupancy. The hub gates every decision without occupancy and says so in
@@ -17,14 +17,13 @@ const FLIGHT_BOUND: Duration = Duration::from_secs(900);
 fn on_a_video_file_without_depth_the_hub_reports_no_occupancy_and_the_flight_keeps_high() {
     let dir = TempDir::new("nodepth");
     let flight = unique_flight("nodepth");
-    // the route of the default mission at 5 m/s, then a minute over the landing point
+    // the route of the short hop at 5 m/s, then 20 s over the landing point (the file
+    // restarts at its end)
     let video = dir.0.join("route.mp4");
     let rendered = Command::new(aeris_bin())
-        .args(["scene", "video", "village", "--fps", "5", "--hold", "60"])
-        .args([
-            "--path", "0,0,12", "--path", "62,0,12", "--path", "62,64,12",
-        ])
-        .args(["--path", "42,88,2", "--out"])
+        .args(["scene", "video", "village", "--fps", "5", "--hold", "20"])
+        .args(["--path", "0,0,20", "--path", "30,0,20", "--path", "30,0,2"])
+        .arg("--out")
         .arg(&video)
         .output()
         .expect("aeris scene video runs");
@@ -34,6 +33,7 @@ fn on_a_video_file_without_depth_the_hub_reports_no_occupancy_and_the_flight_kee
         String::from_utf8_lossy(&rendered.stderr)
     );
     let mut workflow = default_workflow();
+    short_hop(&mut workflow);
     set_variant(&mut workflow, "camera", "gstreamer");
     let roles = workflow
         .get_mut("roles")
@@ -93,6 +93,22 @@ fn on_a_video_file_without_depth_the_hub_reports_no_occupancy_and_the_flight_kee
         summary["commits_without_occupancy"].as_u64(),
         Some(committed),
         "{summary}"
+    );
+    // it kept high: up to the band's top, not the take-off's 12 m (the progress lines' alt)
+    let highest = stderr
+        .lines()
+        .filter_map(|l| {
+            l.split("  alt ")
+                .nth(1)?
+                .split(' ')
+                .next()?
+                .parse::<f64>()
+                .ok()
+        })
+        .fold(0.0, f64::max);
+    assert!(
+        highest > HOP_CEILING_M - 1.0,
+        "highest {highest} m, ceiling {HOP_CEILING_M} m\n{stderr}"
     );
     // the file was played without a failure (its end is a restart, not an error)
     let camera = std::fs::read_to_string(dir.0.join("run").join("logs").join("camera.log"))

@@ -353,10 +353,12 @@ fn a_killed_recorder_is_restarted_into_a_new_file_and_its_first_file_reads_back(
     let dir = TempDir::new("record-kill");
     let flight = unique_flight("record-kill");
     let file = dir.0.join("flight.mcap");
+    let hop = short_hop_workflow(&dir.0);
     let mut run = spawn_run(
         &dir.0,
         &flight,
         &[
+            hop.to_str().unwrap(),
             "--record",
             file.to_str().unwrap(),
             "--record-frame-every",
@@ -426,10 +428,12 @@ fn a_recording_that_cannot_be_written_stops_and_the_flight_goes_on() {
     let dir = TempDir::new("record-full");
     let flight = unique_flight("record-full");
     let file = dir.0.join("flight.mcap");
+    let hop = short_hop_workflow(&dir.0);
     let mut run = spawn_run(
         &dir.0,
         &flight,
         &[
+            hop.to_str().unwrap(),
             "--record",
             file.to_str().unwrap(),
             "--record-frame-every",

@@ -1,4 +1,4 @@
-//! Hot-standby controller end to end: in the default flight (a primary controller and a
+//! Hot-standby controller end to end: in the default flight on a short hop (a primary controller and a
 //! standby on one autopilot link), the controller holding the autopilot lease is SIGKILLed,
 //! later the new holder is SIGSTOPped. Each time the *other* process, not a restarted one,
 //! must take the lease with a higher epoch, and the flight must still reach its goal with
@@ -23,7 +23,9 @@ fn pid_of(board: &SupervisorStatus, name: &str) -> Option<u32> {
 fn the_standby_takes_the_lease_when_the_holder_is_killed_or_stopped() {
     let dir = TempDir::new("standby");
     let flight = unique_flight("standby");
-    let mut run = spawn_run(&dir.0, &flight, &[]);
+    // the lease's hand-overs are the subject, not the route: a short hop
+    let hop = short_hop_workflow(&dir.0);
+    let mut run = spawn_run(&dir.0, &flight, &[hop.to_str().unwrap()]);
     let observer = FlightBus::builder(&flight)
         .node_name("test-observer")
         .create()

@@ -1,4 +1,5 @@
-//! The default mission flown with its eyes on decoded video: the camera role is the
+//! A mission flown with its eyes on decoded video (the short hop: the video, not the route,
+//! is the subject): the camera role is the
 //! `gstreamer` variant on an RTP/H.264 stream, and the stream comes from a second process,
 //! `aeris scene video --follow`, that renders the scene at the flying vehicle's telemetry pose
 //! every frame (a simulated FPV transmitter). The loop closes through telemetry → renderer →
@@ -58,11 +59,12 @@ fn join_flight(flight: &str) -> FlightBus {
 }
 
 #[test]
-fn the_default_mission_flies_on_decoded_video_from_a_following_transmitter() {
+fn a_mission_flies_on_decoded_video_from_a_following_transmitter() {
     let dir = TempDir::new("flight-video");
     let flight = unique_flight("flight-video");
     let port = free_udp_port();
-    let workflow = video_workflow(port);
+    let mut workflow = video_workflow(port);
+    short_hop(&mut workflow);
     let path = write_workflow(&dir.0, "video", &workflow);
 
     let mut run = spawn_run(&dir.0, &flight, &[path.to_str().unwrap()]);

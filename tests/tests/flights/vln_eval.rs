@@ -30,20 +30,69 @@ fn eval(dir: &std::path::Path, args: &[&str]) -> (serde_json::Value, Vec<serde_j
     (last_json_line(&stdout), episodes)
 }
 
+/// The shortest of the first 8 episodes of the unseen validation split in `airspace` (by
+/// its reference path), alone in an episode file under `dir`: the suite flies a short one
+/// (the first in open airspace is more than twice as long).
+fn shortest_val_unseen(dir: &std::path::Path, airspace: &str) -> String {
+    std::fs::create_dir_all(dir).unwrap();
+    let generated = dir.join(format!("val_unseen-{airspace}.json"));
+    let out = Command::new(aeris_bin())
+        .args(["episodes", "generate", "--split", "val_unseen"])
+        .args(["--airspace", airspace, "--episodes", "8", "--out"])
+        .arg(&generated)
+        .output()
+        .expect("run aeris episodes generate");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&generated).expect("the generated episodes");
+    let split: serde_json::Value = serde_json::from_str(&text).expect("episodes JSON");
+    let length = |e: &serde_json::Value| {
+        let points: Vec<[f64; 3]> = e["reference_path"]
+            .as_array()
+            .expect("a reference path")
+            .iter()
+            .map(|p| std::array::from_fn(|i| p[i].as_f64().expect("a coordinate")))
+            .collect();
+        points
+            .windows(2)
+            .map(|w| {
+                (0..3)
+                    .map(|i| (w[1][i] - w[0][i]).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            })
+            .sum::<f64>()
+    };
+    let shortest = split["episodes"]
+        .as_array()
+        .expect("episodes")
+        .iter()
+        .min_by(|a, b| length(a).total_cmp(&length(b)))
+        .expect("an episode")
+        .clone();
+    assert_eq!(shortest["airspace"], airspace, "{shortest}");
+    let file = dir.join(format!("shortest-{airspace}.json"));
+    let one = serde_json::json!({ "episodes": [shortest] });
+    std::fs::write(&file, one.to_string()).unwrap();
+    file.to_str().unwrap().to_string()
+}
+
 /// The oracle flies one episode of the unseen validation split in `airspace` to success,
 /// and the episode's record has every field.
 fn the_oracle_succeeds_in(airspace: &str) {
     let dir = TempDir::new(&format!("vln-eval-{airspace}"));
     let oracle_dir = dir.0.join("oracle");
+    let episode = shortest_val_unseen(&dir.0, airspace);
     let (summary, episodes) = eval(
         &oracle_dir,
         &[
-            "--split",
-            "val_unseen",
+            "--episodes-file",
+            &episode,
             "--episodes",
             "1",
-            "--airspace",
-            airspace,
             "--baseline",
             "oracle",
         ],
@@ -164,17 +213,16 @@ fn png_size(path: &std::path::Path) -> (u32, u32) {
 #[test]
 fn the_aeris_agent_flies_from_the_instruction_alone_and_its_flight_can_be_plotted() {
     let dir = TempDir::new("vln-eval-aeris");
+    let episode = shortest_val_unseen(&dir.0.join("episodes"), "open");
     let (summary, episodes) = eval(
         &dir.0,
         // the one-process perception keeps the suite short; the model roles are the
         // default of `aeris eval` and have their own tests
         &[
-            "--split",
-            "val_unseen",
+            "--episodes-file",
+            &episode,
             "--episodes",
             "1",
-            "--airspace",
-            "open",
             "--perception",
             "geometric",
         ],
