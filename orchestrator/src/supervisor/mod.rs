@@ -282,7 +282,7 @@ impl Supervisor {
             next_tick: Instant::now(),
             initial: InitialCheck::default(),
             migrations: 0,
-            services: ServiceAudit::new(),
+            services: ServiceAudit::new(&flight),
             remote_executors: plan.remote_executors,
             executor_accelerators: plan.accelerators,
             links_up_since: Vec::new(),
@@ -351,8 +351,7 @@ impl Supervisor {
         self.retiring.reap(&mut events);
         self.restart_due(&mut events);
         self.schedule(&mut events);
-        self.services
-            .check(&self.flight, &mut self.roles, &mut events);
+        self.services.check(&mut self.roles, &mut events);
         self.control.answer(&events, &self.roles);
         self.publish_board();
         Ok(events)
