@@ -30,6 +30,12 @@ pub struct FlyArgs {
     /// temporary directory).
     #[arg(long, value_name = "DIR")]
     pub run_dir: Option<PathBuf>,
+    /// Record the flight into this MCAP file (default: RUN_DIR/flight.mcap): every
+    /// vehicle's telemetry, setpoints, controller lease and link as `vK/TOPIC`, and every
+    /// role's heartbeats. Its FILE is optional: give the instruction before it.
+    #[arg(long, value_name = "FILE", num_args = 0..=1)]
+    #[allow(clippy::option_option)]
+    pub record: Option<Option<PathBuf>>,
     /// Print the flight's summary as one JSON line.
     #[arg(long)]
     pub json: bool,
@@ -52,6 +58,9 @@ pub fn fly(a: FlyArgs) -> anyhow::Result<ExitCode> {
     }
     if let Some(dir) = &a.run_dir {
         flight = flight.run_dir(dir);
+    }
+    if let Some(file) = &a.record {
+        flight = flight.record(crate::run_cmd::record_path(file.as_deref())?);
     }
     let mut printer = FlightPrinter::new(true, "")?;
     let flight = flight.start()?;
@@ -92,6 +101,9 @@ fn print_summary(name: &str, summary: &FlightSummary, failure: Option<String>) {
     );
     if let Some(f) = failure {
         println!("  reason: {f}");
+    }
+    if let Some(r) = &summary.recording {
+        crate::run_cmd::print_recording(r);
     }
     let Some(fleet) = &summary.fleet else {
         return;

@@ -65,9 +65,22 @@ pub struct RunArgs {
     pub record_no_exact_frames: bool,
 }
 
+/// The recording's line of a flight's summary: its files, messages, drops and size.
+pub(crate) fn print_recording(r: &aeris_flight::RecordingSummary) {
+    let files: Vec<String> = r.files.iter().map(|f| f.display().to_string()).collect();
+    println!(
+        "  recording {}: {} messages, {} dropped, {} bytes{}",
+        files.join(", "),
+        r.messages,
+        r.dropped,
+        r.bytes,
+        if r.failed { "; writing FAILED" } else { "" }
+    );
+}
+
 /// The file `--record` names: as given (relative to the working directory), or
 /// `flight.mcap` in the run directory when none is given.
-fn record_path(arg: Option<&Path>) -> Result<PathBuf> {
+pub(crate) fn record_path(arg: Option<&Path>) -> Result<PathBuf> {
     match arg {
         None => Ok(PathBuf::from("flight.mcap")),
         Some(file) => {
@@ -326,15 +339,7 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
         println!("  first decision on the video {s:.2} s after its first frame");
     }
     if let Some(r) = &summary.recording {
-        let files: Vec<String> = r.files.iter().map(|f| f.display().to_string()).collect();
-        println!(
-            "  recording {}: {} messages, {} dropped, {} bytes{}",
-            files.join(", "),
-            r.messages,
-            r.dropped,
-            r.bytes,
-            if r.failed { "; writing FAILED" } else { "" }
-        );
+        print_recording(r);
     }
     if args.json {
         println!(

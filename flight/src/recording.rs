@@ -145,13 +145,17 @@ pub fn attach_spec(
             flight: flight.to_string(),
         });
     };
+    // in a flight of several vehicles, a vehicle's topics once in each vehicle's scope
+    let vehicles = specs.iter().filter_map(|s| s.vehicle).max().unwrap_or(1);
     let topics = topics.unwrap_or_else(|| {
         let mut published = vec![aeris_schemas::topics::HEARTBEAT.to_string()];
         for s in &specs {
             let kind = aeris_runtime::catalog::role_kind(&s.kind);
             for t in kind.map_or(&[][..], |k| k.publishes) {
-                if !published.iter().any(|p| p == t) {
-                    published.push(t.to_string());
+                for t in aeris_schemas::topics::in_fleet(t, vehicles) {
+                    if !published.contains(&t) {
+                        published.push(t);
+                    }
                 }
             }
         }
@@ -396,6 +400,63 @@ mod tests {
             "twice as fast: the heartbeat too"
         );
         assert_eq!(replay.roles[0].params["from_ns"], 5);
+    }
+
+    #[test]
+    fn a_recorder_of_a_fleet_records_each_vehicles_topics_in_its_scope() {
+        let w = Workflow::builtin_formation().unwrap();
+        let online = aeris_runtime::affinity::CpuSet::parse("0-3").unwrap();
+        let mut ports = 15000..;
+        let plan = aeris_orchestrator::launch::plan_launch(&w, "fleet", None, &online, || {
+            Ok(ports.next().unwrap())
+        })
+        .unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let roles = dir.path().join("roles");
+        std::fs::create_dir_all(&roles).unwrap();
+        for r in &plan.roles {
+            let file = roles.join(format!("{}.json", r.spec.name));
+            std::fs::write(file, serde_json::to_vec(&r.spec).unwrap()).unwrap();
+        }
+        // attached to the running flight (`aeris record`)
+        let spec = attach_spec("fleet", dir.path(), &dir.path().join("f.mcap"), None).unwrap();
+        let topics: Vec<String> = serde_json::from_value(spec.params["topics"].clone()).unwrap();
+        // added at the start (`--record`): the launch plan scopes the fitted topics
+        let mut recorded = w.clone();
+        add_recorder(
+            &mut recorded,
+            &RecordRequest {
+                path: dir.path().join("g.mcap"),
+                ..RecordRequest::default()
+            },
+        )
+        .unwrap();
+        let plan =
+            aeris_orchestrator::launch::plan_launch(&recorded, "fleet", None, &online, || {
+                Ok(ports.next().unwrap())
+            })
+            .unwrap();
+        let recorder = plan
+            .roles
+            .iter()
+            .find(|r| r.spec.kind == RECORDER_KIND)
+            .unwrap();
+        let launched: Vec<String> =
+            serde_json::from_value(recorder.spec.params["topics"].clone()).unwrap();
+        for topics in [&topics, &launched] {
+            for k in 1..=4 {
+                for t in ["vehicle/telemetry", "hub/setpoint", "controller/lease"] {
+                    let scoped = format!("v{k}/{t}");
+                    assert!(topics.contains(&scoped), "{scoped} not in {topics:?}");
+                }
+            }
+            assert!(topics.iter().any(|t| t == "heartbeat"), "{topics:?}");
+            // no unscoped vehicle topic: a fleet has no such services
+            assert!(
+                !topics.iter().any(|t| t == "vehicle/telemetry"),
+                "{topics:?}"
+            );
+        }
     }
 
     #[test]

@@ -274,10 +274,16 @@ pub fn plan_launch(
             serde_json::to_value(&starts).unwrap_or_default(),
         );
     }
-    // a recorder subscribes to the topics it was fitted to (`Workflow::fit_recorders`)
+    // a recorder subscribes to the topics it was fitted to (`Workflow::fit_recorders`); in a
+    // flight of several vehicles, those of a vehicle's scope once per vehicle (`v2/...`)
+    let vehicles = w.fleet.vehicles;
     for r in w.roles.iter_mut().filter(|r| r.kind == RECORDER_KIND) {
         if !r.params.contains_key("topics") {
-            let topics = r.subscribes.clone();
+            let topics: Vec<String> = r
+                .subscribes
+                .iter()
+                .flat_map(|t| topics::in_fleet(t, vehicles))
+                .collect();
             r.params.insert("topics".into(), topics.into());
         }
     }

@@ -39,9 +39,10 @@ pub enum Payload {
     Heartbeat,
 }
 
-/// The payload type of `topic`, if it is one of [`topics::ALL`].
+/// The payload type of `topic`, if it is one of [`topics::ALL`], in a vehicle's scope or not
+/// (`v2/vehicle/telemetry` carries what `vehicle/telemetry` does, [`topics::split_vehicle`]).
 pub fn payload_of(topic: &str) -> Option<Payload> {
-    Some(match topic {
+    Some(match topics::split_vehicle(topic).1 {
         topics::CAMERA_RGB | topics::CAMERA_DEPTH => Payload::Frame,
         topics::PERCEPTION_STATE
         | topics::PERCEPTION_TEXT

@@ -114,6 +114,17 @@ pub fn in_vehicle(vehicle: u8, topic: &str) -> String {
     }
 }
 
+/// The names `topic` has in a flight of `vehicles`: the topic itself when it is flight-wide
+/// or the flight has one vehicle (which flies with unscoped topics), else the topic in each
+/// vehicle's scope, `v1/...` to `vN/...` (what a recorder of the whole flight subscribes to).
+pub fn in_fleet(topic: &str, vehicles: u8) -> Vec<String> {
+    if vehicles <= 1 || is_flight_wide(topic) {
+        vec![topic.to_string()]
+    } else {
+        (1..=vehicles).map(|k| in_vehicle(k, topic)).collect()
+    }
+}
+
 /// The topic without its vehicle scope (`v2/vehicle/telemetry` -> `vehicle/telemetry`), and
 /// the vehicle; `(None, topic)` for a topic in no vehicle's scope.
 pub fn split_vehicle(topic: &str) -> (Option<u8>, &str) {
@@ -144,6 +155,12 @@ mod tests {
         );
         assert_eq!(in_vehicle(3, HEARTBEAT), HEARTBEAT);
         assert_eq!(split_vehicle(HUB_SETPOINT), (None, HUB_SETPOINT));
+        assert_eq!(in_fleet(VEHICLE_TELEMETRY, 1), [VEHICLE_TELEMETRY]);
+        assert_eq!(
+            in_fleet(VEHICLE_TELEMETRY, 2),
+            ["v1/vehicle/telemetry", "v2/vehicle/telemetry"]
+        );
+        assert_eq!(in_fleet(HEARTBEAT, 4), [HEARTBEAT]);
         for odd in [
             "v0/hub/setpoint",
             "v9/hub/setpoint",

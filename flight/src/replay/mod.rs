@@ -105,6 +105,19 @@ pub enum ReplayError {
         /// The recording.
         path: PathBuf,
     },
+    /// The recording is of a flight of several vehicles (each vehicle's topics under its
+    /// scope, `v1/...`): a replay replays one vehicle's perception and reasoning.
+    #[error(
+        "{} is a flight of {vehicles} vehicles (their topics under v1/ .. v{vehicles}/): \
+         aeris replay replays a flight of one vehicle",
+        path.display()
+    )]
+    Fleet {
+        /// The recording.
+        path: PathBuf,
+        /// Vehicles whose telemetry it holds.
+        vehicles: u8,
+    },
     /// The recording holds no decision in the range asked for.
     #[error("{} holds no recorded decision from {from_s:.1} s to {to_s:.1} s", path.display())]
     NoCycles {
@@ -404,6 +417,20 @@ pub fn replay(
 ) -> Result<ReplayReport, ReplayError> {
     let mut recording = Recording::open(&request.path)?;
     let flight = recording.flight().clone();
+    // a flight of several vehicles has each vehicle's topics in its scope (`v1/...`)
+    let vehicles = (1..=aeris_schemas::topics::MAX_FLIGHT_VEHICLES)
+        .filter(|k| {
+            let telemetry =
+                aeris_schemas::topics::in_vehicle(*k, aeris_schemas::topics::VEHICLE_TELEMETRY);
+            recording.message_count(&telemetry) > 0
+        })
+        .count() as u8;
+    if vehicles > 0 {
+        return Err(ReplayError::Fleet {
+            path: request.path.clone(),
+            vehicles,
+        });
+    }
     let speed = request.speed;
     let periods = [
         flight.timing.heartbeat_period_ms,

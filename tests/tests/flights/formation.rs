@@ -3,9 +3,10 @@
 //! (`FLIGHT/v1` .. `FLIGHT/v4`), flown by the formation role from [`INSTRUCTION`] (take off,
 //! a line, a V, a circle of radius 6 m, land: the built-in instruction without its 10 s hold,
 //! which the suite's time cannot spare) written by the deterministic parser. One flight flies
-//! it whole. The other flies a line and a long hold, is given a circle instead during the
-//! hold (`aeris formation say`), and loses vehicle 3's process in the change to the circle:
-//! the three that remain must re-form and land.
+//! it whole, recorded (every vehicle's topics under its scope). The other flies a line and a
+//! long hold, is given a circle instead during the hold (`aeris formation say`), and loses
+//! vehicle 3's process in the change to the circle: the three that remain must re-form and
+//! land.
 
 /// What the first flight flies.
 const INSTRUCTION: &str = "four drones take off to 5 m in a line 3 m apart, then form a V \
@@ -58,7 +59,12 @@ fn ground_position(v: &Value) -> [f64; 2] {
 fn four_vehicles_fly_line_v_circle_and_land_from_the_parsers_program() {
     let dir = TempDir::new("formation");
     let flight = unique_flight("formation");
-    let mut run = spawn_formation_fly(&dir.0, &flight, &[INSTRUCTION]);
+    let recording = dir.0.join("formation.mcap");
+    let mut run = spawn_formation_fly(
+        &dir.0,
+        &flight,
+        &[INSTRUCTION, "--record", recording.to_str().unwrap()],
+    );
     let status = wait_bounded(&mut run.0, Duration::from_secs(600)).expect("flight finished");
     let fleet = landed_fleet(&dir.0, status);
     // the executor moves to a phase only once every vehicle is within 0.5 m of its slot
@@ -81,6 +87,29 @@ fn four_vehicles_fly_line_v_circle_and_land_from_the_parsers_program() {
             v["vehicle"]
         );
     }
+    // the recording, read by the independent MCAP reader: whole, and every vehicle's
+    // telemetry and setpoints in it under its own scope (none unscoped: no such services)
+    let read = crate::record::read_back(&recording);
+    assert_eq!(read["complete"], true, "{read}");
+    crate::record::assert_well_formed(&read, "the formation's recording");
+    for k in 1..=4 {
+        for topic in [topics::VEHICLE_TELEMETRY, topics::HUB_SETPOINT] {
+            let scoped = topics::in_vehicle(k, topic);
+            assert!(crate::record::count(&read, &scoped) > 0, "{scoped}: {read}");
+        }
+    }
+    assert_eq!(
+        crate::record::count(&read, topics::VEHICLE_TELEMETRY),
+        0,
+        "{read}"
+    );
+    assert!(crate::record::count(&read, topics::HEARTBEAT) > 0, "{read}");
+    // a replay replays one vehicle's flight: refused, saying why, before anything starts
+    let (status, _, stderr) = crate::record::replay_run(&dir.0, &flight, &recording, &[]);
+    assert!(
+        !status.success() && stderr.contains("is a flight of 4 vehicles"),
+        "{status}: {stderr}"
+    );
     // the formation role left the vehicles' tracks in the run folder, and they draw
     let run_dir = dir.0.join("run");
     let text = std::fs::read_to_string(run_dir.join("formation.json")).expect("tracks written");

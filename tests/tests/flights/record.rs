@@ -33,17 +33,17 @@ fn read_back_with(file: &Path, extra: &[&std::ffi::OsStr]) -> Value {
 }
 
 /// What tests/py/mcap_read.py says of `file`.
-fn read_back(file: &Path) -> Value {
+pub(crate) fn read_back(file: &Path) -> Value {
     read_back_with(file, &[])
 }
 
-fn count(read: &Value, topic: &str) -> u64 {
+pub(crate) fn count(read: &Value, topic: &str) -> u64 {
     read["counts"][topic].as_u64().unwrap_or(0)
 }
 
 /// Checks every recording passes, whole or cut short: schemas and JSON messages parse, raw
 /// payloads have their layout's size, and every typed message has its raw twin.
-fn assert_well_formed(read: &Value, what: &str) {
+pub(crate) fn assert_well_formed(read: &Value, what: &str) {
     assert_eq!(read["schemas_valid_json"], true, "{what}: {read}");
     assert_eq!(read["json_messages_valid"], true, "{what}: {read}");
     assert_eq!(read["raw_sizes_ok"], true, "{what}: {read}");
@@ -319,7 +319,7 @@ fn replay_json(dir: &Path, flight: &str, file: &Path, extra: &[&str]) -> Value {
 }
 
 /// Run `aeris replay FILE --json [extra..]` to its end: status, stdout, stderr.
-fn replay_run(
+pub(crate) fn replay_run(
     dir: &Path,
     flight: &str,
     file: &Path,
