@@ -76,8 +76,8 @@ impl Supervisor {
         }
         if exited {
             // a dead process cannot remove its own iceoryx2 node and ports: do it now, not
-            // only when its replacement starts (a role kept down has none)
-            aeris_runtime::bus::cleanup_dead_nodes();
+            // only when its replacement starts (a role kept down has none), off the step
+            self.services.clean_up_dead_nodes();
         }
         for i in unreachable {
             self.host_unreachable(i, events);

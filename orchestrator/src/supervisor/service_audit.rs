@@ -3,13 +3,14 @@
 //!
 //! Listing the services reads every service of the machine (iceoryx2 has no listing per
 //! flight): hundreds of files, and slow while services are being created and removed (a
-//! swap, a restart; 260 ms was measured beside a second flight). The listing therefore runs
-//! on a thread of its own ([`ServiceLister`]); the supervisor's step only compares the newest
-//! listing with the one before, and never waits for one.
+//! swap, a restart; 260 ms of one step was measured beside a second flight). Cleaning up
+//! after dead processes walks every node of the machine likewise. Both run on a thread of
+//! their own ([`BusWorker`]); the supervisor's step only compares the newest listing with the
+//! one before and asks for clean-ups, and never waits for either.
 
 use super::events::SupervisorEvent;
 use super::role_runtime::RoleRuntime;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -25,65 +26,89 @@ struct Listing {
     services: Vec<(String, Vec<String>)>,
 }
 
-/// The thread that lists the flight's services every [`SERVICE_AUDIT_PERIOD`], keeping the
-/// newest listing for the audit to take. It ends within a period of being dropped.
+/// The thread that does the bus's machine-wide work for the supervisor: it lists the
+/// flight's services every [`SERVICE_AUDIT_PERIOD`], keeping the newest listing for the
+/// audit to take, and cleans up after dead processes when asked. It ends when dropped (after
+/// the listing or clean-up under way).
 #[derive(Debug)]
-struct ServiceLister {
+struct BusWorker {
     newest: Arc<Mutex<Option<Listing>>>,
-    stop: Arc<AtomicBool>,
+    /// Clean-up requests; dropping it ends the thread.
+    cleanup: Option<Sender<()>>,
 }
 
-impl ServiceLister {
+impl BusWorker {
     fn start(flight: &str) -> Self {
         let newest = Arc::new(Mutex::new(None));
-        let stop = Arc::new(AtomicBool::new(false));
-        let (slot, stopped, flight) = (newest.clone(), stop.clone(), flight.to_string());
+        let (tx, rx) = std::sync::mpsc::channel();
+        let (slot, flight) = (newest.clone(), flight.to_string());
         let spawned = std::thread::Builder::new()
-            .name("service-audit".into())
-            .spawn(move || {
-                while !stopped.load(Ordering::Relaxed) {
-                    let taken_at = Instant::now();
-                    let services = aeris_runtime::bus::flight_service_nodes(&flight);
-                    if let Ok(mut s) = slot.lock() {
-                        *s = Some(Listing { taken_at, services });
-                    }
-                    // the audit's period, not a synchronisation
-                    std::thread::sleep(SERVICE_AUDIT_PERIOD);
-                }
-            });
-        if spawned.is_err() {
-            // no thread (out of resources): the audit sees no listing and does nothing
-            stop.store(true, Ordering::Relaxed);
+            .name("bus-worker".into())
+            .spawn(move || work(&flight, &slot, &rx));
+        BusWorker {
+            newest,
+            // no thread (out of resources): no listing, no clean-up but the new processes'
+            // own (every role cleans up after dead processes as it starts)
+            cleanup: spawned.is_ok().then_some(tx),
         }
-        ServiceLister { newest, stop }
     }
 
     /// The newest listing not taken yet.
     fn take(&self) -> Option<Listing> {
         self.newest.lock().ok()?.take()
     }
+
+    /// Ask for a clean-up after dead processes (done at once, on the worker's thread).
+    fn clean_up_dead_nodes(&self) {
+        if let Some(tx) = &self.cleanup {
+            let _ = tx.send(());
+        }
+    }
 }
 
-impl Drop for ServiceLister {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
+/// The worker's loop: clean-ups as they are asked for, a listing whenever one is due.
+fn work(flight: &str, newest: &Mutex<Option<Listing>>, requests: &Receiver<()>) {
+    let mut next_listing = Instant::now();
+    loop {
+        match requests.recv_timeout(next_listing.saturating_duration_since(Instant::now())) {
+            Ok(()) => {
+                // one clean-up for every request waiting
+                while requests.try_recv().is_ok() {}
+                aeris_runtime::bus::cleanup_dead_nodes();
+            }
+            Err(RecvTimeoutError::Timeout) => {
+                let taken_at = Instant::now();
+                let services = aeris_runtime::bus::flight_service_nodes(flight);
+                if let Ok(mut slot) = newest.lock() {
+                    *slot = Some(Listing { taken_at, services });
+                }
+                next_listing = Instant::now() + SERVICE_AUDIT_PERIOD;
+            }
+            Err(RecvTimeoutError::Disconnected) => return,
+        }
     }
 }
 
 /// What the last audit saw: the flight's services and the roles registered at each.
 #[derive(Debug)]
 pub(super) struct ServiceAudit {
-    /// Lists the flight's services on its own thread.
-    lister: ServiceLister,
+    /// Lists the flight's services (and cleans up) on its own thread.
+    worker: BusWorker,
     /// Each service (relative to the flight) with the roles, and their pids, registered at it.
     known: Vec<(String, Vec<(String, u32)>)>,
 }
 
 impl ServiceAudit {
+    /// Clean up after dead processes (their iceoryx2 nodes and ports: a dead process cannot
+    /// remove its own), on the worker's thread: the step does not wait for it.
+    pub(super) fn clean_up_dead_nodes(&self) {
+        self.worker.clean_up_dead_nodes();
+    }
+
     /// An audit of `flight`'s services, its first listing under way.
     pub(super) fn new(flight: &str) -> Self {
         ServiceAudit {
-            lister: ServiceLister::start(flight),
+            worker: BusWorker::start(flight),
             known: Vec::new(),
         }
     }
@@ -98,7 +123,7 @@ impl ServiceAudit {
         let Some(Listing {
             taken_at,
             services: current,
-        }) = self.lister.take()
+        }) = self.worker.take()
         else {
             return;
         };
