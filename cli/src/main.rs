@@ -336,10 +336,15 @@ fn main() -> ExitCode {
                     Some(aeris_hosts::handle::HandleError::Schema { .. })
                 )
             });
+            // a handle that could not reach its host, or lost it while the role ran: the
+            // supervisor counts the link as lost either way (not a crash to restart)
             let unreachable = e.chain().any(|c| {
                 matches!(
                     c.downcast_ref::<aeris_hosts::handle::HandleError>(),
-                    Some(aeris_hosts::handle::HandleError::Unreachable { .. })
+                    Some(
+                        aeris_hosts::handle::HandleError::Unreachable { .. }
+                            | aeris_hosts::handle::HandleError::LinkLost { .. }
+                    )
                 )
             });
             ExitCode::from(if schema {

@@ -89,8 +89,9 @@ impl core::fmt::Display for RoleExit {
 /// never restarted.
 pub const EXIT_SCHEMA_MISMATCH: i32 = 3;
 
-/// Exit code of a remote role's handle that could not reach its host's agent: the supervisor
-/// counts that host's link as lost (the role's fallback starts, or it waits for the link).
+/// Exit code of a remote role's handle that could not reach its host's agent, or lost it
+/// while the role ran: the supervisor counts that host's link as lost (the role's fallback
+/// starts, or it waits for the link), whichever of the two noticed the silence first.
 pub const EXIT_HOST_UNREACHABLE: i32 = 4;
 
 /// What to do about a role that exited.

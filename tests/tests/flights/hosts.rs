@@ -426,8 +426,11 @@ fn a_link_cut_mid_flight_hands_the_reasoner_to_its_fallback_which_hands_it_back_
         "fallback `planner` starting",
         "the cut",
     );
+    // the supervisor heard the reasoner fall silent, or its handle lost the host's agent
+    // first (after a pause of the machine): a lost link either way
     assert!(
-        cut.contains("link to host `ground` lost (role `reasoning` silent for"),
+        cut.contains("link to host `ground` lost (role `reasoning` silent for")
+            || cut.contains("host `ground` unreachable (role `reasoning` could not reach"),
         "{cut}"
     );
     // the fallback took over on the flight's host: then the link comes back
@@ -469,7 +472,12 @@ fn a_link_cut_mid_flight_hands_the_reasoner_to_its_fallback_which_hands_it_back_
         "{summary}"
     );
     // one loss of the reasoner's link, one return, no flapping
-    assert_eq!(err.matches("lost (role `reasoning`").count(), 1, "{err}");
+    assert_eq!(
+        err.matches("lost (role `reasoning`").count()
+            + err.matches("unreachable (role `reasoning`").count(),
+        1,
+        "{err}"
+    );
     assert_eq!(
         err.matches("role `reasoning` returns there").count(),
         1,
