@@ -829,3 +829,54 @@ fn roles_die_with_a_killed_supervisor() {
         }
     }
 }
+
+/// A pause of the supervisor itself (a machine paused: nobody ran, so no role sent a
+/// heartbeat) is not the roles' silence: the step after it says so and kills no role; a role
+/// that stays silent while the supervisor watches is still stalled.
+#[test]
+fn a_pause_of_the_supervisor_is_discounted_and_a_silence_it_watches_is_not() {
+    let run = RunDir::new("pause");
+    let w = Workflow::builtin_default().unwrap();
+    let stall_timeout = Duration::from_millis(w.scheduling.stall_timeout_ms);
+    let mut sup = Supervisor::start(options(w, "pause", &run)).unwrap();
+    let bus = FlightBus::builder(sup.flight())
+        .node_name("fake-roles")
+        .create()
+        .unwrap();
+    let hbs: TypedPublisher<RoleHeartbeat> = bus.publisher(topics::HEARTBEAT).unwrap();
+    for role in sup.roles() {
+        hbs.publish(&heartbeat(
+            role.name(),
+            role.pid().unwrap(),
+            1,
+            RoleStatus::Running,
+            1,
+        ))
+        .unwrap();
+    }
+    sup.wait_ready(PATIENCE).unwrap();
+    sup.step().unwrap();
+    // the pause under test: no step and no heartbeat for twice the stall timeout (the fake
+    // roles sleep: without the discount each is "neither running nor runnable" at once)
+    std::thread::sleep(2 * stall_timeout);
+    let events = sup.step().unwrap();
+    assert!(
+        events.iter().any(|e| matches!(
+            e,
+            SupervisorEvent::Unwatched { gap_ms } if *gap_ms >= 2 * stall_timeout.as_millis() as u64
+        )),
+        "{events:?}"
+    );
+    assert!(
+        !events
+            .iter()
+            .any(|e| matches!(e, SupervisorEvent::RoleStalled { .. })),
+        "{events:?}"
+    );
+    assert!(sup.roles().iter().all(|r| r.stalls() == 0));
+    // watched silence: every role is stalled in time (the hub first among them or not)
+    step_until(&mut sup, "the silent hub stalled", |s, _| {
+        s.role("hub").unwrap().stalls() == 1
+    });
+    let _ = sup.shutdown(PATIENCE);
+}
