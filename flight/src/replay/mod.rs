@@ -418,12 +418,8 @@ pub fn replay(
     let mut recording = Recording::open(&request.path)?;
     let flight = recording.flight().clone();
     // a flight of several vehicles has each vehicle's topics in its scope (`v1/...`)
-    let vehicles = (1..=aeris_schemas::topics::MAX_FLIGHT_VEHICLES)
-        .filter(|k| {
-            let telemetry =
-                aeris_schemas::topics::in_vehicle(*k, aeris_schemas::topics::VEHICLE_TELEMETRY);
-            recording.message_count(&telemetry) > 0
-        })
+    let vehicles = (1..=topics::MAX_FLIGHT_VEHICLES)
+        .filter(|k| recording.message_count(&topics::in_vehicle(*k, topics::VEHICLE_TELEMETRY)) > 0)
         .count() as u8;
     if vehicles > 0 {
         return Err(ReplayError::Fleet {
