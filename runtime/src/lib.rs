@@ -6,7 +6,8 @@
 //! - [`role`]: the one [`role::Role`] abstraction every role implements and the
 //!   [`role::RoleHost`] that runs a role as a process (heartbeats, signals, deadlines).
 //! - [`spec`]: what the supervisor hands a role at launch ([`spec::RoleSpec`]).
-//! - [`clock`], [`signals`], [`affinity`]: monotonic time, termination requests, CPU sets.
+//! - [`clock`], [`signals`], [`affinity`], [`users`]: monotonic time, termination requests, CPU
+//!   sets, local users by name.
 //! - [`raw`]: topics as bytes (their payload types, raw subscribers and publishers) for
 //!   whatever carries messages out of shared memory and back: recorder, replay, bridge.
 //! - [`error_chain`]: an error printed with its causes, for logs and replies.
@@ -25,6 +26,7 @@ pub mod role;
 pub mod signals;
 pub mod spec;
 pub mod stats;
+pub mod users;
 
 pub use bus::{BusError, FlightBus};
 pub use role::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleHost};

@@ -8,7 +8,9 @@
 //! - [`ports`]: the publishers and subscribers of typed messages and frames;
 //! - [`supervisor_services`]: the supervisor's status board and its control service;
 //! - [`census`]: what exists on this host (flights, their services and nodes) and the
-//!   clean-up after dead processes.
+//!   clean-up after dead processes;
+//! - [`ownership`]: a flight joins only services its own user made (another local user
+//!   who creates them first is refused by name, never joined).
 
 use aeris_schemas::topics;
 use aeris_schemas::{
@@ -27,6 +29,7 @@ use iceoryx2::service::builder::request_response::{
 };
 
 pub mod census;
+pub mod ownership;
 pub mod ports;
 pub mod supervisor_services;
 
@@ -143,6 +146,29 @@ pub enum BusError {
         /// iceoryx2's reason.
         reason: String,
     },
+    /// An iceoryx2 directory belongs to another user, who could make any service of any
+    /// flight.
+    #[error("iceoryx2's directory {path} belongs to {owner}: only {allowed} may own it, else another local user could make this flight's services; remove it while no flight runs (it is made again)", path = .path.display())]
+    ForeignDirectory {
+        /// The directory.
+        path: std::path::PathBuf,
+        /// Its owner.
+        owner: String,
+        /// Who may own it (`root`, `alice (uid 1000) or root`).
+        allowed: String,
+    },
+    /// A service of the flight was made by another user (squatted): never joined.
+    #[error(
+        "service `{service}` was made by {owner}, not by {us}: another local user holds this flight's name; not joined (stop their processes, or fly under another name)"
+    )]
+    ForeignService {
+        /// Service name.
+        service: String,
+        /// Its maker.
+        owner: String,
+        /// This process's user.
+        us: String,
+    },
     /// The flight's manifest says it runs another schema.
     #[error("cannot join flight `{flight}`")]
     Manifest {
@@ -248,6 +274,7 @@ impl FlightBusBuilder {
         }
         let full = format!("{}/{}", self.flight, self.node_name);
         let node_name = NodeName::new(&full).map_err(|_| BusError::InvalidName(full.clone()))?;
+        ownership::check_directories(iceoryx_config())?;
         let node = NodeBuilder::new()
             .config(iceoryx_config())
             .name(&node_name)
@@ -395,6 +422,7 @@ impl FlightBus {
     fn join_flight(&mut self) -> Result<(), BusError> {
         let name = manifest_service_name(&self.flight);
         let iox = Self::iox_name(&name)?;
+        ownership::check_before_open(iceoryx_config(), &iox, MessagingPattern::Blackboard)?;
         // Either the supervisor (or the first process) created the manifest, or we do.
         for _ in 0..100 {
             match self
@@ -407,6 +435,7 @@ impl FlightBus {
                 .open()
             {
                 Ok(service) => {
+                    ownership::check_opened(iceoryx_config(), &name, service.service_hash())?;
                     let reader = service
                         .reader_builder()
                         .create()
@@ -475,13 +504,13 @@ impl FlightBus {
         T: Debug + ZeroCopySend + Copy + 'static,
     {
         let name = self.service_name(topic);
-        let builder = self
-            .node
-            .service_builder(&Self::iox_name(&name)?)
-            .publish_subscribe::<T>();
+        let iox = Self::iox_name(&name)?;
+        ownership::check_before_open(iceoryx_config(), &iox, MessagingPattern::PublishSubscribe)?;
+        let builder = self.node.service_builder(&iox).publish_subscribe::<T>();
         let service = with_qos(builder, topic)
             .open_or_create()
             .map_err(|e| ps_open_error(&name, e))?;
+        ownership::check_opened(iceoryx_config(), &name, service.service_hash())?;
         Ok((name, service))
     }
 
@@ -491,14 +520,17 @@ impl FlightBus {
         topic: &str,
     ) -> Result<(String, PubSubService<[u8], FrameHeader>), BusError> {
         let name = self.service_name(topic);
+        let iox = Self::iox_name(&name)?;
+        ownership::check_before_open(iceoryx_config(), &iox, MessagingPattern::PublishSubscribe)?;
         let builder = self
             .node
-            .service_builder(&Self::iox_name(&name)?)
+            .service_builder(&iox)
             .publish_subscribe::<[u8]>()
             .user_header::<FrameHeader>();
         let service = with_qos(builder, topic)
             .open_or_create()
             .map_err(|e| ps_open_error(&name, e))?;
+        ownership::check_opened(iceoryx_config(), &name, service.service_hash())?;
         Ok((name, service))
     }
 
@@ -536,9 +568,11 @@ impl FlightBus {
 
     fn control_builder(&self) -> Result<(String, ControlBuilder), BusError> {
         let name = self.service_name(aeris_schemas::topics::SUPERVISOR_CONTROL);
+        let iox = Self::iox_name(&name)?;
+        ownership::check_before_open(iceoryx_config(), &iox, MessagingPattern::RequestResponse)?;
         let builder = self
             .node
-            .service_builder(&Self::iox_name(&name)?)
+            .service_builder(&iox)
             .request_response::<SupervisorCommand, SupervisorReply>()
             .max_servers(1)
             .max_clients(CONTROL_CLIENTS)
@@ -563,6 +597,7 @@ impl FlightBus {
                 reason: format!("{other:?}"),
             },
         })?;
+        ownership::check_opened(iceoryx_config(), &name, service.service_hash())?;
         let server = service
             .server_builder()
             .create()
@@ -591,6 +626,7 @@ impl FlightBus {
                 reason: format!("{other:?}"),
             },
         })?;
+        ownership::check_opened(iceoryx_config(), &name, service.service_hash())?;
         let client = service
             .client_builder()
             .create()
@@ -637,9 +673,11 @@ impl FlightBus {
     /// Create the supervisor's status board (only the supervisor does this).
     pub fn create_status_board(&self) -> Result<StatusBoardWriter, BusError> {
         let name = status_service_name(&self.flight);
+        let iox = Self::iox_name(&name)?;
+        ownership::check_before_open(iceoryx_config(), &iox, MessagingPattern::Blackboard)?;
         let service = self
             .node
-            .service_builder(&Self::iox_name(&name)?)
+            .service_builder(&iox)
             .blackboard_creator::<u64>()
             .max_nodes(MAX_NODES)
             .max_readers(MAX_NODES)
@@ -666,9 +704,11 @@ impl FlightBus {
     /// Read the supervisor's status board of this flight once.
     pub fn read_status_board(&self) -> Result<SupervisorStatus, BusError> {
         let name = status_service_name(&self.flight);
+        let iox = Self::iox_name(&name)?;
+        ownership::check_before_open(iceoryx_config(), &iox, MessagingPattern::Blackboard)?;
         let service = match self
             .node
-            .service_builder(&Self::iox_name(&name)?)
+            .service_builder(&iox)
             .blackboard_opener::<u64>()
             .open()
         {
