@@ -16,6 +16,7 @@ mod formation_cmd;
 #[cfg(feature = "sim")]
 mod formation_fly;
 mod inspect;
+mod keys_cmd;
 #[cfg(feature = "sim")]
 mod plot_cmd;
 mod record_cmd;
@@ -116,6 +117,13 @@ enum Command {
     /// Run roles on this host for flights whose supervisor runs on another (a daemon: one on
     /// every host a workflow's `[hosts.NAME]` names), until Ctrl-C.
     Agent(agent_cmd::AgentArgs),
+    /// The flight's identities: a certificate authority and a certificate per host, which
+    /// the links between hosts authenticate with (mutual TLS) and the agents' access rules
+    /// name.
+    Keys {
+        #[command(subcommand)]
+        command: keys_cmd::KeysCommand,
+    },
     /// Run benchmarks (IPC, camera, gate, control, models, cycle, swap, ds) and print their figures.
     Bench(bench_cmd::BenchArgs),
     #[cfg(feature = "sim")]
@@ -302,6 +310,7 @@ fn main() -> ExitCode {
         Command::Replay(args) => replay_cmd::run(args).map(|_| ExitCode::SUCCESS),
         Command::Record(args) => record_cmd::run(args).map(|_| ExitCode::SUCCESS),
         Command::Agent(args) => agent_cmd::run(args).map(|_| ExitCode::SUCCESS),
+        Command::Keys { command } => keys_cmd::run(command).map(|_| ExitCode::SUCCESS),
         Command::Bench(args) => bench_cmd::run(args).map(|_| ExitCode::SUCCESS),
         #[cfg(feature = "sim")]
         Command::Eval(args) => eval_cmd::run(args).map(|_| ExitCode::SUCCESS),

@@ -5,6 +5,8 @@
 //! role bound there runs on that host, started by its agent, and talks to the rest of the
 //! flight through a bridge on each host. Everything crosses on zenoh.
 //! - [`protocol`]: key expressions, the schema stamp, the agent's requests and replies;
+//! - [`keys`]: the flight's CA and its hosts' certificates (`aeris keys`);
+//! - [`private_dir`]: owner-only directories and files, never through a link;
 //! - [`session`]: zenoh sessions of our processes (no multicast scouting: a host is reached
 //!   at the endpoint the workflow names);
 //! - [`agent`]: `aeris agent`, the daemon on every host that runs role processes for the
@@ -25,7 +27,9 @@ pub mod agent;
 pub mod bridge;
 pub mod frames;
 pub mod handle;
+pub mod keys;
 pub mod netns;
+pub mod private_dir;
 pub mod probe;
 pub mod protocol;
 pub mod session;
