@@ -15,11 +15,13 @@
 # --cut-at S       cut the link (ip link set down) S seconds after the start; --restore-at S
 #                  brings it back
 # --release        use target/release/aeris
+# --insecure       a plain TCP link (default: mutual TLS with keys made for the run by
+#                  `aeris keys`, as a real deployment's)
 # The flight's summary (aeris run --json) is the last line of the output.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-roles=reasoning delay="" loss="" load=0 bin=target/debug/aeris fallback="" cut="" restore=""
+roles=reasoning delay="" loss="" load=0 bin=target/debug/aeris fallback="" cut="" restore="" insecure=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --roles) roles=$2; shift 2 ;;
@@ -30,8 +32,9 @@ while [ $# -gt 0 ]; do
     --cut-at) cut=$2; shift 2 ;;
     --restore-at) restore=$2; shift 2 ;;
     --release) bin=target/release/aeris; shift ;;
+    --insecure) insecure=1; shift ;;
     --) shift; break ;;
-    -h|--help) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "two-hosts: unknown argument $1 (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -67,14 +70,25 @@ if [ -n "$delay$loss" ]; then
 fi
 private='mount -t tmpfs tmpfs /dev/shm && mkdir -p /tmp/iceoryx2 && mount -t tmpfs tmpfs /tmp/iceoryx2 && exec "$@"'
 
+# the link: keys of a flight CA made for this run (the vehicle's and the ground's), or plain TCP
+if [ -n "$insecure" ]; then
+  endpoint=tcp/10.99.0.2:7447 host_link='insecure = true' agent_link=(--insecure)
+else
+  "$bin" keys init "$dir/keys" --days 1 >/dev/null
+  "$bin" keys issue "$dir/keys" vehicle --days 1 >/dev/null
+  "$bin" keys issue "$dir/keys" ground --address 10.99.0.2 --days 1 >/dev/null
+  endpoint=tls/10.99.0.2:7447 host_link="keys = \"$dir/keys/vehicle\""
+  agent_link=(--keys "$dir/keys/ground" --flight-host vehicle)
+fi
+
 # the default workflow with the chosen roles on executor `gs` of host `ground`
-python3 - "$roles" "$fallback" > "$dir/two-hosts.toml" <<'PY'
+python3 - "$roles" "$fallback" "$endpoint" "$host_link" > "$dir/two-hosts.toml" <<'PY'
 import sys
 moved = sys.argv[1].split(",")
 fallback = sys.argv[2]
 text = open("workflows/default.toml").read()
 text = text.replace("[executors.perception]",
-    '[hosts.ground]\nendpoint = "tcp/10.99.0.2:7447"\n\n[executors.gs]\nhost = "ground"\ncpus = "all"\n\n[executors.perception]', 1)
+    f'[hosts.ground]\nendpoint = "{sys.argv[3]}"\n{sys.argv[4]}\n\n[executors.gs]\nhost = "ground"\ncpus = "all"\n\n[executors.perception]', 1)
 out, name = [], None
 for line in text.splitlines():
     if line.startswith("name = "):
@@ -87,8 +101,8 @@ for line in text.splitlines():
 print("\n".join(out))
 PY
 
-ip netns exec "$g" sh -c "$private" sh "$bin" agent --host ground --listen tcp/10.99.0.2:7447 \
-  --run-dir "$dir/agent" > "$dir/agent.log" 2>&1 &
+ip netns exec "$g" sh -c "$private" sh "$bin" agent --host ground --listen "$endpoint" \
+  "${agent_link[@]}" --run-dir "$dir/agent" > "$dir/agent.log" 2>&1 &
 pids+=($!)
 for _ in $(seq 100); do grep -q "listening on" "$dir/agent.log" && break; sleep 0.1; done
 grep -q "listening on" "$dir/agent.log" || { cat "$dir/agent.log" >&2; exit 1; }

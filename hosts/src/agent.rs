@@ -11,17 +11,22 @@
 //! - stops a role whose handle is gone (the flight's host died or the link was cut: the
 //!   handle's liveliness token vanished), so no role outlives its flight here either.
 
-use crate::protocol::{
-    AgentReply, ExitReport, HostInfo, SchemaStamp, SpawnRequest, Spawned, StopRequest,
-    agent_request_key, agent_token_key, check_schema, exit_key, handle_token_key,
+use crate::access::agent_access_control;
+use crate::admission::{AgentPolicy, AllowList, LocalLink, OwnParam, Refusal, admit, read_request};
+use crate::private_dir::{
+    FileMode, PrivateDirError, ensure_private_dir, open_private_file, private_subdir,
 };
-use crate::session::{SessionError, open_router};
+use crate::protocol::{
+    AgentReply, ExitReport, HostInfo, SchemaStamp, Spawned, StopRequest, agent_request_key,
+    agent_token_key, exit_key, handle_token_key,
+};
+use crate::session::{LinkSecurity, SessionError, open_router};
 use aeris_orchestrator::executors::{CpuTicks, busy_cores, read_proc_stat};
 use aeris_orchestrator::role_process::{LoadPolicy, spawn_role};
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::clock::host_monotonic_ns;
 use std::collections::{BTreeMap, HashSet};
-use std::io::{Read, Seek, SeekFrom};
+use std::io::{Read, Seek, SeekFrom, Write};
 use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
 use std::process::Child;
@@ -45,14 +50,23 @@ const LOG_TAIL_BYTES: u64 = 2048;
 pub struct AgentConfig {
     /// The host's name (what the workflow's `[hosts.NAME]` calls it).
     pub host: String,
-    /// Endpoints to listen on (`tcp/0.0.0.0:7447`).
+    /// Endpoints to listen on (`tls/0.0.0.0:7447`).
     pub listen: Vec<String>,
-    /// Where role specs and logs go (`DIR/FLIGHT/roles`, `DIR/FLIGHT/logs`).
+    /// Where role specs and logs go (`DIR/FLIGHT/roles`, `DIR/FLIGHT/logs`): a private
+    /// directory ([`crate::private_dir`]).
     pub run_dir: PathBuf,
     /// The `aeris` executable that runs roles.
     pub exe: PathBuf,
     /// A client silent this long is gone (its roles are stopped).
     pub lease: Duration,
+    /// The links' security: this host's identity, or plain TCP where asked for.
+    pub security: LinkSecurity,
+    /// The certificate names of the hosts whose supervisors may start and stop roles here.
+    pub flight_hosts: Vec<String>,
+    /// The role kinds and variants it starts.
+    pub allow: AllowList,
+    /// The parameters it sets itself (model files, pipelines: never the network's).
+    pub own_params: Vec<OwnParam>,
 }
 
 /// Why the agent could not start.
@@ -64,6 +78,26 @@ pub enum AgentError {
     /// The zenoh session could not be opened.
     #[error(transparent)]
     Session(#[from] SessionError),
+    /// The keys given are another host's.
+    #[error(
+        "the keys in {dir} are host `{theirs}`'s, not host `{host}`'s: give the agent its own (`aeris keys issue STORE {host}`)"
+    )]
+    WrongIdentity {
+        /// The identity directory.
+        dir: PathBuf,
+        /// The name in its certificate.
+        theirs: String,
+        /// This host.
+        host: String,
+    },
+    /// No host may command the agent.
+    #[error(
+        "no host may start roles here: name the flight's host (`--flight-host NAME`, the name in its certificate)"
+    )]
+    NoFlightHost,
+    /// A flight host's name is unusable.
+    #[error("flight host name `{0}` is invalid: use 1-48 characters of a-z, 0-9, `_`, `-`")]
+    FlightHostName(String),
     /// A zenoh declaration failed.
     #[error("cannot declare {what} on zenoh: {reason}")]
     Declare {
@@ -72,14 +106,14 @@ pub enum AgentError {
         /// zenoh's reason.
         reason: String,
     },
-    /// The run directory could not be created.
-    #[error("cannot create the agent's run directory {path}")]
+    /// The run directory is not a private directory of ours.
+    #[error("cannot use the agent's run directory {path}")]
     RunDir {
         /// The directory.
         path: PathBuf,
         /// Why.
         #[source]
-        source: std::io::Error,
+        source: PrivateDirError,
     },
 }
 
@@ -242,7 +276,10 @@ pub struct Agent {
     handles: zenoh::pubsub::Subscriber<FifoChannelHandler<Sample>>,
     alive_handles: HashSet<String>,
     roles: Vec<RoleProcess>,
-    online: CpuSet,
+    /// What it starts, with which parameters.
+    policy: AgentPolicy,
+    /// The run directory, absolute.
+    run_dir: PathBuf,
     /// The priority of the roles it runs over this host's other work.
     priority: aeris_orchestrator::priority::FlightPriority,
 }
@@ -260,11 +297,42 @@ impl Agent {
         if !aeris_schemas::topics::is_valid_flight_name(&config.host) {
             return Err(AgentError::HostName(config.host.clone()));
         }
-        std::fs::create_dir_all(&config.run_dir).map_err(|source| AgentError::RunDir {
+        if let Some(bad) = config
+            .flight_hosts
+            .iter()
+            .find(|h| !aeris_schemas::topics::is_valid_flight_name(h))
+        {
+            return Err(AgentError::FlightHostName(bad.clone()));
+        }
+        let access = match &config.security {
+            LinkSecurity::Tls(identity) => {
+                if identity.name != config.host {
+                    return Err(AgentError::WrongIdentity {
+                        dir: identity.dir.clone(),
+                        theirs: identity.name.clone(),
+                        host: config.host.clone(),
+                    });
+                }
+                if config.flight_hosts.is_empty() {
+                    return Err(AgentError::NoFlightHost);
+                }
+                Some(agent_access_control(&config.host, &config.flight_hosts))
+            }
+            LinkSecurity::Insecure => None,
+        };
+        for e in &config.listen {
+            crate::session::check_endpoint(e, &config.security)?;
+        }
+        let run_dir = ensure_private_dir(&config.run_dir).map_err(|source| AgentError::RunDir {
             path: config.run_dir.clone(),
             source,
         })?;
-        let session = open_router(&config.listen, config.lease)?;
+        let session = open_router(
+            &config.listen,
+            config.lease,
+            &config.security,
+            access.as_ref(),
+        )?;
         let host = config.host.clone();
         let queryable = |op: &str| {
             session
@@ -299,6 +367,19 @@ impl Agent {
             .wait()
             .map_err(declare_error("the agent's liveliness token"))?;
         let config_host = config.host.clone();
+        let policy = AgentPolicy {
+            host: config.host.clone(),
+            allow: config.allow.clone(),
+            own_params: config.own_params.clone(),
+            link: LocalLink {
+                connect: local_endpoint(config.listen.first().map(String::as_str).unwrap_or("")),
+                keys: match &config.security {
+                    LinkSecurity::Tls(identity) => Some(identity.dir.clone()),
+                    LinkSecurity::Insecure => None,
+                },
+            },
+            online: online.clone(),
+        };
         Ok(Agent {
             config,
             session,
@@ -310,7 +391,8 @@ impl Agent {
             handles,
             alive_handles: HashSet::new(),
             roles: Vec::new(),
-            online,
+            policy,
+            run_dir,
             priority: aeris_orchestrator::priority::FlightPriority::establish(
                 &format!("agent-{}", config_host),
                 aeris_orchestrator::priority::PriorityMode::Auto,
@@ -326,6 +408,21 @@ impl Agent {
     /// The host's name.
     pub fn host(&self) -> &str {
         &self.config.host
+    }
+
+    /// Where role specs and logs go (absolute).
+    pub fn run_dir(&self) -> &Path {
+        &self.run_dir
+    }
+
+    /// Where its own bridge connects: its router, as this host reaches it.
+    pub fn local_endpoint(&self) -> &str {
+        &self.policy.link.connect
+    }
+
+    /// The role kinds and variants it starts.
+    pub fn allow_list(&self) -> &AllowList {
+        &self.policy.allow
     }
 
     /// Role processes running now.
@@ -366,82 +463,78 @@ impl Agent {
     }
 
     fn spawn_role(&mut self, q: &Query, events: &mut Vec<AgentEvent>) -> AgentReply<Spawned> {
-        let req = match parse::<SpawnRequest>(q) {
-            Ok(r) => r,
-            Err(e) => {
-                events.push(AgentEvent::Refused {
-                    request: "spawn".into(),
-                    reason: e.clone(),
-                });
-                return AgentReply::Refused(e);
-            }
-        };
-        let spec = req.spec;
-        let label = format!("{}/{}#{}", spec.flight, spec.name, spec.instance);
-        let refuse = |events: &mut Vec<AgentEvent>, reason: String| {
+        let bytes = q
+            .payload()
+            .map(|p| p.to_bytes().into_owned())
+            .unwrap_or_default();
+        let mut label = "spawn".to_string();
+        let admitted = read_request(&bytes).and_then(|req| {
+            // the names as asked, escaped: a name is not trusted before it is checked
+            label = format!(
+                "spawn {}/{}#{}",
+                req.spec.flight.escape_debug(),
+                req.spec.name.escape_debug(),
+                req.spec.instance
+            );
+            admit(req, &self.policy)
+        });
+        let refuse = |events: &mut Vec<AgentEvent>, request: String, reason: String| {
             events.push(AgentEvent::Refused {
-                request: format!("spawn {label}"),
+                request,
                 reason: reason.clone(),
             });
             AgentReply::Refused(reason)
         };
-        if let Err(e) = check_schema(
-            &format!("the supervisor of flight `{}`", spec.flight),
-            req.schema,
-        ) {
-            return refuse(events, e.to_string());
-        }
-        if !aeris_schemas::topics::is_valid_flight_name(&spec.flight) {
-            return refuse(events, format!("flight name `{}` is invalid", spec.flight));
-        }
-        let cpus = if spec.cpus.is_empty() {
-            None
-        } else {
-            match CpuSet::parse(&spec.cpus) {
-                Ok(set) if set.cpus().iter().all(|c| self.online.cpus().contains(c)) => Some(set),
-                _ => {
-                    return refuse(
-                        events,
-                        format!(
-                            "CPUs `{}` are not all online on host {} (online: {})",
-                            spec.cpus, self.config.host, self.online
-                        ),
-                    );
-                }
+        let admission = match admitted {
+            Ok(a) => a,
+            Err(e) => {
+                let reason = match &e {
+                    Refusal::Schema(m) => m.to_string(),
+                    other => aeris_runtime::error_chain::chain(other).to_string(),
+                };
+                return refuse(events, label, reason);
             }
         };
-        let dir = self.config.run_dir.join(&spec.flight);
-        let spec_path = dir
-            .join("roles")
-            .join(format!("{}-{}.json", spec.name, spec.instance));
-        let log_path = dir.join("logs").join(format!("{}.log", spec.name));
-        let mut spec = spec;
-        spec.heartbeat_pid = Some(req.handle_pid);
-        spec.remote = None;
-        let written = write_spec(&spec_path, &spec);
-        let log = written.and_then(|()| {
-            std::fs::OpenOptions::new()
-                .create(true)
-                .append(true)
-                .open(&log_path)
-        });
-        let log = match log {
-            Ok(l) => l,
-            Err(e) => return refuse(events, format!("cannot write {}: {e}", spec_path.display())),
+        let spec = &admission.spec;
+        let (spec_path, log_path) = match write_role_files(&self.run_dir, &admission) {
+            Ok(paths) => paths,
+            Err(e) => {
+                return refuse(
+                    events,
+                    label,
+                    aeris_runtime::error_chain::chain(&e).to_string(),
+                );
+            }
         };
+        let log = match open_private_file(
+            log_path.parent().unwrap_or(&self.run_dir),
+            &admission.log_file,
+            FileMode::Append,
+            0o600,
+        ) {
+            Ok(l) => l,
+            Err(e) => {
+                return refuse(
+                    events,
+                    label,
+                    aeris_runtime::error_chain::chain(&e).to_string(),
+                );
+            }
+        };
+        let role = format!("{}/{}#{}", spec.flight, spec.name, spec.instance);
         match spawn_role(
             &self.config.exe,
             &spec_path,
             spec.instance,
             log,
-            cpus.as_ref(),
+            admission.cpus.as_ref(),
             LoadPolicy::Normal,
             self.priority.for_child(),
         ) {
             Ok(child) => {
                 let pid = child.id();
                 events.push(AgentEvent::Spawned {
-                    role: label,
+                    role,
                     pid,
                     cpus: spec.cpus.clone(),
                 });
@@ -462,6 +555,7 @@ impl Agent {
             }
             Err(e) => refuse(
                 events,
+                label,
                 format!("cannot start {}: {e}", self.config.exe.display()),
             ),
         }
@@ -565,15 +659,85 @@ fn reply<T: serde::Serialize>(q: &Query, answer: &AgentReply<T>) {
     }
 }
 
-fn write_spec(path: &Path, spec: &aeris_runtime::RoleSpec) -> std::io::Result<()> {
-    if let Some(dir) = path.parent() {
-        std::fs::create_dir_all(dir)?;
+/// Write an admitted role's spec under the private run directory `run_dir` (absolute):
+/// `FLIGHT/roles/NAME-INSTANCE.json` beside `FLIGHT/logs`, private directories, no link
+/// followed, and the written file checked to resolve under `run_dir`. Its spec and log
+/// paths.
+pub fn write_role_files(
+    run_dir: &Path,
+    a: &crate::admission::Admission,
+) -> Result<(PathBuf, PathBuf), WriteError> {
+    let flight = private_subdir(run_dir, &a.flight_dir)?;
+    let roles = private_subdir(&flight, "roles")?;
+    private_subdir(&flight, "logs")?;
+    let json = serde_json::to_vec_pretty(&a.spec).map_err(WriteError::Encode)?;
+    let spec_path = a.spec_path(run_dir);
+    let mut f = open_private_file(&roles, &a.spec_file, FileMode::Replace, 0o600)?;
+    f.write_all(&json).map_err(|source| WriteError::Write {
+        path: spec_path.clone(),
+        source,
+    })?;
+    let resolved = std::fs::canonicalize(&spec_path).map_err(|source| WriteError::Write {
+        path: spec_path.clone(),
+        source,
+    })?;
+    let root = std::fs::canonicalize(run_dir).map_err(|source| WriteError::Write {
+        path: run_dir.to_path_buf(),
+        source,
+    })?;
+    if !resolved.starts_with(&root) {
+        let _ = std::fs::remove_file(&spec_path);
+        return Err(WriteError::Outside {
+            path: resolved,
+            run_dir: root,
+        });
     }
-    if let Some(logs) = path.parent().and_then(Path::parent) {
-        std::fs::create_dir_all(logs.join("logs"))?;
-    }
-    let json = serde_json::to_vec_pretty(spec).map_err(std::io::Error::other)?;
-    std::fs::write(path, json)
+    Ok((spec_path, a.log_path(run_dir)))
+}
+
+/// Why an admitted role's files could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum WriteError {
+    /// A directory or file was refused or could not be made.
+    #[error(transparent)]
+    Private(#[from] PrivateDirError),
+    /// The spec could not be encoded.
+    #[error("cannot encode the role's spec")]
+    Encode(#[source] serde_json::Error),
+    /// The spec could not be written.
+    #[error("cannot write {path}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The spec resolved outside the run directory.
+    #[error("{path} lies outside the run directory {run_dir}")]
+    Outside {
+        /// Where it resolved.
+        path: PathBuf,
+        /// The run directory.
+        run_dir: PathBuf,
+    },
+}
+
+/// The endpoint of a router listening on `listen`, as its own host reaches it: the
+/// loopback address when it listens on every address.
+pub fn local_endpoint(listen: &str) -> String {
+    let Some((scheme, rest)) = listen.split_once('/') else {
+        return listen.to_string();
+    };
+    let Some((addr, port)) = rest.rsplit_once(':') else {
+        return listen.to_string();
+    };
+    let addr = match addr {
+        "0.0.0.0" => "127.0.0.1",
+        "[::]" => "[::1]",
+        other => other,
+    };
+    format!("{scheme}/{addr}:{port}")
 }
 
 /// The last [`LOG_TAIL_BYTES`] of `path` (lossy UTF-8).

@@ -29,7 +29,8 @@
 //!   matching subscriber. Every other topic is small and always carried, so a role that
 //!   starts on the other host finds the latest sample in its history.
 //!
-//! Parameters: `connect` (the other host's agent endpoint), `export` and `import` (topic
+//! Parameters: `connect` (the other host's agent endpoint), `keys` (this host's identity
+//! directory for the mutual-TLS link; none: a plain `tcp/` link), `export` and `import` (topic
 //! lists), `peer` (who is at the other end, for messages), `frame_bytes` (the first frame
 //! publisher's size), `link_timeout_ms` (zenoh's lease), `frames` (`jpeg`, the default, or
 //! `raw`) and `jpeg_quality` (85).
@@ -42,7 +43,7 @@
 //! takes 15 ms a frame), so until a frame has crossed it is unknown (0).
 //!
 //! When it stops it prints what crossed, per topic (`bridge: sent `camera/rgb`: N messages,
-//! B bytes`).
+//! B bytes`), and the CPU time its process used (`bridge: used S s of CPU over W s`).
 //!
 //! Heartbeat counters: 0 messages sent, 1 received, 2 bytes sent, 3 bytes received,
 //! 4 refused (another schema or a malformed message), 5 dropped (zenoh or iceoryx2 refused
@@ -55,8 +56,9 @@
 use crate::frames::{CODING_JPEG, CODING_RAW, DEFAULT_JPEG_QUALITY, FrameCoding, decode};
 use crate::probe::LinkProbe;
 use crate::protocol::{SchemaStamp, check_schema, data_key};
-use crate::session::{Reach, SessionError, open_client};
+use crate::session::{LinkSecurity, Reach, SessionError, open_client};
 use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::error_chain;
 use aeris_runtime::raw::{
     Payload, RawPublisher, RawSubscriber, payload_of, raw_publisher, raw_subscriber, read,
 };
@@ -65,6 +67,7 @@ use aeris_schemas::FrameHeader;
 use aeris_schemas::RoleStatus;
 use core::time::Duration;
 use iceoryx2::identifiers::UniquePublisherId;
+use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::Receiver;
@@ -160,6 +163,8 @@ pub struct BridgeRole {
     link_checked_ns: u64,
     /// The link's measurement (the bridge on the flight's host only).
     probe: Option<LinkProbe>,
+    /// When it started (for its CPU share, printed when it stops).
+    started_ns: u64,
 }
 
 fn topics_param(ctx: &RoleContext, key: &str) -> Result<Vec<String>, RoleError> {
@@ -186,6 +191,10 @@ impl Role for BridgeRole {
             .param_str("connect")
             .ok_or_else(|| RoleError::Config("bridge: params.connect is required".into()))?
             .to_string();
+        // the link's identity (`keys`, this host's); none: a plain TCP link, which the
+        // endpoint must then say (`tcp/`)
+        let security = LinkSecurity::from_keys(ctx.spec.param_str("keys").map(Path::new))
+            .map_err(|e| RoleError::Config(format!("bridge: {}", error_chain::chain(&e))))?;
         let export = topics_param(ctx, "export")?;
         let import = topics_param(ctx, "import")?;
         let peer = ctx
@@ -286,10 +295,11 @@ impl Role for BridgeRole {
             last_report_ns: 0,
             link_checked_ns: 0,
             probe,
+            started_ns: monotonic_ns(),
         };
-        match open_client(&connect, Reach::Eventually, lease) {
+        match open_client(&connect, Reach::Eventually, lease, &security) {
             Ok(session) => bridge.attach(session)?,
-            Err(e @ SessionError::Endpoint { .. }) => {
+            Err(e @ (SessionError::Endpoint { .. } | SessionError::Security { .. })) => {
                 return Err(RoleError::Config(format!("bridge: {e}")));
             }
             Err(e) => {
@@ -302,6 +312,7 @@ impl Role for BridgeRole {
                 bridge.opening = Some(open_in_background(
                     connect,
                     lease,
+                    security,
                     bridge.stop_opening.clone(),
                 ));
             }
@@ -507,12 +518,13 @@ impl Role for BridgeRole {
 fn open_in_background(
     connect: String,
     lease: Duration,
+    security: LinkSecurity,
     stop: Arc<AtomicBool>,
 ) -> Receiver<Session> {
     let (tx, rx) = std::sync::mpsc::channel();
     std::thread::spawn(move || {
         while !stop.load(Ordering::Relaxed) {
-            match open_client(&connect, Reach::Eventually, lease) {
+            match open_client(&connect, Reach::Eventually, lease, &security) {
                 Ok(session) => {
                     let _ = tx.send(session);
                     return;
@@ -664,7 +676,27 @@ impl Drop for BridgeRole {
             }
             println!();
         }
+        let cpu_s = process_cpu_s();
+        let wall_s = monotonic_ns().saturating_sub(self.started_ns) as f64 / 1e9;
+        println!(
+            "bridge: used {:.2} s of CPU over {:.1} s ({:.1}% of one core, its link's TLS or TCP included)",
+            cpu_s,
+            wall_s,
+            100.0 * cpu_s / wall_s.max(1e-9)
+        );
     }
+}
+
+/// CPU time this process used so far (user and system, every thread; s).
+fn process_cpu_s() -> f64 {
+    // SAFETY: a zeroed rusage is a valid out-parameter; getrusage fills it.
+    let mut u: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: `u` is alive and of the type getrusage writes.
+    if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) } != 0 {
+        return 0.0;
+    }
+    let t = |tv: libc::timeval| tv.tv_sec as f64 + tv.tv_usec as f64 / 1e6;
+    t(u.ru_utime) + t(u.ru_stime)
 }
 
 /// Run the bridge role in this process ([`aeris_runtime::RoleHost`]).

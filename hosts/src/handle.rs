@@ -15,7 +15,7 @@ use crate::protocol::{
     AgentReply, ExitReport, HostInfo, SchemaMismatch, SchemaStamp, SpawnRequest, Spawned,
     StopRequest, agent_request_key, agent_token_key, check_schema, exit_key, handle_token_key,
 };
-use crate::session::{Reach, SessionError, open_client};
+use crate::session::{LinkSecurity, Reach, SessionError, open_client};
 use aeris_orchestrator::restart::EXIT_HOST_UNREACHABLE;
 use aeris_runtime::RoleSpec;
 use aeris_runtime::clock::monotonic_ns;
@@ -39,6 +39,15 @@ pub enum HandleError {
     /// The spec has no `remote`.
     #[error("role `{0}` has no remote host in its spec")]
     NotRemote(String),
+    /// The flight host's identity for the link is unusable.
+    #[error("cannot authenticate to host `{host}`")]
+    Keys {
+        /// The host.
+        host: String,
+        /// Why.
+        #[source]
+        source: crate::keys::IdentityError,
+    },
     /// The session to the host could not be opened (its agent does not answer).
     #[error("cannot reach the agent of host `{host}` at {endpoint}")]
     Unreachable {
@@ -190,7 +199,12 @@ pub fn run_remote(spec: RoleSpec) -> Result<RemoteExit, HandleError> {
     // reaching the agent (TCP and zenoh's handshake) is given more than the link's timeout:
     // on a loaded machine a debug build took over a second
     let reach = Reach::Within(timeout.max(CONNECT_BUDGET));
-    let session = open_client(&remote.endpoint, reach, timeout).map_err(|source| {
+    let security = LinkSecurity::from_keys(remote.keys.as_deref().map(std::path::Path::new))
+        .map_err(|source| HandleError::Keys {
+            host: host.clone(),
+            source,
+        })?;
+    let session = open_client(&remote.endpoint, reach, timeout, &security).map_err(|source| {
         HandleError::Unreachable {
             host: host.clone(),
             endpoint: remote.endpoint.clone(),

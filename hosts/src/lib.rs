@@ -6,6 +6,9 @@
 //! flight through a bridge on each host. Everything crosses on zenoh.
 //! - [`protocol`]: key expressions, the schema stamp, the agent's requests and replies;
 //! - [`keys`]: the flight's CA and its hosts' certificates (`aeris keys`);
+//! - [`access`]: who may do what on an agent's router (zenoh access control by
+//!   certificate name);
+//! - [`admission`]: what an agent agrees to start (names, allow-list, parameters), pure;
 //! - [`private_dir`]: owner-only directories and files, never through a link;
 //! - [`session`]: zenoh sessions of our processes (no multicast scouting: a host is reached
 //!   at the endpoint the workflow names);
@@ -23,6 +26,8 @@
 
 #![deny(missing_docs)]
 
+pub mod access;
+pub mod admission;
 pub mod agent;
 pub mod bridge;
 pub mod frames;
@@ -33,3 +38,4 @@ pub mod private_dir;
 pub mod probe;
 pub mod protocol;
 pub mod session;
+pub mod testing;

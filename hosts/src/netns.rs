@@ -8,7 +8,7 @@
 //! CAP_SYS_ADMIN), `ip` (iproute2), `unshare`, `nsenter` and `taskset` (util-linux); `tc`
 //! for netem.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::atomic::{AtomicU32, Ordering};
 
@@ -38,6 +38,35 @@ pub enum NetnsError {
     /// The kernel has no netem queueing discipline (`sch_netem`): no delay or loss.
     #[error("this kernel has no netem (sch_netem), so no link delay or loss (tc: {0})")]
     NoNetem(String),
+}
+
+/// How the two hosts' link is secured.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum HostLink {
+    /// Mutual TLS with these keys ([`TwoHosts::make_keys`]).
+    Tls(HostKeys),
+    /// Plain TCP (`--insecure`, `insecure = true`).
+    Insecure,
+}
+
+/// The keys of [`TwoHosts::make_keys`]: a key store with the identities `vehicle` and
+/// `ground`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct HostKeys {
+    /// The key store.
+    pub store: PathBuf,
+}
+
+impl HostKeys {
+    /// The vehicle's identity directory (the flight's host).
+    pub fn vehicle(&self) -> PathBuf {
+        self.store.join("vehicle")
+    }
+
+    /// The ground host's identity directory.
+    pub fn ground(&self) -> PathBuf {
+        self.store.join("ground")
+    }
 }
 
 /// Two network namespaces, `vehicle` (the flight's host, 10.X.Y.1) and `ground` (10.X.Y.2),
@@ -133,9 +162,65 @@ impl TwoHosts {
         self.cpus = Some((vehicle.to_string(), ground.to_string()));
     }
 
-    /// The ground host's agent endpoint.
-    pub fn ground_endpoint(&self) -> String {
-        format!("tcp/{}:7447", self.ground_ip)
+    /// The ground host's agent endpoint on `link`.
+    pub fn ground_endpoint(&self, link: &HostLink) -> String {
+        let scheme = match link {
+            HostLink::Tls(_) => "tls",
+            HostLink::Insecure => "tcp",
+        };
+        format!("{scheme}/{}:7447", self.ground_ip)
+    }
+
+    /// The flight's keys for these two hosts in `dir`: a CA, the vehicle's identity (the
+    /// flight's host) and the ground host's, valid for its address on the link.
+    pub fn make_keys(&self, dir: &Path) -> Result<HostLink, crate::keys::KeysError> {
+        let store = dir.join("keys");
+        crate::keys::init(&store, 1)?;
+        crate::keys::issue(&store, "vehicle", &[], 1, false)?;
+        crate::keys::issue(
+            &store,
+            "ground",
+            std::slice::from_ref(&self.ground_ip),
+            1,
+            false,
+        )?;
+        Ok(HostLink::Tls(HostKeys { store }))
+    }
+
+    /// `aeris agent` for the ground host on `link` (its output not redirected yet), role
+    /// specs and logs in `run_dir`.
+    pub fn agent_command(&self, aeris: &Path, link: &HostLink, run_dir: &Path) -> Command {
+        let mut cmd = self.command(&self.ground, aeris);
+        cmd.args(["agent", "--host", "ground", "--listen"])
+            .arg(self.ground_endpoint(link))
+            .arg("--run-dir")
+            .arg(run_dir);
+        match link {
+            HostLink::Tls(keys) => {
+                cmd.arg("--keys")
+                    .arg(keys.ground())
+                    .args(["--flight-host", "vehicle"]);
+            }
+            HostLink::Insecure => {
+                cmd.arg("--insecure");
+            }
+        }
+        cmd
+    }
+
+    /// The workflow table `[hosts.ground]` on `link`: its endpoint, and the vehicle's keys
+    /// or `insecure = true`.
+    pub fn ground_host_toml(&self, link: &HostLink) -> String {
+        let endpoint = self.ground_endpoint(link);
+        match link {
+            HostLink::Tls(keys) => format!(
+                "[hosts.ground]\nendpoint = \"{endpoint}\"\nkeys = \"{}\"\n",
+                keys.vehicle().display()
+            ),
+            HostLink::Insecure => {
+                format!("[hosts.ground]\nendpoint = \"{endpoint}\"\ninsecure = true\n")
+            }
+        }
     }
 
     /// `program args..` to run in namespace `ns` with a private `/dev/shm` and iceoryx2

@@ -120,8 +120,10 @@ pub const BRIDGE_HOST_PARAM: &str = "on_host";
 
 /// The bridge roles of `workflow` (kind [`BRIDGE_KIND`], variant `zenoh`), two per other
 /// host ([`Workflow::bridge_plans`]): `bridge-to-HOST` on the flight's host and `bridge-on-HOST` there,
-/// each told the host's endpoint, what it sends (`export`) and what it receives
-/// (`import`). They start before every other role.
+/// each told what it sends (`export`) and what it receives (`import`); the one here also
+/// where the host's agent listens and the flight host's keys, while the one there is
+/// linked by that host's agent itself (its own endpoint and keys: nothing that names a
+/// file or an endpoint crosses the network). They start before every other role.
 pub fn bridge_roles(workflow: &Workflow) -> Vec<RoleDecl> {
     let frame_bytes = workflow.camera.width as u64 * workflow.camera.height as u64 * 3;
     let mut roles = Vec::new();
@@ -129,7 +131,6 @@ pub fn bridge_roles(workflow: &Workflow) -> Vec<RoleDecl> {
         let h = &plan.host;
         let params = |export: &[String], import: &[String], peer: &str| {
             let mut p = serde_json::Map::new();
-            p.insert("connect".into(), h.endpoint.clone().into());
             p.insert("export".into(), export.to_vec().into());
             p.insert("import".into(), import.to_vec().into());
             p.insert("peer".into(), peer.into());
@@ -144,6 +145,10 @@ pub fn bridge_roles(workflow: &Workflow) -> Vec<RoleDecl> {
             &plan.from_host,
             &format!("host `{}`", h.name),
         );
+        here.insert("connect".into(), h.endpoint.clone().into());
+        if let Some(keys) = &h.keys {
+            here.insert("keys".into(), keys.clone().into());
+        }
         // the bridge on the flight's host measures the link (`hosts/link`)
         here.insert("probe".into(), h.name.clone().into());
         roles.push(RoleDecl::new(
@@ -172,6 +177,7 @@ fn remote_spec(host: &crate::workflow::Host, executor: Option<&Executor>) -> Rem
     RemoteSpec {
         host: host.name.clone(),
         endpoint: host.endpoint.clone(),
+        keys: host.keys.clone(),
         cpus: executor.map(|e| remote_cpus(&e.cpus)).unwrap_or_default(),
         link_timeout_ms: host.link_timeout_ms,
     }

@@ -18,10 +18,10 @@ mod validate;
 
 pub use builtin::{DEFAULT_WORKFLOW_TOML, FORMATION_WORKFLOW_TOML, MODELS_WORKFLOW_TOML};
 pub use error::{WorkflowError, WorkflowFileError};
-pub use hosts::{BridgePlan, SUPERVISOR_READS, movable_across_hosts, remote_cpus};
+pub use hosts::{BridgePlan, REMOTE_PARAMS, SUPERVISOR_READS, movable_across_hosts, remote_cpus};
 pub use validate::{
     FORMATION_KIND, LANGUAGE_MODEL_VARIANTS, ONNX_MODEL_VARIANTS, REQUIRED_KINDS,
-    runs_on_accelerator,
+    is_valid_role_name, runs_on_accelerator,
 };
 
 use crate::restart::RestartPolicy;
@@ -80,8 +80,14 @@ pub struct Executor {
 pub struct Host {
     /// Host name (the key under `[hosts]`).
     pub name: String,
-    /// Its agent's zenoh endpoint (`tcp/10.0.0.2:7447`).
+    /// Its agent's zenoh endpoint (`tls/10.0.0.2:7447`).
     pub endpoint: String,
+    /// The flight host's identity directory for the mutual-TLS link to it (`keys`: an
+    /// `aeris keys issue` directory of the flight's host); required for a `tls/` endpoint.
+    pub keys: Option<String>,
+    /// The link is plain TCP, unauthenticated and unencrypted (`insecure = true`):
+    /// required for a `tcp/` endpoint, refused with keys.
+    pub insecure: bool,
     /// The link counts as lost after this long without the host's agent (ms).
     pub link_timeout_ms: u64,
     /// How RGB frames cross to and from it: `jpeg` (the default) or `raw`.
@@ -101,9 +107,13 @@ pub const DEFAULT_LINK_TIMEOUT_MS: u64 = 1000;
 /// for the vehicle itself.
 pub const FLIGHT_HOST_KINDS: &[&str] = &["hub", "controller", "vehicle", "replay", RECORDER_KIND];
 
-/// Check that `endpoint` is a zenoh endpoint of the TCP transport: `tcp/HOST:PORT`.
+/// Check that `endpoint` is a zenoh endpoint of ours: `tls/HOST:PORT` (mutual TLS), or
+/// `tcp/HOST:PORT` (plain, only on a link declared insecure).
 pub fn check_endpoint(endpoint: &str) -> bool {
-    let Some(rest) = endpoint.strip_prefix("tcp/") else {
+    let Some(rest) = endpoint
+        .strip_prefix("tls/")
+        .or_else(|| endpoint.strip_prefix("tcp/"))
+    else {
         return false;
     };
     let Some((host, port)) = rest.rsplit_once(':') else {

@@ -301,8 +301,12 @@ fn is_zero(v: &i64) -> bool {
 pub struct RemoteSpec {
     /// The host's name (its `[hosts.NAME]` in the workflow).
     pub host: String,
-    /// Its agent's zenoh endpoint (`tcp/10.0.0.2:7447`).
+    /// Its agent's zenoh endpoint (`tls/10.0.0.2:7447`).
     pub endpoint: String,
+    /// The flight host's identity directory for the mutual-TLS link (`None`: a plain
+    /// `tcp/` link the workflow declared insecure).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub keys: Option<String>,
     /// The executor's CPU list on that host ("" = wherever the agent runs roles).
     #[serde(default)]
     pub cpus: String,

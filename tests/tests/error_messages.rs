@@ -173,8 +173,40 @@ fn every_kind_of_bad_input_names_its_offender_once() {
     }
     cases.push(case(
         "agent endpoint",
-        &["agent", "--host", "ground", "--listen", "udp/0.0.0.0:7447"],
+        &[
+            "agent",
+            "--host",
+            "ground",
+            "--insecure",
+            "--listen",
+            "udp/0.0.0.0:7447",
+        ],
         "udp/0.0.0.0:7447",
+    ));
+    let no_keys = d.join("no-keys");
+    cases.push(case(
+        "agent keys",
+        &[
+            "agent",
+            "--host",
+            "ground",
+            "--keys",
+            &path_str(&no_keys),
+            "--flight-host",
+            "vehicle",
+        ],
+        &path_str(&no_keys),
+    ));
+    let no_ca = d.join("no-ca");
+    cases.push(case(
+        "key store without a CA",
+        &["keys", "issue", &path_str(&no_ca), "ground"],
+        &path_str(&no_ca),
+    ));
+    cases.push(case(
+        "host name of a certificate",
+        &["keys", "issue", &path_str(&no_ca), "../ground"],
+        "../ground",
     ));
     cases.push(case(
         "formation say to no flight",

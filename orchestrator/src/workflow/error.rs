@@ -96,15 +96,39 @@ pub enum WorkflowError {
         /// Declared hosts, comma-separated (or "none").
         known: String,
     },
-    /// A host's endpoint is not a zenoh TCP endpoint.
+    /// A host's endpoint is not a zenoh endpoint of ours.
     #[error(
-        "[hosts.{host}] endpoint `{endpoint}` is not a zenoh TCP endpoint (write tcp/ADDRESS:PORT)"
+        "[hosts.{host}] endpoint `{endpoint}` is not a zenoh endpoint of ours (write tls/ADDRESS:PORT)"
     )]
     BadEndpoint {
         /// Host name.
         host: String,
         /// The endpoint as written.
         endpoint: String,
+    },
+    /// A role on another host has a parameter that names a file, model, pipeline or
+    /// endpoint: that host's agent sets those itself.
+    #[error(
+        "role `{role}` runs on host `{host}`: its param `{param}` is that host's own configuration, never sent over the network (`aeris agent --param KIND.{param}=...` there)"
+    )]
+    RemoteParam {
+        /// Role name.
+        role: String,
+        /// The parameter.
+        param: String,
+        /// The host.
+        host: String,
+    },
+    /// A host's link security does not fit its endpoint: a `tls/` endpoint without keys, a
+    /// `tcp/` endpoint not declared insecure, keys on an insecure link.
+    #[error("[hosts.{host}] endpoint `{endpoint}`: {reason}")]
+    LinkSecurity {
+        /// Host name.
+        host: String,
+        /// The endpoint as written.
+        endpoint: String,
+        /// What does not fit, and how to fix it.
+        reason: &'static str,
     },
     /// A host's frame coding is unknown or its JPEG quality out of range.
     #[error(

@@ -15,6 +15,32 @@ pub const SUPERVISOR_READS: [&str; 4] = [
     topics::CONTROLLER_LINK,
 ];
 
+/// The parameters a role on another host may be given by the workflow: values that name no
+/// file, directory, model, pipeline, device or endpoint. What names one is that host's own
+/// configuration (its agent's `--param`), never sent over the network: the agent refuses a
+/// request with any other parameter.
+pub const REMOTE_PARAMS: &[&str] = &[
+    // reasoning
+    "seed",
+    "threads",
+    "context_tokens",
+    "plan",
+    // perception models
+    "min_score",
+    "interval_ms",
+    "join_ms",
+    // the bridge there (its `connect` and `keys` are its agent's)
+    "export",
+    "import",
+    "peer",
+    "frame_bytes",
+    "link_timeout_ms",
+    "frames",
+    "jpeg_quality",
+    "probe",
+    "on_host",
+];
+
 /// What the bridges between the flight's host and one other host carry.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct BridgePlan {
@@ -50,6 +76,29 @@ impl Workflow {
                     endpoint: h.endpoint.clone(),
                 });
             }
+            let tls = h.endpoint.starts_with("tls/");
+            let reason = match (tls, h.keys.is_some(), h.insecure) {
+                (true, true, false) | (false, false, true) => None,
+                (true, false, false) => Some(
+                    "a TLS link needs `keys`, the flight host's identity directory (`aeris keys init STORE`, `aeris keys issue STORE HOST`)",
+                ),
+                (true, _, true) => {
+                    Some("`insecure = true` is for a plain tcp/ link: remove it, the link is TLS")
+                }
+                (false, _, false) => Some(
+                    "a tcp/ link is unauthenticated and unencrypted: use tls/ with `keys`, or say `insecure = true`",
+                ),
+                (false, true, true) => {
+                    Some("`keys` are for a tls/ link: use a tls/ endpoint, or remove `keys`")
+                }
+            };
+            if let Some(reason) = reason {
+                return Err(WorkflowError::LinkSecurity {
+                    host: h.name.clone(),
+                    endpoint: h.endpoint.clone(),
+                    reason,
+                });
+            }
             if !matches!(h.frames.as_str(), "jpeg" | "raw") || !(1..=100).contains(&h.jpeg_quality)
             {
                 return Err(WorkflowError::BadFrames {
@@ -76,12 +125,22 @@ impl Workflow {
             }
         }
         for r in &self.roles {
-            if let Some(h) = self.role_host(r)
-                && FLIGHT_HOST_KINDS.contains(&r.kind.as_str())
-            {
+            let Some(h) = self.role_host(r) else { continue };
+            if FLIGHT_HOST_KINDS.contains(&r.kind.as_str()) {
                 return Err(WorkflowError::RemoteNotAllowed {
                     role: r.name.clone(),
                     kind: r.kind.clone(),
+                    host: h.name.clone(),
+                });
+            }
+            if let Some(key) = r
+                .params
+                .keys()
+                .find(|k| !REMOTE_PARAMS.contains(&k.as_str()))
+            {
+                return Err(WorkflowError::RemoteParam {
+                    role: r.name.clone(),
+                    param: key.clone(),
                     host: h.name.clone(),
                 });
             }
@@ -231,7 +290,7 @@ mod tests {
     fn ground(perception: bool) -> String {
         let mut toml = DEFAULT_WORKFLOW_TOML.replace(
             "[executors.perception]",
-            "[hosts.ground]\nendpoint = \"tcp/10.0.0.2:7447\"\n\n[executors.gs]\nhost = \"ground\"\ncpus = \"all\"\n\n[executors.perception]",
+            "[hosts.ground]\nendpoint = \"tls/10.0.0.2:7447\"\nkeys = \"keys/vehicle\"\n\n[executors.gs]\nhost = \"ground\"\ncpus = \"all\"\n\n[executors.perception]",
         );
         toml = toml.replacen(
             "variants = [\"planner\", \"garbage\"]\nexecutor = \"perception\"",
@@ -256,7 +315,7 @@ mod tests {
         let plans = w.bridge_plans();
         assert_eq!(plans.len(), 1);
         let p = &plans[0];
-        assert_eq!(p.host.endpoint, "tcp/10.0.0.2:7447");
+        assert_eq!(p.host.endpoint, "tls/10.0.0.2:7447");
         // the reasoner's inputs; the perception role may be moved there too, so its
         // frames are planned (they cross only while read there)
         assert_eq!(
@@ -295,17 +354,54 @@ mod tests {
     #[test]
     fn hosts_and_their_executors_are_checked() {
         let text = ground(false);
-        let bad = text.replace("tcp/10.0.0.2:7447", "udp/10.0.0.2");
+        let bad = text.replace("tls/10.0.0.2:7447", "udp/10.0.0.2");
         let e = Workflow::from_toml_str(&bad).unwrap_err();
         assert!(matches!(e, WorkflowError::BadEndpoint { .. }), "{e}");
+        // a link is TLS with keys, or plain TCP only when declared insecure
+        for (from, to, why) in [
+            ("keys = \"keys/vehicle\"\n", "", "a TLS link needs `keys`"),
+            (
+                "tls/",
+                "tcp/",
+                "a tcp/ link is unauthenticated and unencrypted",
+            ),
+            (
+                "keys = \"keys/vehicle\"\n",
+                "keys = \"k\"\ninsecure = true\n",
+                "`insecure = true` is for a plain tcp/ link",
+            ),
+        ] {
+            let e = Workflow::from_toml_str(&text.replacen(from, to, 1))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(why), "{e}");
+        }
+        let plain = text.replacen("tls/", "tcp/", 1).replacen(
+            "keys = \"keys/vehicle\"\n",
+            "insecure = true\n",
+            1,
+        );
+        let w = Workflow::from_toml_str(&plain).unwrap();
+        assert!(w.hosts[0].insecure && w.hosts[0].keys.is_none());
+        // a role there takes no parameter that names a file: that host's agent sets it
+        let bad = text.replacen(
+            "variants = [\"planner\", \"garbage\"]\nexecutor = \"gs\"",
+            "variants = [\"planner\", \"garbage\"]\nexecutor = \"gs\"\nparams = { model = \"/x.gguf\" }",
+            1,
+        );
+        let e = Workflow::from_toml_str(&bad).unwrap_err().to_string();
+        assert!(
+            e.contains("role `reasoning` runs on host `ground`: its param `model` is that host's own configuration"),
+            "{e}"
+        );
         let w = Workflow::from_toml_str(&text).unwrap();
         assert_eq!(
             (w.hosts[0].frames.as_str(), w.hosts[0].jpeg_quality),
             ("jpeg", 85)
         );
         let bad = text.replace(
-            "endpoint = \"tcp/10.0.0.2:7447\"",
-            "endpoint = \"tcp/10.0.0.2:7447\"\nframes = \"h264\"",
+            "endpoint = \"tls/10.0.0.2:7447\"",
+            "endpoint = \"tls/10.0.0.2:7447\"\nframes = \"h264\"",
         );
         let e = Workflow::from_toml_str(&bad).unwrap_err().to_string();
         assert!(

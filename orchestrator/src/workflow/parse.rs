@@ -76,6 +76,8 @@ struct RawExecutor {
 #[serde(deny_unknown_fields)]
 struct RawHost {
     endpoint: String,
+    keys: Option<String>,
+    insecure: Option<bool>,
     link_timeout_ms: Option<u64>,
     frames: Option<String>,
     jpeg_quality: Option<u8>,
@@ -349,6 +351,8 @@ impl Workflow {
             .map(|(name, h)| Host {
                 name,
                 endpoint: h.endpoint,
+                keys: h.keys,
+                insecure: h.insecure.unwrap_or(false),
                 link_timeout_ms: h.link_timeout_ms.unwrap_or(DEFAULT_LINK_TIMEOUT_MS),
                 frames: h.frames.unwrap_or_else(|| "jpeg".to_string()),
                 jpeg_quality: h.jpeg_quality.unwrap_or(DEFAULT_JPEG_QUALITY),

@@ -23,7 +23,10 @@ fn known_topics() -> String {
     topics::ALL.join(", ")
 }
 
-fn is_valid_role_name(name: &str) -> bool {
+/// `true` for a role name a workflow may use: 1 to [`NAME_MAX`] bytes of ASCII letters,
+/// digits, `_` and `-` (a plain file name: the supervisor and the host agents name files
+/// after it).
+pub fn is_valid_role_name(name: &str) -> bool {
     !name.is_empty()
         && name.len() <= NAME_MAX
         && name

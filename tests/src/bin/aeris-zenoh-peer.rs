@@ -9,6 +9,9 @@
 //!   with schema N-1, and prints the answer;
 //! - `aeris-zenoh-peer publish CONNECT FLIGHT TOPIC`: publishes messages stamped with schema
 //!   N-1 on TOPIC every 50 ms, until killed.
+//!
+//! With `AERIS_PEER_KEYS=DIR` (an identity directory: `ca.pem`, `cert.pem`, `key.pem`) its
+//! links are mutual TLS with that identity, configured from zenoh's documented keys.
 
 use std::time::Duration;
 use zenoh::{Config, Wait};
@@ -24,6 +27,24 @@ fn config(mode: &str, key: &str, endpoint: &str) -> Config {
     c.insert_json5("scouting/multicast/enabled", "false")
         .unwrap();
     c.insert_json5(key, &format!("[\"{endpoint}\"]")).unwrap();
+    if let Some(dir) = std::env::var_os("AERIS_PEER_KEYS") {
+        let dir = std::path::PathBuf::from(dir);
+        let file = |f: &str| format!("\"{}\"", dir.join(f).display());
+        let side = if mode == "router" {
+            "listen"
+        } else {
+            "connect"
+        };
+        let tls = "transport/link/tls";
+        c.insert_json5(&format!("{tls}/root_ca_certificate"), &file("ca.pem"))
+            .unwrap();
+        c.insert_json5(&format!("{tls}/{side}_certificate"), &file("cert.pem"))
+            .unwrap();
+        c.insert_json5(&format!("{tls}/{side}_private_key"), &file("key.pem"))
+            .unwrap();
+        c.insert_json5(&format!("{tls}/enable_mtls"), "true")
+            .unwrap();
+    }
     c
 }
 

@@ -1,9 +1,9 @@
 //! Roles on another host: two hosts as network namespaces (each with a private /dev/shm, so
 //! only the network crosses), `aeris agent` on the ground host, the flight's supervisor on
 //! the vehicle; the reasoner and the perception role run on the ground host, their topics on
-//! the bridges over zenoh.
+//! the bridges over zenoh, every link mutual TLS with keys of the flight's CA.
 
-use aeris_hosts::netns::GROUND_CLOCK_AHEAD_S;
+use aeris_hosts::netns::{GROUND_CLOCK_AHEAD_S, HostLink};
 use aeris_tests::hosts::{TwoHosts, two_hosts};
 use aeris_tests::*;
 use std::path::Path;
@@ -12,9 +12,14 @@ use std::time::Duration;
 
 const FLIGHT_BOUND: Duration = Duration::from_secs(600);
 
-/// The default workflow with the reasoner and the perception role on host `ground` at
-/// `endpoint`.
-fn ground_workflow(endpoint: &str) -> String {
+/// The flight's keys for `hosts` in `dir` (a CA, the vehicle's and the ground's identities).
+fn keys(hosts: &TwoHosts, dir: &Path) -> HostLink {
+    hosts.make_keys(dir).expect("make the flight's keys")
+}
+
+/// The default workflow with the reasoner and the perception role on host `ground`, reached
+/// over `link`.
+fn ground_workflow(hosts: &TwoHosts, link: &HostLink) -> String {
     let text = std::fs::read_to_string(
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../workflows/default.toml"),
     )
@@ -22,7 +27,8 @@ fn ground_workflow(endpoint: &str) -> String {
     let text = text.replacen(
         "[executors.perception]",
         &format!(
-            "[hosts.ground]\nendpoint = \"{endpoint}\"\n\n[executors.gs]\nhost = \"ground\"\ncpus = \"all\"\n\n[executors.perception]"
+            "{}\n[executors.gs]\nhost = \"ground\"\ncpus = \"all\"\n\n[executors.perception]",
+            hosts.ground_host_toml(link)
         ),
         1,
     );
@@ -41,19 +47,14 @@ fn ground_workflow(endpoint: &str) -> String {
     moved
 }
 
-/// Start `aeris agent --host ground` in the ground namespace; returns once it listens.
-fn start_agent(hosts: &TwoHosts, dir: &Path) -> ChildGuard {
+/// Start `aeris agent --host ground` in the ground namespace on `link`; returns once it
+/// listens.
+fn start_agent(hosts: &TwoHosts, link: &HostLink, dir: &Path) -> ChildGuard {
     let log = dir.join("agent.log");
     let out = std::fs::File::create(&log).unwrap();
     let err = out.try_clone().unwrap();
-    let mut cmd = hosts.command(&hosts.ground, &aeris_bin());
-    cmd.args(["agent", "--host", "ground", "--listen"])
-        .arg(hosts.ground_endpoint())
-        .arg("--run-dir")
-        .arg(dir.join("agent"))
-        .stdin(Stdio::null())
-        .stdout(out)
-        .stderr(err);
+    let mut cmd = hosts.agent_command(&aeris_bin(), link, &dir.join("agent"));
+    cmd.stdin(Stdio::null()).stdout(out).stderr(err);
     let mut agent = ChildGuard::spawn(&mut cmd).expect("spawn aeris agent");
     let listening = poll_until(Duration::from_secs(30), || {
         if let Ok(Some(status)) = agent.0.try_wait() {
@@ -114,9 +115,10 @@ fn migrate(
 fn a_flight_with_roles_on_another_host_and_its_reasoner_moved_there_and_back_reaches_its_goal() {
     let dir = TempDir::new("hosts-goal");
     let hosts = two_hosts();
-    let _agent = start_agent(&hosts, &dir.0);
+    let link = keys(&hosts, &dir.0);
+    let _agent = start_agent(&hosts, &link, &dir.0);
     // the perception role on the ground host from the start, the reasoner on board
-    let text = ground_workflow(&hosts.ground_endpoint()).replacen(
+    let text = ground_workflow(&hosts, &link).replacen(
         "variants = [\"planner\", \"garbage\"]\nexecutor = \"gs\"",
         "variants = [\"planner\", \"garbage\"]\nexecutor = \"perception\"",
         1,
@@ -307,17 +309,22 @@ fn a_host_or_a_peer_of_another_schema_is_refused_by_name() {
     let hosts = two_hosts();
     let ours = aeris_schemas::SCHEMA_VERSION;
     let theirs = ours - 1;
-    let endpoint = hosts.ground_endpoint();
+    let link = keys(&hosts, &dir.0);
+    let HostLink::Tls(ids) = &link else {
+        unreachable!("make_keys makes TLS keys")
+    };
+    let endpoint = hosts.ground_endpoint(&link);
 
     // an agent of another schema: the flight's handles refuse its host, the flight does not
     // start, and the error names the host and both schemas
     let peer_log = dir.0.join("peer-agent.log");
     let mut cmd = hosts.command(&hosts.ground, &peer_bin());
-    cmd.args(["agent", &endpoint, "ground"]);
+    cmd.args(["agent", &endpoint, "ground"])
+        .env("AERIS_PEER_KEYS", ids.ground());
     let peer_agent = logged(&mut cmd, &peer_log);
     wait_for_text(&peer_log, "listening", "the peer agent");
     let workflow = dir.0.join("ground.toml");
-    std::fs::write(&workflow, ground_workflow(&endpoint)).unwrap();
+    std::fs::write(&workflow, ground_workflow(&hosts, &link)).unwrap();
     let mut cmd = hosts.command(&hosts.vehicle, &aeris_bin());
     cmd.arg("run")
         .arg(&workflow)
@@ -345,10 +352,11 @@ fn a_host_or_a_peer_of_another_schema_is_refused_by_name() {
     drop(peer_agent);
 
     // the real agent refuses a supervisor of another schema
-    let _agent = start_agent(&hosts, &dir.0);
+    let _agent = start_agent(&hosts, &link, &dir.0);
     let out = hosts
         .command(&hosts.vehicle, &peer_bin())
         .args(["spawn", &endpoint, "ground", "hosts-schema-spawn"])
+        .env("AERIS_PEER_KEYS", ids.vehicle())
         .output()
         .expect("run the peer");
     let answer = String::from_utf8_lossy(&out.stdout);
@@ -370,6 +378,7 @@ fn a_host_or_a_peer_of_another_schema_is_refused_by_name() {
         "zenoh",
         serde_json::json!({
             "connect": endpoint,
+            "keys": ids.ground(),
             "import": ["reasoning/decision"],
             "export": [],
             "peer": "the test peer",
@@ -382,7 +391,8 @@ fn a_host_or_a_peer_of_another_schema_is_refused_by_name() {
     let _bridge = logged(&mut cmd, &bridge_log);
     wait_for_text(&bridge_log, "bridge to the test peer", "the bridge");
     let mut cmd = hosts.command(&hosts.vehicle, &peer_bin());
-    cmd.args(["publish", &endpoint, &flight, "reasoning/decision"]);
+    cmd.args(["publish", &endpoint, &flight, "reasoning/decision"])
+        .env("AERIS_PEER_KEYS", ids.vehicle());
     let _publisher = logged(&mut cmd, &dir.0.join("publisher.log"));
     let text = wait_for_text(&bridge_log, "refused", "the bridge");
     assert!(
@@ -398,9 +408,10 @@ fn a_link_cut_mid_flight_hands_the_reasoner_to_its_fallback_which_hands_it_back_
  {
     let dir = TempDir::new("hosts-cut");
     let hosts = two_hosts();
-    let _agent = start_agent(&hosts, &dir.0);
+    let link = keys(&hosts, &dir.0);
+    let _agent = start_agent(&hosts, &link, &dir.0);
     // only the reasoner on the ground host, the on-board planner as its fallback
-    let text = ground_workflow(&hosts.ground_endpoint()).replacen(
+    let text = ground_workflow(&hosts, &link).replacen(
         "kind = \"perception\"\nvariant = \"geometric\"\nexecutor = \"gs\"",
         "kind = \"perception\"\nvariant = \"geometric\"\nexecutor = \"perception\"",
         1,
@@ -491,7 +502,8 @@ fn a_host_unreachable_at_the_start_never_holds_the_flight_back_and_gets_its_role
     // waits for the link; then the agent starts, and the reasoner goes to the ground host
     let dir = TempDir::new("hosts-unreachable");
     let hosts = two_hosts();
-    let text = ground_workflow(&hosts.ground_endpoint())
+    let link = keys(&hosts, &dir.0);
+    let text = ground_workflow(&hosts, &link)
         .replacen(
             "kind = \"perception\"\nvariant = \"geometric\"\nexecutor = \"gs\"",
             "kind = \"perception\"\nvariant = \"geometric\"\nexecutor = \"perception\"",
@@ -523,7 +535,7 @@ fn a_host_unreachable_at_the_start_never_holds_the_flight_back_and_gets_its_role
             && started.contains("host `ground` unreachable (role `bridge-on-ground` could not reach its agent): it waits for the link"),
         "{started}"
     );
-    let _agent = start_agent(&hosts, &dir.0);
+    let _agent = start_agent(&hosts, &link, &dir.0);
     let back = wait_for_text(
         &dir.0.join("run.stderr"),
         "move of `planner` to host `ground` (executor gs) done",
