@@ -14,10 +14,13 @@
 //!   reasoner back on the ground host;
 //! - all of it beside `outside_load` busy threads outside the flight, if asked.
 //!
+//! Every link is mutual TLS with keys made for the run, as a user's flight's is. With
+//! `security` the benchmark instead compares TLS with plain TCP ([`security`]).
+//!
 //! Needs root (network namespaces). Times are taken by this process as the flight's lines
 //! arrive (the supervisor prints each event as it happens).
 
-use aeris_hosts::netns::{NetnsError, TwoHosts};
+use aeris_hosts::netns::{HostLink, NetnsError, TwoHosts};
 use serde::Serialize;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -26,9 +29,11 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError, channel};
 use std::time::{Duration, Instant};
 
 mod placement;
+mod security;
 
 pub use placement::PlacementFigures;
 use placement::placement;
+pub use security::{SecurityReport, SecurityRow, compare_links};
 
 /// How long one benchmark flight may take.
 const FLIGHT_BOUND: Duration = Duration::from_secs(600);
@@ -50,12 +55,25 @@ pub struct HostsBenchConfig {
     pub work_dir: PathBuf,
 }
 
+/// How a benchmark flight's link is secured.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LinkKind {
+    /// Mutual TLS (keys made for the flight).
+    Tls,
+    /// Plain TCP (`insecure`).
+    Tcp,
+}
+
 /// Why the hosts benchmark could not run to the end.
 #[derive(Debug, thiserror::Error)]
 pub enum HostsBenchError {
     /// The two hosts could not be set up (not root, no `ip`).
     #[error("cannot set up two hosts as network namespaces (needs root)")]
     Hosts(#[from] NetnsError),
+    /// The flight's keys could not be made.
+    #[error("cannot make the flight's keys")]
+    Keys(#[from] aeris_hosts::keys::KeysError),
     /// A file or process of the benchmark could not be made.
     #[error("{what}")]
     Io {
@@ -166,14 +184,14 @@ pub struct HostsReport {
     pub placement: PlacementFigures,
 }
 
-/// The default workflow with host `ground` at `endpoint` (executor `gs`, all its CPUs),
-/// the roles named in `there` on it, and with `fallback` the on-board planner as the
-/// reasoner's fallback.
-pub fn ground_workflow(endpoint: &str, there: &[&str], fallback: bool) -> String {
+/// The default workflow with host `ground` (its `[hosts.ground]` table `host_table`;
+/// executor `gs`, all its CPUs), the roles named in `there` on it, and with `fallback` the
+/// on-board planner as the reasoner's fallback.
+pub fn ground_workflow(host_table: &str, there: &[&str], fallback: bool) -> String {
     let text = aeris_orchestrator::workflow::DEFAULT_WORKFLOW_TOML.replacen(
         "[executors.perception]",
         &format!(
-            "[hosts.ground]\nendpoint = \"{endpoint}\"\n\n[executors.gs]\nhost = \"ground\"\ncpus = \"all\"\n\n[executors.perception]"
+            "{host_table}\n[executors.gs]\nhost = \"ground\"\ncpus = \"all\"\n\n[executors.perception]"
         ),
         1,
     );
@@ -206,18 +224,25 @@ impl Drop for Agent {
     }
 }
 
-fn start_agent(hosts: &TwoHosts, aeris: &Path, dir: &Path) -> Result<Agent, HostsBenchError> {
+/// The link of `kind` between `hosts`, its keys (if any) made in `dir`.
+fn link_of(hosts: &TwoHosts, kind: LinkKind, dir: &Path) -> Result<HostLink, HostsBenchError> {
+    Ok(match kind {
+        LinkKind::Tls => hosts.make_keys(dir)?,
+        LinkKind::Tcp => HostLink::Insecure,
+    })
+}
+
+fn start_agent(
+    hosts: &TwoHosts,
+    aeris: &Path,
+    link: &HostLink,
+    dir: &Path,
+) -> Result<Agent, HostsBenchError> {
     let log = dir.join("agent.log");
     let out = std::fs::File::create(&log).map_err(io(format!("create {}", log.display())))?;
     let err = out.try_clone().map_err(io("agent log"))?;
-    let mut cmd = hosts.command(&hosts.ground, aeris);
-    cmd.args(["agent", "--host", "ground", "--listen"])
-        .arg(hosts.ground_endpoint())
-        .arg("--run-dir")
-        .arg(dir.join("agent"))
-        .stdin(Stdio::null())
-        .stdout(out)
-        .stderr(err);
+    let mut cmd = hosts.agent_command(aeris, link, &dir.join("agent"));
+    cmd.stdin(Stdio::null()).stdout(out).stderr(err);
     let mut agent = Agent(cmd.spawn().map_err(io("start aeris agent"))?);
     let start = Instant::now();
     loop {
@@ -461,15 +486,17 @@ fn setting(
     tag: &str,
     there: &[&str],
     fallback: bool,
+    kind: LinkKind,
 ) -> Result<Setting, HostsBenchError> {
     let dir = config.work_dir.join(tag);
     std::fs::create_dir_all(&dir).map_err(io(format!("create {}", dir.display())))?;
     let hosts = TwoHosts::new()?;
-    let agent = start_agent(&hosts, &config.aeris, &dir)?;
+    let link = link_of(&hosts, kind, &dir)?;
+    let agent = start_agent(&hosts, &config.aeris, &link, &dir)?;
     let workflow = dir.join("workflow.toml");
     std::fs::write(
         &workflow,
-        ground_workflow(&hosts.ground_endpoint(), there, fallback),
+        ground_workflow(&hosts.ground_host_toml(&link), there, fallback),
     )
     .map_err(io(format!("write {}", workflow.display())))?;
     Ok(Setting {
@@ -527,7 +554,7 @@ fn link_row(
         if there.is_empty() { "local" } else { "there" },
         loss_percent
     );
-    let s = setting(config, &tag, there, false)?;
+    let s = setting(config, &tag, there, false, LinkKind::Tls)?;
     if delay_ms > 0 || loss_percent > 0.0 {
         match s.hosts.set_netem(delay_ms, loss_percent) {
             Ok(()) => {}
@@ -565,7 +592,7 @@ fn link_row(
 /// The reasoner moved to the ground host and back during a flight (the perception role
 /// there from the start).
 fn moves(config: &HostsBenchConfig) -> Result<MoveFigures, HostsBenchError> {
-    let s = setting(config, "moves", &["perception"], false)?;
+    let s = setting(config, "moves", &["perception"], false, LinkKind::Tls)?;
     let name = flight_name("moves");
     let mut flight = s.fly(config, &name)?;
     flight.wait_line("step 2/4")?;
@@ -587,8 +614,18 @@ fn moves(config: &HostsBenchConfig) -> Result<MoveFigures, HostsBenchError> {
 
 /// The link cut under the reasoner on the ground host, then restored.
 fn cut(config: &HostsBenchConfig) -> Result<CutFigures, HostsBenchError> {
-    let s = setting(config, "cut", &["reasoning"], true)?;
-    let name = flight_name("cut");
+    cut_on(config, LinkKind::Tls).map(|(figures, _)| figures)
+}
+
+/// [`cut`] on a link of `kind`; also when the link was back after the restore (ms: the
+/// supervisor heard the ground host's bridge again, its handshake included).
+fn cut_on(config: &HostsBenchConfig, kind: LinkKind) -> Result<(CutFigures, u64), HostsBenchError> {
+    let tag = match kind {
+        LinkKind::Tls => "cut".to_string(),
+        LinkKind::Tcp => "cut-tcp".to_string(),
+    };
+    let s = setting(config, &tag, &["reasoning"], true, kind)?;
+    let name = flight_name(&tag);
     let mut flight = s.fly(config, &name)?;
     flight.wait_line("step 2/4")?;
     let cut_at = Instant::now();
@@ -597,17 +634,21 @@ fn cut(config: &HostsBenchConfig) -> Result<CutFigures, HostsBenchError> {
     let ready = flight.wait_line("on the flight's host (executor perception) was ready after")?;
     let restored_at = Instant::now();
     s.hosts.set_link(true)?;
+    let link_back = flight.wait_line("link to host `ground` back")?;
     let back = flight.wait_line("move of `planner` to host `ground` (executor gs) done")?;
     let (summary, _) = flight.finish()?;
     let ms = |from: Instant, to: Instant| to.saturating_duration_since(from).as_millis() as u64;
-    Ok(CutFigures {
-        loss_noticed_ms: ms(cut_at, lost),
-        fallback_ready_ms: ms(cut_at, ready),
-        returned_ms: ms(restored_at, back),
-        decisions_reused: u(&summary, "decisions_reused"),
-        controller_missed_ticks: u(&summary, "controller_missed_ticks"),
-        reached_goal: summary["reached_goal"] == true,
-    })
+    Ok((
+        CutFigures {
+            loss_noticed_ms: ms(cut_at, lost),
+            fallback_ready_ms: ms(cut_at, ready),
+            returned_ms: ms(restored_at, back),
+            decisions_reused: u(&summary, "decisions_reused"),
+            controller_missed_ticks: u(&summary, "controller_missed_ticks"),
+            reached_goal: summary["reached_goal"] == true,
+        },
+        ms(restored_at, link_back),
+    ))
 }
 
 /// Run every flight of the benchmark; `progress` hears what starts.
@@ -674,7 +715,11 @@ mod tests {
 
     #[test]
     fn the_workflow_puts_the_named_roles_on_the_ground_host() {
-        let text = ground_workflow("tcp/10.1.2.2:7447", &["reasoning"], true);
+        let text = ground_workflow(
+            "[hosts.ground]\nendpoint = \"tls/10.1.2.2:7447\"\nkeys = \"keys/vehicle\"\n",
+            &["reasoning"],
+            true,
+        );
         let w = aeris_orchestrator::workflow::Workflow::from_toml_str(&text).unwrap();
         let host = |name: &str| {
             let r = w.role(name).unwrap();

@@ -16,6 +16,11 @@ pub struct HostsArgs {
     /// Busy threads started outside the flight (unpinned, normal priority) for the run.
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub outside_load: usize,
+    /// Instead: what mutual TLS costs beside plain TCP (the same flights on each link: the
+    /// link's round trip, the decision's and the frame's paths, the bridges' CPU, the time
+    /// from a restored link to the link and the reasoner back).
+    #[arg(long)]
+    pub tls: bool,
     /// Print one JSON object on the last line of stdout.
     #[arg(long)]
     pub json: bool,
@@ -27,6 +32,20 @@ pub fn run(a: HostsArgs) -> Result<()> {
         bail!("--loss must be a percentage from 0 to 100, got {}", a.loss);
     }
     let work = tempfile_dir()?;
+    if a.tls {
+        let config = aeris_bench::hosts::HostsBenchConfig {
+            aeris: std::env::current_exe().context("cannot find the aeris executable")?,
+            delays_ms: Vec::new(),
+            loss_percent: 0.0,
+            outside_load: a.outside_load,
+            work_dir: work.clone(),
+        };
+        let report = aeris_bench::hosts::compare_links(&config, &mut |line| {
+            eprintln!("bench hosts --tls: {line}")
+        });
+        let _ = std::fs::remove_dir_all(&work);
+        return print_links(&report.context("bench hosts --tls failed")?, a.json);
+    }
     let config = aeris_bench::hosts::HostsBenchConfig {
         aeris: std::env::current_exe().context("cannot find the aeris executable")?,
         delays_ms: a.delays.clone(),
@@ -153,6 +172,56 @@ pub fn run(a: HostsArgs) -> Result<()> {
     }
     if a.json {
         println!("{}", serde_json::to_string(&report)?);
+    }
+    Ok(())
+}
+
+/// The TLS-beside-TCP table.
+fn print_links(report: &aeris_bench::hosts::SecurityReport, json: bool) -> Result<()> {
+    println!(
+        "the link to a second host (network namespaces on this machine), reasoner and perception there, {} busy threads outside the flight",
+        report.outside_load
+    );
+    println!(
+        "  {:<5} {:>5} {:>8} {:>8} {:>8} {:>11} {:>12} {:>8} {:>9} {:>10} {:>10} {:>11} {:>13}",
+        "link",
+        "goal",
+        "RTT ms",
+        "CT mean",
+        "CT p95",
+        "D_t path ms",
+        "frame->S_t ms",
+        "enc ms",
+        "bytes/fr",
+        "bridge CPU",
+        "ground CPU",
+        "link back ms",
+        "reasoner back"
+    );
+    let f = |v: Option<f64>, p: usize| v.map_or_else(|| "-".to_string(), |x| format!("{x:.p$}"));
+    for r in &report.rows {
+        println!(
+            "  {:<5} {:>5} {:>8} {:>8} {:>8} {:>11} {:>12} {:>8} {:>9} {:>9}% {:>9}% {:>11} {:>10} ms",
+            match r.link {
+                aeris_bench::hosts::LinkKind::Tls => "tls",
+                aeris_bench::hosts::LinkKind::Tcp => "tcp",
+            },
+            if r.reached_goal { "yes" } else { "no" },
+            f(r.rtt_ms, 3),
+            f(r.ct_mean_s, 3),
+            f(r.ct_p95_s, 3),
+            f(r.decision_path_ms, 2),
+            f(r.frame_to_state_ms, 1),
+            f(r.frame_coding_ms, 2),
+            f(r.bytes_per_frame, 0),
+            f(r.bridge_cpu_vehicle_pct, 1),
+            f(r.bridge_cpu_ground_pct, 1),
+            r.restored_to_link_ms,
+            r.restored_to_reasoner_ms,
+        );
+    }
+    if json {
+        println!("{}", serde_json::to_string(report)?);
     }
     Ok(())
 }

@@ -59,8 +59,8 @@ const PLACEMENT_HOG_THREADS: usize = 2;
 
 /// The placement scenario's workflow: [`ground_workflow`] with every role on board and the
 /// YOLO detector beside the perception role, with its budget.
-fn placement_workflow(endpoint: &str) -> String {
-    ground_workflow(endpoint, &[], false).replacen(
+fn placement_workflow(host_table: &str) -> String {
+    ground_workflow(host_table, &[], false).replacen(
         "[[roles]]\nname = \"hub\"",
         &format!(
             "[[roles]]\nname = \"detector\"\nkind = \"detector\"\nvariant = \"yolo\"\nexecutor = \"perception\"\nbudget_ms = {PLACEMENT_BUDGET_MS:.1}\nparams = {{ interval_ms = 500, threads = 1 }}\n\n[[roles]]\nname = \"hub\""
@@ -112,10 +112,14 @@ pub(super) fn placement(config: &HostsBenchConfig) -> Result<PlacementFigures, H
     std::fs::create_dir_all(&dir).map_err(io(format!("create {}", dir.display())))?;
     let mut hosts = TwoHosts::new()?;
     hosts.split_cpus(&vehicle_cpus, &ground_cpus);
-    let _agent = start_agent(&hosts, &config.aeris, &dir)?;
+    let link = hosts.make_keys(&dir)?;
+    let _agent = start_agent(&hosts, &config.aeris, &link, &dir)?;
     let workflow = dir.join("workflow.toml");
-    std::fs::write(&workflow, placement_workflow(&hosts.ground_endpoint()))
-        .map_err(io(format!("write {}", workflow.display())))?;
+    std::fs::write(
+        &workflow,
+        placement_workflow(&hosts.ground_host_toml(&link)),
+    )
+    .map_err(io(format!("write {}", workflow.display())))?;
     let name = flight_name("placement");
     let mut flight = Flight::start(&hosts, &config.aeris, &workflow, &name, &dir.join("run"))?;
     let binding = match flight.wait_line("initial binding") {
@@ -175,7 +179,9 @@ mod tests {
 
     #[test]
     fn the_placement_workflow_adds_the_detector_on_board_with_its_budget() {
-        let text = placement_workflow("tcp/10.1.2.2:7447");
+        let text = placement_workflow(
+            "[hosts.ground]\nendpoint = \"tls/10.1.2.2:7447\"\nkeys = \"keys/vehicle\"\n",
+        );
         let w = aeris_orchestrator::workflow::Workflow::from_toml_str(&text).unwrap();
         let d = w.role("detector").expect("the detector");
         assert_eq!(w.role_host(d), None);
