@@ -130,8 +130,12 @@ pub fn validate(path: &Path) -> Result<ExitCode> {
     if !w.hosts.is_empty() {
         println!("hosts (an `aeris agent` runs on each):");
         for h in &w.hosts {
+            let link = match &h.keys {
+                Some(k) => format!("mutual TLS, keys {k}"),
+                None => "INSECURE plain TCP".to_string(),
+            };
             println!(
-                "  {:<18} {:<22} link timeout {} ms",
+                "  {:<18} {:<22} {link}, link timeout {} ms",
                 h.name, h.endpoint, h.link_timeout_ms
             );
         }
@@ -207,6 +211,13 @@ fn refuse_simulator_roles(
 /// `aeris run`.
 pub fn run(args: RunArgs) -> Result<ExitCode> {
     let workflow = load(args.workflow.as_deref())?;
+    for h in workflow.hosts.iter().filter(|h| h.insecure) {
+        eprintln!(
+            "aeris: INSECURE link to host `{}` ({}): plain TCP, no authentication, no encryption; \
+             anyone on the network can read this flight's data there and send it decisions",
+            h.name, h.endpoint
+        );
+    }
     let variants = variant_choices(&args.variant)?;
     #[cfg(not(feature = "sim"))]
     refuse_simulator_roles(&workflow, &variants, args.autopilot.is_some())?;

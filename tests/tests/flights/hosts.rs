@@ -127,6 +127,22 @@ fn a_flight_with_roles_on_another_host_and_its_reasoner_moved_there_and_back_rea
     std::fs::write(&workflow, text).unwrap();
     let flight = unique_flight("hosts");
     let mut run = fly_on_the_vehicle(&hosts, &dir.0, &workflow, &flight);
+    // a host of the flight's CA that the agent does not obey publishes decisions of the
+    // flight on the ground host's link the whole flight long: none may reach the flight
+    // (its bridge would refuse them by schema, by name, and the hub count them)
+    let HostLink::Tls(ids) = &link else {
+        unreachable!("make_keys makes TLS keys")
+    };
+    aeris_hosts::keys::issue(&ids.store, "intruder", &[], 1, false).expect("issue intruder");
+    let mut cmd = hosts.command(&hosts.vehicle, &peer_bin());
+    cmd.args([
+        "publish",
+        &hosts.ground_endpoint(&link),
+        &flight,
+        "reasoning/decision",
+    ])
+    .env("AERIS_PEER_KEYS", ids.store.join("intruder"));
+    let mut intruder = logged(&mut cmd, &dir.0.join("intruder.log"));
     // the reasoner moves to the ground host while flying, then back on board
     wait_for_text(
         &dir.0.join("run.stderr"),
@@ -207,6 +223,17 @@ fn a_flight_with_roles_on_another_host_and_its_reasoner_moved_there_and_back_rea
     );
     let summary = last_json_line(&out);
     assert_eq!(summary["reached_goal"], true, "{summary}\n{}", context());
+    // the intruder was connected and published all along (it exits on any failure), and
+    // nothing of it crossed
+    assert!(
+        intruder.0.try_wait().is_ok_and(|s| s.is_none()),
+        "the intruder stopped: {}",
+        std::fs::read_to_string(dir.0.join("intruder.log")).unwrap_or_default()
+    );
+    drop(intruder);
+    let bridge_log =
+        std::fs::read_to_string(dir.0.join("run/logs/bridge-to-ground.log")).unwrap_or_default();
+    assert!(!bridge_log.contains("refused"), "{bridge_log}");
     // decisions crossed the link and were committed, none refused, lost or out of order
     // (a cycle may still reuse a decision when the machine is busy: EER is measured, not
     // asserted)
