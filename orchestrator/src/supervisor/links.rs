@@ -38,6 +38,19 @@ fn bridge_there(host: &str) -> String {
     format!("bridge-on-{host}")
 }
 
+/// A lost link, and what its bridge on the flight's host said since: the link is back only
+/// on evidence newer than the loss. Right after a cut, the bridge's zenoh session still
+/// reports the other host connected until its own lease runs out (a run over TLS counted
+/// the link back 10 ms after the loss and restarted the bridge there into a cut link).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(super) struct LostLink {
+    host: String,
+    /// Probes its bridge had seen answered when the link was lost.
+    answered_at_loss: u64,
+    /// Its bridge reported the host disconnected (or was not running) since the loss.
+    seen_down: bool,
+}
+
 impl Supervisor {
     /// Count the links whose roles fell silent as lost, and start their fallbacks.
     pub(super) fn watch_links(&mut self, events: &mut Vec<SupervisorEvent>) {
@@ -193,6 +206,17 @@ impl Supervisor {
         }
     }
 
+    /// Whether the lost link to `host` is back: its bridge on the flight's host runs and
+    /// reports the host's agent connected, and that is news since the loss (the bridge
+    /// saw the host go, or a probe was answered since).
+    fn link_back(&self, host: &str) -> bool {
+        let Some(lost) = self.links_lost.iter().find(|l| l.host == host) else {
+            return self.link_connected(host);
+        };
+        let answered = self.host_links.get(host).map_or(0, |l| l.answered);
+        self.link_connected(host) && (lost.seen_down || answered > lost.answered_at_loss)
+    }
+
     /// Whether the bridge on the flight's host for `host` runs and reports that host's
     /// agent connected.
     fn link_connected(&self, host: &str) -> bool {
@@ -226,8 +250,23 @@ impl Supervisor {
             }
         }
         self.links_up_since.retain(|(h, _)| hosts.contains(h));
+        self.links_lost.retain(|l| hosts.contains(&l.host));
+        for host in &hosts {
+            let connected = self.link_connected(host);
+            match self.links_lost.iter_mut().find(|l| &l.host == host) {
+                Some(l) => l.seen_down |= !connected,
+                None => {
+                    let answered = self.host_links.get(host).map_or(0, |l| l.answered);
+                    self.links_lost.push(LostLink {
+                        host: host.clone(),
+                        answered_at_loss: answered,
+                        seen_down: !connected,
+                    });
+                }
+            }
+        }
         for host in hosts {
-            if !self.link_connected(&host) {
+            if !self.link_back(&host) {
                 self.links_up_since.retain(|(h, _)| *h != host);
                 continue;
             }

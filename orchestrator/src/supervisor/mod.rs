@@ -160,6 +160,9 @@ pub struct Supervisor {
     executor_accelerators: Vec<(String, aeris_runtime::accelerator::Accelerator)>,
     /// Lost links that are back, and since when (roles return after the hysteresis).
     links_up_since: Vec<(String, Instant)>,
+    /// What a lost link's bridge had said when the link was lost ([`links::LostLink`]): it
+    /// is back only on evidence newer than the loss.
+    links_lost: Vec<links::LostLink>,
     /// The links to the other hosts as their bridges measure them.
     host_links: HostLinks,
 }
@@ -286,6 +289,7 @@ impl Supervisor {
             remote_executors: plan.remote_executors,
             executor_accelerators: plan.accelerators,
             links_up_since: Vec::new(),
+            links_lost: Vec::new(),
             host_links,
         };
         for planned in plan.roles {

@@ -472,11 +472,14 @@ fn a_link_cut_mid_flight_hands_the_reasoner_to_its_fallback_which_hands_it_back_
         "{cut}"
     );
     // the fallback took over on the flight's host: then the link comes back
-    wait_for_text(
+    let ready = wait_for_text(
         &dir.0.join("run.stderr"),
         "role `reasoning`: `planner` (pid",
         "the fallback's readiness",
     );
+    // the link is still cut: nothing counts it back (the bridge's session here reports
+    // the other host connected until its own lease runs out)
+    assert!(!ready.contains("link to host `ground` back"), "{ready}");
     hosts.set_link(true).expect("restore the link");
     // the link held: the ground host's bridge restarted there, and the reasoner returns to
     // the ground host, make-before-break
