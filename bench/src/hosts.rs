@@ -326,7 +326,19 @@ impl Flight {
 
     /// When the first line holding `needle` arrived (waiting for it if it has not yet).
     fn wait_line(&mut self, needle: &str) -> Result<Instant, HostsBenchError> {
-        if let Some((t, _)) = self.seen.iter().find(|(_, l)| l.contains(needle)) {
+        self.wait_line_after(needle, None)
+    }
+
+    /// When the first line holding `needle` arrived at or after `after` (any, if `None`),
+    /// waiting for it if it has not yet: an event that also happened earlier in the flight
+    /// (a link back at its start) is not taken for the one awaited.
+    fn wait_line_after(
+        &mut self,
+        needle: &str,
+        after: Option<Instant>,
+    ) -> Result<Instant, HostsBenchError> {
+        let fits = |t: &Instant, l: &str| l.contains(needle) && after.is_none_or(|a| *t >= a);
+        if let Some((t, _)) = self.seen.iter().find(|(t, l)| fits(t, l)) {
             return Ok(*t);
         }
         let deadline = Instant::now() + STEP_BOUND;
@@ -334,7 +346,7 @@ impl Flight {
             let left = deadline.saturating_duration_since(Instant::now());
             match self.lines.recv_timeout(left) {
                 Ok((t, line)) => {
-                    let hit = line.contains(needle);
+                    let hit = fits(&t, &line);
                     self.seen.push((t, line));
                     if hit {
                         return Ok(t);
@@ -630,12 +642,18 @@ fn cut_on(config: &HostsBenchConfig, kind: LinkKind) -> Result<(CutFigures, u64)
     flight.wait_line("step 2/4")?;
     let cut_at = Instant::now();
     s.hosts.set_link(false)?;
-    let lost = flight.wait_line("link to host `ground` lost")?;
-    let ready = flight.wait_line("on the flight's host (executor perception) was ready after")?;
+    let lost = flight.wait_line_after("link to host `ground` lost", Some(cut_at))?;
+    let ready = flight.wait_line_after(
+        "on the flight's host (executor perception) was ready after",
+        Some(cut_at),
+    )?;
     let restored_at = Instant::now();
     s.hosts.set_link(true)?;
-    let link_back = flight.wait_line("link to host `ground` back")?;
-    let back = flight.wait_line("move of `planner` to host `ground` (executor gs) done")?;
+    let link_back = flight.wait_line_after("link to host `ground` back", Some(restored_at))?;
+    let back = flight.wait_line_after(
+        "move of `planner` to host `ground` (executor gs) done",
+        Some(restored_at),
+    )?;
     let (summary, _) = flight.finish()?;
     let ms = |from: Instant, to: Instant| to.saturating_duration_since(from).as_millis() as u64;
     Ok((

@@ -211,6 +211,13 @@ fn refuse_simulator_roles(
 /// `aeris run`.
 pub fn run(args: RunArgs) -> Result<ExitCode> {
     let workflow = load(args.workflow.as_deref())?;
+    // a host's link fails here, naming the host, rather than in its bridge once flying
+    for h in &workflow.hosts {
+        if let Some(keys) = &h.keys {
+            aeris_hosts::keys::Identity::load(std::path::Path::new(keys))
+                .with_context(|| format!("the keys of the link to host `{}`", h.name))?;
+        }
+    }
     for h in workflow.hosts.iter().filter(|h| h.insecure) {
         eprintln!(
             "aeris: INSECURE link to host `{}` ({}): plain TCP, no authentication, no encryption; \

@@ -88,6 +88,19 @@ fn every_kind_of_bad_input_names_its_offender_once() {
     hosts.insert("ground".into(), toml::Value::Table(host));
     w.insert("hosts".into(), toml::Value::Table(hosts));
     let endpoint = write_workflow(d, "endpoint", &w);
+    // another host over TLS whose keys are not there
+    let missing_keys = d.join("no-such-keys");
+    let mut w = default_workflow();
+    let host: toml::Table = format!(
+        "endpoint = \"tls/10.0.0.2:7447\"\nkeys = \"{}\"",
+        missing_keys.display()
+    )
+    .parse()
+    .unwrap();
+    let mut hosts = toml::Table::new();
+    hosts.insert("ground".into(), toml::Value::Table(host));
+    w.insert("hosts".into(), toml::Value::Table(hosts));
+    let host_keys = write_workflow(d, "host-keys", &w);
     // a flight of more vehicles than a flight may have
     let mut w = default_workflow();
     let vehicles = |w: &mut toml::Table, n: i64| {
@@ -171,6 +184,11 @@ fn every_kind_of_bad_input_names_its_offender_once() {
             &f,
         ));
     }
+    cases.push(case(
+        "keys of a host's link",
+        &["run", &path_str(&host_keys)],
+        &path_str(&missing_keys),
+    ));
     cases.push(case(
         "agent endpoint",
         &[
