@@ -28,9 +28,11 @@ use std::process::{Child, Stdio};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, channel};
 use std::time::{Duration, Instant};
 
+mod ping;
 mod placement;
 mod security;
 
+pub use ping::PingFigures;
 pub use placement::PlacementFigures;
 use placement::placement;
 pub use security::{SecurityReport, SecurityRow, compare_links};

@@ -220,6 +220,25 @@ fn print_links(report: &aeris_bench::hosts::SecurityReport, json: bool) -> Resul
             r.restored_to_reasoner_ms,
         );
     }
+    println!(
+        "  the link alone (loopback, through a router; round trip, each way client → router → client):"
+    );
+    for r in &report.rows {
+        for p in &r.ping {
+            println!(
+                "  {:<5} {:>6} B: p50 {:>7.1} us  p95 {:>7.1} us  mean {:>7.1} us  ({} round trips)",
+                match r.link {
+                    aeris_bench::hosts::LinkKind::Tls => "tls",
+                    aeris_bench::hosts::LinkKind::Tcp => "tcp",
+                },
+                p.bytes,
+                p.p50_us,
+                p.p95_us,
+                p.mean_us,
+                p.round_trips
+            );
+        }
+    }
     if json {
         println!("{}", serde_json::to_string(report)?);
     }

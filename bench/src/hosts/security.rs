@@ -1,7 +1,9 @@
 //! `aeris bench hosts --tls`: what mutual TLS costs on the link, beside plain TCP. The same
 //! flights on each link: the reasoner and the perception role on the ground host (every
-//! frame and every decision crosses), then the link cut under the reasoner and restored.
+//! frame and every decision crosses), then the link cut under the reasoner and restored; and
+//! the link alone, without a flight ([`super::ping`]).
 
+use super::ping::{PingFigures, ping_pong};
 use super::{
     Flight, HostsBenchConfig, HostsBenchError, LinkKind, bridge_sent, cut_on, flight_name, setting,
 };
@@ -41,7 +43,16 @@ pub struct SecurityRow {
     /// From the link restored to the reasoner deciding on the ground host again (5 s
     /// hysteresis included; ms).
     pub restored_to_reasoner_ms: u64,
+    /// The link alone (loopback, through a router, no flight): round trips of a
+    /// decision-sized and a frame-sized message ([`PING_SIZES`]).
+    pub ping: Vec<PingFigures>,
 }
+
+/// The ping-pong's message sizes: a decision (88 B and its attachment) and a JPEG frame
+/// (its header and ~8.6 kB of pixels at quality 85).
+pub const PING_SIZES: [usize; 2] = [112, 8_800];
+/// Round trips per size.
+pub const PING_ROUND_TRIPS: usize = 2_000;
 
 /// Both links.
 #[derive(Debug, Clone, Serialize)]
@@ -83,6 +94,7 @@ fn row(config: &HostsBenchConfig, kind: LinkKind) -> Result<SecurityRow, HostsBe
         .join("bridge-on-ground.log");
     // the cut flight's own figures are the default benchmark's; here, its restore
     let (cut, restored_to_link_ms) = cut_on(config, kind)?;
+    let ping = ping_pong(kind, &s.dir, &PING_SIZES, PING_ROUND_TRIPS)?;
     Ok(SecurityRow {
         link: kind,
         reached_goal: summary["reached_goal"] == true,
@@ -97,6 +109,7 @@ fn row(config: &HostsBenchConfig, kind: LinkKind) -> Result<SecurityRow, HostsBe
         bridge_cpu_ground_pct: bridge_cpu_pct(&ground_log),
         restored_to_link_ms,
         restored_to_reasoner_ms: cut.returned_ms,
+        ping,
     })
 }
 
