@@ -44,6 +44,30 @@ fn native_cpu_flags_are_set_for_the_host_target_only() {
     assert_eq!(native, ["x86_64-unknown-linux-gnu"], "{text}");
 }
 
+#[test]
+fn llama_cpp_is_built_without_amx_for_the_host_target_only() {
+    let text = std::fs::read_to_string(repo().join(".cargo/config.toml")).unwrap();
+    let config: toml::Table = text.parse().unwrap();
+    let env = config["env"].as_table().expect("[env]");
+    // ggml's AMX kernels died of SIGILL on an AMX machine: off for the host's C and C++
+    for key in [
+        "CFLAGS_x86_64_unknown_linux_gnu",
+        "CXXFLAGS_x86_64_unknown_linux_gnu",
+    ] {
+        let flags = env[key].as_str().unwrap_or_default();
+        for f in ["-mno-amx-tile", "-mno-amx-int8", "-mno-amx-bf16"] {
+            assert!(flags.split_whitespace().any(|w| w == f), "{key}: {flags}");
+        }
+    }
+    // never for every target: an aarch64 cross compiler refuses -mno-amx-*
+    for key in ["CFLAGS", "CXXFLAGS", "TARGET_CFLAGS", "TARGET_CXXFLAGS"] {
+        assert!(
+            !env.contains_key(key),
+            "{key} would reach a cross build: {text}"
+        );
+    }
+}
+
 fn dry_run(board: &str) -> String {
     let out = Command::new("bash")
         .arg(repo().join("scripts/build-aarch64.sh"))
