@@ -100,6 +100,17 @@ fn squatter(prepare: &str, program: &Path, args: &[&str], log: &Path) -> ChildGu
     ChildGuard::spawn(&mut cmd).expect("spawn the squatter")
 }
 
+/// A process killed (SIGKILL) on drop: the squatter, whose parent-death signal `setpriv`'s
+/// change of user cleared, so it would outlive `unshare`.
+struct KillOnDrop(u32);
+
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        // SAFETY: kill has no memory effects; a pid already gone is ESRCH.
+        unsafe { libc::kill(self.0 as libc::pid_t, libc::SIGKILL) };
+    }
+}
+
 /// The pid of `unshare`'s child (the squatter), whose mount namespace a flight joins.
 fn child_pid(unshare: u32) -> u32 {
     poll_until(Duration::from_secs(10), || {
@@ -177,6 +188,7 @@ fn squat_then_fly(dir: &Path, tag: &str, prepare: &str) -> (String, String) {
         &log,
     );
     let pid = child_pid(squat.pid());
+    let _role = KillOnDrop(pid);
     wait_for_services(pid, &log);
     let text = fly_beside(pid, &flight, dir);
     (flight, text)
