@@ -16,6 +16,25 @@ use std::sync::OnceLock;
 /// Tokens one llama.cpp batch holds (prompt chunks, draft verification).
 pub(crate) const BATCH: usize = 512;
 
+/// llama.cpp's flash attention switch (`enum llama_flash_attn_type`, a C `int`): off.
+const FLASH_ATTN_DISABLED: i32 = 0;
+/// On where llama.cpp finds it worth it (its default).
+const FLASH_ATTN_AUTO: i32 = -1;
+
+/// The flash-attention policy of a context on an accelerator (`offloaded`) or the CPU.
+/// On the CPU it is off: llama.cpp's default (auto) turns it on there, and its CPU kernel
+/// (`ggml_compute_forward_flash_attn_ext_f16`, 55 % of a decision's profile) made a SmolLM2
+/// decision 3x slower on a 2-core Xeon VM (1567 ms against 495 ms, `aeris bench models
+/// --only smollm2,gemma3`; Gemma 3 675 against 637 ms; a Qwen2.5-Coder formation plan 19 s
+/// against 14 s). On a GPU it stays llama.cpp's choice.
+pub(crate) fn flash_attention(offloaded: bool) -> i32 {
+    if offloaded {
+        FLASH_ATTN_AUTO
+    } else {
+        FLASH_ATTN_DISABLED
+    }
+}
+
 /// Candidates (by logit) tried against the grammar one by one before the whole vocabulary
 /// is filtered.
 const GREEDY_PROBES: usize = 8;

@@ -341,7 +341,8 @@ impl FormationWriter {
             .with_n_ctx(NonZeroU32::new(CONTEXT_TOKENS))
             .with_n_batch(BATCH as u32)
             .with_n_threads(threads.max(1))
-            .with_n_threads_batch(threads.max(1));
+            .with_n_threads_batch(threads.max(1))
+            .with_flash_attention_policy(crate::decode::flash_attention(false));
         let ctx = model
             .new_context(backend, ctx_params)
             .map_err(|e| load_error(&e))?;

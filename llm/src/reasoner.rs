@@ -1,7 +1,9 @@
 //! [`LanguageReasoner`]: one GGUF model in llama.cpp, a context whose KV cache keeps the
 //! prompt prefix between heartbeats, and grammar-constrained greedy decoding.
 
-use crate::decode::{BATCH, backend, chat_prompt, eval_tokens, greedy_allowed, reuse_prefix};
+use crate::decode::{
+    BATCH, backend, chat_prompt, eval_tokens, flash_attention, greedy_allowed, reuse_prefix,
+};
 use crate::grammar::{FieldGrammar, GrammarError, decision_grammar, field_grammars};
 use crate::prompt::{MissionBrief, Observation, system_message, user_message};
 use crate::view::{DecisionView, ViewError};
@@ -322,7 +324,8 @@ impl LanguageReasoner {
             .with_n_threads_batch(config.threads.max(1))
             // the KV cache on the GPU only for a role bound to one (a CUDA build would put it
             // there for a role on a CPU set too)
-            .with_offload_kqv(config.accelerator.is_some());
+            .with_offload_kqv(config.accelerator.is_some())
+            .with_flash_attention_policy(flash_attention(config.accelerator.is_some()));
         let ctx = model
             .new_context(backend, params)
             .map_err(|e| LlmError::Load {
