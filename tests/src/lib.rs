@@ -49,8 +49,9 @@ impl Drop for ChildGuard {
     }
 }
 
-/// A scratch directory under the system temp dir, removed on drop (kept when the environment
-/// sets `AERIS_TEST_KEEP`, to read a failed test's run directory and logs).
+/// A scratch directory under the system temp dir, removed on drop; kept when its test fails
+/// (the drop runs while the test panics) or when the environment sets `AERIS_TEST_KEEP`, so a
+/// failed test's run directory and logs can be read afterwards (CI's among them).
 pub struct TempDir(pub PathBuf);
 
 impl TempDir {
@@ -65,7 +66,7 @@ impl TempDir {
 
 impl Drop for TempDir {
     fn drop(&mut self) {
-        if std::env::var_os("AERIS_TEST_KEEP").is_some() {
+        if std::thread::panicking() || std::env::var_os("AERIS_TEST_KEEP").is_some() {
             eprintln!("kept {}", self.0.display());
             return;
         }

@@ -99,8 +99,12 @@ pub enum SupervisorEvent {
     /// The supervisor itself did not run for a while (the machine paused or starved it): the
     /// roles' silence in that time is not counted against them (stalls, lost links).
     Unwatched {
-        /// Milliseconds between two steps of the supervisor.
+        /// Milliseconds not watched: between two steps of the supervisor, or of one CPU's
+        /// pause.
         gap_ms: u64,
+        /// The CPU that did not run (a virtual machine's CPU paused by its host); `None`:
+        /// the supervisor itself did not run.
+        cpu: Option<usize>,
     },
     /// A hot swap started the new process; the old one keeps running.
     SwapStarted {
@@ -357,9 +361,16 @@ impl core::fmt::Display for SupervisorEvent {
             SupervisorEvent::RoleRecovered { name } => {
                 write!(f, "role `{name}` runs normally again")
             }
-            SupervisorEvent::Unwatched { gap_ms } => write!(
+            SupervisorEvent::Unwatched { gap_ms, cpu: None } => write!(
                 f,
                 "the supervisor did not run for {gap_ms} ms (the machine paused or starved it): the roles' silence in that time is not held against them"
+            ),
+            SupervisorEvent::Unwatched {
+                gap_ms,
+                cpu: Some(cpu),
+            } => write!(
+                f,
+                "CPU {cpu} did not run for {gap_ms} ms (the machine paused it): the roles' silence in that time is not held against them"
             ),
             SupervisorEvent::SwapStarted {
                 name,

@@ -39,6 +39,7 @@
 
 mod board;
 mod control_service;
+mod cpu_watch;
 mod error;
 mod events;
 mod exits;
@@ -280,7 +281,7 @@ impl Supervisor {
             ladder: VariantLadder::new(ladder_config(&scheduling), &ladders),
             variant_steps: 0,
             stalls: StallDetector::new(idle_heartbeat_ms, &scheduling),
-            watch_clock: WatchClock::default(),
+            watch_clock: WatchClock::watching_cpus(),
             scheduling,
             next_tick: Instant::now(),
             initial: InitialCheck::default(),
@@ -343,12 +344,16 @@ impl Supervisor {
     /// policy, start due restarts, update the status board. Call it every ~20 ms.
     pub fn step(&mut self) -> Result<Vec<SupervisorEvent>, SupervisorError> {
         let mut events = core::mem::take(&mut self.pending);
-        self.watch_clock.discount(&mut self.roles, &mut events);
+        let judge_silence =
+            self.watch_clock
+                .discount(&mut self.roles, &mut events, self.stalls.hard());
         self.serve_control(&mut events)?;
         self.drain_heartbeats(&mut events)?;
         self.reap(&mut events)?;
-        self.stalls.check(&mut self.roles, &mut events);
-        self.watch_links(&mut events);
+        if judge_silence {
+            self.stalls.check(&mut self.roles, &mut events);
+            self.watch_links(&mut events);
+        }
         let before = events.len();
         self.advance_swaps(&mut events);
         self.ladder_follow_swaps(&events[before..]);

@@ -4,6 +4,7 @@
 //! descheduled, a machine starved) is discounted from every role's silence ([`WatchClock`]),
 //! so a pause of the whole machine does not read as a stall or a lost link.
 
+use super::cpu_watch::CpuWatch;
 use super::events::SupervisorEvent;
 use super::role_runtime::{RoleRuntime, RoleState};
 use crate::executors::{process_state, process_thread_times};
@@ -14,40 +15,69 @@ use std::time::{Duration, Instant};
 /// supervisor did not watch.
 pub(super) const UNWATCHED_GAP: Duration = Duration::from_millis(300);
 
-/// When the supervisor last stepped.
+/// When the supervisor last stepped, and whether every CPU ran since ([`CpuWatch`]).
 #[derive(Debug, Default)]
 pub(super) struct WatchClock {
     last_step: Option<Instant>,
+    cpus: Option<CpuWatch>,
 }
 
 impl WatchClock {
-    /// Call at the start of every step: after a pause longer than [`UNWATCHED_GAP`], every
-    /// role's last heartbeat moves forward by the pause (its silence is what the supervisor
-    /// saw), its CPU probe starts again, and [`SupervisorEvent::Unwatched`] says so. In a
-    /// pause of the whole machine the roles made no progress either, and the heartbeats they
-    /// send as it ends may not have arrived yet.
+    /// A clock that also watches every CPU the supervisor may run on.
+    pub(super) fn watching_cpus() -> Self {
+        WatchClock {
+            last_step: None,
+            cpus: Some(CpuWatch::start()),
+        }
+    }
+
+    /// Call at the start of every step: after a pause of the supervisor longer than
+    /// [`UNWATCHED_GAP`], or of one CPU, every role's last heartbeat moves forward by the
+    /// pause (its silence is what the supervisor saw), its CPU probe starts again, and
+    /// [`SupervisorEvent::Unwatched`] says so. In a pause of the whole machine the roles made
+    /// no progress either, and the heartbeats they send as it ends may not have arrived yet;
+    /// in a pause of one CPU the roles waiting to wake on it did not run. Returns whether the
+    /// roles' silence may be judged in this step: not while a CPU is paused now (for at most
+    /// `hold_at_most`, after which silence is judged whatever the CPUs do).
     pub(super) fn discount(
         &mut self,
         roles: &mut [RoleRuntime],
         events: &mut Vec<SupervisorEvent>,
-    ) {
+        hold_at_most: Duration,
+    ) -> bool {
         let now = Instant::now();
-        let Some(last) = self.last_step.replace(now) else {
-            return;
+        let own = self
+            .last_step
+            .replace(now)
+            .map(|last| now.saturating_duration_since(last))
+            .filter(|gap| *gap > UNWATCHED_GAP)
+            .map(|gap| (gap, None));
+        let cpu = self
+            .cpus
+            .as_ref()
+            .and_then(CpuWatch::take_pause)
+            .map(|p| (p.gap, Some(p.cpu)));
+        // the longer of the two: a pause of the supervisor's own CPU shows in both
+        let pause = match (own, cpu) {
+            (Some(a), Some(b)) => Some(if b.0 > a.0 { b } else { a }),
+            (a, b) => a.or(b),
         };
-        let gap = now.saturating_duration_since(last);
-        if gap <= UNWATCHED_GAP {
-            return;
-        }
-        for role in roles {
-            if let Some(heard) = role.heard_at.as_mut() {
-                *heard = (*heard + gap).min(now);
+        if let Some((gap, cpu)) = pause {
+            for role in roles {
+                if let Some(heard) = role.heard_at.as_mut() {
+                    *heard = (*heard + gap).min(now);
+                }
+                role.silence_probe = None;
             }
-            role.silence_probe = None;
+            events.push(SupervisorEvent::Unwatched {
+                gap_ms: gap.as_millis() as u64,
+                cpu,
+            });
         }
-        events.push(SupervisorEvent::Unwatched {
-            gap_ms: gap.as_millis() as u64,
-        });
+        self.cpus
+            .as_ref()
+            .and_then(CpuWatch::frozen_now)
+            .is_none_or(|p| p.gap > hold_at_most)
     }
 }
 
@@ -71,6 +101,11 @@ impl StallDetector {
             timeout: Duration::from_millis(scheduling.stall_timeout_ms),
             hard: Duration::from_millis(scheduling.stall_hard_timeout_ms),
         }
+    }
+
+    /// `stall_hard_timeout_ms`.
+    pub(super) fn hard(&self) -> Duration {
+        self.hard
     }
 
     /// Kill running roles that are alive but silent: stopped (SIGSTOP, state `T`) after
@@ -166,6 +201,8 @@ mod tests {
     use super::*;
     use crate::supervisor::role_runtime::tests::runtime;
 
+    const HOLD: Duration = Duration::from_secs(60);
+
     #[test]
     fn a_pause_of_the_supervisor_is_not_the_roles_silence() {
         let now = Instant::now();
@@ -176,8 +213,9 @@ mod tests {
         // the last step 2 s ago: 2 s were not watched
         let mut clock = WatchClock {
             last_step: Some(now - Duration::from_secs(2)),
+            cpus: None,
         };
-        clock.discount(&mut roles, &mut events);
+        assert!(clock.discount(&mut roles, &mut events, HOLD));
         let heard = roles[0].heard_at.unwrap();
         let silent = heard.elapsed();
         assert!(
@@ -186,12 +224,12 @@ mod tests {
         );
         assert_eq!(roles[1].heard_at, None);
         assert!(
-            matches!(events[..], [SupervisorEvent::Unwatched { gap_ms }] if gap_ms >= 2_000),
+            matches!(events[..], [SupervisorEvent::Unwatched { gap_ms, cpu: None }] if gap_ms >= 2_000),
             "{events:?}"
         );
         // the next step follows at once: nothing more is discounted
         events.clear();
-        clock.discount(&mut roles, &mut events);
+        assert!(clock.discount(&mut roles, &mut events, HOLD));
         assert_eq!(roles[0].heard_at, Some(heard));
         assert!(events.is_empty(), "{events:?}");
     }
@@ -203,8 +241,51 @@ mod tests {
         roles[0].heard_at = Some(now - Duration::from_millis(100));
         let mut clock = WatchClock {
             last_step: Some(now - Duration::from_secs(5)),
+            cpus: None,
         };
-        clock.discount(&mut roles, &mut Vec::new());
+        clock.discount(&mut roles, &mut Vec::new(), HOLD);
         assert!(roles[0].heard_at.unwrap() <= Instant::now());
+    }
+
+    #[test]
+    fn a_pause_of_one_cpu_is_not_the_roles_silence_and_one_under_way_holds_judgement() {
+        let now = Instant::now();
+        let mut roles = [runtime()];
+        roles[0].heard_at = Some(now - Duration::from_millis(1_200));
+        let mut events = Vec::new();
+        // CPU 1 did not run for 900 ms, and has run since; the supervisor stepped on time
+        let mut clock = WatchClock {
+            last_step: Some(now),
+            cpus: Some(CpuWatch::stub(
+                1,
+                Duration::ZERO,
+                Duration::from_millis(900),
+            )),
+        };
+        assert!(clock.discount(&mut roles, &mut events, HOLD));
+        let silent = roles[0].heard_at.unwrap().elapsed();
+        assert!(silent < Duration::from_millis(400), "{silent:?}");
+        assert!(
+            matches!(
+                events[..],
+                [SupervisorEvent::Unwatched {
+                    gap_ms: 900,
+                    cpu: Some(1)
+                }]
+            ),
+            "{events:?}"
+        );
+        // CPU 1 has not run for 700 ms now: nobody's silence is judged in this step ...
+        let mut clock = WatchClock {
+            last_step: Some(Instant::now()),
+            cpus: Some(CpuWatch::stub(
+                1,
+                Duration::from_millis(700),
+                Duration::ZERO,
+            )),
+        };
+        assert!(!clock.discount(&mut roles, &mut Vec::new(), HOLD));
+        // ... unless it has been paused longer than the hold allows
+        assert!(clock.discount(&mut roles, &mut Vec::new(), Duration::from_millis(500)));
     }
 }

@@ -77,7 +77,7 @@ fn a_pause_of_the_supervisor_is_discounted_and_a_silence_it_watches_is_not() {
     assert!(
         events.iter().any(|e| matches!(
             e,
-            SupervisorEvent::Unwatched { gap_ms } if *gap_ms >= 2 * stall_timeout.as_millis() as u64
+            SupervisorEvent::Unwatched { gap_ms, .. } if *gap_ms >= 2 * stall_timeout.as_millis() as u64
         )),
         "{events:?}"
     );
