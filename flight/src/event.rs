@@ -44,6 +44,9 @@ pub enum FlightFailure {
     },
     /// Two vehicles of the flight collided ([`crate::fleet::COLLISION_DISTANCE_M`]).
     Collision(crate::fleet::Collision),
+    /// The hub committed no decision in the flight's first
+    /// [`crate::first_decision::FIRST_DECISION_HEARTBEATS`] heartbeats.
+    NoFirstDecision(crate::first_decision::NoFirstDecision),
 }
 
 impl core::fmt::Display for FlightFailure {
@@ -65,6 +68,7 @@ impl core::fmt::Display for FlightFailure {
             FlightFailure::Stopped => f.write_str("stopped"),
             FlightFailure::Interrupted => f.write_str("interrupted"),
             FlightFailure::AutopilotSilent { diagnosis } => f.write_str(diagnosis),
+            FlightFailure::NoFirstDecision(why) => write!(f, "{why}"),
             FlightFailure::Collision(c) => write!(
                 f,
                 "vehicles {} and {} collided: {:.2} m apart at [{:.1}, {:.1}, {:.1}] (under {} m)",

@@ -47,6 +47,7 @@
 pub mod autopilot_link;
 pub mod event;
 pub mod executors;
+pub mod first_decision;
 pub mod fleet;
 pub mod formation_say;
 mod handle;

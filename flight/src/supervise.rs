@@ -13,6 +13,7 @@ use crate::recording::RecordingSummary;
 use aeris_orchestrator::supervisor::{RoleState, Supervisor, SupervisorEvent, SupervisorOptions};
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::MissionSpec;
+use aeris_schemas::HubBeatCounters;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::mpsc::{Sender, SyncSender};
@@ -132,6 +133,8 @@ pub(crate) fn supervise<H: StepHook>(
     let mission = workflow.mission.clone();
     let vehicles = workflow.fleet.vehicles;
     let max_duration = Duration::from_secs_f64(mission.max_duration_s);
+    let heartbeat = Duration::from_millis(workflow.timing.heartbeat_period_ms);
+    let deadline_ms = workflow.timing.decision_deadline_ms;
     crate::executors::check_accelerators(&workflow)
         .map_err(|e| FlightError::Accelerator(Box::new(e)))?;
     let mut sup = Supervisor::start(SupervisorOptions {
@@ -202,6 +205,17 @@ pub(crate) fn supervise<H: StepHook>(
         if let Some(collision) = monitor.fleet().and_then(|f| f.collision()) {
             failure = Some(FlightFailure::Collision(collision));
         }
+        if vehicles <= 1
+            && let Some(overdue) = crate::first_decision::overdue(
+                start.elapsed(),
+                monitor.cycles(),
+                hub_counters(&sup),
+                heartbeat,
+                deadline_ms,
+            )
+        {
+            failure = Some(overdue);
+        }
         let hook_done = hook
             .step(&mut StepContext {
                 supervisor: &mut sup,
@@ -254,6 +268,14 @@ pub(crate) fn supervise<H: StepHook>(
     let duration = start.elapsed().as_secs_f64();
     let _ = monitor.poll();
     let mut summary = monitor.summary(&name, duration, u64::from(sup.total_restarts()));
+    // before a first commit the hub reports no cycle: its counters are in its heartbeats
+    if monitor.cycles() == 0
+        && let Some(hub) = hub_counters(&sup)
+    {
+        summary.decisions_received = hub.received;
+        summary.decisions_rejected = hub.rejected;
+        summary.decisions_late = hub.late;
+    }
     summary.migrations = u64::from(sup.total_migrations());
     summary.variant_steps = u64::from(sup.total_variant_steps());
     summary.stalls = sup.roles().iter().map(|r| u64::from(r.stalls())).sum();
@@ -300,6 +322,15 @@ pub(crate) fn supervise<H: StepHook>(
         trace: monitor.trace().to_vec(),
     };
     Ok((outcome, hook))
+}
+
+/// The hub's last heartbeat counters (a flight of one vehicle has one hub).
+fn hub_counters(sup: &Supervisor) -> Option<HubBeatCounters> {
+    sup.roles()
+        .iter()
+        .find(|r| r.kind() == "hub")
+        .and_then(|r| r.last_heartbeat())
+        .map(|hb| HubBeatCounters::from_heartbeat(&hb.counters))
 }
 
 /// The formation role's last heartbeat counters, read.

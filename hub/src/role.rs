@@ -16,7 +16,7 @@
 //! ATT). A change of the occupancy status the gate works with (present, absent, stale) is
 //! one line in the role's log; every report carries it. Heartbeat counters: `[decisions received,
 //! rejected, late, reused cycles, sequence gaps, reorders, states received, decisions
-//! superseded]`.
+//! superseded]` ([`HubBeatCounters`]).
 
 use crate::att::{Attention, AttentionPrior, EMBEDDING_GAIN, EmbeddingScorer};
 use crate::core::{DecisionVerdict, HubConfig, HubCore};
@@ -27,8 +27,8 @@ use aeris_runtime::role::try_sched_fifo;
 use aeris_runtime::spec::TimingSpec;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
 use aeris_schemas::{
-    BLIND_MOVE_M, BoundSetpoint, Decision, HubReport, MAX_SUBGOALS, OccupancyStatus,
-    PerceptionState, RoleStatus, VehicleTelemetry, topics,
+    BLIND_MOVE_M, BoundSetpoint, Decision, HubBeatCounters, HubReport, MAX_SUBGOALS,
+    OccupancyStatus, PerceptionState, RoleStatus, VehicleTelemetry, topics,
 };
 use std::time::Duration;
 
@@ -275,16 +275,17 @@ impl Role for HubRole {
         report.stage("gate", gate_ns);
         report.stage("att", att_ns);
         let c = self.core.counters();
-        report.counters = [
-            c.decisions_received,
-            c.decisions_rejected,
-            c.decisions_late,
-            c.decisions_reused,
-            c.sequence_gaps,
-            c.sequence_reorders,
-            c.states_received,
-            c.decisions_superseded,
-        ];
+        report.counters = HubBeatCounters {
+            received: c.decisions_received,
+            rejected: c.decisions_rejected,
+            late: c.decisions_late,
+            reused: c.decisions_reused,
+            sequence_gaps: c.sequence_gaps,
+            reorders: c.sequence_reorders,
+            states_received: c.states_received,
+            superseded: c.decisions_superseded,
+        }
+        .to_heartbeat();
         report.status = if self.core.reusing() {
             RoleStatus::Degraded
         } else {

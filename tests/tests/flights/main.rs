@@ -18,6 +18,7 @@ mod formation;
 mod garbage;
 mod hosts;
 mod ladder;
+mod liveness;
 mod mavproxy;
 mod no_depth;
 mod record;
