@@ -17,6 +17,9 @@
 //! - [`hosts`]: the default flight with roles on a second host (network namespaces): CT
 //!   across the link vs local, frames across, moves there and back, a link cut.
 //!
+//! - [`machine`]: the machine a figure came from (CPU, flags, cores, build profile, steal
+//!   time over the run, a calibration figure), carried in every report's JSON.
+//!
 //! Every benchmark returns a report struct (serde `Serialize`); printing is the caller's job.
 
 #![deny(missing_docs)]
@@ -29,6 +32,7 @@ pub mod formation;
 pub mod gate;
 pub mod hosts;
 pub mod ipc;
+pub mod machine;
 pub mod models;
 
 pub use control::{ControlConfig, ControlReport, ControlRow, Scenario, Sched, SchedChoice};

@@ -76,7 +76,7 @@ pub fn run(a: CameraArgs) -> anyhow::Result<()> {
         );
     }
     if a.json {
-        println!("{}", serde_json::to_string(&report)?);
+        crate::bench_json::print(&report)?;
     }
     Ok(())
 }

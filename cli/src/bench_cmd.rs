@@ -154,6 +154,13 @@ pub enum SchedArg {
 
 /// Run `aeris bench ...`.
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
+    // the internal children of a benchmark print for their parent, not for a reader
+    if !matches!(
+        args.command,
+        BenchCommand::ModelProbe(_) | BenchCommand::IpcPong(_)
+    ) {
+        crate::bench_json::start();
+    }
     match args.command {
         BenchCommand::Ipc(a) => run_ipc(a),
         BenchCommand::Gate(a) => run_gate(a),
@@ -231,7 +238,7 @@ fn run_ipc(a: IpcArgs) -> anyhow::Result<()> {
     .context("bench ipc failed")?;
     print_ipc_footer(&report);
     if a.json {
-        println!("{}", serde_json::to_string(&report)?);
+        crate::bench_json::print(&report)?;
     }
     Ok(())
 }
@@ -287,7 +294,7 @@ fn run_gate(a: GateArgs) -> anyhow::Result<()> {
         report.clock_overhead_ns
     );
     if a.json {
-        println!("{}", serde_json::to_string(&report)?);
+        crate::bench_json::print(&report)?;
     }
     Ok(())
 }
@@ -337,7 +344,7 @@ fn run_control(a: ControlArgs) -> anyhow::Result<()> {
         }
     );
     if a.json {
-        println!("{}", serde_json::to_string(&report)?);
+        crate::bench_json::print(&report)?;
     }
     Ok(())
 }

@@ -60,7 +60,7 @@ pub fn ds(a: DsArgs) -> Result<()> {
         println!("  DS on: {m}");
     }
     if a.flight.json {
-        println!("{}", serde_json::to_string(&report)?);
+        crate::bench_json::print(&report)?;
     }
     Ok(())
 }

@@ -117,6 +117,15 @@ pub fn cycle(a: CycleArgs) -> Result<()> {
         report.stages.routing,
         report.stages.binding
     );
+    let p = &report.pauses;
+    println!(
+        "  pauses: the supervisor's longest step gap {:.0} ms ({} over 100 ms); {} of the supervisor and {} of one CPU over 300 ms, the longest {} ms",
+        p.step_gap_max_ms,
+        p.step_gaps_over_100ms,
+        p.supervisor_pauses,
+        p.cpu_pauses,
+        p.pause_max_ms
+    );
     let m = &report.memory;
     println!(
         "  memory: the roles' PSS peak {} MiB (RSS summed {:.0} MiB)",
@@ -132,7 +141,7 @@ pub fn cycle(a: CycleArgs) -> Result<()> {
         );
     }
     if a.flight.json {
-        println!("{}", serde_json::to_string(&report)?);
+        crate::bench_json::print(&report)?;
     }
     Ok(())
 }
@@ -183,7 +192,7 @@ pub fn swap(a: SwapArgs) -> Result<()> {
         report.flight_max_setpoint_gap_ms
     );
     if a.flight.json {
-        println!("{}", serde_json::to_string(&report)?);
+        crate::bench_json::print(&report)?;
     }
     Ok(())
 }
@@ -247,7 +256,7 @@ pub fn record(a: RecordArgs) -> Result<()> {
         );
     }
     if a.json {
-        println!("{}", serde_json::to_string(&report)?);
+        crate::bench_json::print(&report)?;
     }
     Ok(())
 }

@@ -171,7 +171,7 @@ pub fn run(a: HostsArgs) -> Result<()> {
         }
     }
     if a.json {
-        println!("{}", serde_json::to_string(&report)?);
+        crate::bench_json::print(&report)?;
     }
     Ok(())
 }
@@ -240,7 +240,7 @@ fn print_links(report: &aeris_bench::hosts::SecurityReport, json: bool) -> Resul
         }
     }
     if json {
-        println!("{}", serde_json::to_string(report)?);
+        crate::bench_json::print(report)?;
     }
     Ok(())
 }

@@ -156,7 +156,7 @@ pub fn run(a: ModelsArgs) -> Result<()> {
             outside_load: a.outside_load,
             rows,
         };
-        println!("{}", serde_json::to_string(&report)?);
+        crate::bench_json::print(&report)?;
     }
     if !failures.is_empty() {
         bail!(

@@ -8,6 +8,7 @@ mod bench_faults;
 mod bench_flight;
 mod bench_formation;
 mod bench_hosts;
+mod bench_json;
 mod bench_models;
 #[cfg(feature = "sim")]
 mod eval_cmd;

@@ -75,4 +75,13 @@ fn gate_and_control_benches_report_their_rows() {
     for r in rows {
         assert!(r["ticks"].as_u64().unwrap() > 0, "{r}");
     }
+    // each report names the machine that measured it, and the debug build says so
+    for report in [&gate, &control] {
+        let m = &report["machine"];
+        assert!(!m["cpu_model"].as_str().unwrap().is_empty(), "{m}");
+        assert!(m["cores"].as_u64().unwrap() >= 1, "{m}");
+        assert_eq!(m["build_profile"], "debug", "{m}");
+        assert!(m["calibration_gflops"].as_f64().unwrap() > 0.0, "{m}");
+        assert!(m["run_s"].as_f64().unwrap() > 0.0, "{m}");
+    }
 }

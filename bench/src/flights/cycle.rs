@@ -6,7 +6,9 @@ use super::{
     role_latencies, with_variants,
 };
 use aeris_flight::{Flight, FlightWatcher, HookError, StageMeans, StepContext, StepHook, StopRule};
+use aeris_orchestrator::supervisor::SupervisorEvent;
 use serde::Serialize;
+use std::time::Instant;
 
 /// Settings of `aeris bench cycle`.
 #[derive(Debug, Clone)]
@@ -61,17 +63,51 @@ pub struct CycleReport {
     pub priority_detail: String,
     /// The roles' memory: each role's peak and the flight's (PSS summed).
     pub memory: aeris_flight::MemorySummary,
+    /// Whether the supervisor and the machine's CPUs kept running.
+    pub pauses: Pauses,
 }
 
-/// Keeps the roles' latest heartbeat latencies.
+/// The supervisor's step gaps and the machine's CPU pauses over a flight.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct Pauses {
+    /// The longest time between two steps of the flight's loop (it steps every ~20 ms), ms.
+    pub step_gap_max_ms: f64,
+    /// Steps that came over 100 ms after the one before.
+    pub step_gaps_over_100ms: u64,
+    /// Pauses of the supervisor over 300 ms it reported (its silence discounted).
+    pub supervisor_pauses: u64,
+    /// Pauses of one CPU over 300 ms (a virtual machine's host descheduled it).
+    pub cpu_pauses: u64,
+    /// The longest of those pauses, either kind, ms.
+    pub pause_max_ms: u64,
+}
+
+/// Keeps the roles' latest heartbeat latencies and the flight's pauses.
 #[derive(Default)]
 struct LatencyWatch {
     roles: Vec<RoleLatency>,
+    pauses: Pauses,
+    last_step: Option<Instant>,
 }
 
 impl StepHook for LatencyWatch {
     fn step(&mut self, ctx: &mut StepContext<'_>) -> Result<bool, HookError> {
         self.roles = role_latencies(ctx.supervisor);
+        let now = Instant::now();
+        if let Some(last) = self.last_step.replace(now) {
+            let gap_ms = now.duration_since(last).as_secs_f64() * 1e3;
+            self.pauses.step_gap_max_ms = self.pauses.step_gap_max_ms.max(gap_ms);
+            self.pauses.step_gaps_over_100ms += u64::from(gap_ms > 100.0);
+        }
+        for event in ctx.events {
+            if let SupervisorEvent::Unwatched { gap_ms, cpu } = event {
+                match cpu {
+                    Some(_) => self.pauses.cpu_pauses += 1,
+                    None => self.pauses.supervisor_pauses += 1,
+                }
+                self.pauses.pause_max_ms = self.pauses.pause_max_ms.max(*gap_ms);
+            }
+        }
         Ok(false)
     }
 }
@@ -133,5 +169,6 @@ pub fn run(
         priority: s.priority,
         priority_detail: s.priority_detail,
         memory: s.memory,
+        pauses: watch.pauses,
     })
 }
