@@ -76,7 +76,7 @@ pub struct Pauses {
     pub step_gaps_over_100ms: u64,
     /// Pauses of the supervisor over 300 ms it reported (its silence discounted).
     pub supervisor_pauses: u64,
-    /// Pauses of one CPU over 300 ms (a virtual machine's host descheduled it).
+    /// Times one CPU ran no ordinary thread for over 300 ms (paused, or held by real-time work).
     pub cpu_pauses: u64,
     /// The longest of those pauses, either kind, ms.
     pub pause_max_ms: u64,

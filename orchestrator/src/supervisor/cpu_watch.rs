@@ -1,12 +1,13 @@
 //! Whether every CPU ran: one thread pinned to each CPU the supervisor may use wakes every
-//! [`TICK`] and notes the time. A virtual machine's CPU can be descheduled by its host for
-//! seconds while the others run (measured on CI's 2-CPU VM: single CPUs paused 0.5-6 s
-//! during the suite, with the supervisor running on the other one). A role whose wake-up
-//! timer sits on the paused CPU neither runs nor is runnable, and a role's heartbeat that
-//! depends on it is late: silence the supervisor must not hold against the role, which it
-//! would otherwise kill as stalled, or count as a lost link. [`CpuWatch::frozen_now`] says
-//! a CPU is paused now (judge no silence), [`CpuWatch::take_pause`] how long the longest
-//! pause since the last look lasted (discount it, as a pause of the supervisor itself).
+//! [`TICK`] and notes the time. A CPU can run no ordinary thread for seconds while the others
+//! run: measured on CI's 2-CPU VM during the suite, a nice -20 thread pinned to one CPU went
+//! unscheduled for 0.25-6 s at a time, while a SCHED_FIFO 99 thread pinned to the same CPU
+//! woke on time (so the CPU ran, real-time work or the kernel held it; what exactly was not
+//! identified). A role on that CPU does not run and its heartbeat is late: silence the
+//! supervisor must not hold against the role, which it would otherwise kill as stalled, or
+//! count as a lost link. [`CpuWatch::frozen_now`] says a CPU is held now (judge no silence),
+//! [`CpuWatch::take_pause`] how long the longest hold since the last look lasted (discount
+//! it, as a pause of the supervisor itself).
 
 use super::stalls::UNWATCHED_GAP;
 use aeris_runtime::affinity::CpuSet;
@@ -19,9 +20,12 @@ use std::time::Duration;
 /// How often each CPU's watcher wakes.
 const TICK: Duration = Duration::from_millis(20);
 
-/// SCHED_FIFO priority of a watcher (the lowest): it measures whether its CPU ran at all, not
-/// whether an ordinary thread got a turn on it; it wakes for microseconds per tick.
-const WATCHER_FIFO_PRIORITY: i32 = 1;
+/// Nice value of a watcher: the highest an ordinary thread can have, so that it runs whenever
+/// an ordinary thread of high weight (a role) could, and wakes late only when its CPU did not
+/// run ordinary threads at all. (A SCHED_FIFO watcher would miss a CPU taken by real-time
+/// work: on CI's VM a nice -20 thread went unscheduled for 4.2 s while a SCHED_FIFO 99 one on
+/// the same CPU ran on time.) It wakes for microseconds per tick.
+const WATCHER_NICE: libc::c_int = -20;
 
 /// One CPU's watcher state, shared with its thread.
 #[derive(Debug)]
@@ -146,8 +150,12 @@ fn watch(ticks: &CpuTicks, stop: &AtomicBool) {
         ticks.last_ns.store(u64::MAX, Ordering::Release);
         return;
     }
-    // best effort: without the permission it runs as an ordinary thread
-    let _ = aeris_runtime::role::try_sched_fifo(WATCHER_FIFO_PRIORITY);
+    // best effort: without the permission it keeps the supervisor's nice value
+    // SAFETY: setpriority on the calling thread's id has no memory-safety preconditions.
+    unsafe {
+        let tid = libc::syscall(libc::SYS_gettid) as libc::id_t;
+        libc::setpriority(libc::PRIO_PROCESS, tid, WATCHER_NICE);
+    }
     let mut last = monotonic_ns();
     ticks.last_ns.store(last, Ordering::Release);
     while !stop.load(Ordering::Acquire) {

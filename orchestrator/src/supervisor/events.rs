@@ -102,7 +102,7 @@ pub enum SupervisorEvent {
         /// Milliseconds not watched: between two steps of the supervisor, or of one CPU's
         /// pause.
         gap_ms: u64,
-        /// The CPU that did not run (a virtual machine's CPU paused by its host); `None`:
+        /// The CPU that ran no ordinary thread (paused, or held by real-time work); `None`:
         /// the supervisor itself did not run.
         cpu: Option<usize>,
     },
@@ -370,7 +370,7 @@ impl core::fmt::Display for SupervisorEvent {
                 cpu: Some(cpu),
             } => write!(
                 f,
-                "CPU {cpu} did not run for {gap_ms} ms (the machine paused it): the roles' silence in that time is not held against them"
+                "CPU {cpu} ran no ordinary thread for {gap_ms} ms (the machine paused it, or real-time work held it): the roles' silence in that time is not held against them"
             ),
             SupervisorEvent::SwapStarted {
                 name,
