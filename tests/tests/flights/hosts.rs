@@ -11,6 +11,8 @@ use std::process::Stdio;
 use std::time::Duration;
 
 const FLIGHT_BOUND: Duration = Duration::from_secs(600);
+/// The cut test's link timeout (ms): longer than the holds of a CPU measured on CI's VM.
+const CUT_LINK_TIMEOUT_MS: &str = "8000";
 
 /// The flight's keys for `hosts` in `dir` (a CA, the vehicle's and the ground's identities).
 fn keys(hosts: &TwoHosts, dir: &Path) -> HostLink {
@@ -50,11 +52,16 @@ fn ground_workflow(hosts: &TwoHosts, link: &HostLink) -> String {
 /// Start `aeris agent --host ground` in the ground namespace on `link`; returns once it
 /// listens.
 fn start_agent(hosts: &TwoHosts, link: &HostLink, dir: &Path) -> ChildGuard {
+    start_agent_with(hosts, link, dir, &[])
+}
+
+/// [`start_agent`] with more arguments for `aeris agent`.
+fn start_agent_with(hosts: &TwoHosts, link: &HostLink, dir: &Path, extra: &[&str]) -> ChildGuard {
     let log = dir.join("agent.log");
     let out = std::fs::File::create(&log).unwrap();
     let err = out.try_clone().unwrap();
     let mut cmd = hosts.agent_command(&aeris_bin(), link, &dir.join("agent"));
-    cmd.stdin(Stdio::null()).stdout(out).stderr(err);
+    cmd.args(extra).stdin(Stdio::null()).stdout(out).stderr(err);
     let mut agent = ChildGuard::spawn(&mut cmd).expect("spawn aeris agent");
     let listening = poll_until(Duration::from_secs(30), || {
         if let Ok(Some(status)) = agent.0.try_wait() {
@@ -436,9 +443,26 @@ fn a_link_cut_mid_flight_hands_the_reasoner_to_its_fallback_which_hands_it_back_
     let dir = TempDir::new("hosts-cut");
     let hosts = two_hosts();
     let link = keys(&hosts, &dir.0);
-    let _agent = start_agent(&hosts, &link, &dir.0);
+    // The subject is one loss, by the cut, and one return: a link timeout longer than the
+    // machine's own holds. On CI's 2-CPU VM a CPU ran no ordinary thread for up to 6.3 s at
+    // a time (the supervisor's `CpuWatch` events), which with the default 1 s timeout lost
+    // the link before the cut (zenoh's lease ran out on both sides, the handles exited as
+    // unreachable) and failed this test for the machine, not for the link. Both sides: the
+    // agent's session and the flight's.
+    let _agent = start_agent_with(
+        &hosts,
+        &link,
+        &dir.0,
+        &["--link-timeout-ms", CUT_LINK_TIMEOUT_MS],
+    );
     // only the reasoner on the ground host, the on-board planner as its fallback
     let text = ground_workflow(&hosts, &link).replacen(
+        "[hosts.ground]\n",
+        &format!("[hosts.ground]\nlink_timeout_ms = {CUT_LINK_TIMEOUT_MS}\n"),
+        1,
+    );
+    assert!(text.contains("link_timeout_ms = "), "{text}");
+    let text = text.replacen(
         "kind = \"perception\"\nvariant = \"geometric\"\nexecutor = \"gs\"",
         "kind = \"perception\"\nvariant = \"geometric\"\nexecutor = \"perception\"",
         1,
