@@ -205,7 +205,9 @@ pub(crate) fn supervise<H: StepHook>(
         if let Some(collision) = monitor.fleet().and_then(|f| f.collision()) {
             failure = Some(FlightFailure::Collision(collision));
         }
+        // only before a first cycle: the hub's counters are not looked up on every step after
         if vehicles <= 1
+            && monitor.cycles() == 0
             && let Some(overdue) = crate::first_decision::overdue(
                 start.elapsed(),
                 monitor.cycles(),
