@@ -8,6 +8,9 @@ pub enum BenchError {
     /// The settings cannot be measured (e.g. a payload too small for the stamp).
     #[error("invalid benchmark settings: {0}")]
     Config(String),
+    /// The outside load could not be started.
+    #[error(transparent)]
+    OutsideLoad(#[from] crate::flights::OutsideLoadError),
     /// Opening the benchmark's flight or one of its topics failed.
     #[error(transparent)]
     Bus(#[from] BusError),

@@ -8,7 +8,7 @@
 //! took to settle, and how far a vehicle fell behind its slot.
 
 use crate::error::BenchError;
-use crate::flights::BusyThreads;
+use crate::flights::BusyProcesses;
 use aeris_formation::{
     BENCHMARK_INSTRUCTIONS, DEVELOPMENT_INSTRUCTIONS, ParserWriter, PlanOutcome, ProgramWriter,
     Simulation, ground_row, parse_instruction, plan_instruction,
@@ -210,7 +210,7 @@ pub fn bench_programs(
             config.vehicles
         )));
     }
-    let _load = BusyThreads::start(None, config.outside_load);
+    let _load = BusyProcesses::start(None, config.outside_load)?;
     let mut report = FormationReport {
         vehicles: config.vehicles,
         outside_load: config.outside_load,

@@ -73,6 +73,9 @@ pub enum HostsBenchError {
     /// The two hosts could not be set up (not root, no `ip`).
     #[error("cannot set up two hosts as network namespaces (needs root)")]
     Hosts(#[from] NetnsError),
+    /// The outside load could not be started.
+    #[error(transparent)]
+    OutsideLoad(#[from] crate::flights::OutsideLoadError),
     /// The flight's keys could not be made.
     #[error("cannot make the flight's keys")]
     Keys(#[from] aeris_hosts::keys::KeysError),
@@ -676,7 +679,7 @@ pub fn run(
     config: &HostsBenchConfig,
     progress: &mut dyn FnMut(&str),
 ) -> Result<HostsReport, HostsBenchError> {
-    let _load = crate::flights::BusyThreads::start(None, config.outside_load);
+    let _load = crate::flights::BusyProcesses::start(None, config.outside_load)?;
     let there = ["reasoning", "perception"];
     let mut plan: Vec<(Vec<&str>, u32, f64)> = vec![(Vec::new(), 0, 0.0)];
     for d in &config.delays_ms {

@@ -83,7 +83,7 @@ pub fn run(a: ModelsArgs) -> Result<()> {
         "models on {on}: load time, latency over {} runs after a warm-up, resident memory; one process per model; {} busy threads outside",
         a.runs, a.outside_load
     );
-    let _load = aeris_bench::flights::BusyThreads::start(None, a.outside_load);
+    let _load = aeris_bench::flights::BusyProcesses::start(None, a.outside_load)?;
     println!(
         "{:<12} {:<18} {:>7} {:>9} {:>9} {:>8} {:>9} {:>7}  output",
         "model", "role", "load_s", "p50_ms", "p95_ms", "rss_MiB", "model_MiB", "tok/s"

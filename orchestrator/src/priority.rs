@@ -7,6 +7,8 @@
 //!
 //! The group is a child of the supervisor's own, named `aeris-PID-FLIGHT` after the process
 //! that made it, so that a later flight removes only the groups of processes that are gone.
+//! The supervisor's process joins the group for the flight and returns to its own group
+//! after it (see `cgroup_group` for why).
 //!
 //! Which works where:
 //! - **cgroup v2** (`cpu.weight`): the supervisor's group must hand the `cpu` controller to
@@ -122,6 +124,9 @@ pub struct FlightPriority {
     priority: Priority,
     /// The group's `cgroup.procs`, open for writing: a starting role writes itself into it.
     procs: Option<File>,
+    /// The `cgroup.procs` of the group this process left to join the flight's: it returns
+    /// there when the flight ends.
+    home: Option<PathBuf>,
 }
 
 /// What a starting role process does to itself between fork and exec (see
@@ -168,6 +173,7 @@ impl FlightPriority {
                 reason: reason.into(),
             },
             procs: None,
+            home: None,
         }
     }
 
@@ -187,6 +193,7 @@ impl FlightPriority {
                 return FlightPriority {
                     priority: Priority::Nice { nice: ROLE_NICE },
                     procs: None,
+                    home: None,
                 };
             }
             refused.push(format!(
@@ -223,6 +230,11 @@ impl FlightPriority {
 impl Drop for FlightPriority {
     fn drop(&mut self) {
         self.procs = None;
+        if let Some(home) = &self.home {
+            // best effort: where the way back is refused, the group stays until this
+            // process is gone and a later flight's sweep removes it
+            let _ = std::fs::write(home, std::process::id().to_string());
+        }
         if let Priority::CgroupV1 { path, .. } | Priority::CgroupV2 { path, .. } = &self.priority {
             // fails (EBUSY) while a role process lives in it; the supervisor has reaped
             // them by now, and the next flight's sweep removes a group left behind
@@ -287,6 +299,12 @@ fn cpu_hierarchy() -> Result<(bool, PathBuf, String), String> {
 /// Make the flight's group under this process's own and open its `cgroup.procs`.
 fn cgroup_group(flight: &str) -> Result<FlightPriority, String> {
     let (v2, mount, own) = cpu_hierarchy()?;
+    // a flight's group is made beside this process's other flights' groups, never inside
+    // one it joined (several flights of one process: tests, an agent)
+    let own = match own.rsplit_once('/') {
+        Some((up, last)) if last.starts_with(&format!("aeris-{}-", std::process::id())) => up,
+        _ => own.as_str(),
+    };
     let parent = mount.join(own.trim_start_matches('/'));
     sweep_stale_groups(&parent);
     let dir = parent.join(format!("aeris-{}-{flight}", std::process::id()));
@@ -321,10 +339,21 @@ fn cgroup_group(flight: &str) -> Result<FlightPriority, String> {
         .open(dir.join(file))
         .and_then(|mut f| f.write_all(value.as_bytes()))
         .map_err(|e| remove(denied(&format!("write {file}"), e)))?;
-    let procs = std::fs::File::options()
+    let mut procs = std::fs::File::options()
         .write(true)
         .open(dir.join("cgroup.procs"))
         .map_err(|e| remove(denied("open cgroup.procs", e)))?;
+    // The supervisor joins its roles' group. Left outside, it competes with the whole group
+    // as one task against one heavy entity, and on Linux 6.x (EEVDF) a busy group starves
+    // the tasks beside it for seconds even at nice -20: measured on a 2-core VM during
+    // SmolLM2 decisions, the supervisor's step and its CPU watchers waited up to 4.8 s
+    // (`perf sched`), and the stall and link watch read the roles as silent. In the group it
+    // is one more task among the roles, as with a nice value. Its whole process moves (a
+    // cgroup v2 group holds processes, not threads): load a benchmark puts beside the flight
+    // runs in processes of its own.
+    procs
+        .write_all(std::process::id().to_string().as_bytes())
+        .map_err(|e| remove(denied("move the supervisor into the group", e)))?;
     let priority = if v2 {
         Priority::CgroupV2 {
             path: dir,
@@ -339,6 +368,7 @@ fn cgroup_group(flight: &str) -> Result<FlightPriority, String> {
     Ok(FlightPriority {
         priority,
         procs: Some(procs),
+        home: Some(parent.join("cgroup.procs")),
     })
 }
 
@@ -431,6 +461,9 @@ mod tests {
                 let text = String::from_utf8_lossy(&out.stdout);
                 let name = path.file_name().unwrap().to_string_lossy().into_owned();
                 assert!(text.contains(&name), "{text}");
+                // the supervisor's own process is in the group with its roles
+                let own = std::fs::read_to_string("/proc/self/cgroup").unwrap();
+                assert!(own.contains(&name), "{own}");
                 // a later flight's sweep removes the group of a process that is gone, and
                 // never a live one's (this one's, empty now)
                 let parent = path.parent().unwrap();
@@ -444,6 +477,8 @@ mod tests {
                 assert!(path.exists(), "{}", path.display());
                 drop(p);
                 assert!(!path.exists(), "{}", path.display());
+                let own = std::fs::read_to_string("/proc/self/cgroup").unwrap();
+                assert!(!own.contains(&name), "{own}");
             }
             Priority::Nice { nice } => assert_eq!(nice, ROLE_NICE),
             Priority::None { reason } => assert!(reason.contains("cgroup"), "{reason}"),

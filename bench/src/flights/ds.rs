@@ -4,7 +4,7 @@
 //! figures are taken over the cycles from the hog's landing to the end.
 
 use super::{
-    BusyThreads, FlightBenchConfig, FlightBenchError, flight_name_and_dir, load_workflow,
+    BusyProcesses, FlightBenchConfig, FlightBenchError, flight_name_and_dir, load_workflow,
     with_variants,
 };
 use aeris_flight::{
@@ -81,7 +81,7 @@ fn workflow(config: &FlightBenchConfig) -> Result<Workflow, FlightBenchError> {
 struct HogScenario {
     hog_after: u64,
     hog_threads: usize,
-    hog: Option<BusyThreads>,
+    hog: Option<BusyProcesses>,
     /// When the hog landed, and the trace's length then.
     landed: Option<(u64, usize)>,
     hogged_role: String,
@@ -125,7 +125,7 @@ impl StepHook for HogScenario {
                     self.hog_threads,
                     r.name()
                 ));
-                self.hog = Some(BusyThreads::start(Some(&set), self.hog_threads));
+                self.hog = Some(BusyProcesses::start(Some(&set), self.hog_threads)?);
                 self.landed = Some((monotonic_ns(), ctx.monitor.trace().len()));
             }
         }

@@ -6,7 +6,7 @@
 //! tolerance of its slot, the closest two vehicles came by their telemetry, and each
 //! controller's ticks, missed ticks and refused setpoints.
 
-use super::{BusyThreads, FlightBenchError, flight_name_and_dir};
+use super::{BusyProcesses, FlightBenchError, flight_name_and_dir};
 use aeris_flight::{Flight, FlightWatcher, StopRule};
 use aeris_formation::parse_instruction;
 use aeris_orchestrator::workflow::Workflow;
@@ -76,7 +76,7 @@ pub fn run(
             aeris_schemas::topics::MAX_FLIGHT_VEHICLES
         )));
     }
-    let _load = BusyThreads::start(None, config.outside_load);
+    let _load = BusyProcesses::start(None, config.outside_load)?;
     let mut rows = Vec::with_capacity(config.instructions.len());
     for (i, instruction) in config.instructions.iter().enumerate() {
         let vehicles = parse_instruction(instruction, &limits)

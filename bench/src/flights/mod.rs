@@ -22,7 +22,7 @@ pub mod formation;
 pub mod record;
 pub mod swap;
 
-pub use cycle::{CycleConfig, CycleReport, RoleLatency};
+pub use cycle::{CycleConfig, CycleReport, DecisionCost, RoleLatency};
 pub use ds::{DsConfig, DsReport, DsRun};
 pub use faults::{FaultError, FaultKind, FaultRow, FaultsConfig, FaultsReport};
 pub use formation::{FormationFlightConfig, FormationFlightRow};
@@ -34,8 +34,6 @@ use aeris_orchestrator::supervisor::Supervisor;
 use aeris_orchestrator::workflow::{Workflow, WorkflowError, WorkflowFileError};
 use aeris_runtime::affinity::CpuSet;
 use std::path::PathBuf;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Settings shared by the flight benchmarks.
 #[derive(Debug, Clone, Default)]
@@ -90,6 +88,9 @@ pub enum FlightBenchError {
     /// The flight could not start, or ended with an error.
     #[error(transparent)]
     Flight(#[from] FlightError),
+    /// The outside load could not be started.
+    #[error(transparent)]
+    OutsideLoad(#[from] OutsideLoadError),
     /// The flight ended before the benchmark had its figures.
     #[error("{bench}: the flight ended early: {failure}")]
     EndedEarly {
@@ -122,43 +123,49 @@ fn reason_text(failure: &Option<FlightFailure>) -> String {
         .map_or_else(|| "no reason given".into(), FlightFailure::to_string)
 }
 
-/// Busy threads (pinned to a CPU set, or unpinned at normal priority) until dropped: the
-/// CPU hog of `bench ds`, the outside load of `bench record`, `cycle`, `swap` and `models`.
-pub struct BusyThreads {
-    stop: Arc<AtomicBool>,
-    threads: Vec<std::thread::JoinHandle<()>>,
+/// Busy processes outside the flight (pinned to a CPU set, or unpinned at normal priority)
+/// until dropped: the CPU hog of `bench ds`, the outside load of `bench record`, `cycle`,
+/// `swap` and `models`. Processes, not threads of this one: the supervisor's process joins
+/// the flight's CPU control group ([`aeris_orchestrator::priority`]), and load started in it
+/// would join the flight with it.
+pub struct BusyProcesses {
+    children: Vec<std::process::Child>,
 }
 
-impl BusyThreads {
-    /// Start `n` busy threads, bound to `cpus` when given.
-    pub fn start(cpus: Option<&CpuSet>, n: usize) -> Self {
-        let stop = Arc::new(AtomicBool::new(false));
-        let threads = (0..n)
-            .map(|_| {
-                let stop = stop.clone();
-                let cpus = cpus.cloned();
-                std::thread::spawn(move || {
-                    if let Some(cpus) = cpus {
-                        let _ = cpus.bind_task(0);
-                    }
-                    let mut x = 0u64;
-                    while !stop.load(Ordering::Relaxed) {
-                        for i in 0..10_000u64 {
-                            x = std::hint::black_box(x.wrapping_mul(31).wrapping_add(i));
-                        }
-                    }
-                })
-            })
-            .collect();
-        Self { stop, threads }
+/// Outside load could not be started.
+#[derive(Debug, thiserror::Error)]
+#[error("outside load: start a busy `sh` loop")]
+pub struct OutsideLoadError(#[source] std::io::Error);
+
+impl BusyProcesses {
+    /// Start `n` busy processes (`sh` running an empty loop), bound to `cpus` when given.
+    pub fn start(cpus: Option<&CpuSet>, n: usize) -> Result<Self, OutsideLoadError> {
+        use std::os::unix::process::CommandExt;
+        let mut load = Self {
+            children: Vec::with_capacity(n),
+        };
+        for _ in 0..n {
+            let mut cmd = std::process::Command::new("sh");
+            cmd.args(["-c", "while :; do :; done"])
+                .stdin(std::process::Stdio::null())
+                .stdout(std::process::Stdio::null());
+            if let Some(set) = cpus.cloned() {
+                // SAFETY: binding the forked child to CPUs is one sched_setaffinity call,
+                // async-signal-safe, no allocation.
+                unsafe { cmd.pre_exec(move || set.bind_task(0)) };
+            }
+            // a child that failed to start leaves those started to Drop
+            load.children.push(cmd.spawn().map_err(OutsideLoadError)?);
+        }
+        Ok(load)
     }
 }
 
-impl Drop for BusyThreads {
+impl Drop for BusyProcesses {
     fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        for t in self.threads.drain(..) {
-            let _ = t.join();
+        for child in &mut self.children {
+            let _ = child.kill();
+            let _ = child.wait();
         }
     }
 }

@@ -4,7 +4,7 @@
 //! minute and samples dropped; optionally beside `outside_load` busy threads that are not
 //! part of the flight.
 
-use super::{BusyThreads, FlightBenchError, flight_name_and_dir};
+use super::{BusyProcesses, FlightBenchError, flight_name_and_dir};
 use aeris_flight::{Flight, FlightWatcher, HookError, StepContext, StepHook, StopRule};
 use aeris_orchestrator::executors::process_sched_time;
 use aeris_orchestrator::workflow::{RECORDER_KIND, Workflow};
@@ -114,7 +114,7 @@ pub fn run(
             Workflow::builtin_models().map_err(FlightBenchError::BuiltinWorkflow)?,
         ));
     }
-    let _load = BusyThreads::start(None, config.outside_load);
+    let _load = BusyProcesses::start(None, config.outside_load)?;
     let mut rows = Vec::new();
     for (label, workflow) in workflows {
         for recorded in [false, true] {

@@ -3,8 +3,8 @@
 //! longest interval between hub setpoints from its start to one heartbeat after its end.
 
 use super::{
-    BusyThreads, FlightBenchConfig, FlightBenchError, flight_name_and_dir, load_workflow, no_role,
-    with_variants,
+    BusyProcesses, FlightBenchConfig, FlightBenchError, flight_name_and_dir, load_workflow,
+    no_role, with_variants,
 };
 use aeris_flight::{Flight, FlightWatcher, HookError, StepContext, StepHook, StopRule};
 use aeris_orchestrator::supervisor::{DEFAULT_SWAP_READY_TIMEOUT, SupervisorEvent};
@@ -316,7 +316,7 @@ pub fn run(
         w.scheduling.priority = mode;
     }
     let (name, run_dir) = flight_name_and_dir("swap", config.flight.run_dir.clone());
-    let _load = BusyThreads::start(None, config.flight.outside_load);
+    let _load = BusyProcesses::start(None, config.flight.outside_load)?;
     // the swaps end the flight, not the goal (the vehicle lands and the loop goes on)
     let (outcome, schedule) = Flight::builder(w)
         .name(name)

@@ -141,7 +141,7 @@ pub(super) fn placement(config: &HostsBenchConfig) -> Result<PlacementFigures, H
         HostsBenchError::Flight(format!("the vehicle's CPUs `{vehicle_cpus}`: {e}"))
     })?;
     let hog_at = Instant::now();
-    let hog = crate::flights::BusyThreads::start(Some(&vehicle), PLACEMENT_HOG_THREADS);
+    let hog = crate::flights::BusyProcesses::start(Some(&vehicle), PLACEMENT_HOG_THREADS)?;
     let ms = |t: Instant| t.saturating_duration_since(hog_at).as_millis() as u64;
     if let Ok(t) = flight.wait_line("moves `detector` to ground:") {
         fig.why = flight

@@ -118,7 +118,7 @@ pub fn compare_links(
     config: &HostsBenchConfig,
     progress: &mut dyn FnMut(&str),
 ) -> Result<SecurityReport, HostsBenchError> {
-    let _load = crate::flights::BusyThreads::start(None, config.outside_load);
+    let _load = crate::flights::BusyProcesses::start(None, config.outside_load)?;
     let mut rows = Vec::new();
     for (k, kind) in [LinkKind::Tcp, LinkKind::Tls].into_iter().enumerate() {
         progress(&format!(
