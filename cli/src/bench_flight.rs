@@ -126,6 +126,21 @@ pub fn cycle(a: CycleArgs) -> Result<()> {
         p.cpu_pauses,
         p.pause_max_ms
     );
+    if !report.decisions.is_empty() {
+        let n = report.decisions.len() as f64;
+        let mean =
+            |f: fn(&cycle::DecisionCost) -> f64| report.decisions.iter().map(f).sum::<f64>() / n;
+        println!(
+            "  language-model decisions ({}, means): prompt {:.0} tokens of which {:.0} new in {:.0} ms; {:.1} generated in {:.0} ms; {:.0} ms each",
+            report.decisions.len(),
+            mean(|d| d.prompt_tokens as f64),
+            mean(|d| d.new_prompt_tokens as f64),
+            mean(|d| d.prompt_ms),
+            mean(|d| d.generated_tokens as f64),
+            mean(|d| d.generate_ms),
+            mean(|d| d.decision_ms),
+        );
+    }
     let m = &report.memory;
     println!(
         "  memory: the roles' PSS peak {} MiB (RSS summed {:.0} MiB)",

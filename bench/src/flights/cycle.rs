@@ -2,7 +2,7 @@
 //! stage (mean, std, p95), EER, each role's heartbeat latency.
 
 use super::{
-    BusyThreads, FlightBenchConfig, FlightBenchError, flight_name_and_dir, load_workflow,
+    BusyProcesses, FlightBenchConfig, FlightBenchError, flight_name_and_dir, load_workflow,
     role_latencies, with_variants,
 };
 use aeris_flight::{Flight, FlightWatcher, HookError, StageMeans, StepContext, StepHook, StopRule};
@@ -65,6 +65,57 @@ pub struct CycleReport {
     pub memory: aeris_flight::MemorySummary,
     /// Whether the supervisor and the machine's CPUs kept running.
     pub pauses: Pauses,
+    /// What each language-model decision cost, from the reasoner's heartbeats (empty for a
+    /// reasoner that is not a language model): the next regression shows here at once.
+    pub decisions: Vec<DecisionCost>,
+}
+
+/// One language-model decision: its prompt, what of it was new, what was generated, and
+/// the time of each (`reasoning/*` heartbeat counters and stages, see `roles::language`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct DecisionCost {
+    /// The reasoner's process (a restart or swap starts another).
+    pub pid: u32,
+    /// Tokens in the prompt.
+    pub prompt_tokens: u64,
+    /// Of which evaluated anew (the rest was reused from the last decision's cache).
+    pub new_prompt_tokens: u64,
+    /// Tokens generated.
+    pub generated_tokens: u64,
+    /// Time evaluating the new prompt tokens (ms).
+    pub prompt_ms: f64,
+    /// Time generating (ms).
+    pub generate_ms: f64,
+    /// The whole decision, S_t read to decision published (ms).
+    pub decision_ms: f64,
+}
+
+impl DecisionCost {
+    /// The cost in the heartbeat of a language-model reasoner's working cycle; `None` for
+    /// any other heartbeat.
+    fn from_heartbeat(hb: &aeris_schemas::RoleHeartbeat) -> Option<Self> {
+        if hb.worked != 1 {
+            return None;
+        }
+        let stage = |name: &str| {
+            hb.stages
+                .iter()
+                .find(|s| s.name.as_str() == Some(name))
+                .map(|s| s.ns as f64 / 1e6)
+        };
+        let (prompt_ms, generate_ms) = (stage("prompt")?, stage("generate")?);
+        // counters: [2] generated, [4] reused prompt tokens, [5] prompt tokens
+        let (generated, reused, prompt) = (hb.counters[2], hb.counters[4], hb.counters[5]);
+        Some(Self {
+            pid: hb.pid,
+            prompt_tokens: prompt,
+            new_prompt_tokens: prompt.saturating_sub(reused),
+            generated_tokens: generated,
+            prompt_ms,
+            generate_ms,
+            decision_ms: hb.cycle_latency_ns as f64 / 1e6,
+        })
+    }
 }
 
 /// The supervisor's step gaps and the machine's CPU pauses over a flight.
@@ -88,11 +139,29 @@ struct LatencyWatch {
     roles: Vec<RoleLatency>,
     pauses: Pauses,
     last_step: Option<Instant>,
+    decisions: Vec<DecisionCost>,
+    /// The reasoner heartbeat last read: (pid, seq).
+    last_decision: Option<(u32, u64)>,
 }
 
 impl StepHook for LatencyWatch {
     fn step(&mut self, ctx: &mut StepContext<'_>) -> Result<bool, HookError> {
         self.roles = role_latencies(ctx.supervisor);
+        for role in ctx
+            .supervisor
+            .roles()
+            .iter()
+            .filter(|r| r.kind() == "reasoning")
+        {
+            let Some(hb) = role.last_heartbeat() else {
+                continue;
+            };
+            if self.last_decision.replace((hb.pid, hb.seq)) != Some((hb.pid, hb.seq))
+                && let Some(cost) = DecisionCost::from_heartbeat(hb)
+            {
+                self.decisions.push(cost);
+            }
+        }
         let now = Instant::now();
         if let Some(last) = self.last_step.replace(now) {
             let gap_ms = now.duration_since(last).as_secs_f64() * 1e3;
@@ -139,7 +208,7 @@ pub fn run(
         w.scheduling.priority = mode;
     }
     let (name, run_dir) = flight_name_and_dir("cycle", config.flight.run_dir.clone());
-    let _load = BusyThreads::start(None, config.flight.outside_load);
+    let _load = BusyProcesses::start(None, config.flight.outside_load)?;
     let (outcome, watch) = Flight::builder(w)
         .name(name)
         .run_dir(run_dir)
@@ -170,5 +239,62 @@ pub fn run(
         priority_detail: s.priority_detail,
         memory: s.memory,
         pauses: watch.pauses,
+        decisions: watch.decisions,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use aeris_schemas::{FixedText, RoleHeartbeat};
+
+    fn heartbeat(stages: &[(&str, u64)]) -> RoleHeartbeat {
+        let mut hb = RoleHeartbeat {
+            pid: 42,
+            worked: 1,
+            cycle_latency_ns: 900_000_000,
+            ..RoleHeartbeat::default()
+        };
+        for (slot, (name, ns)) in hb.stages.iter_mut().zip(stages) {
+            slot.name = FixedText::from_str_truncated(name);
+            slot.ns = *ns;
+        }
+        // [2] generated, [4] reused prompt tokens, [5] prompt tokens
+        hb.counters[2] = 31;
+        hb.counters[4] = 250;
+        hb.counters[5] = 290;
+        hb
+    }
+
+    #[test]
+    fn a_language_model_heartbeat_gives_its_decision_cost() {
+        let hb = heartbeat(&[
+            ("read", 1_000),
+            ("prompt", 120_000_000),
+            ("generate", 700_000_000),
+        ]);
+        let cost = DecisionCost::from_heartbeat(&hb).unwrap();
+        assert_eq!(cost.pid, 42);
+        assert_eq!(
+            (
+                cost.prompt_tokens,
+                cost.new_prompt_tokens,
+                cost.generated_tokens
+            ),
+            (290, 40, 31)
+        );
+        assert_eq!(
+            (cost.prompt_ms, cost.generate_ms, cost.decision_ms),
+            (120.0, 700.0, 900.0)
+        );
+    }
+
+    #[test]
+    fn an_idle_or_planner_heartbeat_gives_none() {
+        let mut idle = heartbeat(&[("prompt", 1), ("generate", 1)]);
+        idle.worked = 0;
+        assert_eq!(DecisionCost::from_heartbeat(&idle), None);
+        let planner = heartbeat(&[("read", 1), ("plan", 1)]);
+        assert_eq!(DecisionCost::from_heartbeat(&planner), None);
+    }
 }
