@@ -29,7 +29,7 @@ pub struct FormationBenchConfig {
     pub max_repairs: usize,
     /// CPU threads a language model evaluates on.
     pub threads: i32,
-    /// Busy threads started outside the benchmark (unpinned, normal priority).
+    /// Busy processes started outside the benchmark (unpinned, normal priority).
     pub outside_load: usize,
     /// The instructions: [`BENCHMARK_INSTRUCTIONS`] (reported) or
     /// [`DEVELOPMENT_INSTRUCTIONS`] (to develop prompts on).
@@ -79,7 +79,7 @@ pub struct ProgramRow {
 pub struct FormationReport {
     /// Vehicles the flight had.
     pub vehicles: u8,
-    /// Busy threads outside.
+    /// Busy processes outside.
     pub outside_load: usize,
     /// Seconds each language model took to load.
     pub load_s: Vec<(String, f64)>,

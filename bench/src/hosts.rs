@@ -12,7 +12,7 @@
 //!   fallback; the link cut mid-flight, then restored once the fallback took over: time from
 //!   the cut to the loss noticed and to the fallback ready, and from the restore to the
 //!   reasoner back on the ground host;
-//! - all of it beside `outside_load` busy threads outside the flight, if asked.
+//! - all of it beside `outside_load` busy processes outside the flight, if asked.
 //!
 //! Every link is mutual TLS with keys made for the run, as a user's flight's is. With
 //! `security` the benchmark instead compares TLS with plain TCP ([`security`]).
@@ -51,7 +51,7 @@ pub struct HostsBenchConfig {
     pub delays_ms: Vec<u32>,
     /// Packet loss (%, each way) of one more row across the link, at delay 0 (0: none).
     pub loss_percent: f64,
-    /// Busy threads outside the flight (unpinned, normal priority) during every flight.
+    /// Busy processes outside the flight (unpinned, normal priority) during every flight.
     pub outside_load: usize,
     /// Where the flights' run directories go.
     pub work_dir: PathBuf,
@@ -177,7 +177,7 @@ pub struct CutFigures {
 /// Everything `aeris bench hosts` measured.
 #[derive(Debug, Clone, Serialize)]
 pub struct HostsReport {
-    /// Busy threads outside the flight.
+    /// Busy processes outside the flight.
     pub outside_load: usize,
     /// Local and across-the-link flights.
     pub rows: Vec<LinkRow>,

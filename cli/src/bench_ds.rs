@@ -16,7 +16,7 @@ pub struct DsArgs {
     /// Heartbeats flown before the hog lands.
     #[arg(long, default_value_t = 10)]
     pub hog_after: u64,
-    /// Busy threads of the hog, all pinned to the heaviest role's CPUs.
+    /// Busy processes of the hog, all pinned to the heaviest role's CPUs.
     #[arg(long, default_value_t = 4)]
     pub hog_threads: usize,
     #[command(flatten)]

@@ -20,7 +20,7 @@ pub struct FlightBenchArgs {
     /// Where role specs and logs go (default: $TMPDIR/aeris/FLIGHT).
     #[arg(long, value_name = "DIR")]
     pub run_dir: Option<PathBuf>,
-    /// Busy threads started outside the flight (unpinned, normal priority) for the run: the
+    /// Busy processes started outside the flight (unpinned, normal priority) for the run: the
     /// flight on a shared machine.
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub outside_load: usize,
@@ -99,7 +99,7 @@ pub fn cycle(a: CycleArgs) -> Result<()> {
         report.heartbeats, report.reasoning
     );
     println!(
-        "  {} busy threads outside the flight; roles' priority: {}",
+        "  {} busy processes outside the flight; roles' priority: {}",
         report.outside_load, report.priority_detail
     );
     println!(
@@ -172,7 +172,7 @@ pub fn swap(a: SwapArgs) -> Result<()> {
     };
     let report = swap::run(&config, &mut FlightPrinter::new(true, "")?)?;
     println!(
-        "hot swaps of role `{}` during a flight (make-before-break), {} busy threads outside the flight; roles' priority: {}",
+        "hot swaps of role `{}` during a flight (make-before-break), {} busy processes outside the flight; roles' priority: {}",
         report.role, report.outside_load, report.priority_detail
     );
     println!(
@@ -218,7 +218,7 @@ pub struct RecordArgs {
     /// Semantic heartbeats each flight flies.
     #[arg(long, default_value_t = 15)]
     pub heartbeats: u64,
-    /// Busy threads started outside the flight (unpinned, normal priority) for the run.
+    /// Busy processes started outside the flight (unpinned, normal priority) for the run.
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub outside_load: usize,
     /// The model flight (workflows/models.toml) too, not only the default one.
@@ -238,7 +238,7 @@ pub fn record(a: RecordArgs) -> Result<()> {
     };
     let report = aeris_bench::flights::record::run(&config, &mut FlightPrinter::new(true, "")?)?;
     println!(
-        "recording cost over {} heartbeats per flight, {} busy threads outside the flight",
+        "recording cost over {} heartbeats per flight, {} busy processes outside the flight",
         a.heartbeats, report.outside_load
     );
     println!(

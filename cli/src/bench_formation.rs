@@ -32,7 +32,7 @@ pub struct FormationArgs {
     /// CPU threads a language model evaluates on.
     #[arg(long, default_value_t = 2)]
     pub threads: i32,
-    /// Busy threads started outside the benchmark for its whole run (unpinned, normal
+    /// Busy processes started outside the benchmark for its whole run (unpinned, normal
     /// priority).
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub outside_load: usize,
@@ -68,7 +68,7 @@ pub fn run(a: FormationArgs) -> anyhow::Result<()> {
         })?;
     let store = aeris_models::ModelStore::open(a.models_dir.as_deref())?;
     eprintln!(
-        "formation programs: {} {} instructions x {} variants ({}), {} vehicles, {} busy threads outside",
+        "formation programs: {} {} instructions x {} variants ({}), {} vehicles, {} busy processes outside",
         instructions.len(),
         a.instructions,
         a.variants.len(),
@@ -93,7 +93,7 @@ pub fn run(a: FormationArgs) -> anyhow::Result<()> {
             outside_load: a.outside_load,
         };
         eprintln!(
-            "formation flights: {} instructions, programs written by {}, {} busy threads outside",
+            "formation flights: {} instructions, programs written by {}, {} busy processes outside",
             flights.instructions.len(),
             flights.variant,
             flights.outside_load

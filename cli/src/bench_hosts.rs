@@ -13,7 +13,7 @@ pub struct HostsArgs {
     /// Packet loss (%, each way) of one more flight across the link (0: none).
     #[arg(long, default_value_t = 1.0)]
     pub loss: f64,
-    /// Busy threads started outside the flight (unpinned, normal priority) for the run.
+    /// Busy processes started outside the flight (unpinned, normal priority) for the run.
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub outside_load: usize,
     /// Instead: what mutual TLS costs beside plain TCP (the same flights on each link: the
@@ -57,7 +57,7 @@ pub fn run(a: HostsArgs) -> Result<()> {
     let _ = std::fs::remove_dir_all(&work);
     let report = report.context("bench hosts failed")?;
     println!(
-        "roles on a second host (network namespaces on this machine), {} busy threads outside the flight",
+        "roles on a second host (network namespaces on this machine), {} busy processes outside the flight",
         report.outside_load
     );
     println!(
@@ -179,7 +179,7 @@ pub fn run(a: HostsArgs) -> Result<()> {
 /// The TLS-beside-TCP table.
 fn print_links(report: &aeris_bench::hosts::SecurityReport, json: bool) -> Result<()> {
     println!(
-        "the link to a second host (network namespaces on this machine), reasoner and perception there, {} busy threads outside the flight",
+        "the link to a second host (network namespaces on this machine), reasoner and perception there, {} busy processes outside the flight",
         report.outside_load
     );
     println!(

@@ -30,7 +30,7 @@ pub struct ModelsArgs {
     /// (CUDA, in a build with the `cuda` feature). A model that cannot is reported as failed.
     #[arg(long, value_name = "KIND:DEVICE")]
     pub accelerator: Option<Accelerator>,
-    /// Busy threads started outside the models for the run (unpinned, normal priority): the
+    /// Busy processes started outside the models for the run (unpinned, normal priority): the
     /// models on a shared machine.
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub outside_load: usize,
@@ -80,7 +80,7 @@ pub fn run(a: ModelsArgs) -> Result<()> {
         .accelerator
         .map_or_else(|| "the CPU".to_string(), |x| x.to_string());
     println!(
-        "models on {on}: load time, latency over {} runs after a warm-up, resident memory; one process per model; {} busy threads outside",
+        "models on {on}: load time, latency over {} runs after a warm-up, resident memory; one process per model; {} busy processes outside",
         a.runs, a.outside_load
     );
     let _load = aeris_bench::flights::BusyProcesses::start(None, a.outside_load)?;

@@ -55,7 +55,7 @@ pub struct CycleReport {
     pub decisions_late: u64,
     /// Controller ticks that missed their deadline.
     pub controller_missed_ticks: u64,
-    /// Busy threads outside the flight during the run.
+    /// Busy processes outside the flight during the run.
     pub outside_load: usize,
     /// How the roles got priority over them (`cgroup-v2`, `cgroup-v1`, `nice`, `none`).
     pub priority: String,

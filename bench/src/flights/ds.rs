@@ -24,7 +24,7 @@ pub struct DsConfig {
     pub heartbeats: u64,
     /// Heartbeats flown before the hog lands.
     pub hog_after: u64,
-    /// Busy threads of the hog, all pinned to the heaviest role's CPUs.
+    /// Busy processes of the hog, all pinned to the heaviest role's CPUs.
     pub hog_threads: usize,
     /// The flights (a run directory gets `ds-on/` and `ds-off/` under it).
     pub flight: FlightBenchConfig,

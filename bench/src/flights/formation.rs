@@ -23,7 +23,7 @@ pub struct FormationFlightConfig {
     /// Most vehicles a flight has; each flies as many as the parser reads in its
     /// instruction (at least 2).
     pub vehicles: u8,
-    /// Busy threads started outside the flights (unpinned, normal priority).
+    /// Busy processes started outside the flights (unpinned, normal priority).
     pub outside_load: usize,
 }
 

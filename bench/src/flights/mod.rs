@@ -44,7 +44,7 @@ pub struct FlightBenchConfig {
     pub variants: Vec<VariantChoice>,
     /// Where role specs and logs go (default: $TMPDIR/aeris/FLIGHT).
     pub run_dir: Option<PathBuf>,
-    /// Busy threads started outside the flight (unpinned, normal priority) for the run.
+    /// Busy processes started outside the flight (unpinned, normal priority) for the run.
     pub outside_load: usize,
     /// How the roles get priority over outside work (default: the workflow's).
     pub priority: Option<aeris_orchestrator::priority::PriorityMode>,

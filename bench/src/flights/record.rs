@@ -15,7 +15,7 @@ use serde::Serialize;
 pub struct RecordBenchConfig {
     /// Semantic heartbeats each flight flies.
     pub heartbeats: u64,
-    /// Busy threads started outside the flight (unpinned, normal priority) for the whole run.
+    /// Busy processes started outside the flight (unpinned, normal priority) for the whole run.
     pub outside_load: usize,
     /// Also the model flight (workflows/models.toml), not only the default one.
     pub models: bool,
@@ -51,7 +51,7 @@ pub struct RecordRow {
 /// `aeris bench record --json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct RecordBenchReport {
-    /// Busy threads outside the flight.
+    /// Busy processes outside the flight.
     pub outside_load: usize,
     /// One row per flight.
     pub rows: Vec<RecordRow>,

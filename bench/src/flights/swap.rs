@@ -74,7 +74,7 @@ pub struct SwapReport {
     pub flight_max_setpoint_gap_ms: f64,
     /// One row per swap.
     pub rows: Vec<SwapRow>,
-    /// Busy threads outside the flight during the run.
+    /// Busy processes outside the flight during the run.
     pub outside_load: usize,
     /// How the roles got priority over them (`cgroup-v2`, `cgroup-v1`, `nice`, `none`).
     pub priority: String,

@@ -22,7 +22,7 @@ pub struct PlacementFigures {
     pub vehicle_cpus: String,
     /// The ground host's CPUs.
     pub ground_cpus: String,
-    /// Busy threads of the hog, pinned to the vehicle's CPUs.
+    /// Busy processes of the hog, pinned to the vehicle's CPUs.
     pub hog_threads: usize,
     /// The detector's latency budget in this scenario (ms).
     pub budget_ms: f64,
@@ -54,7 +54,7 @@ pub struct PlacementFigures {
 const PLACEMENT_BUDGET_MS: f64 = 100.0;
 /// The flight's lines about the detector kept in the figures, at most.
 const PLACEMENT_LINES: usize = 8;
-/// Busy threads of the placement scenario's hog.
+/// Busy processes of the placement scenario's hog.
 const PLACEMENT_HOG_THREADS: usize = 2;
 
 /// The placement scenario's workflow: [`ground_workflow`] with every role on board and the

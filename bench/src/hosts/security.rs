@@ -57,7 +57,7 @@ pub const PING_ROUND_TRIPS: usize = 2_000;
 /// Both links.
 #[derive(Debug, Clone, Serialize)]
 pub struct SecurityReport {
-    /// Busy threads outside the flight.
+    /// Busy processes outside the flight.
     pub outside_load: usize,
     /// TCP, then TLS.
     pub rows: Vec<SecurityRow>,
