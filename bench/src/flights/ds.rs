@@ -121,7 +121,7 @@ impl StepHook for HogScenario {
                 self.hogged_role = r.name().to_string();
                 self.hog_cpus = set.to_string();
                 ctx.note(format!(
-                    "bench ds: hog of {} threads lands on CPUs {set} (role `{}`)",
+                    "bench ds: hog of {} busy processes lands on CPUs {set} (role `{}`)",
                     self.hog_threads,
                     r.name()
                 ));
