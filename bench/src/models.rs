@@ -116,9 +116,15 @@ pub struct ModelsReport {
     /// The accelerator the models ran on (`cuda:0`; absent: the CPU).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub accelerator: Option<String>,
-    /// Busy threads that ran outside the models meanwhile.
+    /// Busy processes that ran outside the models meanwhile.
     #[serde(default)]
     pub outside_load: usize,
+    /// How the models got priority over them (`cgroup-v2`, `cgroup-v1`, `nice`, `none`).
+    #[serde(default)]
+    pub priority: String,
+    /// The same in words.
+    #[serde(default)]
+    pub priority_detail: String,
     /// One row per model.
     pub rows: Vec<ModelRow>,
 }

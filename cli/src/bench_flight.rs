@@ -34,7 +34,9 @@ pub struct FlightBenchArgs {
     pub json: bool,
 }
 
-fn parse_priority(s: &str) -> Result<aeris_orchestrator::priority::PriorityMode, String> {
+pub(crate) fn parse_priority(
+    s: &str,
+) -> Result<aeris_orchestrator::priority::PriorityMode, String> {
     s.parse()
 }
 

@@ -2,10 +2,12 @@
 //! (`aeris bench model-probe`), one table row as each finishes.
 
 use aeris_bench::models::{self, MODEL_CASES, ModelRow, ModelsReport};
+use aeris_orchestrator::priority::{FlightPriority, PriorityMode};
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::accelerator::Accelerator;
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use std::os::unix::process::CommandExt;
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
 
@@ -34,6 +36,10 @@ pub struct ModelsArgs {
     /// models on a shared machine.
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub outside_load: usize,
+    /// How the models get priority over outside work, as a flight's roles do: `auto` (the
+    /// flight's CPU control group where permitted, else nice -5), `nice` or `off`.
+    #[arg(long, value_name = "MODE", default_value = "auto", value_parser = crate::bench_flight::parse_priority)]
+    pub priority: PriorityMode,
     /// Print one JSON object on the last line of stdout.
     #[arg(long)]
     pub json: bool,
@@ -84,6 +90,14 @@ pub fn run(a: ModelsArgs) -> Result<()> {
         a.runs, a.outside_load
     );
     let _load = aeris_bench::flights::BusyProcesses::start(None, a.outside_load)?;
+    // each model runs with the priority a flight gives its role: the figure beside outside
+    // load is the one a flight sees
+    let priority =
+        FlightPriority::establish(&format!("bench-models-{}", std::process::id()), a.priority);
+    println!(
+        "models' priority over outside work: {}",
+        priority.priority()
+    );
     println!(
         "{:<12} {:<18} {:>7} {:>9} {:>9} {:>8} {:>9} {:>7}  output",
         "model", "role", "load_s", "p50_ms", "p95_ms", "rss_MiB", "model_MiB", "tok/s"
@@ -110,6 +124,14 @@ pub fn run(a: ModelsArgs) -> Result<()> {
         if let Some(x) = a.accelerator {
             cmd.args(["--accelerator", &x.to_string()]);
         }
+        let child = priority.for_child();
+        // SAFETY: apply_in_child makes only async-signal-safe calls (a write, setpriority).
+        unsafe {
+            cmd.pre_exec(move || {
+                child.apply_in_child();
+                Ok(())
+            })
+        };
         let out = cmd
             .output()
             .with_context(|| format!("cannot start the probe of `{}`", case.name))?;
@@ -154,6 +176,8 @@ pub fn run(a: ModelsArgs) -> Result<()> {
             threads: threads_used,
             accelerator: a.accelerator.map(|x| x.to_string()),
             outside_load: a.outside_load,
+            priority: priority.priority().mechanism().to_string(),
+            priority_detail: priority.priority().to_string(),
             rows,
         };
         crate::bench_json::print(&report)?;
