@@ -124,9 +124,6 @@ pub struct FlightPriority {
     priority: Priority,
     /// The group's `cgroup.procs`, open for writing: a starting role writes itself into it.
     procs: Option<File>,
-    /// The `cgroup.procs` of the group this process left to join the flight's: it returns
-    /// there when the flight ends.
-    home: Option<PathBuf>,
 }
 
 /// What a starting role process does to itself between fork and exec (see
@@ -173,7 +170,6 @@ impl FlightPriority {
                 reason: reason.into(),
             },
             procs: None,
-            home: None,
         }
     }
 
@@ -193,7 +189,6 @@ impl FlightPriority {
                 return FlightPriority {
                     priority: Priority::Nice { nice: ROLE_NICE },
                     procs: None,
-                    home: None,
                 };
             }
             refused.push(format!(
@@ -230,12 +225,13 @@ impl FlightPriority {
 impl Drop for FlightPriority {
     fn drop(&mut self) {
         self.procs = None;
-        if let Some(home) = &self.home {
-            // best effort: where the way back is refused, the group stays until this
-            // process is gone and a later flight's sweep removes it
-            let _ = std::fs::write(home, std::process::id().to_string());
-        }
         if let Priority::CgroupV1 { path, .. } | Priority::CgroupV2 { path, .. } = &self.priority {
+            // this process returns to the group it left, the flight group's parent (best
+            // effort: where the way back is refused, the group stays until this process is
+            // gone and a later flight's sweep removes it)
+            if let Some(home) = path.parent() {
+                let _ = std::fs::write(home.join("cgroup.procs"), std::process::id().to_string());
+            }
             // fails (EBUSY) while a role process lives in it; the supervisor has reaped
             // them by now, and the next flight's sweep removes a group left behind
             let _ = std::fs::remove_dir(path);
@@ -368,7 +364,6 @@ fn cgroup_group(flight: &str) -> Result<FlightPriority, String> {
     Ok(FlightPriority {
         priority,
         procs: Some(procs),
-        home: Some(parent.join("cgroup.procs")),
     })
 }
 
