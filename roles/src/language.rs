@@ -25,6 +25,21 @@
 //! verified from the draft (last decision), 1 when the last decision's step departed from
 //! the plan's]`.
 
+/// Where this role's heartbeat says what its last decision cost (see the module docs):
+/// counter indices and stage names, read by `aeris bench cycle`.
+pub mod heartbeat {
+    /// Counter: generated tokens (last decision).
+    pub const GENERATED_TOKENS: usize = 2;
+    /// Counter: prompt tokens reused from the last decision's cache (last decision).
+    pub const REUSED_PROMPT_TOKENS: usize = 4;
+    /// Counter: prompt tokens (last decision).
+    pub const PROMPT_TOKENS: usize = 5;
+    /// Stage: evaluating the new prompt tokens.
+    pub const PROMPT_STAGE: &str = "prompt";
+    /// Stage: generating.
+    pub const GENERATE_STAGE: &str = "generate";
+}
+
 use crate::planner::{Planner, mission_planner};
 use crate::reasoner_io::ReasonerIo;
 use crate::vision::open_store;
@@ -192,8 +207,8 @@ impl Role for LanguageRole {
                 return Ok(CycleOutcome::Worked);
             }
         };
-        report.stage("prompt", (thought.prompt_s * 1e9) as u64);
-        report.stage("generate", (thought.generate_s * 1e9) as u64);
+        report.stage(heartbeat::PROMPT_STAGE, (thought.prompt_s * 1e9) as u64);
+        report.stage(heartbeat::GENERATE_STAGE, (thought.generate_s * 1e9) as u64);
         // the model's decision carries no numbering: the I/O gives it the next
         let mut d = Decision {
             seq: 0,
@@ -202,10 +217,10 @@ impl Role for LanguageRole {
         self.io.stamp(&mut d, &due, reasoning_start);
         self.io.publish(&mut d, report)?;
         report.counters[1] = (thought.tokens_per_s() * 100.0) as u64;
-        report.counters[2] = thought.generated_tokens as u64;
+        report.counters[heartbeat::GENERATED_TOKENS] = thought.generated_tokens as u64;
         report.counters[3] = self.failures;
-        report.counters[4] = thought.reused_tokens as u64;
-        report.counters[5] = thought.prompt_tokens as u64;
+        report.counters[heartbeat::REUSED_PROMPT_TOKENS] = thought.reused_tokens as u64;
+        report.counters[heartbeat::PROMPT_TOKENS] = thought.prompt_tokens as u64;
         report.counters[6] = thought.drafted_tokens as u64;
         report.counters[7] = u64::from(thought.view.step != plan.step);
         self.previous = Some(thought.view);

@@ -7,6 +7,7 @@ use super::{
 };
 use aeris_flight::{Flight, FlightWatcher, HookError, StageMeans, StepContext, StepHook, StopRule};
 use aeris_orchestrator::supervisor::SupervisorEvent;
+use aeris_roles::language::heartbeat as language;
 use serde::Serialize;
 use std::time::Instant;
 
@@ -103,9 +104,13 @@ impl DecisionCost {
                 .find(|s| s.name.as_str() == Some(name))
                 .map(|s| s.ns as f64 / 1e6)
         };
-        let (prompt_ms, generate_ms) = (stage("prompt")?, stage("generate")?);
-        // counters: [2] generated, [4] reused prompt tokens, [5] prompt tokens
-        let (generated, reused, prompt) = (hb.counters[2], hb.counters[4], hb.counters[5]);
+        let (prompt_ms, generate_ms) = (
+            stage(language::PROMPT_STAGE)?,
+            stage(language::GENERATE_STAGE)?,
+        );
+        let generated = hb.counters[language::GENERATED_TOKENS];
+        let reused = hb.counters[language::REUSED_PROMPT_TOKENS];
+        let prompt = hb.counters[language::PROMPT_TOKENS];
         Some(Self {
             pid: hb.pid,
             prompt_tokens: prompt,
@@ -259,10 +264,9 @@ mod tests {
             slot.name = FixedText::from_str_truncated(name);
             slot.ns = *ns;
         }
-        // [2] generated, [4] reused prompt tokens, [5] prompt tokens
-        hb.counters[2] = 31;
-        hb.counters[4] = 250;
-        hb.counters[5] = 290;
+        hb.counters[language::GENERATED_TOKENS] = 31;
+        hb.counters[language::REUSED_PROMPT_TOKENS] = 250;
+        hb.counters[language::PROMPT_TOKENS] = 290;
         hb
     }
 
