@@ -32,8 +32,9 @@ pub enum BenchCommand {
     Cycle(crate::bench_flight::CycleArgs),
     /// Hot swaps during the model flight: missed heartbeats and setpoint gaps per swap.
     Swap(crate::bench_flight::SwapArgs),
-    /// Dynamic scheduling on and off under a CPU hog landing on the heaviest role's CPUs:
-    /// CT, EER, live migrations, time from the hog's landing to the completed move.
+    /// Dynamic scheduling with the variant ladder, alone, and off, under a CPU hog landing
+    /// on the heaviest role's CPUs: CT, EER, live migrations, ladder steps, time from the
+    /// hog's landing to the completed move.
     Ds(crate::bench_ds::DsArgs),
     /// Fault injection over one default flight: SIGKILL and SIGSTOP of every role, a
     /// garbage reasoner, a shared-memory service removed; detection and recovery times,

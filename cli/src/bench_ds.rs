@@ -1,5 +1,5 @@
-//! `aeris bench ds`: parse, fly the interference scenario with dynamic scheduling on and
-//! off (`aeris_bench::flights::ds`), print the comparison.
+//! `aeris bench ds`: parse, fly the interference scenario with re-binding and the variant
+//! ladder, re-binding alone, and neither (`aeris_bench::flights::ds`), print the comparison.
 
 use crate::bench_flight::FlightBenchArgs;
 use crate::flight_print::FlightPrinter;
@@ -33,22 +33,28 @@ pub fn ds(a: DsArgs) -> Result<()> {
     };
     let report = ds::run(&config, &mut FlightPrinter::new(true, "aeris: ")?)?;
     println!(
-        "dynamic scheduling under a {}-thread CPU hog landing after {} heartbeats (figures from the landing on)",
+        "dynamic scheduling under a CPU hog of {} busy processes landing after {} heartbeats (figures from the landing on)",
         a.hog_threads, a.hog_after
     );
     println!(
-        "  {:<7} {:>10} {:>10} {:>7} {:>10} {:>16}  hogged role (CPUs)",
-        "", "CT mean s", "CT p95 s", "EER %", "migrations", "slip->moved ms"
+        "  {:<12} {:>10} {:>10} {:>7} {:>10} {:>10} {:>16}  hogged role (CPUs)",
+        "", "CT mean s", "CT p95 s", "EER %", "migrations", "steps down", "slip->moved ms"
     );
     let seconds = |s: Option<f64>| s.map_or_else(|| "-".into(), |s| format!("{s:.3}"));
-    for (name, r) in [("DS on", &report.ds_on), ("DS off", &report.ds_off)] {
+    let flights = [
+        ("DS + ladder", &report.ds_ladder),
+        ("DS on", &report.ds_on),
+        ("DS off", &report.ds_off),
+    ];
+    for (name, r) in flights {
         println!(
-            "  {:<7} {:>10} {:>10} {:>7.1} {:>10} {:>16}  {} ({})",
+            "  {:<12} {:>10} {:>10} {:>7.1} {:>10} {:>10} {:>16}  {} ({})",
             name,
             seconds(r.ct_mean_s),
             seconds(r.ct_p95_s),
             r.eer * 100.0,
             r.migrations,
+            r.variant_steps_down,
             r.slip_to_migrated_ms
                 .map(|m| format!("{m:.0}"))
                 .unwrap_or_else(|| "-".into()),
@@ -56,8 +62,10 @@ pub fn ds(a: DsArgs) -> Result<()> {
             r.hog_cpus
         );
     }
-    for m in &report.ds_on.moves {
-        println!("  DS on: {m}");
+    for (name, r) in &flights[..2] {
+        for m in &r.moves {
+            println!("  {name}: {m}");
+        }
     }
     if a.flight.json {
         crate::bench_json::print(&report)?;

@@ -1,15 +1,16 @@
-//! `aeris bench ds`: the closed loop under a standard interference scenario, flown twice —
-//! dynamic scheduling on, then off. Partway through each flight a CPU hog (busy threads
-//! pinned to the CPUs of the role with the highest latency, the heaviest) lands; the
-//! figures are taken over the cycles from the hog's landing to the end.
+//! `aeris bench ds`: the closed loop under a standard interference scenario, flown three
+//! times — re-binding and the variant ladder (the runtime's default), re-binding alone, and
+//! neither. Partway through each flight a CPU hog (busy processes pinned to the CPUs of the
+//! role with the highest latency, the heaviest) lands; the figures are taken over the cycles
+//! from the hog's landing to the end.
 
 use super::{
     BusyProcesses, FlightBenchConfig, FlightBenchError, flight_name_and_dir, load_workflow,
-    with_variants,
 };
 use aeris_flight::{
     CycleTrace, Flight, FlightWatcher, HookError, Overrides, StepContext, StepHook, StopRule,
 };
+use aeris_orchestrator::ladder::StepDirection;
 use aeris_orchestrator::supervisor::SupervisorEvent;
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::affinity::CpuSet;
@@ -26,7 +27,7 @@ pub struct DsConfig {
     pub hog_after: u64,
     /// Busy processes of the hog, all pinned to the heaviest role's CPUs.
     pub hog_threads: usize,
-    /// The flights (a run directory gets `ds-on/` and `ds-off/` under it).
+    /// The flights (a run directory gets `ds-ladder/`, `ds-on/` and `ds-off/` under it).
     pub flight: FlightBenchConfig,
 }
 
@@ -42,6 +43,10 @@ pub struct DsRun {
     pub eer: f64,
     /// Automatic live moves after the hog landed.
     pub migrations: u64,
+    /// Steps down the variant ladder in the whole flight, before the hog landed too (a
+    /// model that does not fit its executor steps down whatever the hog does; always 0
+    /// without the ladder).
+    pub variant_steps_down: u64,
     /// From the hog's landing to the first completed automatic move (ms); `None` without one.
     pub slip_to_migrated_ms: Option<f64>,
     /// The role the hog landed on, and its CPUs then.
@@ -50,20 +55,45 @@ pub struct DsRun {
     pub hog_cpus: String,
     /// Cycles measured (after the hog landed).
     pub cycles: usize,
-    /// Every move of the flight (initial binding included), as printed.
+    /// Every move and variant step of the flight (initial binding included), as printed.
     pub moves: Vec<String>,
 }
 
 /// `aeris bench ds --json`.
 #[derive(Debug, Serialize)]
 pub struct DsReport {
-    /// Dynamic scheduling on.
+    /// Dynamic scheduling (re-binding) and the variant ladder on: the runtime's default.
+    pub ds_ladder: DsRun,
+    /// Dynamic scheduling (re-binding) on, the variant ladder off.
     pub ds_on: DsRun,
-    /// Dynamic scheduling off.
+    /// Both off.
     pub ds_off: DsRun,
 }
 
-fn workflow(config: &FlightBenchConfig) -> Result<Workflow, FlightBenchError> {
+/// Which adaptation a flight of the scenario has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DsMode {
+    /// Re-binding and the variant ladder (a model role that no executor holds within its
+    /// budget steps down to a lighter variant): what `aeris run` flies by default.
+    Ladder,
+    /// Re-binding (live moves between executors) alone, every role on its declared variant.
+    Rebinding,
+    /// Neither: every role stays where it was bound at start, on its declared variant.
+    Off,
+}
+
+impl DsMode {
+    /// The flight's tag (its run directory and name).
+    pub fn tag(self) -> &'static str {
+        match self {
+            DsMode::Ladder => "ds-ladder",
+            DsMode::Rebinding => "ds-on",
+            DsMode::Off => "ds-off",
+        }
+    }
+}
+
+fn workflow(config: &FlightBenchConfig, mode: DsMode) -> Result<Workflow, FlightBenchError> {
     let mut w = load_workflow(config)?;
     // the built-in model flight runs its reasoner on every CPU, where a hog on "its
     // executor" leaves nowhere to go: bind it to the perception executor instead
@@ -72,9 +102,15 @@ fn workflow(config: &FlightBenchConfig) -> Result<Workflow, FlightBenchError> {
     {
         r.executor = Some("perception".into());
     }
-    // the figures are dynamic scheduling's alone: the variant ladder would answer the hog
-    // with a lighter reasoner in both runs
-    with_variants(w, config)
+    // the ladder answers the hog with a lighter reasoner: only in its own flight, so the
+    // other two show re-binding's figures alone
+    Overrides {
+        variants: config.variants.clone(),
+        fixed_variants: mode != DsMode::Ladder,
+        ..Overrides::default()
+    }
+    .apply(&mut w)?;
+    Ok(w)
 }
 
 /// The step hook: lands the hog once enough heartbeats flew, and records the moves.
@@ -88,6 +124,7 @@ struct HogScenario {
     hog_cpus: String,
     first_move_ns: Option<u64>,
     migrations: u64,
+    variant_steps_down: u64,
     moves: Vec<String>,
 }
 
@@ -102,6 +139,12 @@ impl StepHook for HogScenario {
                     self.migrations += 1;
                     self.first_move_ns
                         .get_or_insert(m.done_ns.saturating_sub(at));
+                }
+            }
+            if let SupervisorEvent::VariantStepped { direction, .. } = e {
+                self.moves.push(e.to_string());
+                if *direction == StepDirection::Down {
+                    self.variant_steps_down += 1;
                 }
             }
         }
@@ -135,16 +178,16 @@ impl StepHook for HogScenario {
 
 fn fly_once(
     config: &DsConfig,
-    dynamic: bool,
+    mode: DsMode,
     watcher: &mut dyn FlightWatcher,
 ) -> Result<DsRun, FlightBenchError> {
-    let mut w = workflow(&config.flight)?;
+    let mut w = workflow(&config.flight, mode)?;
     let period_s = w.timing.heartbeat_period_ms as f64 / 1000.0;
     w.mission.max_duration_s = w
         .mission
         .max_duration_s
         .max(config.heartbeats as f64 * period_s * 4.0 + 60.0);
-    let tag = if dynamic { "ds-on" } else { "ds-off" };
+    let tag = mode.tag();
     let (name, run_dir) =
         flight_name_and_dir(tag, config.flight.run_dir.as_ref().map(|d| d.join(tag)));
     let scenario = HogScenario {
@@ -156,6 +199,7 @@ fn fly_once(
         hog_cpus: String::new(),
         first_move_ns: None,
         migrations: 0,
+        variant_steps_down: 0,
         moves: Vec::new(),
     };
     let (outcome, mut scenario) = Flight::builder(w)
@@ -163,7 +207,7 @@ fn fly_once(
         .run_dir(run_dir)
         .stop_when(StopRule::Cycles(config.heartbeats))
         .overrides(Overrides {
-            dynamic: Some(dynamic),
+            dynamic: Some(mode != DsMode::Off),
             ..Overrides::default()
         })
         .step_hook(scenario)
@@ -195,6 +239,7 @@ fn fly_once(
             reused as f64 / after.len() as f64
         },
         migrations: scenario.migrations,
+        variant_steps_down: scenario.variant_steps_down,
         slip_to_migrated_ms: scenario.first_move_ns.map(|ns| ns as f64 / 1e6),
         hogged_role: scenario.hogged_role,
         hog_cpus: scenario.hog_cpus,
@@ -203,8 +248,9 @@ fn fly_once(
     })
 }
 
-/// Fly the scenario with dynamic scheduling on, then off; `watcher` gets every event of
-/// both flights (the hog's landing as [`aeris_flight::FlightEvent::Note`]).
+/// Fly the scenario with re-binding and the ladder, with re-binding alone, then with
+/// neither; `watcher` gets every event of the three flights (the hog's landing as
+/// [`aeris_flight::FlightEvent::Note`]).
 pub fn run(
     config: &DsConfig,
     watcher: &mut dyn FlightWatcher,
@@ -219,7 +265,12 @@ pub fn run(
             "hog threads must be at least 1".into(),
         ));
     }
-    let ds_on = fly_once(config, true, watcher)?;
-    let ds_off = fly_once(config, false, watcher)?;
-    Ok(DsReport { ds_on, ds_off })
+    let ds_ladder = fly_once(config, DsMode::Ladder, watcher)?;
+    let ds_on = fly_once(config, DsMode::Rebinding, watcher)?;
+    let ds_off = fly_once(config, DsMode::Off, watcher)?;
+    Ok(DsReport {
+        ds_ladder,
+        ds_on,
+        ds_off,
+    })
 }
