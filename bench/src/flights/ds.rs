@@ -6,6 +6,7 @@
 
 use super::{
     BusyProcesses, FlightBenchConfig, FlightBenchError, flight_name_and_dir, load_workflow,
+    with_variants_and_ladder,
 };
 use aeris_flight::{
     CycleTrace, Flight, FlightWatcher, HookError, Overrides, StepContext, StepHook, StopRule,
@@ -91,6 +92,16 @@ impl DsMode {
             DsMode::Off => "ds-off",
         }
     }
+
+    /// Roles move live between executors (dynamic scheduling on).
+    pub fn rebinds(self) -> bool {
+        self != DsMode::Off
+    }
+
+    /// The variant ladder steps model roles down and up.
+    pub fn steps_variants(self) -> bool {
+        self == DsMode::Ladder
+    }
 }
 
 fn workflow(config: &FlightBenchConfig, mode: DsMode) -> Result<Workflow, FlightBenchError> {
@@ -104,13 +115,7 @@ fn workflow(config: &FlightBenchConfig, mode: DsMode) -> Result<Workflow, Flight
     }
     // the ladder answers the hog with a lighter reasoner: only in its own flight, so the
     // other two show re-binding's figures alone
-    Overrides {
-        variants: config.variants.clone(),
-        fixed_variants: mode != DsMode::Ladder,
-        ..Overrides::default()
-    }
-    .apply(&mut w)?;
-    Ok(w)
+    with_variants_and_ladder(w, config, mode.steps_variants())
 }
 
 /// The step hook: lands the hog once enough heartbeats flew, and records the moves.
@@ -207,7 +212,7 @@ fn fly_once(
         .run_dir(run_dir)
         .stop_when(StopRule::Cycles(config.heartbeats))
         .overrides(Overrides {
-            dynamic: Some(mode != DsMode::Off),
+            dynamic: Some(mode.rebinds()),
             ..Overrides::default()
         })
         .step_hook(scenario)

@@ -216,12 +216,22 @@ fn no_role(workflow: &Workflow, role: &str) -> FlightBenchError {
 /// `workflow` with the benchmark's variant choices, and the variant ladder off: the
 /// benchmark's figures are the declared variants' (and it makes its own swaps).
 fn with_variants(
+    workflow: Workflow,
+    config: &FlightBenchConfig,
+) -> Result<Workflow, FlightBenchError> {
+    with_variants_and_ladder(workflow, config, false)
+}
+
+/// `workflow` with the benchmark's variant choices; the variant ladder as the workflow
+/// says when `ladder`, else off.
+fn with_variants_and_ladder(
     mut workflow: Workflow,
     config: &FlightBenchConfig,
+    ladder: bool,
 ) -> Result<Workflow, FlightBenchError> {
     Overrides {
         variants: config.variants.clone(),
-        fixed_variants: true,
+        fixed_variants: !ladder,
         ..Overrides::default()
     }
     .apply(&mut workflow)?;
