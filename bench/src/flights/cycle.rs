@@ -77,6 +77,9 @@ pub struct CycleReport {
 pub struct DecisionCost {
     /// The reasoner's process (a restart or swap starts another).
     pub pid: u32,
+    /// When its heartbeat was stamped (`CLOCK_MONOTONIC`, ns: the clock of the roles'
+    /// log headers).
+    pub stamp_ns: u64,
     /// Tokens in the prompt.
     pub prompt_tokens: u64,
     /// Of which evaluated anew (the rest was reused from the last decision's cache).
@@ -113,6 +116,7 @@ impl DecisionCost {
         let prompt = hb.counters[language::PROMPT_TOKENS];
         Some(Self {
             pid: hb.pid,
+            stamp_ns: hb.stamp_ns,
             prompt_tokens: prompt,
             new_prompt_tokens: prompt.saturating_sub(reused),
             generated_tokens: generated,
@@ -138,22 +142,20 @@ pub struct Pauses {
     pub pause_max_ms: u64,
 }
 
-/// Keeps the roles' latest heartbeat latencies and the flight's pauses.
-#[derive(Default)]
-struct LatencyWatch {
-    roles: Vec<RoleLatency>,
-    pauses: Pauses,
-    last_step: Option<Instant>,
-    decisions: Vec<DecisionCost>,
+/// The language-model decisions of a flight, read from its reasoners' heartbeats as the
+/// flight steps (every working heartbeat once, whichever process sent it).
+#[derive(Debug, Default)]
+pub(super) struct DecisionLog {
+    /// The decisions so far.
+    pub(super) decisions: Vec<DecisionCost>,
     /// The reasoner heartbeat last read: (pid, seq).
-    last_decision: Option<(u32, u64)>,
+    last: Option<(u32, u64)>,
 }
 
-impl StepHook for LatencyWatch {
-    fn step(&mut self, ctx: &mut StepContext<'_>) -> Result<bool, HookError> {
-        self.roles = role_latencies(ctx.supervisor);
-        for role in ctx
-            .supervisor
+impl DecisionLog {
+    /// Add the reasoners' newest heartbeat if it is a decision not yet read.
+    pub(super) fn observe(&mut self, supervisor: &aeris_orchestrator::supervisor::Supervisor) {
+        for role in supervisor
             .roles()
             .iter()
             .filter(|r| r.kind() == "reasoning")
@@ -161,12 +163,28 @@ impl StepHook for LatencyWatch {
             let Some(hb) = role.last_heartbeat() else {
                 continue;
             };
-            if self.last_decision.replace((hb.pid, hb.seq)) != Some((hb.pid, hb.seq))
+            if self.last.replace((hb.pid, hb.seq)) != Some((hb.pid, hb.seq))
                 && let Some(cost) = DecisionCost::from_heartbeat(hb)
             {
                 self.decisions.push(cost);
             }
         }
+    }
+}
+
+/// Keeps the roles' latest heartbeat latencies and the flight's pauses.
+#[derive(Default)]
+struct LatencyWatch {
+    roles: Vec<RoleLatency>,
+    pauses: Pauses,
+    last_step: Option<Instant>,
+    decisions: DecisionLog,
+}
+
+impl StepHook for LatencyWatch {
+    fn step(&mut self, ctx: &mut StepContext<'_>) -> Result<bool, HookError> {
+        self.roles = role_latencies(ctx.supervisor);
+        self.decisions.observe(ctx.supervisor);
         let now = Instant::now();
         if let Some(last) = self.last_step.replace(now) {
             let gap_ms = now.duration_since(last).as_secs_f64() * 1e3;
@@ -244,7 +262,7 @@ pub fn run(
         priority_detail: s.priority_detail,
         memory: s.memory,
         pauses: watch.pauses,
-        decisions: watch.decisions,
+        decisions: watch.decisions.decisions,
     })
 }
 

@@ -2,6 +2,7 @@
 //! per swap the time to ready and to done, the heartbeats without a fresh decision and the
 //! longest interval between hub setpoints from its start to one heartbeat after its end.
 
+use super::cycle::{DecisionCost, DecisionLog};
 use super::{
     BusyProcesses, FlightBenchConfig, FlightBenchError, flight_name_and_dir, load_workflow,
     no_role, with_variants,
@@ -34,6 +35,8 @@ pub struct SwapRow {
     pub from: String,
     /// Variant brought in.
     pub to: String,
+    /// The new process (its decisions carry this pid), if it started.
+    pub pid: Option<u32>,
     /// `true` when it completed (the old process exited).
     pub done: bool,
     /// From the swap's start to the new process's first heartbeat after warm-up (ms).
@@ -80,6 +83,9 @@ pub struct SwapReport {
     pub priority: String,
     /// The same in words.
     pub priority_detail: String,
+    /// What each language-model decision of the flight cost, either side of every swap (a
+    /// row's `pid` names its new process): which side's decision was slow, and in which part.
+    pub decisions: Vec<DecisionCost>,
 }
 
 /// Cycles the flight completes before the first swap: the start, with every model's first
@@ -124,11 +130,13 @@ struct SwapSchedule {
     rows: Vec<SwapRow>,
     /// Longest and median setpoint interval over the whole flight (ms).
     flight_gaps: (f64, f64),
+    decisions: DecisionLog,
 }
 
 impl StepHook for SwapSchedule {
     fn step(&mut self, ctx: &mut StepContext<'_>) -> Result<bool, HookError> {
         let monitor = ctx.monitor;
+        self.decisions.observe(ctx.supervisor);
         self.flight_gaps = monitor.setpoint_gaps_ms(0, u64::MAX);
         let waiting = Phase::Waiting {
             since: Instant::now(),
@@ -143,6 +151,7 @@ impl StepHook for SwapSchedule {
                 let mut row = SwapRow {
                     from: self.current.clone(),
                     to: to.clone(),
+                    pid: None,
                     done: false,
                     ready_ms: 0.0,
                     done_ms: 0.0,
@@ -159,6 +168,7 @@ impl StepHook for SwapSchedule {
                     .begin_swap(&self.role, &to, DEFAULT_SWAP_READY_TIMEOUT)
                 {
                     Ok(pid) => {
+                        row.pid = Some(pid);
                         ctx.note(format!("bench swap: {} -> {to} (pid {pid})", row.from));
                         Phase::Swapping {
                             row,
@@ -311,6 +321,7 @@ pub fn run(
         },
         rows: Vec::new(),
         flight_gaps: (0.0, 0.0),
+        decisions: DecisionLog::default(),
     };
     if let Some(mode) = config.flight.priority {
         w.scheduling.priority = mode;
@@ -349,5 +360,6 @@ pub fn run(
         outside_load: config.flight.outside_load,
         priority: outcome.summary.priority.clone(),
         priority_detail: outcome.summary.priority_detail.clone(),
+        decisions: schedule.decisions.decisions,
     })
 }
