@@ -19,6 +19,10 @@
 //! decided within the deadline ([`HeartbeatClock::first_state_max_age`]); an older one is
 //! counted as its predecessor's cycle, so the next S_t in the flight's rhythm starts its
 //! first. A reasoner at a flight's start (or a replay's) has no such limit.
+//!
+//! The new side of a hot swap stands by until the supervisor makes it the role, while the
+//! running process decides; from then ([`HeartbeatClock::resume`]) it takes the first S_t
+//! captured after that moment: the ones before were its predecessor's.
 
 /// Share of a heartbeat after a cycle's start from which a captured S_t starts the next
 /// cycle (the rest absorbs the jitter of the perception pipeline), as tenths: 9 = 0.9
@@ -49,6 +53,8 @@ pub struct HeartbeatClock {
     last_cycle_ns: Option<u64>,
     /// The oldest the first S_t may be when looked at (ns).
     first_max_age_ns: u64,
+    /// S_t's captured before this (ns) were decided by another process.
+    not_before_ns: u64,
 }
 
 impl HeartbeatClock {
@@ -62,6 +68,7 @@ impl HeartbeatClock {
             last_ns: None,
             last_cycle_ns: None,
             first_max_age_ns: u64::MAX,
+            not_before_ns: 0,
         }
     }
 
@@ -86,7 +93,11 @@ impl HeartbeatClock {
     /// the first S_t does if it is young enough ([`HeartbeatClock::first_state_max_age`]),
     /// else it counts as a cycle decided before this reasoner (at `now_ns`); after that, one
     /// captured at least 0.9 heartbeats after the last cycle's start.
+    /// An S_t captured before the reasoner [resumed](HeartbeatClock::resume) is never taken.
     pub fn takes(&mut self, capture_ns: u64, now_ns: u64) -> bool {
+        if capture_ns < self.not_before_ns {
+            return false;
+        }
         match self.last_cycle_ns {
             None if now_ns.saturating_sub(capture_ns) <= self.first_max_age_ns => true,
             None => {
@@ -120,6 +131,20 @@ impl HeartbeatClock {
     pub fn decided(&mut self, now_ns: u64, cycle_start_ns: u64) {
         self.last_ns = Some(now_ns);
         self.last_cycle_ns = Some(cycle_start_ns);
+    }
+
+    /// The reasoner became the role at `now_ns` after standing by beside the running one (a
+    /// hot swap's new side): the running process decided every S_t captured before then,
+    /// so the first cycle starts on the first S_t captured from `now_ns` on, whatever its
+    /// age when looked at (it is fresh: the supervisor hands over right after the running
+    /// process's decision, and the first-S_t age limit, from a warm-up on the whole prompt,
+    /// would let a fresh one go); without one, the decision on the telemetry alone comes a
+    /// heartbeat and a half from `now_ns`, as after any decision.
+    pub fn resume(&mut self, now_ns: u64) {
+        self.not_before_ns = now_ns;
+        self.first_max_age_ns = u64::MAX;
+        self.last_ns = Some(now_ns);
+        self.last_cycle_ns = None;
     }
 }
 
@@ -230,5 +255,33 @@ mod tests {
         assert!(c.takes(14 * S, 20 * S));
         // by default any first S_t is taken (the first of a flight arrives fresh)
         assert!(HeartbeatClock::new(2 * S).takes(0, 100 * S));
+    }
+
+    #[test]
+    fn a_reasoner_that_stood_by_takes_the_first_state_captured_after_it_became_the_role() {
+        // a warm-up on the whole prompt estimated 3.1 s: the first-S_t limit takes none
+        let mut c = HeartbeatClock::new(2 * S).first_state_max_age(0);
+        c.heard(10 * S);
+        // handed over at 11.3 s, right after the running process decided the S_t of 10 s
+        c.resume(11 * S + 3 * S / 10);
+        // that S_t, looked at only now, was its predecessor's
+        assert!(!c.takes(10 * S, 11 * S + 35 * S / 100));
+        assert_eq!(
+            c.due(12 * S, false),
+            None,
+            "no decision on the telemetry at once"
+        );
+        // the next, captured at 12 s and looked at 0.3 s later, is decided on: fresh, not
+        // held to the warm-up's estimate
+        assert!(c.takes(12 * S, 12 * S + 3 * S / 10));
+        assert_eq!(c.due(12 * S + 3 * S / 10, true), Some(Basis::State));
+        c.decided(12 * S + 3 * S / 10, 12 * S);
+        assert!(c.takes(14 * S, 14 * S + 3 * S / 10));
+        // had no S_t come, the telemetry alone would have been decided on 3 s after it
+        let mut quiet = HeartbeatClock::new(2 * S);
+        quiet.heard(10 * S);
+        quiet.resume(11 * S);
+        assert_eq!(quiet.due(14 * S - 1, false), None);
+        assert_eq!(quiet.due(14 * S, false), Some(Basis::TelemetryOnly));
     }
 }

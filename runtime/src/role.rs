@@ -249,7 +249,39 @@ pub fn try_sched_fifo(priority: i32) -> bool {
     unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) == 0 }
 }
 
+/// `true` while the calling thread runs under SCHED_IDLE: this process is the new side of a
+/// hot swap, loaded and warmed up beside the running one, and the supervisor has not yet
+/// made it the role (it restores SCHED_OTHER when it does). A role that publishes what
+/// only one process of the role may publish at a time (a reasoner's decisions) stands by
+/// until then: work done on idle CPU time would be late, and its output would compete with
+/// the running process's.
+pub fn standing_by() -> bool {
+    // SAFETY: sched_getscheduler has no memory-safety preconditions; 0 = calling thread.
+    unsafe { libc::sched_getscheduler(0) == libc::SCHED_IDLE }
+}
+
 /// Sleep helper for roles that wait on something outside the cycle (never in `cycle`).
 pub fn sleep(d: Duration) {
     sleep_until_ns(monotonic_ns() + duration_ns(d));
+}
+
+#[cfg(test)]
+mod tests {
+    use super::standing_by;
+
+    #[test]
+    fn a_thread_stands_by_exactly_while_it_runs_under_sched_idle() {
+        // a thread of its own: the policy is per thread, and the test's others keep theirs
+        let seen = std::thread::spawn(|| {
+            let before = standing_by();
+            let param = libc::sched_param { sched_priority: 0 };
+            // SAFETY: `param` is valid; 0 = calling thread. Any process may enter SCHED_IDLE.
+            let set = unsafe { libc::sched_setscheduler(0, libc::SCHED_IDLE, &param) } == 0;
+            (before, set, standing_by())
+        })
+        .join()
+        .expect("the test thread panicked");
+        assert_eq!(seen, (false, true, true));
+        assert!(!standing_by());
+    }
 }
