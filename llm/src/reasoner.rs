@@ -68,16 +68,6 @@ pub enum LlmError {
         /// llama.cpp's error.
         reason: String,
     },
-    /// The model's context could not move to another thread count.
-    #[error("cannot move {file}'s context to {threads} threads: {reason}")]
-    Threads {
-        /// Cache-relative file.
-        file: String,
-        /// The thread count asked for.
-        threads: i32,
-        /// llama.cpp's error.
-        reason: String,
-    },
     /// No grammar exists for the mission's limits.
     #[error("cannot build the decision grammar")]
     Grammar(#[from] GrammarError),
@@ -303,19 +293,6 @@ pub struct LanguageReasoner {
     load_s: f64,
 }
 
-/// llama.cpp's settings of a reasoner's context.
-fn context_params(config: &ReasonerConfig) -> LlamaContextParams {
-    LlamaContextParams::default()
-        .with_n_ctx(NonZeroU32::new(config.context_tokens.max(256)))
-        .with_n_batch(BATCH as u32)
-        .with_n_threads(config.threads.max(1))
-        .with_n_threads_batch(config.threads.max(1))
-        // the KV cache on the GPU only for a role bound to one (a CUDA build would put it
-        // there for a role on a CPU set too)
-        .with_offload_kqv(config.accelerator.is_some())
-        .with_flash_attention_policy(flash_attention(config.accelerator.is_some()))
-}
-
 impl LanguageReasoner {
     /// Load `file` (cache-relative, hash-checked) for `mission`.
     ///
@@ -339,8 +316,18 @@ impl LanguageReasoner {
             }
         })?;
         let model: &'static LlamaModel = Box::leak(Box::new(model));
+        let ctx_tokens = config.context_tokens.max(256);
+        let params = LlamaContextParams::default()
+            .with_n_ctx(NonZeroU32::new(ctx_tokens))
+            .with_n_batch(BATCH as u32)
+            .with_n_threads(config.threads.max(1))
+            .with_n_threads_batch(config.threads.max(1))
+            // the KV cache on the GPU only for a role bound to one (a CUDA build would put it
+            // there for a role on a CPU set too)
+            .with_offload_kqv(config.accelerator.is_some())
+            .with_flash_attention_policy(flash_attention(config.accelerator.is_some()));
         let ctx = model
-            .new_context(backend, context_params(&config))
+            .new_context(backend, params)
             .map_err(|e| LlmError::Load {
                 file: file.to_string(),
                 reason: e.to_string(),
@@ -373,44 +360,6 @@ impl LanguageReasoner {
             file: file.to_string(),
             load_s: started.elapsed().as_secs_f64(),
         })
-    }
-
-    /// Evaluate with `threads` CPU threads from now on, keeping what the context holds (the
-    /// last prompt, reused by the next decision): a new context takes over this one's
-    /// state (llama-cpp-2 0.1 has no `llama_set_n_threads`). A swapped-in reasoner warms up
-    /// on one thread beside the running one and takes its threads when it becomes the role.
-    pub fn set_threads(&mut self, threads: i32) -> Result<(), LlmError> {
-        let threads = threads.max(1);
-        if threads == self.config.threads {
-            return Ok(());
-        }
-        let fail = |reason: String| LlmError::Threads {
-            file: self.file.clone(),
-            threads,
-            reason,
-        };
-        let config = ReasonerConfig {
-            threads,
-            ..self.config
-        };
-        let state = self
-            .ctx
-            .state_seq_get(0, Default::default())
-            .map_err(|e| fail(e.to_string()))?;
-        let mut ctx = self
-            .model
-            .new_context(backend()?, context_params(&config))
-            .map_err(|e| fail(e.to_string()))?;
-        ctx.state_seq_set(&state, 0)
-            .map_err(|e| fail(e.to_string()))?;
-        self.ctx = ctx;
-        self.config = config;
-        Ok(())
-    }
-
-    /// CPU threads it evaluates with.
-    pub fn threads(&self) -> i32 {
-        self.config.threads
     }
 
     /// The cache-relative model file.

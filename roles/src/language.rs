@@ -87,9 +87,6 @@ pub struct LanguageRole {
     failures: u64,
     /// Whether the prompt shows the planner's plan.
     show_plan: bool,
-    /// The CPU threads it decides with once it is the role (it warms up on one while it
-    /// stands by beside the running process of a hot swap).
-    threads: i32,
 }
 
 impl Role for LanguageRole {
@@ -131,25 +128,8 @@ impl Role for LanguageRole {
         let mut planner = mission_planner(&ctx.spec)?;
         let start = ctx.spec.mission.start;
         let threads = config.threads;
-        // the new side of a hot swap loads and warms up on one thread: measured on 2 cores,
-        // its two ggml workers beside the running reasoner's (under SCHED_IDLE even) slowed
-        // the running one's token generation up to 2x and made its decisions late; it takes
-        // its threads when it becomes the role (`cycle`)
-        let warm_threads = if aeris_runtime::role::standing_by() {
-            1
-        } else {
-            threads
-        };
-        let mut reasoner = LanguageReasoner::load(
-            &store,
-            &file,
-            brief,
-            ReasonerConfig {
-                threads: warm_threads,
-                ..config
-            },
-        )
-        .map_err(|e| RoleError::step(format!("loading reasoning/{variant} from {file}"), e))?;
+        let mut reasoner = LanguageReasoner::load(&store, &file, brief, config)
+            .map_err(|e| RoleError::step(format!("loading reasoning/{variant} from {file}"), e))?;
         // warm-up: the first decision pays for page faults and graph allocation
         // (on a copy of the planner: the flight's own starts at the first subgoal)
         let plan = DecisionView::from_decision(&planner.clone().decide(start, 0.0, true, None));
@@ -171,10 +151,10 @@ impl Role for LanguageRole {
         let decision = warm_up_decision_time(
             wall.elapsed(),
             aeris_runtime::clock::process_cpu_ns().saturating_sub(cpu),
-            warm_threads,
+            threads,
         );
         eprintln!(
-            "reasoning/{variant}: warmed up in {:.0} ms; a decision takes about {:.0} ms on {warm_threads} of its CPUs",
+            "reasoning/{variant}: warmed up in {:.0} ms; a decision takes about {:.0} ms on its CPUs",
             wall.elapsed().as_secs_f64() * 1e3,
             decision.as_secs_f64() * 1e3
         );
@@ -188,7 +168,6 @@ impl Role for LanguageRole {
             previous: None,
             failures: 0,
             show_plan,
-            threads,
         })
     }
 
@@ -201,11 +180,6 @@ impl Role for LanguageRole {
         _ctx: &mut RoleContext,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
-        if self.reasoner.threads() != self.threads && !aeris_runtime::role::standing_by() {
-            self.reasoner
-                .set_threads(self.threads)
-                .map_err(|e| RoleError::step("taking the reasoner's threads", e))?;
-        }
         let Some(due) = self.io.poll()? else {
             return Ok(CycleOutcome::Idle);
         };
