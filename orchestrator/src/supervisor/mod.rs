@@ -57,6 +57,7 @@ mod spawn;
 mod stalls;
 mod swap;
 mod variants;
+mod warm_up_gate;
 
 pub use error::{MigrateError, SilentRole, SupervisorError, SwapError};
 pub use events::{Handover, Migration, MigrationTrigger, SupervisorEvent};

@@ -11,6 +11,7 @@ use super::events::{Handover, SupervisorEvent};
 use super::logs::{log_tail, open_log, quote_tail};
 use super::role_runtime::{LATENCY_WINDOW, RemoteLink, ReturnTo, RoleRuntime, RoleState};
 use super::spawn::{LoadPolicy, may_leave_idle, set_normal_policy};
+use super::warm_up_gate::WarmUpGate;
 use crate::launch::PlannedFallback;
 use crate::restart::RoleExit;
 use aeris_runtime::affinity::CpuSet;
@@ -74,6 +75,9 @@ pub(super) struct SwapInProgress {
     pub(super) placement: Option<Placement>,
     /// Set to end the swap at the next step, and why (its host's link was lost).
     pub(super) abort: Option<String>,
+    /// A reasoner's new side loading idle: it runs only between the running process's
+    /// decisions until it is ready.
+    pub(super) gate: Option<WarmUpGate>,
 }
 
 /// Where a replacement runs when not where the role runs now: on another host (a move
@@ -389,6 +393,9 @@ impl Supervisor {
             handover_wait: handover_wait(&spec.timing),
             placement,
             abort: None,
+            gate: (policy == LoadPolicy::IdleUntilReady && r.kind == "reasoning").then(|| {
+                WarmUpGate::new(spec.timing.heartbeat_period_ms.saturating_mul(1_000_000))
+            }),
         });
         self.pending.push(SupervisorEvent::SwapStarted {
             name: r.name.clone(),
@@ -407,9 +414,16 @@ impl Supervisor {
         let now = Instant::now();
         let mut returns_failed = Vec::new();
         for role in &mut self.roles {
+            let running = role.last_heartbeat.filter(|hb| Some(hb.pid) == role.pid);
             let Some(swap) = role.swap.as_mut() else {
                 continue;
             };
+            if let Some(gate) = swap.gate.as_mut() {
+                if let Some(hb) = &running {
+                    gate.observe(hb);
+                }
+                gate.apply(swap.pid, monotonic_ns(), swap.ready.is_some());
+            }
             let failure = match swap.child.try_wait() {
                 _ if swap.abort.is_some() => swap.abort.take(),
                 Ok(Some(status)) => Some(format!(
