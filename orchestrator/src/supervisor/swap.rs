@@ -393,9 +393,11 @@ impl Supervisor {
             handover_wait: handover_wait(&spec.timing),
             placement,
             abort: None,
-            gate: (policy == LoadPolicy::IdleUntilReady && r.kind == "reasoning").then(|| {
-                WarmUpGate::new(spec.timing.heartbeat_period_ms.saturating_mul(1_000_000))
-            }),
+            // on this host only: a move to another host starts a handle here, which relays
+            gate: (policy == LoadPolicy::IdleUntilReady
+                && r.kind == "reasoning"
+                && spec.remote.is_none())
+            .then(|| WarmUpGate::new(spec.timing.heartbeat_period_ms.saturating_mul(1_000_000))),
         });
         self.pending.push(SupervisorEvent::SwapStarted {
             name: r.name.clone(),
