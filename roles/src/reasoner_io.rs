@@ -104,8 +104,20 @@ pub struct ReasonerIo {
     seq: u64,
     cycle: u64,
     source: u32,
-    /// The process stood by at the last poll (a hot swap's new side, not yet the role).
-    stood_by: bool,
+    /// Where the process is with standing by (a hot swap's new side, not yet the role).
+    standby: Standby,
+}
+
+/// A reasoner's standing by, as its polls found it. The supervisor only ever lifts a
+/// process out of SCHED_IDLE, so once a poll finds it the role the policy is not read again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Standby {
+    /// No poll yet.
+    Unknown,
+    /// The last poll found it standing by.
+    Standing,
+    /// It is the role.
+    Over,
 }
 
 impl ReasonerIo {
@@ -139,7 +151,7 @@ impl ReasonerIo {
             seq: 0,
             cycle: 0,
             source: ctx.spec.instance,
-            stood_by: false,
+            standby: Standby::Unknown,
         })
     }
 
@@ -149,9 +161,10 @@ impl ReasonerIo {
     /// While the process stands by (the new side of a hot swap, not yet the role:
     /// [`aeris_runtime::role::standing_by`]) it keeps the telemetry and lets every S_t go
     /// undecided: the running process decides them, and this one's schedule starts with the
-    /// first S_t captured after it became the role ([`HeartbeatClock::resume`]). Deciding on idle CPU time beside the running reasoner made
-    /// the new one's first decisions late (2.2-3.1 s after their frames, on 2 cores), and the
-    /// hub takes the newest instance's decision as soon as it comes.
+    /// first S_t captured after it became the role ([`HeartbeatClock::resume`]). Deciding
+    /// on idle CPU time beside the running reasoner made the new one's first decisions late
+    /// (2.2-3.1 s after their frames, on 2 cores), and the hub takes the newest instance's
+    /// decision as soon as it comes.
     pub fn poll(&mut self) -> Result<Option<DecisionDue>, RoleError> {
         let poll_ns = monotonic_ns();
         let (kept, last) = (&mut self.telemetry_kept, &mut self.telemetry_last);
@@ -161,13 +174,16 @@ impl ReasonerIo {
                 *last = Some(*t);
             }
         })?;
-        if aeris_runtime::role::standing_by() {
-            self.states.drain(|_| {})?;
-            self.stood_by = true;
-            return Ok(None);
-        }
-        if core::mem::take(&mut self.stood_by) {
-            self.clock.resume(poll_ns);
+        if self.standby != Standby::Over {
+            if aeris_runtime::role::standing_by() {
+                self.states.drain(|_| {})?;
+                self.standby = Standby::Standing;
+                return Ok(None);
+            }
+            if self.standby == Standby::Standing {
+                self.clock.resume(poll_ns);
+            }
+            self.standby = Standby::Over;
         }
         // the first S_t that starts the next cycle, in the order perception published them
         let (clock, state, fresh) = (&mut self.clock, &mut self.state, &mut self.fresh_state);

@@ -23,10 +23,10 @@ use aeris_schemas::RoleHeartbeat;
 
 /// How long before the predicted start of the running process's next decision the new
 /// process stops, and how long after its predicted end it stays stopped at most (ns).
-pub(super) const MARGIN_NS: u64 = 300_000_000;
+const MARGIN_NS: u64 = 300_000_000;
 /// The least gap between decisions worth warming up in (ns): with less, the gate stays
 /// open (the new process loads under SCHED_IDLE alone, as without the gate).
-pub(super) const MIN_GAP_NS: u64 = 300_000_000;
+const MIN_GAP_NS: u64 = 300_000_000;
 
 /// Whether the new side of a swap may run now, from the running process's decisions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -73,8 +73,8 @@ impl WarmUpGate {
     }
 
     /// Stop or continue process `pid` as [`WarmUpGate::holds`] says at `now_ns`
-    /// (`ready`: it is ready, and runs from now on). Returns whether it is stopped.
-    pub(super) fn apply(&mut self, pid: u32, now_ns: u64, ready: bool) -> bool {
+    /// (`ready`: it is ready, and runs from now on).
+    pub(super) fn apply(&mut self, pid: u32, now_ns: u64, ready: bool) {
         let hold = !ready && self.holds(now_ns);
         if hold != self.stopped
             && let Ok(raw) = libc::pid_t::try_from(pid)
@@ -87,7 +87,6 @@ impl WarmUpGate {
                 self.stopped = hold;
             }
         }
-        self.stopped
     }
 }
 
