@@ -104,8 +104,14 @@ instruction to you."
 }
 
 /// The user message: the mission G first (constant for a flight, so its KV entries are
-/// reused), then what changes between heartbeats: the plan, the memory M_{t-1}, the drone
-/// and the camera's S_t.
+/// reused), then what changes between heartbeats, the slowest-changing first (every token
+/// after the first changed one is evaluated again): the memory M_{t-1} and the plan (they
+/// change when the mission moves on), the camera's S_t, the drone (every heartbeat).
+///
+/// The numbers nearest the answer are copied by a small model: the memory line carries no
+/// waypoint, and with a plan the drone line says where the drone is from the plan's
+/// waypoint, not in the answer's coordinates (SmolLM2 and Gemma 3 wrote the drone's
+/// altitude for the plan's, `tests/plan_following.rs`).
 pub fn user_message(mission: &MissionBrief, obs: &Observation<'_>) -> String {
     let mut m = String::with_capacity(1024);
     let _ = writeln!(m, "Mission: {}", sanitize(&mission.instruction, 400));
@@ -143,32 +149,22 @@ pub fn user_message(mission: &MissionBrief, obs: &Observation<'_>) -> String {
         mission.limits.h_max,
         mission.acceptance_radius
     );
-    // From here on the text changes between heartbeats, the slowest-changing first so the
-    // KV cache keeps as much of it as possible: memory, drone, camera, then the plan.
     match obs.previous {
         Some(p) => {
-            let _ = writeln!(
-                m,
-                "Previous decision: step {}, {} to north {:.0}, east {:.0}, altitude {:.0}.",
-                p.step, p.action, p.north, p.east, p.altitude
-            );
+            let _ = writeln!(m, "Previous decision: step {}, {}.", p.step, p.action);
         }
         None => {
             let _ = writeln!(m, "Previous decision: none, the flight starts.");
         }
     }
-    let _ = writeln!(
-        m,
-        "Drone: north {:.0}, east {:.0}, altitude {:.0}, {}.",
-        obs.position[0],
-        obs.position[1],
-        obs.position[2],
-        if obs.landed {
-            "on the ground"
-        } else {
-            "flying"
+    match obs.plan {
+        Some(p) => {
+            let _ = writeln!(m, "Plan: {}", p.to_json());
         }
-    );
+        None => {
+            let _ = writeln!(m, "Plan: none.");
+        }
+    }
     match obs.state {
         Some(s) if !s.summary.as_str_lossy().trim().is_empty() => {
             let _ = writeln!(
@@ -206,13 +202,30 @@ pub fn user_message(mission: &MissionBrief, obs: &Observation<'_>) -> String {
             let _ = writeln!(m, "Camera: no view yet.");
         }
     }
-    // the plan last: a small model copies from what is nearest to its answer
+    let state = if obs.landed {
+        "on the ground"
+    } else {
+        "flying"
+    };
     match obs.plan {
+        // relative to the plan's waypoint: numbers that are not the answer's
         Some(p) => {
-            let _ = writeln!(m, "Plan: {}", p.to_json());
+            let (north, east) = (p.north - obs.position[0], p.east - obs.position[1]);
+            let up = p.altitude - obs.position[2];
+            let _ = writeln!(
+                m,
+                "Drone: {:.0} m from the plan's waypoint, {:.0} m {} it, {state}.",
+                north.hypot(east),
+                up.abs(),
+                if up >= 0.0 { "below" } else { "above" }
+            );
         }
         None => {
-            let _ = writeln!(m, "Plan: none.");
+            let _ = writeln!(
+                m,
+                "Drone: {state}, {:.0} m north, {:.0} m east, {:.0} m up.",
+                obs.position[0], obs.position[1], obs.position[2]
+            );
         }
     }
     m.push_str("Decision:");
@@ -325,6 +338,30 @@ mod tests {
         assert!(
             text.contains(r#"Plan: {"step":2,"action":"goto","north":30"#),
             "{text}"
+        );
+        // ... and the drone from the plan's waypoint (at [1, 2, 3]: 29.1 m away, 7 m below),
+        // last, as it changes every heartbeat; without a plan, in the mission's coordinates
+        assert!(
+            text.ends_with(
+                "Drone: 29 m from the plan's waypoint, 7 m below it, flying.\nDecision:"
+            ),
+            "{text}"
+        );
+        let no_plan = user_message(&m, &obs);
+        assert!(
+            no_plan.contains("Drone: flying, 1 m north, 2 m east, 3 m up."),
+            "{no_plan}"
+        );
+        let memory = user_message(
+            &m,
+            &Observation {
+                previous: Some(&plan),
+                ..obs
+            },
+        );
+        assert!(
+            memory.contains("Previous decision: step 2, goto.\n"),
+            "{memory}"
         );
     }
 }
