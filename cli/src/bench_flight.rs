@@ -112,6 +112,14 @@ pub fn cycle(a: CycleArgs) -> Result<()> {
         report.eer * 100.0,
         report.decisions_late
     );
+    let air = &report.in_flight;
+    println!(
+        "  in the air ({} heartbeats): CT mean {:.3} s  p95 {:.3} s   EER {:.1}%",
+        air.heartbeats,
+        air.ct_mean_s,
+        air.ct_p95_s,
+        air.eer * 100.0
+    );
     println!(
         "  stages (mean): perception {:.3} s  reasoning {:.3} s  routing {:.4} s  binding {:.5} s",
         report.stages.perception,
@@ -133,12 +141,13 @@ pub fn cycle(a: CycleArgs) -> Result<()> {
         let mean =
             |f: fn(&cycle::DecisionCost) -> f64| report.decisions.iter().map(f).sum::<f64>() / n;
         println!(
-            "  language-model decisions ({}, means): prompt {:.0} tokens of which {:.0} new in {:.0} ms; {:.1} generated in {:.0} ms; {:.0} ms each",
+            "  language-model decisions ({}, means): prompt {:.0} tokens of which {:.0} new in {:.0} ms; {:.1} generated ({:.1} verified from the plan) in {:.0} ms; {:.0} ms each",
             report.decisions.len(),
             mean(|d| d.prompt_tokens as f64),
             mean(|d| d.new_prompt_tokens as f64),
             mean(|d| d.prompt_ms),
             mean(|d| d.generated_tokens as f64),
+            mean(|d| d.drafted_tokens as f64),
             mean(|d| d.generate_ms),
             mean(|d| d.decision_ms),
         );

@@ -34,6 +34,10 @@ pub mod heartbeat {
     pub const REUSED_PROMPT_TOKENS: usize = 4;
     /// Counter: prompt tokens (last decision).
     pub const PROMPT_TOKENS: usize = 5;
+    /// Counter: generated tokens verified from the draft (last decision).
+    pub const DRAFTED_TOKENS: usize = 6;
+    /// Counter: 1 when the last decision's step departed from the plan's.
+    pub const DEPARTED_FROM_PLAN: usize = 7;
     /// Stage: evaluating the new prompt tokens.
     pub const PROMPT_STAGE: &str = "prompt";
     /// Stage: generating.
@@ -221,8 +225,8 @@ impl Role for LanguageRole {
         report.counters[3] = self.failures;
         report.counters[heartbeat::REUSED_PROMPT_TOKENS] = thought.reused_tokens as u64;
         report.counters[heartbeat::PROMPT_TOKENS] = thought.prompt_tokens as u64;
-        report.counters[6] = thought.drafted_tokens as u64;
-        report.counters[7] = u64::from(thought.view.step != plan.step);
+        report.counters[heartbeat::DRAFTED_TOKENS] = thought.drafted_tokens as u64;
+        report.counters[heartbeat::DEPARTED_FROM_PLAN] = u64::from(thought.view.step != plan.step);
         self.previous = Some(thought.view);
         Ok(CycleOutcome::Worked)
     }

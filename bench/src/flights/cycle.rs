@@ -8,6 +8,7 @@ use super::{
 use aeris_flight::{Flight, FlightWatcher, HookError, StageMeans, StepContext, StepHook, StopRule};
 use aeris_orchestrator::supervisor::SupervisorEvent;
 use aeris_roles::language::heartbeat as language;
+use aeris_runtime::stats::{mean_std, percentile};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -69,6 +70,51 @@ pub struct CycleReport {
     /// What each language-model decision cost, from the reasoner's heartbeats (empty for a
     /// reasoner that is not a language model): the next regression shows here at once.
     pub decisions: Vec<DecisionCost>,
+    /// The same figures over the heartbeats flown in the air: the mission lands after ~30
+    /// heartbeats and waits, and a landed reasoner's prompt barely changes.
+    pub in_flight: AirborneCycles,
+}
+
+/// Cycle time and EER over the heartbeats the hub reported while the vehicle was airborne.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct AirborneCycles {
+    /// Heartbeats reported while the vehicle was above [`AIRBORNE_M`].
+    pub heartbeats: u64,
+    /// Mean cycle time of their committed decisions (s).
+    pub ct_mean_s: f64,
+    /// Its 95th percentile (s).
+    pub ct_p95_s: f64,
+    /// Of them, the share that reused the last valid decision.
+    pub eer: f64,
+}
+
+/// Height above the start (m) over which a heartbeat counts as flown in the air.
+pub const AIRBORNE_M: f32 = 0.5;
+
+impl AirborneCycles {
+    /// The airborne heartbeats of a flight's trace.
+    pub fn of(trace: &[aeris_flight::CycleTrace]) -> Self {
+        let airborne: Vec<_> = trace
+            .iter()
+            .filter(|c| c.position.is_some_and(|p| p[2] > AIRBORNE_M))
+            .collect();
+        let ct: Vec<f64> = airborne
+            .iter()
+            .filter(|c| c.committed)
+            .map(|c| c.ct_s)
+            .collect();
+        let reused = airborne.iter().filter(|c| c.reused).count();
+        Self {
+            heartbeats: airborne.len() as u64,
+            ct_mean_s: mean_std(&ct).map_or(0.0, |(mean, _)| mean),
+            ct_p95_s: percentile(&ct, 95.0).unwrap_or(0.0),
+            eer: if airborne.is_empty() {
+                0.0
+            } else {
+                reused as f64 / airborne.len() as f64
+            },
+        }
+    }
 }
 
 /// One language-model decision: its prompt, what of it was new, what was generated, and
@@ -86,6 +132,11 @@ pub struct DecisionCost {
     pub new_prompt_tokens: u64,
     /// Tokens generated.
     pub generated_tokens: u64,
+    /// Of which verified from the draft (the plan) in a batch: all of them when the model
+    /// wrote the plan's decision.
+    pub drafted_tokens: u64,
+    /// Whether the decision's step departed from the plan's.
+    pub departed_from_plan: bool,
     /// Time evaluating the new prompt tokens (ms).
     pub prompt_ms: f64,
     /// Time generating (ms).
@@ -120,6 +171,8 @@ impl DecisionCost {
             prompt_tokens: prompt,
             new_prompt_tokens: prompt.saturating_sub(reused),
             generated_tokens: generated,
+            drafted_tokens: hb.counters[language::DRAFTED_TOKENS],
+            departed_from_plan: hb.counters[language::DEPARTED_FROM_PLAN] == 1,
             prompt_ms,
             generate_ms,
             decision_ms: hb.cycle_latency_ns as f64 / 1e6,
@@ -263,6 +316,7 @@ pub fn run(
         memory: s.memory,
         pauses: watch.pauses,
         decisions: watch.decisions.decisions,
+        in_flight: AirborneCycles::of(&outcome.trace),
     })
 }
 
@@ -309,6 +363,38 @@ mod tests {
             (cost.prompt_ms, cost.generate_ms, cost.decision_ms),
             (120.0, 700.0, 900.0)
         );
+    }
+
+    fn cycle(up: f32, ct_s: f64, reused: bool) -> aeris_flight::CycleTrace {
+        aeris_flight::CycleTrace {
+            cycle: 0,
+            t_s: 0.0,
+            ct_s,
+            stages_s: [0.0; 4],
+            committed: !reused,
+            reused,
+            active_step: 1,
+            position: Some([0.0, 0.0, up]),
+            yaw: None,
+            setpoint: None,
+            setpoint_mode: None,
+        }
+    }
+
+    #[test]
+    fn only_heartbeats_reported_in_the_air_count_as_in_flight() {
+        let trace = [
+            cycle(0.0, 0.4, false),
+            cycle(6.0, 1.0, false),
+            cycle(12.0, 0.0, true),
+            cycle(12.0, 2.0, false),
+            cycle(0.1, 0.3, false),
+        ];
+        let air = AirborneCycles::of(&trace);
+        assert_eq!(air.heartbeats, 3);
+        assert_eq!((air.ct_mean_s, air.ct_p95_s), (1.5, 2.0));
+        assert!((air.eer - 1.0 / 3.0).abs() < 1e-12);
+        assert_eq!(AirborneCycles::of(&[]), AirborneCycles::default());
     }
 
     #[test]
