@@ -2,7 +2,7 @@
 //! programs) share: llama.cpp's backend, the chat prompt, batch evaluation, KV-prefix reuse
 //! and greedy choice under a grammar.
 
-use crate::reasoner::LlmError;
+use crate::error::LlmError;
 use llama_cpp_2::context::LlamaContext;
 use llama_cpp_2::llama_backend::LlamaBackend;
 use llama_cpp_2::llama_batch::LlamaBatch;

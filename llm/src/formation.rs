@@ -10,8 +10,9 @@
 //! goes through [`FormationProgram::validate`] and the simulation like the parser's.
 
 use crate::decode::{BATCH, backend, chat_prompt, eval_tokens, greedy_allowed, reuse_prefix};
+use crate::error::LlmError;
 use crate::grammar::{GrammarError, NumberField, number_rule};
-use crate::reasoner::{LlmError, model_params};
+use crate::reasoner::model_params;
 use aeris_formation::{Problem, ProgramWriter, clauses};
 use aeris_models::ModelStore;
 use aeris_schemas::{

@@ -8,6 +8,7 @@
 //! one heartbeat to the next ([`LanguageReasoner`]).
 
 mod decode;
+mod error;
 pub mod formation;
 pub mod grammar;
 pub mod prompt;
