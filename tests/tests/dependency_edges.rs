@@ -4,6 +4,8 @@
 //! dev-dependencies left out), so a dependency that comes back through any path, a new
 //! crate in between included, fails here. A vehicle build of the `aeris` binary (without its
 //! default `sim` feature) compiles no simulator either, and the binary holds no flight loop.
+//! ARCHITECTURE.md's crate table names exactly each crate's dependencies of ours
+//! (`cargo metadata`), so the table cannot drift from the manifests again.
 
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -151,4 +153,107 @@ fn the_binary_holds_no_supervisor_and_no_flight_monitor() {
     )
     .expect("flight/src/supervise.rs");
     assert!(identifiers(&flight).any(|w| w == "Supervisor"));
+}
+
+/// Each workspace crate's direct dependencies on crates of ours, from `cargo metadata`
+/// (normal dependencies, optional ones included), by short name (`aeris-sim-roles` ->
+/// `sim-roles`; the binary `aeris` -> `cli`, the tests -> `tests`).
+fn direct_workspace_dependencies() -> std::collections::BTreeMap<String, BTreeSet<String>> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_string());
+    let workspace = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let out = Command::new(&cargo)
+        .current_dir(&workspace)
+        .args([
+            "metadata",
+            "--offline",
+            "--locked",
+            "--no-deps",
+            "--format-version",
+            "1",
+        ])
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run `{cargo} metadata`: {e}"));
+    assert!(
+        out.status.success(),
+        "`cargo metadata` failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let meta: serde_json::Value =
+        serde_json::from_slice(&out.stdout).expect("`cargo metadata` prints JSON");
+    let short = |name: &str| match name {
+        "aeris" => "cli".to_string(),
+        n => n.trim_start_matches("aeris-").to_string(),
+    };
+    let packages = meta["packages"].as_array().expect("packages");
+    let ours: BTreeSet<String> = packages
+        .iter()
+        .filter_map(|p| p["name"].as_str())
+        .map(str::to_string)
+        .collect();
+    packages
+        .iter()
+        .map(|p| {
+            let deps = p["dependencies"]
+                .as_array()
+                .expect("dependencies")
+                .iter()
+                .filter(|d| d["kind"].is_null())
+                .filter_map(|d| d["name"].as_str())
+                .filter(|n| ours.contains(*n))
+                .map(short)
+                .collect();
+            (short(p["name"].as_str().expect("name")), deps)
+        })
+        .collect()
+}
+
+/// ARCHITECTURE.md's crate table says whom each crate depends on: its last column names
+/// exactly the crates of ours that the crate's manifest does (notes in words around them
+/// are allowed), and every crate of the workspace has a row.
+#[test]
+fn architecture_md_names_each_crates_dependencies_of_ours() {
+    let actual = direct_workspace_dependencies();
+    let text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../ARCHITECTURE.md"))
+            .expect("ARCHITECTURE.md");
+    let mut rows = std::collections::BTreeMap::new();
+    for line in text.lines().skip_while(|l| !l.starts_with("## Crates")) {
+        if line.starts_with("## ") && !line.starts_with("## Crates") {
+            break;
+        }
+        let cells: Vec<&str> = line.split(" | ").collect();
+        let Some(name) = cells
+            .first()
+            .and_then(|c| c.trim_start_matches("| ").strip_prefix('`'))
+            .and_then(|c| c.split_once("/`"))
+            .map(|(dir, _)| dir.to_string())
+        else {
+            continue;
+        };
+        let said: BTreeSet<String> = cells
+            .last()
+            .map(|c| {
+                c.split(|ch: char| !(ch.is_ascii_alphanumeric() || ch == '-'))
+                    .filter(|w| actual.contains_key(*w))
+                    .map(str::to_string)
+                    .collect()
+            })
+            .unwrap_or_default();
+        rows.insert(name, said);
+    }
+    let mut wrong = Vec::new();
+    for (krate, deps) in &actual {
+        match rows.get(krate) {
+            None => wrong.push(format!("{krate}: no row")),
+            Some(said) if said != deps => wrong.push(format!(
+                "{krate}: the table says {said:?}, Cargo.toml {deps:?}"
+            )),
+            Some(_) => {}
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "ARCHITECTURE.md's crate table has drifted:\n{}",
+        wrong.join("\n")
+    );
 }
