@@ -1,68 +1,22 @@
 //! The language-model reasoners fly the model flight by writing the plan's decision (the
 //! untuned models do not track a mission on their own; `roles::language`). This replays the
 //! heartbeats of the village mission's nominal flight (takeoff, two legs, the landing) with
-//! the camera lines the flight's perception wrote, and checks that SmolLM2 writes the plan
-//! at every one: where the drone's own numbers sit close to the answer, a small model copies
-//! them instead (it once took off to the drone's 11 m instead of the plan's 12 m and stalled
-//! below the takeoff tolerance).
+//! the camera lines the flight's perception wrote, and checks that SmolLM2 and Gemma 3 write
+//! the plan at every one: where the drone's own numbers sit close to the answer, a small
+//! model copies them instead (SmolLM2 once took off to the drone's 11 m instead of the plan's
+//! 12 m and stalled below the takeoff tolerance).
 //!
 //! Needs the provisioned model cache (`scripts/provision-models.sh`, part of the test
 //! command).
 
+mod common;
+
 use aeris_llm::{
-    DecisionView, GEMMA3_270M, LanguageReasoner, MissionBrief, Observation, ReasonerConfig,
-    SMOLLM2_135M, StepBrief,
+    DecisionView, GEMMA3_270M, LanguageReasoner, Observation, ReasonerConfig, SMOLLM2_135M,
 };
 use aeris_models::ModelStore;
-use aeris_schemas::{ActionMode, DecisionLimits, FixedText, PerceptionState};
-
-fn village() -> MissionBrief {
-    let step = |text: &str, action, waypoint| StepBrief {
-        text: text.into(),
-        action,
-        waypoint: Some(waypoint),
-    };
-    MissionBrief {
-        instruction: "Take off from the helipad to 12 metres, fly north along the road to the \
-red-roofed building, then turn right and follow the road east to the blue water tower, and \
-land next to the yellow sign that says LAKE VIEW."
-            .into(),
-        steps: vec![
-            step(
-                "take off from the helipad to 12 metres",
-                ActionMode::Takeoff,
-                [0.0, 0.0, 12.0],
-            ),
-            step(
-                "fly north along the road to the red-roofed building",
-                ActionMode::Goto,
-                [62.0, 0.0, 12.0],
-            ),
-            step(
-                "turn right and follow the road east to the blue water tower",
-                ActionMode::Goto,
-                [62.0, 64.0, 12.0],
-            ),
-            step(
-                "land next to the yellow sign that says LAKE VIEW",
-                ActionMode::Land,
-                [42.0, 88.0, 0.0],
-            ),
-        ],
-        limits: DecisionLimits {
-            v_max: 8.0,
-            h_min: 0.0,
-            h_max: 60.0,
-            r_max: 10.0,
-            geofence_min: [-20.0, -40.0, 0.0],
-            geofence_max: [160.0, 140.0, 60.0],
-            obstacle_clearance_m: 3.0,
-            subgoals: 4,
-        },
-        cruise_speed: 5.0,
-        acceptance_radius: 3.0,
-    }
-}
+use aeris_schemas::{FixedText, PerceptionState};
+use common::village;
 
 fn plan(step: u16, action: &str, target: [f32; 3], yaw_deg: f32) -> DecisionView {
     DecisionView {
