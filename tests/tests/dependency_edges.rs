@@ -16,31 +16,32 @@ fn normal_dependencies(package: &str) -> BTreeSet<String> {
     dependencies_with(package, &[])
 }
 
-/// As [`normal_dependencies`], with extra `cargo tree` arguments (features).
-fn dependencies_with(package: &str, extra: &[&str]) -> BTreeSet<String> {
+/// What `cargo ARGS` prints, run offline and locked in the workspace.
+fn cargo_stdout(args: &[&str]) -> Vec<u8> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_string());
     let workspace = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let out = Command::new(&cargo)
         .current_dir(&workspace)
-        .args([
-            "tree",
-            "--offline",
-            "--locked",
-            "-e",
-            "normal",
-            "-p",
-            package,
-        ])
-        .args(extra)
-        .args(["--prefix", "none", "--format", "{p}"])
+        .args(args)
+        .args(["--offline", "--locked"])
         .output()
-        .unwrap_or_else(|e| panic!("cannot run `{cargo} tree`: {e}"));
+        .unwrap_or_else(|e| panic!("cannot run `{cargo} {}`: {e}", args.join(" ")));
     assert!(
         out.status.success(),
-        "`cargo tree -p {package}` failed: {}",
+        "`cargo {}` failed: {}",
+        args.join(" "),
         String::from_utf8_lossy(&out.stderr)
     );
-    let names: BTreeSet<String> = String::from_utf8_lossy(&out.stdout)
+    out.stdout
+}
+
+/// As [`normal_dependencies`], with extra `cargo tree` arguments (features).
+fn dependencies_with(package: &str, extra: &[&str]) -> BTreeSet<String> {
+    let mut args = vec!["tree", "-e", "normal", "-p", package];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--prefix", "none", "--format", "{p}"]);
+    let out = cargo_stdout(&args);
+    let names: BTreeSet<String> = String::from_utf8_lossy(&out)
         .lines()
         .filter_map(|l| l.split_whitespace().next())
         .map(str::to_string)
@@ -159,27 +160,9 @@ fn the_binary_holds_no_supervisor_and_no_flight_monitor() {
 /// (normal dependencies, optional ones included), by short name (`aeris-sim-roles` ->
 /// `sim-roles`; the binary `aeris` -> `cli`, the tests -> `tests`).
 fn direct_workspace_dependencies() -> std::collections::BTreeMap<String, BTreeSet<String>> {
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_string());
-    let workspace = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let out = Command::new(&cargo)
-        .current_dir(&workspace)
-        .args([
-            "metadata",
-            "--offline",
-            "--locked",
-            "--no-deps",
-            "--format-version",
-            "1",
-        ])
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run `{cargo} metadata`: {e}"));
-    assert!(
-        out.status.success(),
-        "`cargo metadata` failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = cargo_stdout(&["metadata", "--no-deps", "--format-version", "1"]);
     let meta: serde_json::Value =
-        serde_json::from_slice(&out.stdout).expect("`cargo metadata` prints JSON");
+        serde_json::from_slice(&out).expect("`cargo metadata` prints JSON");
     let short = |name: &str| match name {
         "aeris" => "cli".to_string(),
         n => n.trim_start_matches("aeris-").to_string(),

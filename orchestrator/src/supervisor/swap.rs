@@ -416,12 +416,16 @@ impl Supervisor {
         let now = Instant::now();
         let mut returns_failed = Vec::new();
         for role in &mut self.roles {
-            let running = role.last_heartbeat.filter(|hb| Some(hb.pid) == role.pid);
             let Some(swap) = role.swap.as_mut() else {
                 continue;
             };
             if let Some(gate) = swap.gate.as_mut() {
-                if let Some(hb) = &running {
+                // the running process's latest heartbeat (not a copy per role and step)
+                if let Some(hb) = role
+                    .last_heartbeat
+                    .as_ref()
+                    .filter(|hb| Some(hb.pid) == role.pid)
+                {
                     gate.observe(hb);
                 }
                 gate.apply(swap.pid, monotonic_ns(), swap.ready.is_some());
