@@ -11,6 +11,7 @@
 use aeris_runtime::affinity::CpuSet;
 use std::collections::BTreeMap;
 use std::path::Path;
+use std::time::Instant;
 
 /// Where an executor came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -150,6 +151,29 @@ pub struct SchedTime {
     pub run_ns: u64,
     /// Time runnable but waiting in a run queue (ns).
     pub wait_ns: u64,
+}
+
+/// Below this much CPU time in a window, a role's slowdown is not measured (ms of run time).
+const MIN_RUN_FOR_SLOWDOWN_NS: u64 = 2_000_000;
+
+/// Slowdown `(run + wait) / run` and the run and wait shares of wall time between two
+/// scheduler samples.
+pub(crate) fn shares(
+    a: &(Instant, SchedTime),
+    b: &(Instant, SchedTime),
+) -> Option<(f64, f64, f64)> {
+    let wall = b.0.checked_duration_since(a.0)?.as_nanos() as f64;
+    if wall <= 0.0 {
+        return None;
+    }
+    let run = b.1.run_ns.checked_sub(a.1.run_ns)?;
+    let wait = b.1.wait_ns.checked_sub(a.1.wait_ns)?;
+    let slowdown = if run >= MIN_RUN_FOR_SLOWDOWN_NS {
+        (run + wait) as f64 / run as f64
+    } else {
+        1.0
+    };
+    Some((slowdown, run as f64 / wall, wait as f64 / wall))
 }
 
 /// Parse one `schedstat` line: "run_ns wait_ns timeslices".

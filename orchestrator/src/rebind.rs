@@ -76,8 +76,9 @@ pub struct RoleLoad {
     pub executor: usize,
     /// Its latency budget (ms); roles without one are never over budget.
     pub budget_ms: Option<f64>,
-    /// Its recent latency (ms): the larger of the windowed p95 and the latency its current
-    /// scheduler slowdown predicts, plus the link's cost when it runs on another host
+    /// Its recent latency (ms): the larger of the windowed p95 and its own cost (each
+    /// recent cycle's latency over the slowdown it ran under) at its current scheduler
+    /// slowdown — a hog shows before a cycle finishes late — plus the link's cost when it runs on another host
     /// ([`link_cost`]); `None` before it has worked.
     pub latency_ms: Option<f64>,
     /// Measured slowdown `(run + wait) / run` (>= 1).

@@ -9,13 +9,16 @@
 //! [`CpuWatch::take_pause`] how long the longest hold since the last look lasted (discount
 //! it, as a pause of the supervisor itself).
 
-use super::stalls::UNWATCHED_GAP;
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::clock::monotonic_ns;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread::JoinHandle;
 use std::time::Duration;
+
+/// A pause between two supervisor steps (called every ~20 ms) longer than this is time the
+/// supervisor did not watch.
+pub(super) const UNWATCHED_GAP: Duration = Duration::from_millis(300);
 
 /// How often each CPU's watcher wakes.
 const TICK: Duration = Duration::from_millis(20);

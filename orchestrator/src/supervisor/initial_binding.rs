@@ -7,7 +7,7 @@ use super::Supervisor;
 use super::events::{MigrationTrigger, SupervisorEvent};
 use super::migration::bind_all_threads;
 use super::role_runtime::RoleState;
-use super::scheduling::shares;
+use crate::executors::shares;
 use crate::probe::{ProbeFigure, ProbedRole, bind_from_probes};
 use crate::rebind::{ExecutorLoad, RoleLoad, plan_fewest_moves};
 use std::collections::VecDeque;

@@ -18,8 +18,9 @@
 
 use super::Supervisor;
 use super::events::SupervisorEvent;
-use super::role_runtime::{ReturnTo, RoleState};
-use super::swap::{DEFAULT_SWAP_READY_TIMEOUT, Placement};
+use super::replacement::{Placement, ReturnTo};
+use super::role_runtime::RoleState;
+use super::swap::DEFAULT_SWAP_READY_TIMEOUT;
 use crate::restart::RestartPolicy;
 use std::time::{Duration, Instant};
 

@@ -7,8 +7,10 @@ use super::Supervisor;
 use super::error::MigrateError;
 use super::events::{Migration, MigrationTrigger, SupervisorEvent};
 use super::links::flight_host_place;
-use super::role_runtime::{RECENT_CYCLES, RoleState};
-use super::swap::{DEFAULT_SWAP_READY_TIMEOUT, Placement};
+use super::recent_cycles::RecentCycles;
+use super::replacement::Placement;
+use super::role_runtime::RoleState;
+use super::swap::DEFAULT_SWAP_READY_TIMEOUT;
 use crate::executors::process_threads;
 use crate::launch::PlannedFallback;
 use crate::workflow::movable_across_hosts;
@@ -16,7 +18,6 @@ use aeris_runtime::accelerator::Accelerator;
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::spec::RemoteSpec;
-use aeris_runtime::stats::LatencyWindow;
 use aeris_schemas::topics;
 use std::fs::OpenOptions;
 use std::io::Write as _;
@@ -459,7 +460,7 @@ impl Supervisor {
         }
         // its figures were measured elsewhere
         r.sched.clear();
-        r.recent = LatencyWindow::new(RECENT_CYCLES);
+        r.recent = RecentCycles::default();
         self.policy.settle(i);
         // a move predicted to cure the role gets its chance before the ladder judges it
         // again; a relief move (still predicted over budget) does not: the dense VLN episode

@@ -49,6 +49,8 @@ mod initial_binding;
 mod links;
 mod logs;
 mod migration;
+mod recent_cycles;
+mod replacement;
 mod role_runtime;
 mod scheduling;
 mod service_audit;

@@ -2,7 +2,8 @@
 //! binding, and its heartbeat statistics (sequence gaps, the latency window and its
 //! percentiles, the recent cycles the scheduling policy and the variant ladder read).
 
-use super::swap::SwapInProgress;
+use super::recent_cycles::RecentCycles;
+use super::replacement::{ReturnTo, SwapInProgress};
 use crate::executors::SchedTime;
 use crate::launch::{PlannedFallback, PlannedRole};
 use crate::restart::{RestartPolicy, RoleExit};
@@ -17,8 +18,6 @@ use std::time::{Duration, Instant};
 /// Heartbeats per role kept for the latency percentiles.
 pub const LATENCY_WINDOW: usize = 256;
 
-/// Worked cycles in a role's recent-latency window (the DS signal).
-pub(super) const RECENT_CYCLES: usize = 8;
 /// Scheduler samples kept per role (the demand window).
 pub(super) const SCHED_SAMPLES: usize = 9;
 
@@ -52,17 +51,6 @@ pub(super) struct RemoteLink {
     /// The role's restart policy, held while its link is lost and no fallback runs (a
     /// bridge on that host), back in force when the link returns.
     pub(super) held_policy: Option<crate::restart::RestartPolicy>,
-}
-
-/// Where a role ran before its link was lost: it returns there when the link is back.
-#[derive(Debug, Clone)]
-pub(super) struct ReturnTo {
-    /// The executor on the other host.
-    pub(super) executor: String,
-    /// That host, its agent and the CPUs there.
-    pub(super) spec: aeris_runtime::spec::RemoteSpec,
-    /// The variant it ran there.
-    pub(super) variant: String,
 }
 
 /// What the supervisor knows about one role.
@@ -141,8 +129,8 @@ pub struct RoleRuntime {
     pub(super) silence_probe: Option<crate::executors::ThreadTimes>,
     /// Scheduler time samples, one per scheduling tick (newest last).
     pub(super) sched: VecDeque<(Instant, SchedTime)>,
-    /// Latencies of the last few worked cycles (the DS signal).
-    pub(super) recent: LatencyWindow,
+    /// The last few worked cycles (the DS signal).
+    pub(super) recent: RecentCycles,
     /// Its variant ladder, most capable first (empty: none).
     pub(super) ladder: Vec<String>,
     /// Worked cycles reported by any of its processes (the ladder's cycle count).
@@ -349,7 +337,7 @@ impl RoleRuntime {
             started_at: None,
             silence_probe: None,
             sched: VecDeque::with_capacity(SCHED_SAMPLES),
-            recent: LatencyWindow::new(RECENT_CYCLES),
+            recent: RecentCycles::default(),
             ladder,
             worked_cycles: 0,
             last_cycle_ms: None,
@@ -391,7 +379,7 @@ impl RoleRuntime {
         self.started_at = Some(Instant::now());
         self.silence_probe = None;
         self.sched.clear();
-        self.recent = LatencyWindow::new(RECENT_CYCLES);
+        self.recent = RecentCycles::default();
     }
 
     /// It failed to start on accelerator executor `executor`: its latency there is taken
@@ -421,7 +409,7 @@ impl RoleRuntime {
         if working && hb.worked == 1 {
             let ms = hb.cycle_latency_ns as f64 / 1e6;
             self.window.push(ms);
-            self.recent.push(ms);
+            self.recent.push(ms, Instant::now(), &self.sched);
             self.worked_cycles += 1;
             self.last_cycle_ms = Some(ms);
             self.latency_ms = self.window.percentiles([50.0, 95.0, 99.0]);
@@ -503,7 +491,7 @@ pub(super) mod tests {
             started_at: None,
             silence_probe: None,
             sched: VecDeque::new(),
-            recent: LatencyWindow::new(RECENT_CYCLES),
+            recent: RecentCycles::default(),
             ladder: Vec::new(),
             worked_cycles: 0,
             last_cycle_ms: None,

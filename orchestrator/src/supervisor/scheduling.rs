@@ -10,7 +10,7 @@ use super::Supervisor;
 use super::error::MigrateError;
 use super::events::{MigrationTrigger, SupervisorEvent};
 use super::role_runtime::{RoleState, SCHED_SAMPLES};
-use crate::executors::{SchedTime, process_sched_time};
+use crate::executors::{process_sched_time, shares};
 use crate::rebind::{ExecutorLoad, RebindConfig, RebindPlan, RoleLoad, link_cost};
 use crate::workflow::SchedulingSpec;
 use crate::workflow::movable_across_hosts;
@@ -22,9 +22,6 @@ use std::time::{Duration, Instant};
 /// A link losing this share of its probes or more takes no role (a fading radio link).
 const MAX_LOSS_TO_PLACE: f64 = 0.2;
 
-/// Below this much CPU time in a window, a role's slowdown is not measured (ms of run time).
-const MIN_RUN_FOR_SLOWDOWN_NS: u64 = 2_000_000;
-
 /// The policy settings of a flight's `[scheduling]` table.
 pub(super) fn rebind_config(s: &SchedulingSpec) -> RebindConfig {
     let ticks = |ms: u64| (ms / s.interval_ms.max(1)).clamp(1, u32::MAX as u64) as u32;
@@ -34,26 +31,6 @@ pub(super) fn rebind_config(s: &SchedulingSpec) -> RebindConfig {
         cooldown_ticks: ticks(s.cooldown_ms),
         max_moves: 3,
     }
-}
-
-/// Slowdown `(run + wait) / run` and the run and wait shares of wall time between two
-/// scheduler samples.
-pub(super) fn shares(
-    a: &(Instant, SchedTime),
-    b: &(Instant, SchedTime),
-) -> Option<(f64, f64, f64)> {
-    let wall = b.0.checked_duration_since(a.0)?.as_nanos() as f64;
-    if wall <= 0.0 {
-        return None;
-    }
-    let run = b.1.run_ns.checked_sub(a.1.run_ns)?;
-    let wait = b.1.wait_ns.checked_sub(a.1.wait_ns)?;
-    let slowdown = if run >= MIN_RUN_FOR_SLOWDOWN_NS {
-        (run + wait) as f64 / run as f64
-    } else {
-        1.0
-    };
-    Some((slowdown, run as f64 / wall, wait as f64 / wall))
 }
 
 impl Supervisor {
@@ -248,99 +225,96 @@ impl Supervisor {
             .filter(|(name, _)| self.accelerator_of(name).is_none())
             .map(|(name, spec)| (name.clone(), spec.host.clone()))
             .collect();
-        let roles = self
-            .roles
-            .iter_mut()
-            .map(|r| {
-                let executor = match &r.link {
-                    // on another host: the executor it runs on there
-                    Some(link) => remote
-                        .iter()
-                        .position(|(name, host)| *name == r.executor && *host == link.host)
-                        .map(|j| local + j),
-                    // on an accelerator: that executor, by name
-                    None if r.accelerator.is_some() => executors[..local]
-                        .iter()
-                        .position(|e| e.accelerator.is_some() && e.name == r.executor),
-                    None => r
-                        .cpu_set
-                        .as_ref()
-                        .and_then(|set| local_sets.iter().position(|s| s.as_ref() == Some(set))),
-                }
-                .unwrap_or(usize::MAX);
-                let n = r.sched.len();
-                // the whole window for demand, the last two samples for slowdown and wait
-                let slow = (n >= 2)
-                    .then(|| shares(&r.sched[0], &r.sched[n - 1]))
-                    .flatten();
-                let fast = (n >= 3)
-                    .then(|| shares(&r.sched[n - 3], &r.sched[n - 1]))
-                    .flatten();
-                let (slow_s, demand, _) = slow.unwrap_or((1.0, 0.0, 0.0));
-                let (fast_s, _, waiting) = fast.or(slow).unwrap_or((1.0, 0.0, 0.0));
-                let percentiles = r.recent.percentiles([50.0, 95.0]);
-                // a slowdown that just grew stretches the cycles that are still running:
-                // the signal does not wait for them to finish
-                let mut load = RoleLoad {
-                    name: r.name.clone(),
-                    executor,
-                    budget_ms: r.budget_ms,
-                    latency_ms: None,
-                    slowdown: fast_s,
-                    demand,
-                    waiting,
-                    // a role that fell back with its link returns there by itself
-                    movable: executor != usize::MAX
-                        && r.state == RoleState::Running
-                        && r.swap.is_none()
-                        && r.returns_to.is_none()
-                        && !r.link.as_ref().is_some_and(|l| l.lost),
-                    crosses_hosts: movable_across_hosts(&r.kind),
-                    reads_frames: role_kind(&r.kind)
-                        .is_some_and(|k| k.subscribes.contains(&topics::CAMERA_RGB)),
-                    // a language model starts with no more threads than it had CPUs (and a
-                    // live move keeps them): at most the CPUs it runs on now
-                    threads: r.threads.min(
-                        r.cpu_set
-                            .as_ref()
-                            .map_or(r.threads, |s| s.cpus().len().max(1)),
-                    ),
-                    kind_variant: (r.kind.clone(), r.variant.clone()),
-                    accelerator_ms: Vec::new(),
-                    cpu_base_ms: None,
-                };
-                // on another host its heartbeats give its own cycle: the link comes on top
-                let paid = executors.get(executor).map_or(0.0, |e| link_cost(&load, e));
-                load.latency_ms = percentiles
-                    .map(|[p50, p95]| p95.max(p50 * (fast_s / slow_s.max(1.0)).max(1.0)) + paid);
-                // remember what it measured where it runs: its latency on an accelerator,
-                // its own cycle on CPUs (what a later move there or back is predicted from)
-                if let (Some(latency), Some(ex)) = (load.latency_ms, executors.get(executor))
-                    && r.swap.is_none()
-                {
-                    if ex.accelerator.is_some() {
-                        match r.accelerator_ms.iter_mut().find(|(n, _)| *n == ex.name) {
-                            Some(m) => m.1 = latency,
-                            None => r.accelerator_ms.push((ex.name.clone(), latency)),
-                        }
-                    } else {
-                        r.cpu_base_ms = Some((latency - paid).max(0.0) / fast_s.max(1.0));
-                    }
-                }
-                load.cpu_base_ms = r.cpu_base_ms;
-                load.accelerator_ms = r
-                    .accelerator_ms
-                    .iter()
-                    .filter_map(|(name, ms)| {
-                        let e = executors[..local]
+        let roles =
+            self.roles
+                .iter_mut()
+                .map(|r| {
+                    let executor = match &r.link {
+                        // on another host: the executor it runs on there
+                        Some(link) => remote
                             .iter()
-                            .position(|e| e.accelerator.is_some() && e.name == *name)?;
-                        Some((e, *ms))
-                    })
-                    .collect();
-                load
-            })
-            .collect();
+                            .position(|(name, host)| *name == r.executor && *host == link.host)
+                            .map(|j| local + j),
+                        // on an accelerator: that executor, by name
+                        None if r.accelerator.is_some() => executors[..local]
+                            .iter()
+                            .position(|e| e.accelerator.is_some() && e.name == r.executor),
+                        None => r.cpu_set.as_ref().and_then(|set| {
+                            local_sets.iter().position(|s| s.as_ref() == Some(set))
+                        }),
+                    }
+                    .unwrap_or(usize::MAX);
+                    let n = r.sched.len();
+                    // the whole window for demand, the last two samples for slowdown and wait
+                    let slow = (n >= 2)
+                        .then(|| shares(&r.sched[0], &r.sched[n - 1]))
+                        .flatten();
+                    let fast = (n >= 3)
+                        .then(|| shares(&r.sched[n - 3], &r.sched[n - 1]))
+                        .flatten();
+                    let (_, demand, _) = slow.unwrap_or((1.0, 0.0, 0.0));
+                    let (fast_s, _, waiting) = fast.or(slow).unwrap_or((1.0, 0.0, 0.0));
+                    let mut load = RoleLoad {
+                        name: r.name.clone(),
+                        executor,
+                        budget_ms: r.budget_ms,
+                        latency_ms: None,
+                        slowdown: fast_s,
+                        demand,
+                        waiting,
+                        // a role that fell back with its link returns there by itself
+                        movable: executor != usize::MAX
+                            && r.state == RoleState::Running
+                            && r.swap.is_none()
+                            && r.returns_to.is_none()
+                            && !r.link.as_ref().is_some_and(|l| l.lost),
+                        crosses_hosts: movable_across_hosts(&r.kind),
+                        reads_frames: role_kind(&r.kind)
+                            .is_some_and(|k| k.subscribes.contains(&topics::CAMERA_RGB)),
+                        // a language model starts with no more threads than it had CPUs (and a
+                        // live move keeps them): at most the CPUs it runs on now
+                        threads: r.threads.min(
+                            r.cpu_set
+                                .as_ref()
+                                .map_or(r.threads, |s| s.cpus().len().max(1)),
+                        ),
+                        kind_variant: (r.kind.clone(), r.variant.clone()),
+                        accelerator_ms: Vec::new(),
+                        cpu_base_ms: None,
+                    };
+                    // on another host its heartbeats give its own cycle: the link comes on top
+                    let paid = executors.get(executor).map_or(0.0, |e| link_cost(&load, e));
+                    // a slowdown that just grew stretches the cycles that are still running:
+                    // the signal does not wait for them to finish late
+                    load.latency_ms = r.recent.expected_ms(fast_s).map(|ms| ms + paid);
+                    // remember what it measured where it runs: its latency on an accelerator,
+                    // its own cycle on CPUs (what a later move there or back is predicted from)
+                    if let (Some(latency), Some(ex)) = (load.latency_ms, executors.get(executor))
+                        && r.swap.is_none()
+                    {
+                        if ex.accelerator.is_some() {
+                            match r.accelerator_ms.iter_mut().find(|(n, _)| *n == ex.name) {
+                                Some(m) => m.1 = latency,
+                                None => r.accelerator_ms.push((ex.name.clone(), latency)),
+                            }
+                        } else {
+                            r.cpu_base_ms = Some((latency - paid).max(0.0) / fast_s.max(1.0));
+                        }
+                    }
+                    load.cpu_base_ms = r.cpu_base_ms;
+                    load.accelerator_ms = r
+                        .accelerator_ms
+                        .iter()
+                        .filter_map(|(name, ms)| {
+                            let e = executors[..local]
+                                .iter()
+                                .position(|e| e.accelerator.is_some() && e.name == *name)?;
+                            Some((e, *ms))
+                        })
+                        .collect();
+                    load
+                })
+                .collect();
         (roles, executors)
     }
 }

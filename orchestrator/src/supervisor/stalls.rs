@@ -4,16 +4,12 @@
 //! descheduled, a machine starved) is discounted from every role's silence ([`WatchClock`]),
 //! so a pause of the whole machine does not read as a stall or a lost link.
 
-use super::cpu_watch::CpuWatch;
+use super::cpu_watch::{CpuWatch, UNWATCHED_GAP};
 use super::events::SupervisorEvent;
 use super::role_runtime::{RoleRuntime, RoleState};
 use crate::executors::{process_state, process_thread_times};
 use crate::workflow::SchedulingSpec;
 use std::time::{Duration, Instant};
-
-/// A pause between two supervisor steps (called every ~20 ms) longer than this is time the
-/// supervisor did not watch.
-pub(super) const UNWATCHED_GAP: Duration = Duration::from_millis(300);
 
 /// When the supervisor last stepped, and whether every CPU ran since ([`CpuWatch`]).
 #[derive(Debug, Default)]
