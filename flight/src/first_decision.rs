@@ -7,7 +7,6 @@
 //! [`FIRST_DECISION_HEARTBEATS`] heartbeats of flight without one, the flight fails and says
 //! what the hub saw: decisions late (and how late is in the reasoner's log), rejected, or none.
 
-use crate::event::FlightFailure;
 use aeris_schemas::HubBeatCounters;
 use std::time::Duration;
 
@@ -68,15 +67,15 @@ pub fn overdue(
     hub: Option<HubBeatCounters>,
     heartbeat: Duration,
     deadline_ms: u64,
-) -> Option<FlightFailure> {
+) -> Option<NoFirstDecision> {
     if cycles > 0 || flown < heartbeat * FIRST_DECISION_HEARTBEATS {
         return None;
     }
-    Some(FlightFailure::NoFirstDecision(NoFirstDecision {
+    Some(NoFirstDecision {
         waited_s: flown.as_secs_f64(),
         hub: hub.unwrap_or_default(),
         deadline_ms,
-    }))
+    })
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 //! collisions. A collision (two vehicles with live links closer than
 //! [`COLLISION_DISTANCE_M`]) ends the flight as failed.
 
-use crate::monitor::{RestartSafeCounters, controller_counters, in_the_air};
+use crate::telemetry::{RestartSafeCounters, controller_counters, in_the_air};
 use aeris_runtime::bus::{BusError, FlightBus, TypedSubscriber};
 use aeris_schemas::{VehicleTelemetry, topics};
 use serde::Serialize;

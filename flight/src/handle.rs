@@ -1,15 +1,13 @@
 //! [`Flight`]: the handle of a supervised flight running on its own thread, and
 //! [`FlightBuilder`], which starts one.
 
-use crate::FlightFailure;
+use crate::error::FlightError;
 use crate::event::{FlightEvent, FlightPhase, FlightStatus, FlightWatcher, StopRule};
 use crate::hook::{FnHook, HookError, NoHook, StepContext, StepHook};
-use crate::monitor::{CycleTrace, FlightSummary};
-use crate::overrides::{OverrideError, Overrides};
+use crate::monitor::FlightOutcome;
+use crate::overrides::Overrides;
 use crate::supervise::{FlightSetup, Shared, StopRequest, supervise};
-use aeris_orchestrator::supervisor::SupervisorError;
 use aeris_orchestrator::workflow::Workflow;
-use aeris_runtime::bus::BusError;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
 use std::sync::{Arc, PoisonError};
@@ -18,69 +16,6 @@ use std::time::Duration;
 
 /// How often [`Flight::watch`] asks its watcher whether to interrupt the flight.
 const WATCH_POLL: Duration = Duration::from_millis(50);
-
-/// How a flight went.
-#[derive(Debug, Clone)]
-pub struct FlightOutcome {
-    /// The summary (`aeris run --json` prints it).
-    pub summary: FlightSummary,
-    /// Why it ended early, if it did.
-    pub failure: Option<FlightFailure>,
-    /// Cycle times (s) of every committed cycle.
-    pub ct_samples_s: Vec<f64>,
-    /// The per-cycle trace (what the run directory's `cycles.jsonl` holds).
-    pub trace: Vec<CycleTrace>,
-}
-
-/// Why a flight could not start or ended with an error.
-#[derive(Debug, thiserror::Error)]
-pub enum FlightError {
-    /// The executable roles start from could not be found (by default this one).
-    #[error("locating the role executable")]
-    RoleExecutable(#[source] std::io::Error),
-    /// The overrides do not fit the workflow.
-    #[error("workflow overrides")]
-    Overrides(#[from] OverrideError),
-    /// The flight's thread could not be started.
-    #[error("starting the flight's thread")]
-    Thread(#[source] std::io::Error),
-    /// An accelerator executor names an accelerator this host's ONNX Runtime cannot run.
-    #[error(transparent)]
-    Accelerator(Box<crate::executors::AcceleratorError>),
-    /// The supervisor could not start the roles.
-    #[error("starting the supervisor")]
-    Start(#[source] Box<SupervisorError>),
-    /// A role sent no first heartbeat in time, or stopped for good while starting.
-    #[error("waiting for every role's first heartbeat")]
-    NotReady(#[source] Box<SupervisorError>),
-    /// The flight's hub reports, setpoints or telemetry could not be subscribed to.
-    #[error("subscribing to the flight")]
-    Subscribe(#[source] BusError),
-    /// A supervisor step failed.
-    #[error("supervising")]
-    Supervise(#[source] Box<SupervisorError>),
-    /// Reading the flight's hub reports, setpoints or telemetry failed.
-    #[error("reading flight telemetry")]
-    Telemetry(#[source] BusError),
-    /// The step hook failed; its own error says how.
-    #[error(transparent)]
-    Hook(HookError),
-    /// The flight could not be set up for recording.
-    #[error(transparent)]
-    Record(#[from] crate::recording::RecordError),
-    /// The cycle trace could not be written into the run directory.
-    #[error("writing {}", path.display())]
-    WriteTrace {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        #[source]
-        source: std::io::Error,
-    },
-    /// The flight's thread panicked (in a step hook: the library's own code does not).
-    #[error("the flight's thread panicked")]
-    Panicked,
-}
 
 /// Sets up a flight; [`FlightBuilder::start`] starts it.
 #[must_use = "a builder does nothing until start()"]

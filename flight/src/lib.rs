@@ -45,6 +45,7 @@
 #![deny(missing_docs)]
 
 pub mod autopilot_link;
+mod error;
 pub mod event;
 pub mod executors;
 pub mod first_decision;
@@ -58,9 +59,11 @@ pub mod overrides;
 pub mod recording;
 pub mod replay;
 mod supervise;
+mod telemetry;
 mod video_start;
 
 pub use autopilot_link::{AutopilotEvent, silent_diagnosis};
+pub use error::FlightError;
 pub use event::{
     FleetProgress, FlightEvent, FlightFailure, FlightPhase, FlightProgress, FlightStatus,
     FlightWatcher, RoleSnapshot, StopRule,
@@ -69,9 +72,11 @@ pub use fleet::{
     COLLISION_DISTANCE_M, Collision, FleetMonitor, FleetSummary, FormationTally, VehicleSummary,
 };
 pub use formation_say::{SayAnswer, SayError, say};
-pub use handle::{Flight, FlightBuilder, FlightError, FlightOutcome};
+pub use handle::{Flight, FlightBuilder};
 pub use hook::{FnHook, HookError, NoHook, StepContext, StepHook};
 pub use memory::{MemorySummary, RoleMemory};
-pub use monitor::{CycleTrace, FlightMonitor, FlightSummary, LinkSummary, StageMeans};
+pub use monitor::{
+    CycleTrace, FlightMonitor, FlightOutcome, FlightSummary, LinkSummary, StageMeans,
+};
 pub use overrides::{OverrideError, Overrides, VariantChoice};
 pub use recording::{RecordError, RecordingSummary};

@@ -2,6 +2,8 @@
 //! the per-cycle trace and the summary.
 
 use crate::autopilot_link::{AutopilotEvent, LinkFollower};
+use crate::event::FlightFailure;
+use crate::telemetry::{RestartSafeCounters, controller_counters, in_the_air};
 use crate::video_start::FirstDecisionOnVideo;
 use aeris_runtime::MissionSpec;
 use aeris_runtime::bus::{BusError, FlightBus, TypedSubscriber};
@@ -166,60 +168,6 @@ pub struct StageMeans {
     pub routing: f64,
     /// Received -> bound setpoint committed.
     pub binding: f64,
-}
-
-/// Cumulative counters of a publisher that may be restarted: a restarted process starts its
-/// counters (and its sequence numbers) from zero, so the totals of the earlier processes are
-/// kept as a base.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct RestartSafeCounters<const N: usize> {
-    base: [u64; N],
-    last: [u64; N],
-    last_seq: u64,
-}
-
-impl<const N: usize> Default for RestartSafeCounters<N> {
-    fn default() -> Self {
-        Self {
-            base: [0; N],
-            last: [0; N],
-            last_seq: 0,
-        }
-    }
-}
-
-impl<const N: usize> RestartSafeCounters<N> {
-    /// Record the counters of a sample with publisher sequence `seq`.
-    pub(crate) fn update(&mut self, seq: u64, counters: [u64; N]) {
-        if seq <= self.last_seq {
-            // a new process: bank what the old one had counted
-            for (b, l) in self.base.iter_mut().zip(self.last) {
-                *b = b.saturating_add(l);
-            }
-        }
-        self.last_seq = seq;
-        self.last = counters;
-    }
-
-    pub(crate) fn total(&self, i: usize) -> u64 {
-        self.base[i].saturating_add(self.last[i])
-    }
-}
-
-/// The controller's counters a telemetry sample carries, in the order the monitors keep
-/// them: ticks, missed ticks, refused setpoints, hold ticks.
-pub(crate) fn controller_counters(t: &VehicleTelemetry) -> [u64; 4] {
-    [
-        t.controller_ticks,
-        t.controller_missed_ticks,
-        t.setpoints_refused,
-        t.hold_ticks,
-    ]
-}
-
-/// The vehicle is flying: above 1 m and not landed.
-pub(crate) fn in_the_air(t: &VehicleTelemetry) -> bool {
-    t.position[2] > 1.0 && t.landed == 0
 }
 
 // Indices into the hub counters.
@@ -637,18 +585,15 @@ fn dist(a: [f32; 3], b: [f32; 3]) -> f32 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn counters_survive_a_publisher_restart() {
-        let mut c = RestartSafeCounters::<2>::default();
-        c.update(1, [1, 0]);
-        c.update(2, [5, 1]);
-        // the process restarts: sequence and counters from zero
-        c.update(1, [2, 0]);
-        c.update(2, [3, 2]);
-        assert_eq!((c.total(0), c.total(1)), (8, 3));
-    }
+/// How a flight went.
+#[derive(Debug, Clone)]
+pub struct FlightOutcome {
+    /// The summary (`aeris run --json` prints it).
+    pub summary: FlightSummary,
+    /// Why it ended early, if it did.
+    pub failure: Option<FlightFailure>,
+    /// Cycle times (s) of every committed cycle.
+    pub ct_samples_s: Vec<f64>,
+    /// The per-cycle trace (what the run directory's `cycles.jsonl` holds).
+    pub trace: Vec<CycleTrace>,
 }

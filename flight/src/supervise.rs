@@ -1,14 +1,14 @@
 //! The flight's thread: start the supervisor, wait for every role, then step it until the
 //! stop rule, a failure, the time limit or a stop request; stop every role; write the trace.
 
+use crate::error::FlightError;
 use crate::event::{
     FleetProgress, FlightEvent, FlightFailure, FlightPhase, FlightProgress, FlightStatus,
     RoleSnapshot, StopRule,
 };
 use crate::executors::{accelerator_line, onnx_accelerators};
-use crate::handle::{FlightError, FlightOutcome};
 use crate::hook::{StepContext, StepHook};
-use crate::monitor::{CycleTrace, FlightMonitor, LinkSummary};
+use crate::monitor::{CycleTrace, FlightMonitor, FlightOutcome, LinkSummary};
 use crate::recording::RecordingSummary;
 use aeris_orchestrator::supervisor::{RoleState, Supervisor, SupervisorEvent, SupervisorOptions};
 use aeris_orchestrator::workflow::Workflow;
@@ -216,7 +216,7 @@ pub(crate) fn supervise<H: StepHook>(
                 deadline_ms,
             )
         {
-            failure = Some(overdue);
+            failure = Some(FlightFailure::NoFirstDecision(overdue));
         }
         let hook_done = hook
             .step(&mut StepContext {

@@ -17,6 +17,7 @@
 
 #![deny(missing_docs)]
 
+mod builtin;
 pub mod formation_vehicle;
 pub mod mav_vehicle;
 pub mod multirotor;

@@ -20,9 +20,11 @@
 //!   fresh (a planner at step 1, an empty map): compare from the start for determinism.
 
 use crate::FlightWatcher;
+use crate::error::FlightError;
 use crate::event::StopRule;
-use crate::handle::{Flight, FlightError, FlightOutcome};
+use crate::handle::Flight;
 use crate::hook::{HookError, StepContext, StepHook};
+use crate::monitor::FlightOutcome;
 use crate::overrides::{Overrides, VariantChoice};
 use aeris_orchestrator::restart::RestartPolicy;
 use aeris_orchestrator::workflow::{
