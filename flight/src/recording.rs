@@ -4,8 +4,7 @@
 //! [`FlightBuilder::record`]: crate::FlightBuilder::record
 
 use aeris_orchestrator::workflow::{RECORDER_KIND, RoleDecl, Workflow};
-use aeris_record::counter;
-use aeris_schemas::RoleHeartbeat;
+use aeris_schemas::{RecorderCounters, RoleHeartbeat};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -33,14 +32,14 @@ pub struct RecordingSummary {
 impl RecordingSummary {
     /// The summary of the recording at `path`, from the last heartbeat of its recorder.
     pub(crate) fn new(path: &Path, last: Option<&RoleHeartbeat>) -> Self {
-        let c = last.map(|h| h.counters).unwrap_or_default();
+        let c = RecorderCounters::from_heartbeat(&last.map(|h| h.counters).unwrap_or_default());
         Self {
             path: path.to_path_buf(),
             files: aeris_record::recording_files(path),
-            messages: c[counter::MESSAGES],
-            dropped: c[counter::DROPPED],
-            bytes: c[counter::BYTES],
-            failed: c[counter::FAILED] != 0,
+            messages: c.messages,
+            dropped: c.dropped,
+            bytes: c.bytes,
+            failed: c.failed != 0,
         }
     }
 }

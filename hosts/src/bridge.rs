@@ -45,10 +45,8 @@
 //! When it stops it prints what crossed, per topic (`bridge: sent `camera/rgb`: N messages,
 //! B bytes`), and the CPU time its process used (`bridge: used S s of CPU over W s`).
 //!
-//! Heartbeat counters: 0 messages sent, 1 received, 2 bytes sent, 3 bytes received,
-//! 4 refused (another schema or a malformed message), 5 dropped (zenoh or iceoryx2 refused
-//! a message), 6 1 while a peer is connected, 7 topics carried. Status `Degraded` while no
-//! peer is connected or after a refusal.
+//! Heartbeat counters: [`BridgeCounters`]. Status `Degraded` while no peer is connected or
+//! after a refusal.
 //!
 //! Unlike the other roles the bridge allocates per message: zenoh takes each message as an
 //! owned buffer.
@@ -63,8 +61,8 @@ use aeris_runtime::raw::{
     Payload, RawPublisher, RawSubscriber, payload_of, raw_publisher, raw_subscriber, read,
 };
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
-use aeris_schemas::FrameHeader;
 use aeris_schemas::RoleStatus;
+use aeris_schemas::{BridgeCounters, FrameHeader};
 use core::time::Duration;
 use iceoryx2::identifiers::UniquePublisherId;
 use std::path::Path;
@@ -156,7 +154,7 @@ pub struct BridgeRole {
     /// Publisher ids of this bridge's own imports (never exported back).
     own: Vec<UniquePublisherId>,
     peer: String,
-    counters: [u64; 8],
+    counters: BridgeCounters,
     refused_logged: bool,
     connected: bool,
     last_report_ns: u64,
@@ -276,8 +274,10 @@ impl Role for BridgeRole {
                 .collect::<Vec<_>>()
                 .join(", ")
         );
-        let mut counters = [0u64; 8];
-        counters[7] = (exports.len() + imports.len()) as u64;
+        let counters = BridgeCounters {
+            topics: (exports.len() + imports.len()) as u64,
+            ..BridgeCounters::default()
+        };
         let mut bridge = BridgeRole {
             flight,
             frames,
@@ -383,7 +383,7 @@ impl Role for BridgeRole {
                     break;
                 }
                 if let Some(e) = failed {
-                    self.counters[5] += 1;
+                    self.counters.dropped += 1;
                     if !self.refused_logged {
                         eprintln!("bridge: cannot send `{}`: {e}", ex.topic);
                         self.refused_logged = true;
@@ -412,14 +412,14 @@ impl Role for BridgeRole {
                     .wait();
                 match put {
                     Ok(()) => {
-                        self.counters[0] += 1;
-                        self.counters[2] += len;
+                        self.counters.sent += 1;
+                        self.counters.bytes_sent += len;
                         ex.sent.0 += 1;
                         ex.sent.1 += len;
                         ex.raw_bytes += raw_len as u64;
                         moved += 1;
                     }
-                    Err(_) => self.counters[5] += 1,
+                    Err(_) => self.counters.dropped += 1,
                 }
             }
         }
@@ -440,11 +440,11 @@ impl Role for BridgeRole {
                     .and_then(|b| b.try_into().ok())
                     .map(|b| u32::from_le_bytes(b) as usize);
                 let (Some(stamp), Some(header_len)) = (stamp, header_len) else {
-                    self.counters[4] += 1;
+                    self.counters.refused += 1;
                     continue;
                 };
                 if let Err(e) = check_schema(&format!("the bridge of {}", self.peer), stamp) {
-                    self.counters[4] += 1;
+                    self.counters.refused += 1;
                     if !self.refused_logged {
                         eprintln!("bridge: refused `{}`: {e}", im.topic);
                         self.refused_logged = true;
@@ -452,7 +452,7 @@ impl Role for BridgeRole {
                     continue;
                 }
                 let Some((header, pixels)) = bytes.split_at_checked(header_len) else {
-                    self.counters[4] += 1;
+                    self.counters.refused += 1;
                     continue;
                 };
                 let coding = att.as_deref().and_then(|a| a.get(24)).copied();
@@ -463,7 +463,7 @@ impl Role for BridgeRole {
                             decode(coding.unwrap_or(CODING_RAW), &h, pixels, &mut self.pixels);
                         im.decode_ns += monotonic_ns().saturating_sub(t);
                         if let Err(e) = decoded {
-                            self.counters[4] += 1;
+                            self.counters.refused += 1;
                             if !self.refused_logged {
                                 eprintln!("bridge: refused `{}`: {e}", im.topic);
                                 self.refused_logged = true;
@@ -477,13 +477,13 @@ impl Role for BridgeRole {
                 };
                 match im.publisher.publish_raw(header, pixels) {
                     Ok(()) => {
-                        self.counters[1] += 1;
-                        self.counters[3] += bytes.len() as u64;
+                        self.counters.received += 1;
+                        self.counters.bytes_received += bytes.len() as u64;
                         im.received.0 += 1;
                         im.received.1 += bytes.len() as u64;
                         moved += 1;
                     }
-                    Err(_) => self.counters[5] += 1,
+                    Err(_) => self.counters.dropped += 1,
                 }
             }
         }
@@ -497,8 +497,8 @@ impl Role for BridgeRole {
         if let Some(p) = self.probe.as_mut() {
             p.step(self.session.as_ref(), connected, now);
         }
-        self.counters[6] = connected as u64;
-        report.counters = self.counters;
+        self.counters.connected = connected as u64;
+        report.counters = self.counters.to_heartbeat();
         report.status = if connected && !self.refused_logged {
             RoleStatus::Running
         } else {
@@ -610,7 +610,7 @@ impl BridgeRole {
                     println!("bridge: `{}` is read here: receiving it", im.topic);
                 }
                 Err(e) => {
-                    self.counters[5] += 1;
+                    self.counters.dropped += 1;
                     eprintln!("bridge: cannot subscribe to `{}` on zenoh: {e}", im.topic);
                 }
             }

@@ -51,7 +51,7 @@ pub mod writer;
 use aeris_runtime::bus::{BusError, FrameSubscriber};
 use aeris_runtime::raw::{RawSubscriber, raw_subscriber};
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
-use aeris_schemas::{RoleStatus, topics};
+use aeris_schemas::{RecorderCounters, RoleStatus, topics};
 use codec::{ImageFormat, Payload, PayloadCodec, bytes_of, payload_of};
 use core::time::Duration;
 use std::path::{Path, PathBuf};
@@ -69,22 +69,6 @@ pub const IMAGE_SLOTS: usize = 8;
 /// Exact-frame queue slots (frames recorded for replay): a second of RGB and depth at 10
 /// frames per second, and some.
 pub const EXACT_SLOTS: usize = 32;
-
-/// Heartbeat counter indices.
-pub mod counter {
-    /// MCAP messages written.
-    pub const MESSAGES: usize = 0;
-    /// Samples dropped (queue full, or recording stopped).
-    pub const DROPPED: usize = 1;
-    /// Bytes of message data written.
-    pub const BYTES: usize = 2;
-    /// 1 once writing failed.
-    pub const FAILED: usize = 3;
-    /// Samples received from the bus.
-    pub const RECEIVED: usize = 4;
-    /// Which file: 0 = `path`, n = `path.n`.
-    pub const FILE_INDEX: usize = 5;
-}
 
 /// The file a recorder process writes: `path` when free, else the first free `path.N`.
 pub fn next_free_path(path: &Path) -> (PathBuf, u64) {
@@ -360,12 +344,15 @@ impl Role for RecorderRole {
         self.received += got;
         self.dropped += dropped;
         let failed = self.counters.failed.load(Ordering::SeqCst);
-        report.counters[counter::MESSAGES] = self.counters.messages.load(Ordering::Relaxed);
-        report.counters[counter::DROPPED] = self.dropped;
-        report.counters[counter::BYTES] = self.counters.bytes.load(Ordering::Relaxed);
-        report.counters[counter::FAILED] = u64::from(failed);
-        report.counters[counter::RECEIVED] = self.received;
-        report.counters[counter::FILE_INDEX] = self.file_index;
+        report.counters = RecorderCounters {
+            messages: self.counters.messages.load(Ordering::Relaxed),
+            dropped: self.dropped,
+            bytes: self.counters.bytes.load(Ordering::Relaxed),
+            failed: u64::from(failed),
+            received: self.received,
+            file_index: self.file_index,
+        }
+        .to_heartbeat();
         report.status = if failed {
             RoleStatus::Degraded
         } else {

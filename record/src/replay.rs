@@ -23,38 +23,17 @@
 //!
 //! Parameters: `path` (required), `from_ns`, `to_ns`, `lead_ns`, `align_ns`, `speed`
 //! (default 1).
-//! Heartbeat counters: [`counter`].
+//! Heartbeat counters: [`aeris_schemas::ReplayCounters`].
 
 use crate::read::{ReadError, Recording};
 use aeris_runtime::bus::{FramePublisher, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
-use aeris_schemas::{FrameHeader, RoleStatus, VehicleTelemetry, topics};
+use aeris_schemas::{FrameHeader, ReplayCounters, RoleStatus, VehicleTelemetry, topics};
 use core::time::Duration;
 use std::path::PathBuf;
 use std::sync::mpsc::{Receiver, SyncSender, TryRecvError};
 use std::thread::JoinHandle;
-
-/// Heartbeat counter indices.
-pub mod counter {
-    /// Frames published (RGB and depth).
-    pub const FRAMES: usize = 0;
-    /// Telemetry messages published.
-    pub const TELEMETRY: usize = 1;
-    /// 1 once the whole range is published (the flight may end).
-    pub const DONE: usize = 2;
-    /// Most a message was published after its scheduled time (µs).
-    pub const LATE_MAX_US: usize = 3;
-    /// 1 while waiting for the other roles' first heartbeats.
-    pub const WAITING: usize = 4;
-    /// The recording's clock minus this machine's at the start (ns, as `u64` bits of an
-    /// `i64`): what turns a replayed stamp back into a recorded one.
-    pub const OFFSET: usize = 5;
-    /// The recording time the replay starts at (ns, recording clock).
-    pub const START: usize = 6;
-    /// 1 once the start is fixed (the offset and start counters hold).
-    pub const STARTED: usize = 7;
-}
 
 /// Telemetry messages published per cycle at most.
 pub const TELEMETRY_PER_CYCLE: u32 = 16;
@@ -287,8 +266,10 @@ impl Role for ReplaySource {
         let t0_wall = match self.t0_wall {
             Some(t) => t,
             None => {
-                report.counters[counter::WAITING] = 1;
-                report.counters[counter::START] = self.t0_rec;
+                ReplayCounters::update(&mut report.counters, |c| {
+                    c.waiting = 1;
+                    c.start = self.t0_rec;
+                });
                 if now < self.next_wait_poll {
                     return Ok(CycleOutcome::Idle);
                 }
@@ -375,14 +356,17 @@ impl Role for ReplaySource {
             worked = true;
             let _ = self.recycle.try_send(item.bytes);
         }
-        report.counters[counter::STARTED] = 1;
-        report.counters[counter::WAITING] = 0;
-        report.counters[counter::FRAMES] = self.frames;
-        report.counters[counter::TELEMETRY] = self.telemetry_count;
-        report.counters[counter::DONE] = u64::from(self.done);
-        report.counters[counter::LATE_MAX_US] = self.late_max_us;
-        report.counters[counter::OFFSET] = (self.t0_rec as i64).wrapping_sub(t0_wall as i64) as u64;
-        report.counters[counter::START] = self.t0_rec;
+        report.counters = ReplayCounters {
+            frames: self.frames,
+            telemetry: self.telemetry_count,
+            done: u64::from(self.done),
+            late_max_us: self.late_max_us,
+            waiting: 0,
+            offset: (self.t0_rec as i64).wrapping_sub(t0_wall as i64) as u64,
+            start: self.t0_rec,
+            started: 1,
+        }
+        .to_heartbeat();
         report.status = if self.failed {
             RoleStatus::Degraded
         } else {

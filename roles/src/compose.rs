@@ -17,13 +17,15 @@
 //!   weights are published on the package registries, so this variant refuses to start with
 //!   an error that says so; it never makes up a caption.
 //!
-//! Heartbeat counters: `[states published, blocks in the last state (bit count), 0..]`.
+//! Heartbeat counters: [`ComposeCounters`].
 
 use crate::heartbeat_clock::STALE_AFTER_TENTHS;
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
-use aeris_schemas::{FixedText, OccupancyStatus, PerceptionState, SUMMARY_MAX, block, topics};
+use aeris_schemas::{
+    ComposeCounters, FixedText, OccupancyStatus, PerceptionState, SUMMARY_MAX, block, topics,
+};
 use core::fmt::Write;
 use core::time::Duration;
 
@@ -245,8 +247,11 @@ impl Role for ComposeRole {
         self.state.seq = self.seq;
         self.state.publish_ns = monotonic_ns();
         self.out.publish(&self.state)?;
-        report.counters[0] = self.seq;
-        report.counters[1] = self.state.blocks.count_ones() as u64;
+        report.counters = ComposeCounters {
+            states: self.seq,
+            blocks: self.state.blocks.count_ones() as u64,
+        }
+        .to_heartbeat();
         Ok(CycleOutcome::Worked)
     }
 }

@@ -6,8 +6,8 @@
 //!
 //! Blocks of one frame are joined by `frame_seq`; a block whose partner has not arrived
 //! after `join_ms` (default 1000) is scored alone. Parameters: `join_ms`, `threads`
-//! (default 1), `models_dir`. Heartbeat counters: `[blocks published, phrases scored in the
-//! last block, 0..]`.
+//! (default 1), `models_dir`. Heartbeat counters: [`BlockCounters`] (items:
+//! phrases scored in the last block).
 
 use crate::vision::{open_store, session_options};
 use aeris_models::embed::Embedding;
@@ -17,7 +17,8 @@ use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::error_chain::chain;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{
-    Cue, FixedText, MAX_CUES, MAX_DETECTIONS, MAX_SUBGOALS, PerceptionState, block, topics,
+    BlockCounters, Cue, FixedText, MAX_CUES, MAX_DETECTIONS, MAX_SUBGOALS, PerceptionState, block,
+    topics,
 };
 use core::time::Duration;
 
@@ -202,8 +203,10 @@ impl Role for CueRole {
         self.state.seq = self.seq;
         self.state.publish_ns = monotonic_ns();
         self.out.publish(&self.state)?;
-        report.counters[0] = self.seq;
-        report.counters[1] = phrases.len() as u64;
+        BlockCounters::update(&mut report.counters, |c| {
+            c.blocks = self.seq;
+            c.items = phrases.len() as u64;
+        });
         Ok(CycleOutcome::Worked)
     }
 }

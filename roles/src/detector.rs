@@ -13,7 +13,7 @@
 //! Each detection's range is the median depth inside the middle of its box, when the depth
 //! frame of the same `seq` is at hand. Parameters: `model`, `interval_ms` (default 2000),
 //! `threads` (default 1), `min_score`, `models_dir`.
-//! Heartbeat counters: `[blocks published, detections in the last block, frames rejected, 0..]`.
+//! Heartbeat counters: [`BlockCounters`] (items: detections in the last block).
 
 use crate::vision::{FrameStride, begin_block, model_file, open_store, session_options};
 use aeris_models::detect::{COCO_DETECTOR, YOLOV8_DETECTOR};
@@ -22,7 +22,8 @@ use aeris_runtime::bus::{FrameSample, FrameSubscriber, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{
-    Detection, FixedText, FrameFormat, FrameHeader, MAX_DETECTIONS, PerceptionState, block, topics,
+    BlockCounters, Detection, FixedText, FrameFormat, FrameHeader, MAX_DETECTIONS, PerceptionState,
+    block, topics,
 };
 use core::time::Duration;
 
@@ -205,7 +206,7 @@ impl<E: DetectionEngine> Role for DetectorRole<E> {
         let header = *frame.user_header();
         if header.validate(frame.payload().len()) != Ok(FrameFormat::Rgb8) {
             self.rejected += 1;
-            report.counters[2] = self.rejected;
+            BlockCounters::update(&mut report.counters, |c| c.frames_rejected = self.rejected);
             return Ok(CycleOutcome::Idle);
         }
         let t0 = monotonic_ns();
@@ -221,7 +222,7 @@ impl<E: DetectionEngine> Role for DetectorRole<E> {
         drop(frame);
         if !ok {
             self.rejected += 1;
-            report.counters[2] = self.rejected;
+            BlockCounters::update(&mut report.counters, |c| c.frames_rejected = self.rejected);
             return Ok(CycleOutcome::Idle);
         }
         report.stage("detect", monotonic_ns() - t0);
@@ -229,8 +230,10 @@ impl<E: DetectionEngine> Role for DetectorRole<E> {
         self.state.seq = self.seq;
         self.state.publish_ns = monotonic_ns();
         self.out.publish(&self.state)?;
-        report.counters[0] = self.seq;
-        report.counters[1] = self.state.detection_count as u64;
+        BlockCounters::update(&mut report.counters, |c| c.blocks = self.seq);
+        BlockCounters::update(&mut report.counters, |c| {
+            c.items = self.state.detection_count as u64
+        });
         Ok(CycleOutcome::Worked)
     }
 }

@@ -19,25 +19,12 @@
 //! the planner's plan out of the prompt: the generic model on its own, the evaluation's
 //! zero-shot ablation).
 //! Heartbeat stages: `read`, `prompt` (evaluating the new prompt tokens), `generate`,
-//! `publish`; the cycle latency is the decision latency. Counters: `[decisions,
-//! tokens_per_s x 100 (last decision), generated tokens (last decision), failures,
-//! prompt tokens reused (last decision), prompt tokens (last decision), generated tokens
-//! verified from the draft (last decision), 1 when the last decision's step departed from
-//! the plan's]`.
+//! `publish`; the cycle latency is the decision latency. Counters:
+//! [`aeris_schemas::LanguageCounters`].
 
-/// Where this role's heartbeat says what its last decision cost (see the module docs):
-/// counter indices and stage names, read by `aeris bench cycle`.
+/// Where this role's heartbeat says how long its last decision's stages took (see the
+/// module docs): stage names, read by `aeris bench cycle`.
 pub mod heartbeat {
-    /// Counter: generated tokens (last decision).
-    pub const GENERATED_TOKENS: usize = 2;
-    /// Counter: prompt tokens reused from the last decision's cache (last decision).
-    pub const REUSED_PROMPT_TOKENS: usize = 4;
-    /// Counter: prompt tokens (last decision).
-    pub const PROMPT_TOKENS: usize = 5;
-    /// Counter: generated tokens verified from the draft (last decision).
-    pub const DRAFTED_TOKENS: usize = 6;
-    /// Counter: 1 when the last decision's step departed from the plan's.
-    pub const DEPARTED_FROM_PLAN: usize = 7;
     /// Stage: evaluating the new prompt tokens.
     pub const PROMPT_STAGE: &str = "prompt";
     /// Stage: generating.
@@ -53,7 +40,7 @@ use aeris_llm::{
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::error_chain::chain;
 use aeris_runtime::{CycleOutcome, CycleReport, MissionSpec, Role, RoleContext, RoleError};
-use aeris_schemas::Decision;
+use aeris_schemas::{Decision, LanguageCounters};
 use core::time::Duration;
 
 pub use crate::reasoner_io::POLL;
@@ -206,7 +193,9 @@ impl Role for LanguageRole {
             Err(e) => {
                 // no decision this heartbeat: the hub reuses the last valid one
                 self.failures += 1;
-                report.counters[3] = self.failures;
+                let mut c = LanguageCounters::from_heartbeat(&report.counters);
+                c.failures = self.failures;
+                report.counters = c.to_heartbeat();
                 eprintln!("reasoning: no decision this heartbeat: {}", chain(&e));
                 return Ok(CycleOutcome::Worked);
             }
@@ -220,13 +209,17 @@ impl Role for LanguageRole {
         };
         self.io.stamp(&mut d, &due, reasoning_start);
         self.io.publish(&mut d, report)?;
-        report.counters[1] = (thought.tokens_per_s() * 100.0) as u64;
-        report.counters[heartbeat::GENERATED_TOKENS] = thought.generated_tokens as u64;
-        report.counters[3] = self.failures;
-        report.counters[heartbeat::REUSED_PROMPT_TOKENS] = thought.reused_tokens as u64;
-        report.counters[heartbeat::PROMPT_TOKENS] = thought.prompt_tokens as u64;
-        report.counters[heartbeat::DRAFTED_TOKENS] = thought.drafted_tokens as u64;
-        report.counters[heartbeat::DEPARTED_FROM_PLAN] = u64::from(thought.view.step != plan.step);
+        report.counters = LanguageCounters {
+            decisions: self.io.published(),
+            tokens_per_s_x100: (thought.tokens_per_s() * 100.0) as u64,
+            generated_tokens: thought.generated_tokens as u64,
+            failures: self.failures,
+            reused_prompt_tokens: thought.reused_tokens as u64,
+            prompt_tokens: thought.prompt_tokens as u64,
+            drafted_tokens: thought.drafted_tokens as u64,
+            departed_from_plan: u64::from(thought.view.step != plan.step),
+        }
+        .to_heartbeat();
         self.previous = Some(thought.view);
         Ok(CycleOutcome::Worked)
     }

@@ -11,8 +11,7 @@
 //!   without one.
 //!
 //! Parameters: `interval_ms` (default 2000), `model`, `threads`, `models_dir`.
-//! Heartbeat counters: `[blocks published, observed cells in the last block, frames rejected,
-//! 0..]`.
+//! Heartbeat counters: [`BlockCounters`] (items: observed cells in the last block).
 
 use crate::depth_occupancy::{OCCUPANCY_RESOLUTION_M, occupancy_from_depth};
 use crate::vision::{FrameStride, begin_block, open_store, session_options};
@@ -22,8 +21,8 @@ use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::error_chain::chain;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{
-    FrameFormat, FrameHeader, OCCUPANCY_CELLS, OCCUPANCY_UNKNOWN, OccupancyStatus, PerceptionState,
-    block, topics,
+    BlockCounters, FrameFormat, FrameHeader, OCCUPANCY_CELLS, OCCUPANCY_UNKNOWN, OccupancyStatus,
+    PerceptionState, block, topics,
 };
 use core::time::Duration;
 
@@ -148,7 +147,7 @@ impl Role for OccupancyRole {
         drop(frame);
         if let Err(e) = result {
             self.rejected += 1;
-            report.counters[2] = self.rejected;
+            BlockCounters::update(&mut report.counters, |c| c.frames_rejected = self.rejected);
             eprintln!("occupancy: frame {} rejected: {e}", header.seq);
             return Ok(CycleOutcome::Idle);
         }
@@ -161,14 +160,15 @@ impl Role for OccupancyRole {
         self.state.seq = self.seq;
         self.state.publish_ns = monotonic_ns();
         self.out.publish(&self.state)?;
-        report.counters[0] = self.seq;
-        report.counters[1] = self
+        BlockCounters::update(&mut report.counters, |c| c.blocks = self.seq);
+        let observed = self
             .state
             .occupancy
             .cells
             .iter()
             .filter(|&&c| c != OCCUPANCY_UNKNOWN)
             .count() as u64;
+        BlockCounters::update(&mut report.counters, |c| c.items = observed);
         Ok(CycleOutcome::Worked)
     }
 }

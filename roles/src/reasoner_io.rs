@@ -277,8 +277,8 @@ impl ReasonerIo {
     }
 
     /// Publish `d`: a `seq` of 0 takes the next sequence number (any other is sent as it
-    /// is: the garbage role replays old ones). Reports the `publish` stage and the decisions
-    /// published so far as counter 0.
+    /// is: the garbage role replays old ones). Reports the `publish` stage; the variant
+    /// reports [`ReasonerIo::published`] among its counters.
     pub fn publish(&mut self, d: &mut Decision, report: &mut CycleReport) -> Result<(), RoleError> {
         let t = monotonic_ns();
         if d.seq == 0 {
@@ -288,8 +288,12 @@ impl ReasonerIo {
         d.publish_ns = monotonic_ns();
         self.decisions.publish(d)?;
         report.stage("publish", monotonic_ns() - t);
-        report.counters[0] = self.seq;
         Ok(())
+    }
+
+    /// Decisions published so far.
+    pub fn published(&self) -> u64 {
+        self.seq
     }
 }
 

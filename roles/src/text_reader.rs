@@ -4,7 +4,7 @@
 //! the reader's confidence).
 //!
 //! Parameters: `interval_ms` (frame stride, default 2000), `threads` (default 1),
-//! `models_dir`. Heartbeat counters: `[blocks published, regions read, frames rejected, 0..]`.
+//! `models_dir`. Heartbeat counters: [`BlockCounters`] (items: regions read).
 
 use crate::vision::{FrameStride, begin_block, open_store, session_options};
 use aeris_models::ocr::{OcrReader, TextRegion};
@@ -12,7 +12,9 @@ use aeris_runtime::bus::{FrameSubscriber, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::error_chain::chain;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
-use aeris_schemas::{FixedText, FrameFormat, MAX_CUES, PerceptionState, block, topics};
+use aeris_schemas::{
+    BlockCounters, FixedText, FrameFormat, MAX_CUES, PerceptionState, block, topics,
+};
 use core::time::Duration;
 
 /// Poll period (frames arrive at the camera rate; the stride picks which to read).
@@ -86,7 +88,7 @@ impl Role for TextReaderRole {
         let header = *frame.user_header();
         if header.validate(frame.payload().len()) != Ok(FrameFormat::Rgb8) {
             self.rejected += 1;
-            report.counters[2] = self.rejected;
+            BlockCounters::update(&mut report.counters, |c| c.frames_rejected = self.rejected);
             return Ok(CycleOutcome::Idle);
         }
         let t0 = monotonic_ns();
@@ -101,7 +103,7 @@ impl Role for TextReaderRole {
         if let Err(e) = result {
             // a frame the reader cannot take is dropped, the role keeps running
             self.rejected += 1;
-            report.counters[2] = self.rejected;
+            BlockCounters::update(&mut report.counters, |c| c.frames_rejected = self.rejected);
             eprintln!("text-reader: frame {} rejected: {}", header.seq, chain(&e));
             return Ok(CycleOutcome::Idle);
         }
@@ -112,8 +114,8 @@ impl Role for TextReaderRole {
         self.state.seq = self.seq;
         self.state.publish_ns = monotonic_ns();
         self.out.publish(&self.state)?;
-        report.counters[0] = self.seq;
-        report.counters[1] = self.read;
+        BlockCounters::update(&mut report.counters, |c| c.blocks = self.seq);
+        BlockCounters::update(&mut report.counters, |c| c.items = self.read);
         Ok(CycleOutcome::Worked)
     }
 }

@@ -84,68 +84,6 @@ pub struct HubReport {
     pub clamp_reasons: u32,
 }
 
-/// The hub's heartbeat counters by name: the one place that says their order in
-/// [`crate::RoleHeartbeat::counters`] (totals since the hub started).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct HubBeatCounters {
-    /// Decisions received.
-    pub received: u64,
-    /// Decisions rejected (late ones included).
-    pub rejected: u64,
-    /// Decisions that arrived after the deadline.
-    pub late: u64,
-    /// Cycles that reused the last valid decision.
-    pub reused: u64,
-    /// Sequence gaps on incoming decisions.
-    pub sequence_gaps: u64,
-    /// Out-of-order or duplicate decisions.
-    pub reorders: u64,
-    /// States received.
-    pub states_received: u64,
-    /// Decisions of an older reasoning instance ignored.
-    pub superseded: u64,
-}
-
-impl HubBeatCounters {
-    /// As a heartbeat carries them.
-    pub fn to_heartbeat(&self) -> [u64; 8] {
-        [
-            self.received,
-            self.rejected,
-            self.late,
-            self.reused,
-            self.sequence_gaps,
-            self.reorders,
-            self.states_received,
-            self.superseded,
-        ]
-    }
-
-    /// From a hub's heartbeat.
-    pub fn from_heartbeat(c: &[u64; 8]) -> Self {
-        let [
-            received,
-            rejected,
-            late,
-            reused,
-            sequence_gaps,
-            reorders,
-            states_received,
-            superseded,
-        ] = *c;
-        HubBeatCounters {
-            received,
-            rejected,
-            late,
-            reused,
-            sequence_gaps,
-            reorders,
-            states_received,
-            superseded,
-        }
-    }
-}
-
 /// Why a hub report is unusable.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
 pub enum HubReportError {

@@ -26,6 +26,7 @@ pub mod heartbeat;
 pub mod host_link;
 pub mod hub_report;
 pub mod lease;
+pub mod role_counters;
 pub mod setpoint;
 pub mod state;
 pub mod supervisor;
@@ -51,8 +52,13 @@ pub use formation_command::{
 pub use frame::{FrameError, FrameFormat, FrameHeader};
 pub use heartbeat::{HeartbeatError, MAX_STAGES, RoleHeartbeat, RoleStatus, StageTiming};
 pub use host_link::{HostLinkStatus, LINK_LOSS_WINDOW, LINK_PROBE_PERIOD_MS, MAX_HOSTS};
-pub use hub_report::{HubBeatCounters, HubReport, HubReportError, clamp};
+pub use hub_report::{HubReport, HubReportError, clamp};
 pub use lease::{ControllerLease, LEASE_HAS_HOLD, LEASE_HAS_REFERENCE};
+pub use role_counters::{
+    BlockCounters, BridgeCounters, CameraCounters, ComposeCounters, ControllerCounters,
+    FormationCounters, GeometricPerceptionCounters, HubBeatCounters, LanguageCounters,
+    PlannerCounters, RecorderCounters, ReplayCounters, VehicleCounters, reasoner_decisions,
+};
 pub use setpoint::{BoundSetpoint, SetpointError};
 pub use state::{
     Cue, Detection, MAX_CUES, MAX_DETECTIONS, OCCUPANCY_CELLS, OCCUPANCY_SIDE, OCCUPANCY_UNKNOWN,

@@ -9,13 +9,13 @@
 //! position on a stabilised mount (airframe roll and pitch do not move the image); the
 //! headers carry the camera's own position.
 //!
-//! Stages: `render`, `publish`. Heartbeat counters: `[frames published, 0..]`.
+//! Stages: `render`, `publish`. Heartbeat counters: [`CameraCounters`] (`rgb_frames`).
 
 use aeris_geometry::CAMERA_MOUNT_HEIGHT_M;
 use aeris_runtime::bus::{BusError, FramePublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
-use aeris_schemas::{FrameFormat, FrameHeader, VehicleTelemetry, topics};
+use aeris_schemas::{CameraCounters, FrameFormat, FrameHeader, VehicleTelemetry, topics};
 use aeris_sim::render::{RenderError, Renderer};
 use aeris_sim::world::World;
 use core::time::Duration;
@@ -145,7 +145,11 @@ impl Role for CameraRole {
         let total = monotonic_ns().saturating_sub(t0);
         report.stage("render", render_ns);
         report.stage("publish", total.saturating_sub(render_ns));
-        report.counters[0] = self.seq;
+        report.counters = CameraCounters {
+            rgb_frames: self.seq,
+            ..CameraCounters::default()
+        }
+        .to_heartbeat();
         Ok(CycleOutcome::Worked)
     }
 }

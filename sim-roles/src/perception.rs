@@ -20,7 +20,7 @@
 //! [`perceive`] is the whole pipeline as a pure function (tests run it on rendered frames);
 //! the role keeps a [`Segmenter`] so that processing a frame never touches the heap.
 //!
-//! Heartbeat counters: `[states published, frames rejected, 0..]`.
+//! Heartbeat counters: [`GeometricPerceptionCounters`].
 
 use aeris_geometry::{CAMERA_MOUNT_HEIGHT_M, CAMERA_PITCH_RAD, CameraModel, CameraModelError};
 use aeris_roles::depth_occupancy::fill_occupancy;
@@ -28,8 +28,8 @@ use aeris_runtime::bus::{FrameSample, FrameSubscriber, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, MissionSpec, Role, RoleContext, RoleError};
 use aeris_schemas::{
-    Cue, FixedText, FrameError, FrameFormat, FrameHeader, MAX_CUES, MAX_DETECTIONS,
-    PerceptionState, block, topics,
+    Cue, FixedText, FrameError, FrameFormat, FrameHeader, GeometricPerceptionCounters, MAX_CUES,
+    MAX_DETECTIONS, PerceptionState, block, topics,
 };
 use aeris_sim::render::FACE_SHADES;
 use aeris_sim::world::palette;
@@ -592,8 +592,11 @@ impl Role for PerceptionRole {
         while let Some(s) = self.depth.next()? {
             self.held_depth = Some(s);
         }
-        report.counters[0] = self.states;
-        report.counters[1] = self.rejected;
+        report.counters = GeometricPerceptionCounters {
+            states: self.states,
+            frames_rejected: self.rejected,
+        }
+        .to_heartbeat();
         let (Some(rgb), Some(depth)) = (&self.held_rgb, &self.held_depth) else {
             return Ok(CycleOutcome::Idle);
         };
@@ -619,7 +622,9 @@ impl Role for PerceptionRole {
         self.held_depth = None;
         if result.is_err() {
             self.rejected += 1;
-            report.counters[1] = self.rejected;
+            GeometricPerceptionCounters::update(&mut report.counters, |c| {
+                c.frames_rejected = self.rejected
+            });
             return Ok(CycleOutcome::Idle);
         }
         self.seq += 1;
@@ -627,7 +632,7 @@ impl Role for PerceptionRole {
         self.state.publish_ns = monotonic_ns();
         self.publisher.publish(&self.state)?;
         self.states += 1;
-        report.counters[0] = self.states;
+        GeometricPerceptionCounters::update(&mut report.counters, |c| c.states = self.states);
         Ok(CycleOutcome::Worked)
     }
 }

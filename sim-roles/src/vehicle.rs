@@ -25,8 +25,7 @@
 //! and every cycle (period 10 ms) steps the physics by the measured time since the last
 //! cycle (at most 0.1 s per step, so a stalled process does not teleport the vehicle).
 //!
-//! Heartbeat [`CycleReport`]: stage `step`; counters
-//! `[setpoints, setpoints_outside_fence, steps, missed, setpoint_ticks_missed, setpoints_rejected, armed, mode]`
+//! Heartbeat [`CycleReport`]: stage `step`; counters [`VehicleCounters`],
 //! where armed is 0/1, mode is 1 position, 2 hold, 3 offboard, 4 land, and
 //! setpoint_ticks_missed counts the controller ticks (at the workflow's control rate) whose
 //! setpoint never reached the vehicle: an interval between two setpoints longer than two
@@ -36,6 +35,7 @@
 use aeris_mavlink::MavlinkVersion;
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::VehicleCounters;
 use aeris_sim::mav_vehicle::{SimFirmware, SimVehicle, SimVehicleConfig};
 use std::fs::File;
 use std::os::unix::fs::FileExt;
@@ -257,16 +257,17 @@ impl Role for VehicleRole {
                 )));
             }
         }
-        report.counters = [
-            st.setpoints,
-            st.setpoints_outside_fence,
-            st.steps,
-            ctx.missed_deadlines,
-            st.setpoint_ticks_missed,
-            st.setpoints_rejected,
-            u64::from(self.sim.state().armed),
-            self.sim.mode().index(),
-        ];
+        report.counters = VehicleCounters {
+            setpoints: st.setpoints,
+            outside_fence: st.setpoints_outside_fence,
+            steps: st.steps,
+            missed_deadlines: ctx.missed_deadlines,
+            setpoint_ticks_missed: st.setpoint_ticks_missed,
+            rejected: st.setpoints_rejected,
+            armed: u64::from(self.sim.state().armed),
+            mode: self.sim.mode().index(),
+        }
+        .to_heartbeat();
         Ok(CycleOutcome::Worked)
     }
 

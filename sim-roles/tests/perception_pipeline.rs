@@ -2,7 +2,10 @@
 //! camera frames in shared memory -> perception state.
 
 use aeris_runtime::{CycleOutcome, CycleReport, FlightBus, Role, RoleContext, RoleError, RoleSpec};
-use aeris_schemas::{FrameFormat, FrameHeader, PerceptionState, VehicleTelemetry, topics};
+use aeris_schemas::{
+    CameraCounters, FrameFormat, FrameHeader, GeometricPerceptionCounters, PerceptionState,
+    VehicleTelemetry, topics,
+};
 use aeris_sim::render::CAMERA_MOUNT_HEIGHT_M;
 use aeris_sim_roles::camera::CameraRole;
 use aeris_sim_roles::perception::PerceptionRole;
@@ -66,7 +69,10 @@ fn frames_from_the_camera_become_perception_states() {
         camera.cycle(&mut cam_ctx, &mut report).unwrap(),
         CycleOutcome::Worked
     );
-    assert_eq!(report.counters[0], 1);
+    assert_eq!(
+        CameraCounters::from_heartbeat(&report.counters).rgb_frames,
+        1
+    );
     {
         let frame = rgb_frames.latest().unwrap().expect("an rgb frame");
         let h = frame.user_header();
@@ -87,14 +93,23 @@ fn frames_from_the_camera_become_perception_states() {
         .unwrap();
     let mut report = CycleReport::default();
     camera.cycle(&mut cam_ctx, &mut report).unwrap();
-    assert_eq!(report.counters[0], 2);
+    assert_eq!(
+        CameraCounters::from_heartbeat(&report.counters).rgb_frames,
+        2
+    );
 
     let mut report = CycleReport::default();
     assert_eq!(
         perception.cycle(&mut per_ctx, &mut report).unwrap(),
         CycleOutcome::Worked
     );
-    assert_eq!(report.counters[..2], [1, 0]);
+    assert_eq!(
+        GeometricPerceptionCounters::from_heartbeat(&report.counters),
+        GeometricPerceptionCounters {
+            states: 1,
+            frames_rejected: 0
+        }
+    );
     let state = states.latest().unwrap().expect("a state");
     assert_eq!(state.validate(), Ok(()));
     assert_eq!(state.seq, 1);
@@ -164,7 +179,13 @@ fn mismatched_frame_pairs_are_rejected() {
         perception.cycle(&mut per_ctx, &mut report).unwrap(),
         CycleOutcome::Idle
     );
-    assert_eq!(report.counters[..2], [0, 1]);
+    assert_eq!(
+        GeometricPerceptionCounters::from_heartbeat(&report.counters),
+        GeometricPerceptionCounters {
+            states: 0,
+            frames_rejected: 1
+        }
+    );
     assert!(states.latest().unwrap().is_none());
 
     // a consistent pair of the next seq goes through
@@ -181,7 +202,13 @@ fn mismatched_frame_pairs_are_rejected() {
         perception.cycle(&mut per_ctx, &mut report).unwrap(),
         CycleOutcome::Worked
     );
-    assert_eq!(report.counters[..2], [1, 1]);
+    assert_eq!(
+        GeometricPerceptionCounters::from_heartbeat(&report.counters),
+        GeometricPerceptionCounters {
+            states: 1,
+            frames_rejected: 1
+        }
+    );
     assert_eq!(states.latest().unwrap().unwrap().frame_seq, 6);
 }
 

@@ -10,7 +10,7 @@
 use aeris_runtime::FlightBus;
 use aeris_runtime::bus::{FrameSubscriber, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
-use aeris_schemas::{FrameFormat, RoleHeartbeat, VehicleTelemetry, topics};
+use aeris_schemas::{CameraCounters, FrameFormat, RoleHeartbeat, VehicleTelemetry, topics};
 use aeris_tests::*;
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -213,12 +213,14 @@ fn a_pipeline_that_ends_is_restarted_and_frames_come_again() {
             max_seq = max_seq.max(f.user_header().seq);
         }
         let mut last = None;
-        heartbeats.drain(|h| last = Some(h.counters)).unwrap();
+        heartbeats
+            .drain(|h| last = Some(CameraCounters::from_heartbeat(&h.counters)))
+            .unwrap();
         // frames after two restarts: more than one run of the pipeline has been published
-        last.filter(|c| c[2] >= 2 && c[4] >= 2 && max_seq > 10)
+        last.filter(|c| c.restarts >= 2 && c.ends_of_stream >= 2 && max_seq > 10)
     })
     .unwrap_or_else(|| panic!("no restart seen (max seq {max_seq}); log:\n{}", cam.log()));
-    assert!(counters[0] > 10, "frames published: {counters:?}");
+    assert!(counters.rgb_frames > 10, "frames published: {counters:?}");
     let log = cam.log();
     assert!(
         log.contains("`pipeline` reached the end of its stream"),
@@ -308,9 +310,11 @@ fn a_video_file_plays_at_its_rate_ends_and_plays_again_from_its_start() {
             frames += 1;
         }
         let mut last = None;
-        heartbeats.drain(|h| last = Some(h.counters)).unwrap();
+        heartbeats
+            .drain(|h| last = Some(CameraCounters::from_heartbeat(&h.counters)))
+            .unwrap();
         // two restarts, and more frames than two plays of the file hold
-        last.filter(|c| c[2] >= 2 && frames > 2 * per_play)
+        last.filter(|c| c.restarts >= 2 && frames > 2 * per_play)
     })
     .unwrap_or_else(|| {
         panic!(
@@ -318,7 +322,10 @@ fn a_video_file_plays_at_its_rate_ends_and_plays_again_from_its_start() {
             cam.log()
         )
     });
-    assert!(counters[0] > 2 * per_play, "frames published: {counters:?}");
+    assert!(
+        counters.rgb_frames > 2 * per_play,
+        "frames published: {counters:?}"
+    );
     let log = cam.log();
     assert!(!log.contains("failed"), "{log}");
     assert!(

@@ -9,6 +9,7 @@ use aeris_flight::{Flight, FlightWatcher, HookError, StageMeans, StepContext, St
 use aeris_orchestrator::supervisor::SupervisorEvent;
 use aeris_roles::language::heartbeat as language;
 use aeris_runtime::stats::{mean_std, percentile};
+use aeris_schemas::LanguageCounters;
 use serde::Serialize;
 use std::time::Instant;
 
@@ -162,17 +163,15 @@ impl DecisionCost {
             stage(language::PROMPT_STAGE)?,
             stage(language::GENERATE_STAGE)?,
         );
-        let generated = hb.counters[language::GENERATED_TOKENS];
-        let reused = hb.counters[language::REUSED_PROMPT_TOKENS];
-        let prompt = hb.counters[language::PROMPT_TOKENS];
+        let c = LanguageCounters::from_heartbeat(&hb.counters);
         Some(Self {
             pid: hb.pid,
             stamp_ns: hb.stamp_ns,
-            prompt_tokens: prompt,
-            new_prompt_tokens: prompt.saturating_sub(reused),
-            generated_tokens: generated,
-            drafted_tokens: hb.counters[language::DRAFTED_TOKENS],
-            departed_from_plan: hb.counters[language::DEPARTED_FROM_PLAN] == 1,
+            prompt_tokens: c.prompt_tokens,
+            new_prompt_tokens: c.prompt_tokens.saturating_sub(c.reused_prompt_tokens),
+            generated_tokens: c.generated_tokens,
+            drafted_tokens: c.drafted_tokens,
+            departed_from_plan: c.departed_from_plan == 1,
             prompt_ms,
             generate_ms,
             decision_ms: hb.cycle_latency_ns as f64 / 1e6,
@@ -336,9 +335,13 @@ mod tests {
             slot.name = FixedText::from_str_truncated(name);
             slot.ns = *ns;
         }
-        hb.counters[language::GENERATED_TOKENS] = 31;
-        hb.counters[language::REUSED_PROMPT_TOKENS] = 250;
-        hb.counters[language::PROMPT_TOKENS] = 290;
+        hb.counters = LanguageCounters {
+            generated_tokens: 31,
+            reused_prompt_tokens: 250,
+            prompt_tokens: 290,
+            ..LanguageCounters::default()
+        }
+        .to_heartbeat();
         hb
     }
 

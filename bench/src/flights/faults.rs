@@ -23,7 +23,7 @@ use aeris_flight::{
 use aeris_orchestrator::supervisor::{Supervisor, SupervisorEvent, SwapError};
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::clock::monotonic_ns;
-use aeris_schemas::topics;
+use aeris_schemas::{ControllerCounters, VehicleCounters, reasoner_decisions, topics};
 use serde::Serialize;
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -169,8 +169,9 @@ impl PerProcess {
         }
     }
 
-    fn total(&self, i: usize) -> u64 {
-        self.last.values().map(|c| c[i]).sum()
+    /// `counter` of each process's last heartbeat, summed.
+    fn total(&self, counter: impl Fn(&[u64; 8]) -> u64) -> u64 {
+        self.last.values().map(counter).sum()
     }
 }
 
@@ -184,12 +185,6 @@ struct Snapshot {
     rejected: u64,
 }
 
-/// Vehicle counters: setpoints outside the fence, setpoint ticks missed, rejected.
-const VEH_OUTSIDE: usize = 1;
-const VEH_MISSED: usize = 4;
-const VEH_REJECTED: usize = 5;
-/// Reasoner counter: decisions published.
-const REASONER_PUBLISHED: usize = 0;
 /// How long after a row's settling a decision the reasoner counts as published may still be
 /// on its way to the hub's report (the reasoner's heartbeat can count it a hub cycle before
 /// the hub's report does) before it counts as lost.
@@ -212,9 +207,14 @@ impl Counters {
         }
         let (received, _) = monitor.decisions_received_committed();
         Snapshot {
-            missed: self.vehicle.total(VEH_MISSED),
-            invalid: self.vehicle.total(VEH_OUTSIDE) + self.vehicle.total(VEH_REJECTED),
-            published: self.reasoner.total(REASONER_PUBLISHED),
+            missed: self
+                .vehicle
+                .total(|c| VehicleCounters::from_heartbeat(c).setpoint_ticks_missed),
+            invalid: self.vehicle.total(|c| {
+                let v = VehicleCounters::from_heartbeat(c);
+                v.outside_fence + v.rejected
+            }),
+            published: self.reasoner.total(reasoner_decisions),
             received,
             rejected: monitor.rejected(),
         }
@@ -307,7 +307,7 @@ fn plan_faults(config: &FaultsConfig, w: &Workflow) -> Result<Vec<Fault>, Flight
     Ok(out)
 }
 
-/// The controller holding the autopilot lease (heartbeat counter 5 is 1) when `role` is one
+/// The controller holding the autopilot lease (its heartbeat says so) when `role` is one
 /// of `controllers`; otherwise `role`.
 fn lease_holder(sup: &Supervisor, controllers: &[String], role: &str) -> String {
     if !controllers.iter().any(|c| c == role) {
@@ -318,7 +318,7 @@ fn lease_holder(sup: &Supervisor, controllers: &[String], role: &str) -> String 
         .find(|c| {
             sup.role(c)
                 .and_then(|r| r.last_heartbeat())
-                .is_some_and(|h| h.counters[5] == 1)
+                .is_some_and(|h| ControllerCounters::from_heartbeat(&h.counters).lease_held == 1)
         })
         .cloned()
         .unwrap_or_else(|| role.to_string())

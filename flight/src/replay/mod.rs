@@ -31,8 +31,7 @@ use aeris_orchestrator::workflow::{
     Executor, ExecutorCpus, RECORDER_KIND, RoleDecl, SchedulingSpec, Workflow, WorkflowError,
 };
 use aeris_record::read::{ReadError, RecordedFlight, Recording};
-use aeris_record::replay::counter;
-use aeris_schemas::{Decision, HubReport, topics};
+use aeris_schemas::{Decision, HubReport, LanguageCounters, ReplayCounters, topics};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -381,13 +380,13 @@ impl StepHook for ReplayHook {
             );
         }
         if let Some(hb) = source.and_then(|r| r.last_heartbeat()) {
-            let c = hb.counters;
-            if c[counter::STARTED] == 1 {
-                self.offset = Some((c[counter::START], c[counter::OFFSET] as i64));
+            let c = ReplayCounters::from_heartbeat(&hb.counters);
+            if c.started == 1 {
+                self.offset = Some((c.start, c.offset as i64));
             }
-            self.late_max_us = self.late_max_us.max(c[counter::LATE_MAX_US]);
+            self.late_max_us = self.late_max_us.max(c.late_max_us);
             self.source_failed |= hb.status == aeris_schemas::RoleStatus::Degraded as u8;
-            if c[counter::DONE] == 1 && self.done_at.is_none() {
+            if c.done == 1 && self.done_at.is_none() {
                 self.done_at = Some(std::time::Instant::now());
                 ctx.note("replay: the recording is replayed; waiting one heartbeat for the last decision");
             }
@@ -398,11 +397,12 @@ impl StepHook for ReplayHook {
             .and_then(|name| ctx.supervisor.role(name))
             .filter(|r| matches!(r.variant(), "smollm2" | "gemma3"))
             .and_then(|r| r.last_heartbeat())
-            && hb.counters[0] != self.last_decisions
+            && LanguageCounters::from_heartbeat(&hb.counters).decisions != self.last_decisions
         {
-            self.last_decisions = hb.counters[0];
-            if hb.counters[1] > 0 {
-                self.tokens_per_s.push(hb.counters[1] as f64 / 100.0);
+            let c = LanguageCounters::from_heartbeat(&hb.counters);
+            self.last_decisions = c.decisions;
+            if c.tokens_per_s_x100 > 0 {
+                self.tokens_per_s.push(c.tokens_per_s_x100 as f64 / 100.0);
             }
         }
         Ok(self

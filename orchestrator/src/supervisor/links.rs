@@ -22,6 +22,7 @@ use super::replacement::{Placement, ReturnTo};
 use super::role_runtime::RoleState;
 use super::swap::DEFAULT_SWAP_READY_TIMEOUT;
 use crate::restart::RestartPolicy;
+use aeris_schemas::BridgeCounters;
 use std::time::{Duration, Instant};
 
 /// How long a lost link must be back, continuously, before the roles that fell back return
@@ -225,7 +226,8 @@ impl Supervisor {
         self.roles.iter().any(|r| {
             r.name == name
                 && r.state == RoleState::Running
-                && r.last_heartbeat.is_some_and(|hb| hb.counters[6] == 1)
+                && r.last_heartbeat
+                    .is_some_and(|hb| BridgeCounters::from_heartbeat(&hb.counters).connected == 1)
         })
     }
 

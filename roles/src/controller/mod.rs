@@ -72,7 +72,7 @@
 //! claims the lease and flies.
 //!
 //! Heartbeat [`CycleReport`] (one per control tick): stages `read`, `track`, `send`;
-//! counters `[ticks, missed, refused, hold_ticks, sent, active, takeovers, epoch]`:
+//! counters [`aeris_schemas::ControllerCounters`]:
 //! ticks and missed = control ticks run and skipped in this term of the lease, refused =
 //! setpoints refused by validation, hold_ticks = ticks spent holding for lack of a fresh
 //! valid setpoint, sent = SET_POSITION_TARGET_LOCAL_NED messages written to the link,

@@ -22,8 +22,8 @@ use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::role::try_sched_fifo;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
 use aeris_schemas::{
-    ActionMode, AutopilotLinkStatus, BoundSetpoint, ControllerLease, FixedText, LinkState,
-    VehicleTelemetry, topics,
+    ActionMode, AutopilotLinkStatus, BoundSetpoint, ControllerCounters, ControllerLease, FixedText,
+    LinkState, VehicleTelemetry, topics,
 };
 use std::ops::ControlFlow;
 use std::sync::{Arc, Mutex};
@@ -170,16 +170,17 @@ impl ControllerRole {
 
     /// The heartbeat counters (see the module documentation).
     fn counters(&self) -> [u64; 8] {
-        [
-            self.ticks,
-            self.missed_ticks,
-            self.tracker.refused(),
-            self.tracker.hold_ticks() - self.hold_ticks_base,
-            self.sent,
-            u64::from(self.arbiter.is_active()),
-            self.arbiter.takeovers(),
-            self.arbiter.epoch(),
-        ]
+        ControllerCounters {
+            ticks: self.ticks,
+            missed_ticks: self.missed_ticks,
+            refused_setpoints: self.tracker.refused(),
+            hold_ticks: self.tracker.hold_ticks() - self.hold_ticks_base,
+            sent: self.sent,
+            lease_held: u64::from(self.arbiter.is_active()),
+            takeovers: self.arbiter.takeovers(),
+            lease_epoch: self.arbiter.epoch(),
+        }
+        .to_heartbeat()
     }
 
     fn send(&mut self, msg: &MavMessage) -> bool {

@@ -34,12 +34,7 @@
 //! controller only as the setpoint the gate binds it to (one the controller would refuse is
 //! not sent).
 //!
-//! Heartbeat counters: 0 the phase flown (1-based; a replan or a new instruction starts a
-//! new program), 1 the executor's state (0 waiting for the vehicles, 1 flying, 2 settling,
-//! 3 done, 4 stuck), 2 vehicles that left the formation (each one replanned around), 3
-//! setpoints published, 4 the longest wait at a phase's end (ms), 5 vehicles in the
-//! formation, 6 the time the first program took to write, check and repair (ms), 7 slots
-//! the gate refused to bind.
+//! Heartbeat counters: [`aeris_schemas::FormationCounters`].
 
 mod tracks;
 mod writer;
@@ -55,8 +50,8 @@ use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{
-    BoundSetpoint, FormationCommand, FormationPhase, FormationProgram, FormationReply, MAX_PHASES,
-    MAX_VEHICLES, PhaseKind, SayOutcome, VehicleTelemetry, topics,
+    BoundSetpoint, FormationCommand, FormationCounters, FormationPhase, FormationProgram,
+    FormationReply, MAX_PHASES, MAX_VEHICLES, PhaseKind, SayOutcome, VehicleTelemetry, topics,
 };
 use std::time::Duration;
 use tracks::{TRACK_EVERY_NS, TrackRecorder};
@@ -102,7 +97,7 @@ pub struct FormationRole {
     seq: u64,
     slots: [Slot; MAX_VEHICLES],
     positions: [[f32; 3]; MAX_VEHICLES],
-    counters: [u64; 8],
+    counters: FormationCounters,
     min_separation_m: f32,
     done: bool,
     /// Phases of the program flown whose settling was logged.
@@ -256,9 +251,11 @@ impl Role for FormationRole {
                 flying + 1
             );
         }
-        let mut counters = [0u64; 8];
-        counters[5] = u64::from(flying);
-        counters[6] = program_ms;
+        let counters = FormationCounters {
+            vehicles: u64::from(flying),
+            program_ms,
+            ..FormationCounters::default()
+        };
         Ok(Self {
             writer,
             say,
@@ -305,7 +302,7 @@ impl Role for FormationRole {
                 .iter()
                 .all(|&m| self.links[m].last.is_some_and(|(t, _)| t.link_up == 1))
             {
-                report.counters = self.counters;
+                report.counters = self.counters.to_heartbeat();
                 return Ok(CycleOutcome::Idle);
             }
             eprintln!(
@@ -361,8 +358,8 @@ impl Role for FormationRole {
             .is_some_and(|p| p.kind == PhaseKind::Land as u8);
         self.publish(now, phase, landing)?;
         self.record(now, phase);
-        self.counters[0] = phase as u64;
-        self.counters[1] = match state {
+        self.counters.phase = phase as u64;
+        self.counters.state = match state {
             ExecutorState::Flying { .. } => 1,
             ExecutorState::Settling { .. } => 2,
             ExecutorState::Done => 3,
@@ -382,8 +379,8 @@ impl Role for FormationRole {
             self.settled_logged = settled.len();
         }
         let settle_ms = settled.iter().fold(0.0f32, |a, b| a.max(*b)) * 1e3;
-        self.counters[4] = self.counters[4].max(settle_ms as u64);
-        report.counters = self.counters;
+        self.counters.longest_settle_ms = self.counters.longest_settle_ms.max(settle_ms as u64);
+        report.counters = self.counters.to_heartbeat();
         let all_landed =
             self.flying.members.iter().all(|&m| {
                 self.links[m].flew && self.links[m].last.is_some_and(|(t, _)| t.landed == 1)
@@ -488,9 +485,9 @@ impl FormationRole {
     fn replan(&mut self, fault: RuntimeFault, now: u64) {
         let lost = self.flying.members[fault.vehicle()];
         self.links[lost].left = true;
-        self.counters[2] += 1;
+        self.counters.vehicles_left += 1;
         let n = self.flying.members.len();
-        let phase = self.counters[0].max(1) as usize;
+        let phase = self.counters.phase.max(1) as usize;
         let positions: Vec<[f32; 3]> = self.positions[..n].to_vec();
         let flight = InFlight {
             program: &self.flying.program,
@@ -693,7 +690,7 @@ impl FormationRole {
         members: Vec<usize>,
         now: u64,
     ) {
-        self.counters[5] = members.len() as u64;
+        self.counters.vehicles = members.len() as u64;
         self.settled_logged = 0;
         if program != self.flying.program {
             self.tracks.program(&program);
@@ -718,9 +715,9 @@ impl FormationRole {
             {
                 Ok(sp) => {
                     self.links[member].setpoints.publish(&sp)?;
-                    self.counters[3] += 1;
+                    self.counters.setpoints += 1;
                 }
-                Err(_) => self.counters[7] += 1,
+                Err(_) => self.counters.refused_slots += 1,
             }
         }
         Ok(())

@@ -31,9 +31,7 @@
 //! logged and waited out (a live source resumes by itself). While a pipeline is down or
 //! stalled the heartbeat says `degraded`; frames are published again as soon as they come.
 //!
-//! Heartbeat counters: `[rgb frames published, depth frames published, pipeline restarts,
-//! pipeline errors, ends of stream, stalls, frames stamped on arrival (no PTS), frames posed
-//! outside the telemetry ring (held, or before any telemetry)]`. Stages: `publish`, `depth`.
+//! Heartbeat counters: [`CameraCounters`]. Stages: `publish`, `depth`.
 
 pub mod pose_ring;
 
@@ -42,7 +40,9 @@ use aeris_runtime::bus::{FramePublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::error_chain::chain;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
-use aeris_schemas::{FrameFormat, FrameHeader, RoleStatus, VehicleTelemetry, topics};
+use aeris_schemas::{
+    CameraCounters, FrameFormat, FrameHeader, RoleStatus, VehicleTelemetry, topics,
+};
 use aeris_video::capture::{Capture, CaptureConfig, CaptureEvent, CapturedFrame, PixelFormat};
 use core::time::Duration;
 use pose_ring::{PoseFit, PoseRing, PoseSample};
@@ -55,18 +55,6 @@ pub const DEFAULT_POLL_MS: f64 = 2.0;
 pub const RESTART_BACKOFF_MIN: Duration = Duration::from_millis(250);
 /// Longest restart back-off.
 pub const RESTART_BACKOFF_MAX: Duration = Duration::from_secs(8);
-
-/// Counter slots of the heartbeat.
-mod slot {
-    pub const RGB: usize = 0;
-    pub const DEPTH: usize = 1;
-    pub const RESTARTS: usize = 2;
-    pub const ERRORS: usize = 3;
-    pub const EOS: usize = 4;
-    pub const STALLS: usize = 5;
-    pub const NO_PTS: usize = 6;
-    pub const HELD_POSE: usize = 7;
-}
 
 /// One pipeline and its restart state.
 struct Source {
@@ -124,21 +112,21 @@ impl Source {
 
     /// Log the pipeline's events, count them, schedule restarts, and restart when due;
     /// `true` while the pipeline is down or stalled.
-    fn tend(&mut self, now: u64, counters: &mut [u64; 8]) -> bool {
+    fn tend(&mut self, now: u64, counters: &mut CameraCounters) -> bool {
         while let Some(event) = self.capture.poll_event() {
             match &event {
                 CaptureEvent::Error(text) => {
-                    counters[slot::ERRORS] += 1;
+                    counters.errors += 1;
                     eprintln!("camera: `{}` failed: {text}", self.param);
                     self.schedule_restart(now);
                 }
                 CaptureEvent::Eos => {
-                    counters[slot::EOS] += 1;
+                    counters.ends_of_stream += 1;
                     eprintln!("camera: `{}` reached the end of its stream", self.param);
                     self.schedule_restart(now);
                 }
                 CaptureEvent::Stalled { silent_ms } => {
-                    counters[slot::STALLS] += 1;
+                    counters.stalls += 1;
                     self.stalled = true;
                     eprintln!(
                         "camera: `{}` stalled: no frame for {silent_ms} ms",
@@ -154,7 +142,7 @@ impl Source {
         if let Some(at) = self.restart_at
             && now >= at
         {
-            counters[slot::RESTARTS] += 1;
+            counters.restarts += 1;
             match self.capture.start() {
                 Ok(()) => {
                     self.restart_at = None;
@@ -209,7 +197,7 @@ pub struct GstreamerCameraRole {
     period: Duration,
     frame_period: Duration,
     seq: u64,
-    counters: [u64; 8],
+    counters: CameraCounters,
 }
 
 impl GstreamerCameraRole {
@@ -298,7 +286,7 @@ impl Role for GstreamerCameraRole {
             period: Duration::from_secs_f64(poll_ms / 1000.0),
             frame_period: Duration::from_secs_f64(1.0 / cam.fps),
             seq: 0,
-            counters: [0; 8],
+            counters: CameraCounters::default(),
         })
     }
 
@@ -322,7 +310,7 @@ impl Role for GstreamerCameraRole {
         } else {
             RoleStatus::Running
         };
-        report.counters = self.counters;
+        report.counters = self.counters.to_heartbeat();
         let Some(frame) = self.rgb_source.pull(Duration::ZERO) else {
             return Ok(CycleOutcome::Idle);
         };
@@ -334,17 +322,17 @@ impl Role for GstreamerCameraRole {
         // telemetry up to now, so a capture just before this cycle falls inside the ring
         self.take_telemetry()?;
         if !frame.pts_mapped {
-            self.counters[slot::NO_PTS] += 1;
+            self.counters.stamped_on_arrival += 1;
         }
         let (position, yaw) = match self.poses.at(frame.capture_ns) {
             Some((p, fit)) => {
                 if fit != PoseFit::Interpolated {
-                    self.counters[slot::HELD_POSE] += 1;
+                    self.counters.held_pose += 1;
                 }
                 (p.position, p.yaw)
             }
             None => {
-                self.counters[slot::HELD_POSE] += 1;
+                self.counters.held_pose += 1;
                 (self.start, 0.0)
             }
         };
@@ -373,7 +361,7 @@ impl Role for GstreamerCameraRole {
         }
         drop(frame);
         self.seq += 1;
-        self.counters[slot::RGB] = self.seq;
+        self.counters.rgb_frames = self.seq;
         let t1 = monotonic_ns();
         report.stage("publish", t1.saturating_sub(t0));
         if let (Some(source), Some(publisher)) = (&mut self.depth_source, &self.depth)
@@ -395,10 +383,10 @@ impl Role for GstreamerCameraRole {
                     chain(&e)
                 );
             }
-            self.counters[slot::DEPTH] += 1;
+            self.counters.depth_frames += 1;
         }
         report.stage("depth", monotonic_ns().saturating_sub(t1));
-        report.counters = self.counters;
+        report.counters = self.counters.to_heartbeat();
         Ok(CycleOutcome::Worked)
     }
 

@@ -15,7 +15,7 @@ use super::role::PlannerReasoner;
 use crate::reasoner_io::POLL;
 use aeris_geometry::wrap_pi;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
-use aeris_schemas::{ActionMode, Decision};
+use aeris_schemas::{ActionMode, Decision, PlannerCounters};
 use core::time::Duration;
 
 /// allocation-free, for the fault injector and the random baseline.
@@ -99,7 +99,9 @@ impl Role for GarbageRole {
             d.seq = 0;
             self.reasoner.send(&mut d, report)?;
         }
-        report.counters[2] = self.corrupted;
+        let mut c = PlannerCounters::from_heartbeat(&report.counters);
+        c.corrupted = self.corrupted;
+        report.counters = c.to_heartbeat();
         Ok(CycleOutcome::Worked)
     }
 }

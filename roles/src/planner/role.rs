@@ -5,16 +5,15 @@
 //! decides once per heartbeat on the first fresh S_t, or on the telemetry alone when no S_t
 //! came for a heartbeat and a half, polling every 50 ms ([`ReasonerIo`]).
 //!
-//! Heartbeat stages: `read`, `plan`, `publish`. Heartbeat counters: `[decisions,
-//! subgoal_index (0-based), corrupted (the garbage variant), decisions made without
-//! occupancy, 0, 0, 0, 0]`. The role's log says when the planner loses occupancy (and
+//! Heartbeat stages: `read`, `plan`, `publish`. Heartbeat counters:
+//! [`aeris_schemas::PlannerCounters`]. The role's log says when the planner loses occupancy (and
 //! keeps to the geofence and the conservative altitude) and when it gets it back.
 
 use super::Planner;
 use crate::reasoner_io::{POLL, ReasonerIo};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
-use aeris_schemas::{Decision, OccupancyStatus};
+use aeris_schemas::{Decision, OccupancyStatus, PlannerCounters};
 use core::time::Duration;
 
 /// The planner of the mission in `spec`, seen through its camera (every reasoning role
@@ -105,8 +104,11 @@ impl PlannerReasoner {
         report: &mut CycleReport,
     ) -> Result<(), RoleError> {
         self.io.publish(d, report)?;
-        report.counters[1] = self.planner.current() as u64;
-        report.counters[3] = self.planner.blind_decisions();
+        let mut c = PlannerCounters::from_heartbeat(&report.counters);
+        c.decisions = self.io.published();
+        c.subgoal = self.planner.current() as u64;
+        c.blind_decisions = self.planner.blind_decisions();
+        report.counters = c.to_heartbeat();
         Ok(())
     }
 }

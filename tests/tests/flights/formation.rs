@@ -13,7 +13,7 @@ const INSTRUCTION: &str = "four drones take off to 5 m in a line 3 m apart, then
                            heading north, then a circle of radius 6 m, and land";
 
 use aeris_runtime::bus::FlightBus;
-use aeris_schemas::{RoleHeartbeat, topics};
+use aeris_schemas::{FormationCounters, RoleHeartbeat, topics};
 use aeris_tests::*;
 use serde_json::Value;
 use std::time::Duration;
@@ -144,7 +144,7 @@ fn formation_phase(heartbeats: &aeris_runtime::bus::TypedSubscriber<RoleHeartbea
     heartbeats
         .drain(|h| {
             if h.role.as_str() == Some("formation") {
-                phase = Some(h.counters[0]);
+                phase = Some(FormationCounters::from_heartbeat(&h.counters).phase);
             }
         })
         .unwrap();

@@ -12,7 +12,7 @@
 //! from the decoded video.
 
 use aeris_runtime::FlightBus;
-use aeris_schemas::{RoleHeartbeat, RoleStatus, topics};
+use aeris_schemas::{CameraCounters, RoleHeartbeat, RoleStatus, topics};
 use aeris_tests::*;
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -98,7 +98,8 @@ fn a_mission_flies_on_decoded_video_from_a_following_transmitter() {
         heartbeats
             .drain(|h| {
                 if h.role.as_str_lossy() == "camera" {
-                    camera_frames = camera_frames.max(h.counters[0]);
+                    camera_frames =
+                        camera_frames.max(CameraCounters::from_heartbeat(&h.counters).rgb_frames);
                     camera_status = h.status;
                 }
             })
