@@ -31,6 +31,16 @@ impl Default for RebindConfig {
 /// Most times the cooldown a role's relief moves can grow to (doubling per relief move).
 pub const MAX_RELIEF_BACKOFF: u32 = 16;
 
+/// A role cooling down after a move may move again at once when its latency/budget ratio
+/// is over 1, this many times what the move predicted, and higher (by the margin) than it
+/// was when it moved (figures that still show the old place move nothing): the cooldown keeps noise from
+/// moving a role back and forth, not a hog that lands where the role went. (In `bench ds`
+/// the reasoner, moved to a free CPU 3 s before the hog landed there, sat out its 10 s
+/// cooldown at 4x its budget: 8 heartbeats lost.) Once until the role has stayed within its
+/// budget for a cooldown: a role that fits nowhere, whose load follows it wherever it goes,
+/// then keeps its relief back-off.
+pub const SLIP_PAST_PREDICTION: f64 = 2.0;
+
 /// The re-binding policy with its memory (streaks, cooldowns): feed it one tick at a time.
 #[derive(Debug, Clone)]
 pub struct RebindPolicy {
@@ -46,6 +56,12 @@ pub struct RebindPolicy {
     reliefs: Vec<u32>,
     /// Consecutive ticks each role has been within its budget.
     calm: Vec<u32>,
+    /// The latency/budget ratio each role's last move predicted, and the one it had then
+    /// (0: not moved).
+    promised: Vec<(f64, f64)>,
+    /// A role moved again within its cooldown since it last stayed within budget for one
+    /// ([`SLIP_PAST_PREDICTION`]).
+    slipped: Vec<bool>,
 }
 
 impl RebindPolicy {
@@ -59,6 +75,8 @@ impl RebindPolicy {
             held: None,
             reliefs: vec![0; roles],
             calm: vec![0; roles],
+            promised: vec![(0.0, 0.0); roles],
+            slipped: vec![false; roles],
         }
     }
 
@@ -102,6 +120,8 @@ impl RebindPolicy {
             self.cooldown = vec![0; roles.len()];
             self.reliefs = vec![0; roles.len()];
             self.calm = vec![0; roles.len()];
+            self.promised = vec![(0.0, 0.0); roles.len()];
+            self.slipped = vec![false; roles.len()];
         }
         for (r, role) in roles.iter().enumerate() {
             let over = role.over_budget();
@@ -117,6 +137,7 @@ impl RebindPolicy {
             };
             if self.calm[r] >= self.config.cooldown_ticks {
                 self.reliefs[r] = 0;
+                self.slipped[r] = false;
             }
             self.cooldown[r] = self.cooldown[r].saturating_sub(1);
         }
@@ -143,7 +164,21 @@ impl RebindPolicy {
         if !self.streak.iter().any(|&s| s >= self.config.trigger_ticks) {
             return None;
         }
-        let frozen: Vec<bool> = self.cooldown.iter().map(|&c| c > 0).collect();
+        // cooling down, unless it slipped far past what its move predicted
+        let frozen: Vec<bool> = roles
+            .iter()
+            .enumerate()
+            .map(|(r, role)| {
+                let ratio = role.ratio();
+                let (promised, then) = self.promised[r];
+                let slipped = !self.slipped[r]
+                    && promised > 0.0
+                    && ratio > 1.0
+                    && ratio > SLIP_PAST_PREDICTION * promised
+                    && ratio > then * (1.0 + self.config.margin);
+                self.cooldown[r] > 0 && !slipped
+            })
+            .collect();
         match plan_fewest_moves(
             roles,
             executors,
@@ -153,7 +188,15 @@ impl RebindPolicy {
         ) {
             Some(plan) => {
                 for m in &plan.moves {
+                    if self.cooldown[m.role] > 0 {
+                        self.slipped[m.role] = true;
+                    }
                     self.settle(m.role);
+                    let role = &roles[m.role];
+                    self.promised[m.role] = match (plan.predicted_ms.get(m.role), role.budget_ms) {
+                        (Some(Some(p)), Some(b)) if b > 0.0 => (p / b, role.ratio()),
+                        _ => (0.0, 0.0),
+                    };
                     // a probe is a measurement, not relief: a plain cooldown
                     if !plan.restores && !plan.probe {
                         let backoff = 1u32
@@ -196,6 +239,53 @@ mod tests {
         after[4].executor = 0;
         for _ in 0..10 {
             assert_eq!(policy.tick(&after, &executors), None);
+        }
+    }
+
+    #[test]
+    fn a_hog_landing_where_a_role_just_went_moves_it_again_within_its_cooldown() {
+        // the reasoner, a little over budget beside perception's work on CPU 1, is moved to
+        // CPU 0 (predicted 0.6x)
+        let executors = vec![ex("control", 0.2), ex("perception", 0.9)];
+        let mut reasoning = role("reasoning", 1, 1000.0, 1150.0, 0.3);
+        reasoning.slowdown = 1.5;
+        reasoning.waiting = 0.15;
+        let camera = role("camera", 1, 100.0, 40.0, 0.1);
+        let mut p = RebindPolicy::new(RebindConfig::default(), 2);
+        let roles = vec![reasoning.clone(), camera.clone()];
+        let first = (0..3)
+            .find_map(|_| p.tick(&roles, &executors))
+            .expect("moved");
+        assert_eq!(first.moves[0].to, 0);
+        assert!(p.cooldown(0) > 10);
+        // a hog lands on CPU 0: 4x its budget there, far past the 0.6x predicted and worse
+        // than before the move
+        let hogged = vec![ex("control", 1.0), ex("perception", 0.7)];
+        let mut there = role("reasoning", 0, 1000.0, 4000.0, 0.2);
+        there.slowdown = 5.0;
+        there.waiting = 0.8;
+        let roles = vec![there.clone(), camera.clone()];
+        let second = (0..3)
+            .find_map(|_| p.tick(&roles, &hogged))
+            .expect("moved again at once, not after its 10 s cooldown");
+        assert_eq!(second.moves[0].to, 1);
+        // once: a load that follows it again waits out the cooldown (relief back-off)
+        let mut back = there.clone();
+        back.executor = 1;
+        let followed = vec![ex("control", 0.2), ex("perception", 1.0)];
+        for _ in 0..10 {
+            assert_eq!(p.tick(&[back.clone(), camera.clone()], &followed), None);
+        }
+        // figures that still show the old place (its ratio then) move nothing either
+        let mut q = RebindPolicy::new(RebindConfig::default(), 2);
+        let roles = vec![reasoning.clone(), camera.clone()];
+        (0..3)
+            .find_map(|_| q.tick(&roles, &executors))
+            .expect("moved");
+        let mut stale = reasoning.clone();
+        stale.executor = 0;
+        for _ in 0..10 {
+            assert_eq!(q.tick(&[stale.clone(), camera.clone()], &executors), None);
         }
     }
 

@@ -252,7 +252,7 @@ impl Supervisor {
                     let fast = (n >= 3)
                         .then(|| shares(&r.sched[n - 3], &r.sched[n - 1]))
                         .flatten();
-                    let (_, demand, _) = slow.unwrap_or((1.0, 0.0, 0.0));
+                    let (slow_s, demand, _) = slow.unwrap_or((1.0, 0.0, 0.0));
                     let (fast_s, _, waiting) = fast.or(slow).unwrap_or((1.0, 0.0, 0.0));
                     let mut load = RoleLoad {
                         name: r.name.clone(),
@@ -285,8 +285,11 @@ impl Supervisor {
                     // on another host its heartbeats give its own cycle: the link comes on top
                     let paid = executors.get(executor).map_or(0.0, |e| link_cost(&load, e));
                     // a slowdown that just grew stretches the cycles that are still running:
-                    // the signal does not wait for them to finish late
-                    load.latency_ms = r.recent.expected_ms(fast_s).map(|ms| ms + paid);
+                    // the signal does not wait for them to finish late. Only one that holds
+                    // over the whole window (2 s) too: a hog stays, while the bursts of our
+                    // own roles' work beside a reasoner pass (in `bench ds` they moved it,
+                    // at 1.1-1.5x its budget for half a second, before any hog came)
+                    load.latency_ms = r.recent.expected_ms(fast_s.min(slow_s)).map(|ms| ms + paid);
                     // remember what it measured where it runs: its latency on an accelerator,
                     // its own cycle on CPUs (what a later move there or back is predicted from)
                     if let (Some(latency), Some(ex)) = (load.latency_ms, executors.get(executor))
