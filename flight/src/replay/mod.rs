@@ -391,15 +391,15 @@ impl StepHook for ReplayHook {
                 ctx.note("replay: the recording is replayed; waiting one heartbeat for the last decision");
             }
         }
-        if let Some(hb) = self
+        if let Some(c) = self
             .reasoner
             .as_deref()
             .and_then(|name| ctx.supervisor.role(name))
             .filter(|r| matches!(r.variant(), "smollm2" | "gemma3"))
             .and_then(|r| r.last_heartbeat())
-            && LanguageCounters::from_heartbeat(&hb.counters).decisions != self.last_decisions
+            .map(|hb| LanguageCounters::from_heartbeat(&hb.counters))
+            && c.decisions != self.last_decisions
         {
-            let c = LanguageCounters::from_heartbeat(&hb.counters);
             self.last_decisions = c.decisions;
             if c.tokens_per_s_x100 > 0 {
                 self.tokens_per_s.push(c.tokens_per_s_x100 as f64 / 100.0);

@@ -33,8 +33,8 @@ pub const MAX_RELIEF_BACKOFF: u32 = 16;
 
 /// A role cooling down after a move may move again at once when its latency/budget ratio
 /// is over 1, this many times what the move predicted, and higher (by the margin) than it
-/// was when it moved (figures that still show the old place move nothing): the cooldown keeps noise from
-/// moving a role back and forth, not a hog that lands where the role went. (In `bench ds`
+/// was when it moved (figures that still show the old place move nothing): the cooldown
+/// keeps noise from moving a role back and forth, not a hog that lands where the role went. (In `bench ds`
 /// the reasoner, moved to a free CPU 3 s before the hog landed there, sat out its 10 s
 /// cooldown at 4x its budget: 8 heartbeats lost.) Once until the role has stayed within its
 /// budget for a cooldown: a role that fits nowhere, whose load follows it wherever it goes,

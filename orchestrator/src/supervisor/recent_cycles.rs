@@ -42,13 +42,13 @@ impl RecentCycles {
     }
 
     /// Median and 95th percentile of the latencies (ms); `None` before a cycle.
-    pub(super) fn latency_percentiles(&mut self) -> Option<[f64; 2]> {
+    fn latency_percentiles(&mut self) -> Option<[f64; 2]> {
         self.latency.percentiles([50.0, 95.0])
     }
 
     /// Median own cost (ms, the latency without the slowdown it ran under); `None`
     /// before a cycle.
-    pub(super) fn own_ms(&mut self) -> Option<f64> {
+    fn own_ms(&mut self) -> Option<f64> {
         self.own.percentiles([50.0]).map(|[p]| p)
     }
 

@@ -406,16 +406,17 @@ impl RoleRuntime {
         // Only a heartbeat that closes a working cycle carries new figures; a liveness
         // heartbeat repeats the last ones and must not be counted twice.
         let working = matches!(status, RoleStatus::Running | RoleStatus::Degraded);
+        let now = Instant::now();
         if working && hb.worked == 1 {
             let ms = hb.cycle_latency_ns as f64 / 1e6;
             self.window.push(ms);
-            self.recent.push(ms, Instant::now(), &self.sched);
+            self.recent.push(ms, now, &self.sched);
             self.worked_cycles += 1;
             self.last_cycle_ms = Some(ms);
             self.latency_ms = self.window.percentiles([50.0, 95.0, 99.0]);
         }
         self.running |= working;
-        self.heard_at = Some(Instant::now());
+        self.heard_at = Some(now);
         self.silence_probe = None;
         self.last_heartbeat = Some(*hb);
         self.heartbeats += 1;
