@@ -122,7 +122,7 @@ fn row(config: &CameraConfig, width: u32, height: u32) -> Result<CameraRow, Benc
     let fps = config.fps;
     let flight = format!("bench-camera-{}-{width}x{height}", std::process::id());
     let bus = FlightBus::builder(&flight).node_name("bench").create()?;
-    let rgb = bus.frame_subscriber(topics::CAMERA_RGB)?;
+    let rgb = bus.frame_subscriber::<topics::CameraRgb>()?;
     let pipeline = format!(
         "videotestsrc is-live=true pattern=ball ! video/x-raw,width={width},height={height},framerate={fps}/1 ! appsink sync=false"
     );

@@ -2,12 +2,9 @@
 
 use aeris_runtime::bus::{self, FlightBus};
 use aeris_runtime::clock::monotonic_ns;
-use aeris_schemas::{
-    AutopilotLinkStatus, BoundSetpoint, ControllerLease, Decision, HostLinkStatus, HubReport,
-    PerceptionState, RoleHeartbeat, RoleStatus, VehicleTelemetry, ZeroCopySend, topics,
-};
+use aeris_runtime::raw;
+use aeris_schemas::{FrameHeader, RoleStatus, topics, with_payload_type};
 use anyhow::{Context, Result, bail};
-use core::fmt::Debug;
 use core::time::Duration;
 
 /// The flight to inspect: the one named, or the only one running.
@@ -257,25 +254,11 @@ fn print_links(links: &[serde_json::Value]) {
 }
 
 fn type_of(topic: &str) -> &'static str {
-    match topics::split_vehicle(topic).1 {
-        topics::CAMERA_RGB | topics::CAMERA_DEPTH => "[u8] + FrameHeader",
-        topics::PERCEPTION_STATE
-        | topics::PERCEPTION_TEXT
-        | topics::PERCEPTION_DETECTIONS
-        | topics::PERCEPTION_CUES
-        | topics::PERCEPTION_OCCUPANCY => "PerceptionState",
-        topics::REASONING_DECISION => "Decision",
-        topics::HUB_SETPOINT => "BoundSetpoint",
-        topics::HUB_REPORT => "HubReport",
-        topics::VEHICLE_TELEMETRY => "VehicleTelemetry",
-        topics::CONTROLLER_LEASE => "ControllerLease",
-        topics::CONTROLLER_LINK => "AutopilotLinkStatus",
-        topics::HOSTS_LINK => "HostLinkStatus",
-        topics::HEARTBEAT => "RoleHeartbeat",
-        "supervisor" => "SupervisorStatus (blackboard)",
-        topics::FORMATION_SAY => "FormationCommand",
-        topics::FORMATION_REPLY => "FormationReply",
-        _ => "?",
+    match topics::info(topic) {
+        Some(info) if info.payload == Some(topics::Payload::Frame) => "[u8] + FrameHeader",
+        Some(info) => info.message_type(),
+        None if topic == "supervisor" => "SupervisorStatus (blackboard)",
+        None => "?",
     }
 }
 
@@ -307,43 +290,32 @@ fn each_sample(
     seconds: f64,
     mut on_sample: impl FnMut(String),
 ) -> Result<u64> {
-    fn typed<T: Debug + ZeroCopySend + Copy + 'static>(
-        bus: &FlightBus,
-        topic: &str,
-    ) -> Result<Box<dyn FnMut() -> Result<Option<String>>>> {
-        let sub = bus.subscriber::<T>(topic)?;
-        Ok(Box::new(move || Ok(sub.next()?.map(|v| format!("{v:?}")))))
-    }
-    // `v2/vehicle/telemetry`: vehicle 2's telemetry in a flight of several vehicles
-    let mut next: Box<dyn FnMut() -> Result<Option<String>>> = match topics::split_vehicle(topic).1
-    {
-        topics::CAMERA_RGB | topics::CAMERA_DEPTH => {
-            let sub = bus.frame_subscriber(topic)?;
-            Box::new(move || {
-                Ok(sub
-                    .next()?
-                    .map(|s| format!("{:?} bytes={}", s.user_header(), s.payload().len())))
-            })
-        }
-        // S_t and the blocks it is composed of share one type
-        topics::PERCEPTION_STATE
-        | topics::PERCEPTION_TEXT
-        | topics::PERCEPTION_DETECTIONS
-        | topics::PERCEPTION_CUES
-        | topics::PERCEPTION_OCCUPANCY => typed::<PerceptionState>(bus, topic)?,
-        topics::REASONING_DECISION => typed::<Decision>(bus, topic)?,
-        topics::HUB_SETPOINT => typed::<BoundSetpoint>(bus, topic)?,
-        topics::HUB_REPORT => typed::<HubReport>(bus, topic)?,
-        topics::VEHICLE_TELEMETRY => typed::<VehicleTelemetry>(bus, topic)?,
-        topics::CONTROLLER_LEASE => typed::<ControllerLease>(bus, topic)?,
-        topics::CONTROLLER_LINK => typed::<AutopilotLinkStatus>(bus, topic)?,
-        topics::HOSTS_LINK => typed::<HostLinkStatus>(bus, topic)?,
-        topics::HEARTBEAT => typed::<RoleHeartbeat>(bus, topic)?,
-        _ => bail!(
+    if topics::payload_of(topic).is_none() {
+        bail!(
             "unknown topic `{topic}`; known topics: {} (in a flight of several vehicles, \
              vehicle K's are vK/TOPIC)",
             topics::ALL.join(", ")
-        ),
+        );
+    }
+    // `v2/vehicle/telemetry`: vehicle 2's telemetry in a flight of several vehicles
+    let sub = raw::raw_subscriber(bus, topic)?;
+    let payload = topics::payload_of(topic);
+    let next = || -> Result<Option<String>> {
+        let mut text = None;
+        sub.next_raw(&mut |bytes, pixels, _| {
+            text = Some(match payload {
+                Some(topics::Payload::Frame) => match raw::read::<FrameHeader>(bytes) {
+                    Some(h) => format!("{h:?} bytes={}", pixels.len()),
+                    None => format!("{} bytes", bytes.len()),
+                },
+                Some(p) => with_payload_type!(p, T => match raw::read::<T>(bytes) {
+                    Some(v) => format!("{v:?}"),
+                    None => format!("{} bytes", bytes.len()),
+                }),
+                None => format!("{} bytes", bytes.len()),
+            });
+        })?;
+        Ok(text)
     };
     let end = monotonic_ns().saturating_add((seconds.max(0.0) * 1e9) as u64);
     let mut n = 0;

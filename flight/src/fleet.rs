@@ -126,7 +126,7 @@ impl FleetMonitor {
             .map(|k| {
                 Ok(VehicleWatch {
                     number: k,
-                    telemetry: bus.subscriber(&topics::in_vehicle(k, topics::VEHICLE_TELEMETRY))?,
+                    telemetry: bus.subscriber_in::<topics::VehicleTelemetry>(Some(k))?,
                     controller: RestartSafeCounters::default(),
                     last: None,
                     flew: false,
@@ -256,9 +256,7 @@ mod tests {
                 .vehicle(Some(k))
                 .create()
                 .unwrap();
-            let publisher = bus
-                .publisher::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)
-                .unwrap();
+            let publisher = bus.publisher::<topics::VehicleTelemetry>().unwrap();
             (bus, publisher)
         };
         let (_b1, v1) = vehicle(1);

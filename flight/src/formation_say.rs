@@ -2,9 +2,7 @@
 //! `formation/say`, answered by its formation role on `formation/reply`.
 
 use aeris_runtime::bus::{BusError, FlightBus};
-use aeris_schemas::{
-    FORMATION_INSTRUCTION_MAX, FormationCommand, FormationReply, SayOutcome, topics,
-};
+use aeris_schemas::{FORMATION_INSTRUCTION_MAX, FormationCommand, SayOutcome, topics};
 use std::time::{Duration, Instant};
 
 /// The formation role's answer.
@@ -70,11 +68,9 @@ pub fn say(flight: &str, instruction: &str, timeout: Duration) -> Result<SayAnsw
         .create()
         .map_err(bus_error)?;
     let replies = bus
-        .subscriber::<FormationReply>(topics::FORMATION_REPLY)
+        .subscriber::<topics::FormationReply>()
         .map_err(bus_error)?;
-    let commands = bus
-        .publisher::<FormationCommand>(topics::FORMATION_SAY)
-        .map_err(bus_error)?;
+    let commands = bus.publisher::<topics::FormationSay>().map_err(bus_error)?;
     // unique enough among the tools of one host: the pid and the clock
     let id = (u64::from(std::process::id()) << 32) ^ aeris_runtime::clock::monotonic_ns();
     let mut command = FormationCommand {

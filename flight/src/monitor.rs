@@ -277,10 +277,10 @@ impl FlightMonitor {
             .and_then(|s| s.action_mode())
             .is_some_and(|a| a == ActionMode::Land);
         Ok(Self {
-            reports: bus.subscriber(topics::HUB_REPORT)?,
-            telemetry: bus.subscriber(topics::VEHICLE_TELEMETRY)?,
-            setpoints: bus.subscriber(topics::HUB_SETPOINT)?,
-            link: bus.subscriber(topics::CONTROLLER_LINK)?,
+            reports: bus.subscriber::<topics::HubReport>()?,
+            telemetry: bus.subscriber::<topics::VehicleTelemetry>()?,
+            setpoints: bus.subscriber::<topics::HubSetpoint>()?,
+            link: bus.subscriber::<topics::ControllerLink>()?,
             link_follower: LinkFollower::default(),
             video_start: FirstDecisionOnVideo::new(bus, aeris_runtime::clock::monotonic_ns())?,
             autopilot_events: Vec::new(),

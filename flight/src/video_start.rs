@@ -23,8 +23,8 @@ impl FirstDecisionOnVideo {
     /// Watch `bus` for frames captured from `since_ns` on.
     pub(crate) fn new(bus: &FlightBus, since_ns: u64) -> Result<Self, BusError> {
         Ok(Self {
-            frames: Some(bus.frame_subscriber(topics::CAMERA_RGB)?),
-            decisions: Some(bus.subscriber(topics::REASONING_DECISION)?),
+            frames: Some(bus.frame_subscriber::<topics::CameraRgb>()?),
+            decisions: Some(bus.subscriber::<topics::ReasoningDecision>()?),
             since_ns,
             first_frame_ns: None,
             latency_ns: None,

@@ -231,7 +231,7 @@ impl Role for BridgeRole {
         let mut own = Vec::with_capacity(import.len());
         for t in import {
             let payload = payload_of(&t).unwrap_or(Payload::Heartbeat);
-            let publisher = raw_publisher(&ctx.bus, &t, payload, frame_bytes)?;
+            let publisher = raw_publisher(&ctx.bus, &t, frame_bytes)?;
             own.push(publisher.id());
             // subscribed on zenoh once the session is open ([`BridgeRole::attach`]); frames
             // once a reader appears here too ([`BridgeRole::follow_readers`])
@@ -248,7 +248,7 @@ impl Role for BridgeRole {
         let mut exports = Vec::with_capacity(export.len());
         for t in export {
             let payload = payload_of(&t).unwrap_or(Payload::Heartbeat);
-            let sub = raw_subscriber(&ctx.bus, &t, payload)?;
+            let sub = raw_subscriber(&ctx.bus, &t)?;
             exports.push(Export {
                 topic: t,
                 payload,

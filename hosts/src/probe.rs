@@ -153,7 +153,7 @@ impl LinkProbe {
             key: agent_request_key(host, "info"),
             timeout_ns: timeout.as_nanos() as u64,
             figures: LinkFigures::new(host),
-            publisher: bus.publisher::<HostLinkStatus>(topics::HOSTS_LINK)?,
+            publisher: bus.publisher::<topics::HostsLink>()?,
             in_flight: VecDeque::with_capacity(MAX_IN_FLIGHT),
             next_ns: 0,
         })

@@ -172,11 +172,11 @@ impl Role for HubRole {
         }
         Ok(Self {
             core,
-            states: ctx.bus.subscriber(topics::PERCEPTION_STATE)?,
-            telemetry: ctx.bus.subscriber(topics::VEHICLE_TELEMETRY)?,
-            decisions: ctx.bus.subscriber(topics::REASONING_DECISION)?,
-            setpoints: ctx.bus.publisher(topics::HUB_SETPOINT)?,
-            reports: ctx.bus.publisher(topics::HUB_REPORT)?,
+            states: ctx.bus.subscriber::<topics::PerceptionState>()?,
+            telemetry: ctx.bus.subscriber::<topics::VehicleTelemetry>()?,
+            decisions: ctx.bus.subscriber::<topics::ReasoningDecision>()?,
+            setpoints: ctx.bus.publisher::<topics::HubSetpoint>()?,
+            reports: ctx.bus.publisher::<topics::HubReport>()?,
             occupancy: None,
             verdicts_logged: 0,
         })

@@ -9,8 +9,7 @@ use aeris_runtime::{
     CycleOutcome, CycleReport, FlightBus, MissionSpec, Role, RoleContext, RoleError, RoleSpec,
 };
 use aeris_schemas::{
-    ActionMode, BoundSetpoint, Decision, DecisionLimits, HubReport, PerceptionState,
-    VehicleTelemetry, topics,
+    ActionMode, Decision, DecisionLimits, PerceptionState, VehicleTelemetry, topics,
 };
 
 fn spec(flight: &str) -> RoleSpec {
@@ -95,19 +94,11 @@ fn decisions_in_setpoints_and_reports_out() {
     assert_eq!(role.period().as_millis(), 20);
 
     let peer = FlightBus::builder(&f).node_name("peer").create().unwrap();
-    let decisions = peer
-        .publisher::<Decision>(topics::REASONING_DECISION)
-        .unwrap();
-    let states = peer
-        .publisher::<PerceptionState>(topics::PERCEPTION_STATE)
-        .unwrap();
-    let telemetry = peer
-        .publisher::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)
-        .unwrap();
-    let setpoints = peer
-        .subscriber::<BoundSetpoint>(topics::HUB_SETPOINT)
-        .unwrap();
-    let reports = peer.subscriber::<HubReport>(topics::HUB_REPORT).unwrap();
+    let decisions = peer.publisher::<topics::ReasoningDecision>().unwrap();
+    let states = peer.publisher::<topics::PerceptionState>().unwrap();
+    let telemetry = peer.publisher::<topics::VehicleTelemetry>().unwrap();
+    let setpoints = peer.subscriber::<topics::HubSetpoint>().unwrap();
+    let reports = peer.subscriber::<topics::HubReport>().unwrap();
 
     // nothing in: nothing out
     let mut report = CycleReport::default();

@@ -49,7 +49,7 @@ pub mod replay;
 pub mod writer;
 
 use aeris_runtime::bus::{BusError, FrameSubscriber};
-use aeris_runtime::raw::{RawSubscriber, raw_subscriber};
+use aeris_runtime::raw::{RawSubscriber, frame_subscriber, raw_subscriber};
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{RecorderCounters, RoleStatus, topics};
 use codec::{ImageFormat, Payload, PayloadCodec, bytes_of, payload_of};
@@ -133,10 +133,10 @@ pub struct RecorderRole {
 fn subscribe(ctx: &RoleContext, topic: &str, payload: Payload) -> Result<Source, BusError> {
     Ok(match payload {
         Payload::Frame => Source::Frames {
-            sub: ctx.bus.frame_subscriber(topic)?,
+            sub: frame_subscriber(&ctx.bus, topic)?,
             seen: 0,
         },
-        typed => Source::Typed(raw_subscriber(&ctx.bus, topic, typed)?),
+        _ => Source::Typed(raw_subscriber(&ctx.bus, topic)?),
     })
 }
 

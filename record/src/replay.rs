@@ -232,9 +232,11 @@ impl Role for ReplaySource {
             .spawn(move || read_ahead(recording, (t0_rec, lead, to), items_tx, recycle_rx))
             .map_err(|e| RoleError::Config(format!("replay: starting the reader: {e}")))?;
         Ok(Self {
-            rgb: ctx.bus.frame_publisher(topics::CAMERA_RGB, frame_bytes)?,
-            depth: ctx.bus.frame_publisher(topics::CAMERA_DEPTH, frame_bytes)?,
-            telemetry: ctx.bus.publisher(topics::VEHICLE_TELEMETRY)?,
+            rgb: ctx.bus.frame_publisher::<topics::CameraRgb>(frame_bytes)?,
+            depth: ctx
+                .bus
+                .frame_publisher::<topics::CameraDepth>(frame_bytes)?,
+            telemetry: ctx.bus.publisher::<topics::VehicleTelemetry>()?,
             items,
             recycle,
             reader: Some(reader),

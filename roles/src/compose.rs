@@ -173,13 +173,13 @@ impl Role for ComposeRole {
         }
         Ok(Self {
             subs: [
-                ctx.bus.subscriber(topics::PERCEPTION_TEXT)?,
-                ctx.bus.subscriber(topics::PERCEPTION_DETECTIONS)?,
-                ctx.bus.subscriber(topics::PERCEPTION_CUES)?,
-                ctx.bus.subscriber(topics::PERCEPTION_OCCUPANCY)?,
+                ctx.bus.subscriber::<topics::PerceptionText>()?,
+                ctx.bus.subscriber::<topics::PerceptionDetections>()?,
+                ctx.bus.subscriber::<topics::PerceptionCues>()?,
+                ctx.bus.subscriber::<topics::PerceptionOccupancy>()?,
             ],
             held: [None, None, None, None],
-            out: ctx.bus.publisher(topics::PERCEPTION_STATE)?,
+            out: ctx.bus.publisher::<topics::PerceptionState>()?,
             pending: None,
             done_frame: 0,
             kinds_seen: 0,

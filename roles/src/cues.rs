@@ -127,9 +127,9 @@ impl Role for CueRole {
             .embed_into(&texts, &mut subgoals)
             .map_err(|e| RoleError::step("embedding the mission's subgoals", e))?;
         Ok(Self {
-            texts: ctx.bus.subscriber(topics::PERCEPTION_TEXT)?,
-            detections: ctx.bus.subscriber(topics::PERCEPTION_DETECTIONS)?,
-            out: ctx.bus.publisher(topics::PERCEPTION_CUES)?,
+            texts: ctx.bus.subscriber::<topics::PerceptionText>()?,
+            detections: ctx.bus.subscriber::<topics::PerceptionDetections>()?,
+            out: ctx.bus.publisher::<topics::PerceptionCues>()?,
             embedder,
             subgoals,
             text: None,

@@ -176,10 +176,10 @@ impl<E: DetectionEngine> Role for DetectorRole<E> {
     fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
         let engine = E::new(ctx)?;
         Ok(Self {
-            rgb: ctx.bus.frame_subscriber(topics::CAMERA_RGB)?,
-            depth: ctx.bus.frame_subscriber(topics::CAMERA_DEPTH)?,
+            rgb: ctx.bus.frame_subscriber::<topics::CameraRgb>()?,
+            depth: ctx.bus.frame_subscriber::<topics::CameraDepth>()?,
             held_depth: None,
-            out: ctx.bus.publisher(topics::PERCEPTION_DETECTIONS)?,
+            out: ctx.bus.publisher::<topics::PerceptionDetections>()?,
             engine,
             stride: FrameStride::from_ctx(ctx),
             state: Box::default(),

@@ -108,8 +108,8 @@ impl Role for OccupancyRole {
             None
         };
         Ok(Self {
-            depth: ctx.bus.frame_subscriber(topics::CAMERA_DEPTH)?,
-            out: ctx.bus.publisher(topics::PERCEPTION_OCCUPANCY)?,
+            depth: ctx.bus.frame_subscriber::<topics::CameraDepth>()?,
+            out: ctx.bus.publisher::<topics::PerceptionOccupancy>()?,
             learned,
             stride: FrameStride::from_ctx(ctx),
             state: Box::default(),

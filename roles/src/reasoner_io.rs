@@ -21,7 +21,7 @@ use crate::planner::Planner;
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleReport, RoleContext, RoleError};
-use aeris_schemas::{BoundSetpoint, Decision, PerceptionState, VehicleTelemetry, topics};
+use aeris_schemas::{Decision, PerceptionState, VehicleTelemetry, topics};
 use core::time::Duration;
 
 /// How often the reasoning roles look for a fresh S_t.
@@ -39,7 +39,7 @@ pub const RESUME_WAIT: Duration = Duration::from_millis(250);
 /// `hub/setpoint`, which its history hands to a new subscriber, waited for up to `wait`.
 /// `None` before the first decision of the flight.
 pub fn hub_active_step(ctx: &RoleContext, wait: Duration) -> Result<Option<u16>, RoleError> {
-    let setpoints = ctx.bus.subscriber::<BoundSetpoint>(topics::HUB_SETPOINT)?;
+    let setpoints = ctx.bus.subscriber::<topics::HubSetpoint>()?;
     let deadline = monotonic_ns().saturating_add(aeris_runtime::clock::duration_ns(wait));
     loop {
         if let Some(sp) = setpoints.latest()?
@@ -139,9 +139,9 @@ impl ReasonerIo {
             clock = clock.first_state_max_age(first_state_max_age(ctx, decision));
         }
         Ok(Self {
-            states: ctx.bus.subscriber(topics::PERCEPTION_STATE)?,
-            telemetry: ctx.bus.subscriber(topics::VEHICLE_TELEMETRY)?,
-            decisions: ctx.bus.publisher(topics::REASONING_DECISION)?,
+            states: ctx.bus.subscriber::<topics::PerceptionState>()?,
+            telemetry: ctx.bus.subscriber::<topics::VehicleTelemetry>()?,
+            decisions: ctx.bus.publisher::<topics::ReasoningDecision>()?,
             clock,
             state: None,
             fresh_state: false,

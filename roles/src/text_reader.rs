@@ -61,8 +61,8 @@ impl Role for TextReaderRole {
             .warm_up(camera.width as usize, camera.height as usize)
             .map_err(|e| RoleError::step("warming up PP-OCR", e))?;
         Ok(Self {
-            rgb: ctx.bus.frame_subscriber(topics::CAMERA_RGB)?,
-            out: ctx.bus.publisher(topics::PERCEPTION_TEXT)?,
+            rgb: ctx.bus.frame_subscriber::<topics::CameraRgb>()?,
+            out: ctx.bus.publisher::<topics::PerceptionText>()?,
             reader,
             stride: FrameStride::from_ctx(ctx),
             regions: Vec::with_capacity(aeris_models::ocr::MAX_REGIONS),

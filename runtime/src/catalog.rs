@@ -16,6 +16,11 @@ pub struct RoleKind {
     pub subscribes: &'static [&'static str],
     /// Topics the kind publishes (besides `heartbeat`, which every role publishes).
     pub publishes: &'static [&'static str],
+    /// Topics the kind reads the latest sample of now and then, never waiting for one (a
+    /// reasoner reads the hub's last setpoint when it starts, to resume at the hub's active
+    /// step). Such a read orders nothing, so it closes no cycle in the flight's graph; it
+    /// still crosses hosts like a subscription.
+    pub reads_latest: &'static [&'static str],
     /// What it does, for `--help` and errors.
     pub summary: &'static str,
     /// `None`: a running role of this kind can be hot-swapped make-before-break (old and new
@@ -30,6 +35,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         variants: &["sim-multirotor"],
         subscribes: &[],
         publishes: &[],
+        reads_latest: &[],
         summary: "built-in simulated multirotor behind a MAVLink 1/2 endpoint, playing PX4 (offboard) or ArduPilot Copter (guided)",
         swap_refusal: Some("two vehicles would share one MAVLink endpoint"),
     },
@@ -38,6 +44,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         variants: &["sim-render", "gstreamer"],
         subscribes: &[topics::VEHICLE_TELEMETRY],
         publishes: &[topics::CAMERA_RGB, topics::CAMERA_DEPTH],
+        reads_latest: &[],
         summary: "FPV frames: `sim-render` renders the built-in world at the vehicle's pose; `gstreamer` captures any GStreamer pipeline (params.pipeline, depth_pipeline)",
         swap_refusal: Some("two cameras would number the same frames twice"),
     },
@@ -46,6 +53,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         variants: &["geometric"],
         subscribes: &[topics::CAMERA_RGB, topics::CAMERA_DEPTH],
         publishes: &[topics::PERCEPTION_STATE],
+        reads_latest: &[],
         summary: "frames -> S_t: colour-segment detections, scene summary, depth occupancy grid",
         swap_refusal: None,
     },
@@ -54,6 +62,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         variants: &["ppocr"],
         subscribes: &[topics::CAMERA_RGB],
         publishes: &[topics::PERCEPTION_TEXT],
+        reads_latest: &[],
         summary: "reads sign text in FPV frames (PP-OCRv4 detection + recognition, ONNX Runtime)",
         swap_refusal: None,
     },
@@ -62,6 +71,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         variants: &["yolo", "yolov8", "palette"],
         subscribes: &[topics::CAMERA_RGB, topics::CAMERA_DEPTH],
         publishes: &[topics::PERCEPTION_DETECTIONS],
+        reads_latest: &[],
         summary: "object detections with range (YOLO COCO / YOLOv8-layout via ONNX Runtime, or palette)",
         swap_refusal: None,
     },
@@ -70,6 +80,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         variants: &["minilm"],
         subscribes: &[topics::PERCEPTION_TEXT, topics::PERCEPTION_DETECTIONS],
         publishes: &[topics::PERCEPTION_CUES],
+        reads_latest: &[],
         summary: "top-k instruction cues and subgoal relevance from MiniLM sentence embeddings",
         swap_refusal: None,
     },
@@ -78,6 +89,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         variants: &["depth", "onnx"],
         subscribes: &[topics::CAMERA_DEPTH],
         publishes: &[topics::PERCEPTION_OCCUPANCY],
+        reads_latest: &[],
         summary: "ego occupancy grid from depth (`onnx`: slot for a learned model, needs params.model)",
         swap_refusal: None,
     },
@@ -91,6 +103,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
             topics::PERCEPTION_OCCUPANCY,
         ],
         publishes: &[topics::PERCEPTION_STATE],
+        reads_latest: &[],
         summary: "composes S_t and its scene summary from the blocks (`vlm`: no weights exist, refuses)",
         swap_refusal: None,
     },
@@ -99,6 +112,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         variants: &["planner", "garbage", "random", "smollm2", "gemma3"],
         subscribes: &[topics::PERCEPTION_STATE, topics::VEHICLE_TELEMETRY],
         publishes: &[topics::REASONING_DECISION],
+        reads_latest: &[topics::HUB_SETPOINT],
         summary: "(S_t, G, M) -> D_t every heartbeat: planner, GGUF language models under the D_t grammar, `garbage` fault injector, `random` VLN baseline",
         swap_refusal: None,
     },
@@ -111,6 +125,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
             topics::VEHICLE_TELEMETRY,
         ],
         publishes: &[topics::HUB_SETPOINT, topics::HUB_REPORT],
+        reads_latest: &[],
         summary: "decision gate (validate, clamp, bind), deadline, ordered delivery, ATT",
         swap_refusal: Some("two hubs would both send setpoints"),
     },
@@ -127,6 +142,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
             topics::CONTROLLER_LEASE,
             topics::CONTROLLER_LINK,
         ],
+        reads_latest: &[],
         summary: "tracks setpoints at the control rate and talks MAVLink 1 or 2 to a PX4 or ArduPilot autopilot; a hot standby takes the autopilot lease when the holder goes silent",
         swap_refusal: Some(
             "a controller is replaced by its hot standby (a second controller role), not swapped",
@@ -139,6 +155,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         // (`Workflow::fit_recorders`)
         subscribes: &topics::ALL,
         publishes: &[],
+        reads_latest: &[],
         summary: "records every topic of the flight into an MCAP file (JSON and raw shared-memory bytes, images at a reduced rate); never slows the flight",
         swap_refusal: None,
     },
@@ -148,6 +165,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         // the topics that cross between two hosts, given in its params by the supervisor
         subscribes: &[],
         publishes: &[],
+        reads_latest: &[],
         summary: "carries the topics that cross between the flight's host and another host over zenoh: exact bytes, schema checked per message (added by the supervisor)",
         swap_refusal: Some(
             "a bridge is a flight's link to another host: it restarts, it is not swapped",
@@ -162,6 +180,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
             topics::CAMERA_DEPTH,
             topics::VEHICLE_TELEMETRY,
         ],
+        reads_latest: &[],
         summary: "the camera and the vehicle of a replayed flight: a recording's exact frames and telemetry at their recorded times (`aeris replay`)",
         swap_refusal: Some("two sources would publish the recording twice"),
     },
@@ -170,6 +189,7 @@ pub const ROLE_KINDS: &[RoleKind] = &[
         variants: &["parser", "qwen-coder", "smollm2", "gemma3"],
         subscribes: &[topics::VEHICLE_TELEMETRY],
         publishes: &[topics::HUB_SETPOINT],
+        reads_latest: &[],
         summary: "flies several vehicles in formation from the mission's instruction: writes a formation program (parser or a GGUF model under a grammar), checks and repairs it in simulation, then tracks every vehicle's slot at the control rate (the vehicles' `hub/setpoint`), replanning when a vehicle is lost",
         swap_refusal: Some("the program being flown lives in the formation process"),
     },

@@ -7,59 +7,11 @@
 use crate::bus::{
     BusError, FlightBus, FramePublisher, FrameSubscriber, TypedPublisher, TypedSubscriber,
 };
-use aeris_schemas::{
-    AutopilotLinkStatus, BoundSetpoint, ControllerLease, Decision, FrameHeader, HostLinkStatus,
-    HubReport, PerceptionState, RoleHeartbeat, VehicleTelemetry, ZeroCopySend, topics,
-};
+use aeris_schemas::{FrameHeader, ZeroCopySend, topics, with_payload_type};
 use core::fmt::Debug;
 use iceoryx2::identifiers::UniquePublisherId;
 
-/// The payload type behind a topic.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Payload {
-    /// Frames (`[u8]` with a [`FrameHeader`]): the header is the typed message.
-    Frame,
-    /// [`PerceptionState`] (S_t or one of its blocks).
-    State,
-    /// [`Decision`].
-    Decision,
-    /// [`BoundSetpoint`].
-    Setpoint,
-    /// [`HubReport`].
-    HubReport,
-    /// [`VehicleTelemetry`].
-    Telemetry,
-    /// [`ControllerLease`].
-    Lease,
-    /// [`AutopilotLinkStatus`].
-    Link,
-    /// [`HostLinkStatus`].
-    HostLink,
-    /// [`RoleHeartbeat`].
-    Heartbeat,
-}
-
-/// The payload type of `topic`, if it is one of [`topics::ALL`], in a vehicle's scope or not
-/// (`v2/vehicle/telemetry` carries what `vehicle/telemetry` does, [`topics::split_vehicle`]).
-pub fn payload_of(topic: &str) -> Option<Payload> {
-    Some(match topics::split_vehicle(topic).1 {
-        topics::CAMERA_RGB | topics::CAMERA_DEPTH => Payload::Frame,
-        topics::PERCEPTION_STATE
-        | topics::PERCEPTION_TEXT
-        | topics::PERCEPTION_DETECTIONS
-        | topics::PERCEPTION_CUES
-        | topics::PERCEPTION_OCCUPANCY => Payload::State,
-        topics::REASONING_DECISION => Payload::Decision,
-        topics::HUB_SETPOINT => Payload::Setpoint,
-        topics::HUB_REPORT => Payload::HubReport,
-        topics::VEHICLE_TELEMETRY => Payload::Telemetry,
-        topics::CONTROLLER_LEASE => Payload::Lease,
-        topics::CONTROLLER_LINK => Payload::Link,
-        topics::HOSTS_LINK => Payload::HostLink,
-        topics::HEARTBEAT => Payload::Heartbeat,
-        _ => return None,
-    })
-}
+pub use aeris_schemas::topics::{Payload, payload_of};
 
 /// The bytes of a plain `#[repr(C)]` payload as they lie in memory (for a sample: in shared
 /// memory, exactly what the publisher wrote, padding included).
@@ -83,43 +35,6 @@ pub fn read<T: ZeroCopySend + Copy>(bytes: &[u8]) -> Option<T> {
 fn type_name_of<T: ZeroCopySend>() -> &'static str {
     // SAFETY: type_name has no preconditions; it is unsafe only to discourage overriding.
     unsafe { <T as ZeroCopySend>::type_name() }
-}
-
-impl Payload {
-    /// The iceoryx2 type name (`aeris::Decision@s8`).
-    pub fn type_name(self) -> &'static str {
-        match self {
-            Payload::Frame => type_name_of::<FrameHeader>(),
-            Payload::State => type_name_of::<PerceptionState>(),
-            Payload::Decision => type_name_of::<Decision>(),
-            Payload::Setpoint => type_name_of::<BoundSetpoint>(),
-            Payload::HubReport => type_name_of::<HubReport>(),
-            Payload::Telemetry => type_name_of::<VehicleTelemetry>(),
-            Payload::Lease => type_name_of::<ControllerLease>(),
-            Payload::Link => type_name_of::<AutopilotLinkStatus>(),
-            Payload::HostLink => type_name_of::<HostLinkStatus>(),
-            Payload::Heartbeat => type_name_of::<RoleHeartbeat>(),
-        }
-    }
-
-    /// Size and alignment of the payload (of the header, for frames).
-    pub fn layout(self) -> (usize, usize) {
-        fn l<T>() -> (usize, usize) {
-            (size_of::<T>(), align_of::<T>())
-        }
-        match self {
-            Payload::Frame => l::<FrameHeader>(),
-            Payload::State => l::<PerceptionState>(),
-            Payload::Decision => l::<Decision>(),
-            Payload::Setpoint => l::<BoundSetpoint>(),
-            Payload::HubReport => l::<HubReport>(),
-            Payload::Telemetry => l::<VehicleTelemetry>(),
-            Payload::Lease => l::<ControllerLease>(),
-            Payload::Link => l::<AutopilotLinkStatus>(),
-            Payload::HostLink => l::<HostLinkStatus>(),
-            Payload::Heartbeat => l::<RoleHeartbeat>(),
-        }
-    }
 }
 
 /// What takes a sample as bytes: its payload's bytes (a frame's header), a frame's pixels
@@ -164,24 +79,35 @@ impl RawSubscriber for FrameSubscriber {
     }
 }
 
-/// A subscriber of `topic` (of type `payload`) taken as bytes.
-pub fn raw_subscriber(
-    bus: &FlightBus,
-    topic: &str,
-    payload: Payload,
-) -> Result<Box<dyn RawSubscriber>, BusError> {
+/// The declaration of `topic` (a name of one of [`topics::ALL`], maybe in a vehicle's scope)
+/// and its payload.
+fn declared(topic: &str) -> Result<(&'static topics::TopicInfo, Payload), BusError> {
+    topics::info(topic)
+        .and_then(|info| Some((info, info.payload?)))
+        .ok_or_else(|| BusError::UnknownTopic {
+            topic: topic.to_string(),
+        })
+}
+
+/// A subscriber of `topic` (one of [`topics::ALL`], maybe in a vehicle's scope) taken as
+/// bytes.
+pub fn raw_subscriber(bus: &FlightBus, topic: &str) -> Result<Box<dyn RawSubscriber>, BusError> {
+    let (info, payload) = declared(topic)?;
     Ok(match payload {
-        Payload::Frame => Box::new(bus.frame_subscriber(topic)?),
-        Payload::State => Box::new(bus.subscriber::<PerceptionState>(topic)?),
-        Payload::Decision => Box::new(bus.subscriber::<Decision>(topic)?),
-        Payload::Setpoint => Box::new(bus.subscriber::<BoundSetpoint>(topic)?),
-        Payload::HubReport => Box::new(bus.subscriber::<HubReport>(topic)?),
-        Payload::Telemetry => Box::new(bus.subscriber::<VehicleTelemetry>(topic)?),
-        Payload::Lease => Box::new(bus.subscriber::<ControllerLease>(topic)?),
-        Payload::Link => Box::new(bus.subscriber::<AutopilotLinkStatus>(topic)?),
-        Payload::HostLink => Box::new(bus.subscriber::<HostLinkStatus>(topic)?),
-        Payload::Heartbeat => Box::new(bus.subscriber::<RoleHeartbeat>(topic)?),
+        Payload::Frame => Box::new(bus.frame_subscriber_on(topic, info)?),
+        message => with_payload_type!(message, T => Box::new(bus.subscriber_on::<T>(topic, info)?)),
     })
+}
+
+/// A subscriber of the frame topic `topic` (one of [`topics::ALL`], maybe in a vehicle's
+/// scope), for who handles a frame's pixels apart from its header (the recorder).
+pub fn frame_subscriber(bus: &FlightBus, topic: &str) -> Result<FrameSubscriber, BusError> {
+    match declared(topic)? {
+        (info, Payload::Frame) => bus.frame_subscriber_on(topic, info),
+        _ => Err(BusError::NotFrames {
+            topic: topic.to_string(),
+        }),
+    }
 }
 
 /// Why bytes could not be published as a payload.
@@ -249,24 +175,17 @@ impl RawPublisher for FramePublisher {
     }
 }
 
-/// A publisher of `topic` (of type `payload`) fed with bytes; frames start with room for
-/// `frame_bytes` pixels (the publisher grows for larger ones).
+/// A publisher of `topic` (one of [`topics::ALL`], maybe in a vehicle's scope) fed with
+/// bytes; frames start with room for `frame_bytes` pixels (the publisher grows for larger
+/// ones).
 pub fn raw_publisher(
     bus: &FlightBus,
     topic: &str,
-    payload: Payload,
     frame_bytes: usize,
 ) -> Result<Box<dyn RawPublisher>, BusError> {
+    let (info, payload) = declared(topic)?;
     Ok(match payload {
-        Payload::Frame => Box::new(bus.frame_publisher(topic, frame_bytes)?),
-        Payload::State => Box::new(bus.publisher::<PerceptionState>(topic)?),
-        Payload::Decision => Box::new(bus.publisher::<Decision>(topic)?),
-        Payload::Setpoint => Box::new(bus.publisher::<BoundSetpoint>(topic)?),
-        Payload::HubReport => Box::new(bus.publisher::<HubReport>(topic)?),
-        Payload::Telemetry => Box::new(bus.publisher::<VehicleTelemetry>(topic)?),
-        Payload::Lease => Box::new(bus.publisher::<ControllerLease>(topic)?),
-        Payload::Link => Box::new(bus.publisher::<AutopilotLinkStatus>(topic)?),
-        Payload::HostLink => Box::new(bus.publisher::<HostLinkStatus>(topic)?),
-        Payload::Heartbeat => Box::new(bus.publisher::<RoleHeartbeat>(topic)?),
+        Payload::Frame => Box::new(bus.frame_publisher_on(topic, info, frame_bytes)?),
+        message => with_payload_type!(message, T => Box::new(bus.publisher_on::<T>(topic, info)?)),
     })
 }

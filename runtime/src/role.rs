@@ -145,7 +145,7 @@ impl RoleHost {
             .node_name(&spec.name)
             .vehicle(spec.vehicle)
             .create()?;
-        let heartbeats: TypedPublisher<RoleHeartbeat> = bus.publisher(topics::HEARTBEAT)?;
+        let heartbeats: TypedPublisher<RoleHeartbeat> = bus.publisher::<topics::Heartbeat>()?;
         let mut ctx = RoleContext {
             spec,
             bus,

@@ -12,10 +12,8 @@ fn typed_messages_cross_between_nodes_of_one_flight() {
     let f = flight("typed");
     let a = FlightBus::builder(&f).node_name("a").create().unwrap();
     let b = FlightBus::builder(&f).node_name("b").create().unwrap();
-    let publisher = a.publisher::<Decision>(topics::REASONING_DECISION).unwrap();
-    let subscriber = b
-        .subscriber::<Decision>(topics::REASONING_DECISION)
-        .unwrap();
+    let publisher = a.publisher::<topics::ReasoningDecision>().unwrap();
+    let subscriber = b.subscriber::<topics::ReasoningDecision>().unwrap();
     for seq in 1..=3 {
         publisher
             .publish(&Decision {
@@ -41,10 +39,8 @@ fn flights_do_not_cross_talk() {
         .node_name("b")
         .create()
         .unwrap();
-    let publisher = a.publisher::<Decision>(topics::REASONING_DECISION).unwrap();
-    let subscriber = b
-        .subscriber::<Decision>(topics::REASONING_DECISION)
-        .unwrap();
+    let publisher = a.publisher::<topics::ReasoningDecision>().unwrap();
+    let subscriber = b.subscriber::<topics::ReasoningDecision>().unwrap();
     publisher.publish(&Decision::default()).unwrap();
     assert_eq!(subscriber.next().unwrap(), None);
 }
@@ -65,18 +61,12 @@ fn a_vehicles_roles_talk_in_its_scope_and_the_flights_roles_reach_every_scope() 
         .unwrap();
     let ground = FlightBus::builder(&f).node_name("ground").create().unwrap();
     // vehicle 2's role publishes "reasoning/decision" as if it were alone in the flight
-    let from_v2 = v2
-        .publisher::<Decision>(topics::REASONING_DECISION)
-        .unwrap();
-    let at_v1 = v1
-        .subscriber::<Decision>(topics::REASONING_DECISION)
-        .unwrap();
+    let from_v2 = v2.publisher::<topics::ReasoningDecision>().unwrap();
+    let at_v1 = v1.subscriber::<topics::ReasoningDecision>().unwrap();
     let at_ground = ground
-        .subscriber::<Decision>(&topics::in_vehicle(2, topics::REASONING_DECISION))
+        .subscriber_in::<topics::ReasoningDecision>(Some(2))
         .unwrap();
-    let unscoped = ground
-        .subscriber::<Decision>(topics::REASONING_DECISION)
-        .unwrap();
+    let unscoped = ground.subscriber::<topics::ReasoningDecision>().unwrap();
     from_v2
         .publish(&Decision {
             seq: 7,
@@ -92,10 +82,8 @@ fn a_vehicles_roles_talk_in_its_scope_and_the_flights_roles_reach_every_scope() 
     );
     assert!(list_flight_services(&f).contains(&"v2/reasoning/decision".to_string()));
     // heartbeats stay flight-wide: the supervisor hears every vehicle's roles
-    let beats = ground
-        .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
-        .unwrap();
-    let beat = v1.publisher::<RoleHeartbeat>(topics::HEARTBEAT).unwrap();
+    let beats = ground.subscriber::<topics::Heartbeat>().unwrap();
+    let beat = v1.publisher::<topics::Heartbeat>().unwrap();
     beat.publish(&RoleHeartbeat::default()).unwrap();
     assert!(beats.next().unwrap().is_some());
 }
@@ -105,8 +93,8 @@ fn frames_travel_with_their_header() {
     let f = flight("frames");
     let a = FlightBus::builder(&f).node_name("cam").create().unwrap();
     let b = FlightBus::builder(&f).node_name("per").create().unwrap();
-    let publisher = a.frame_publisher(topics::CAMERA_RGB, 4 * 2 * 3).unwrap();
-    let subscriber = b.frame_subscriber(topics::CAMERA_RGB).unwrap();
+    let publisher = a.frame_publisher::<topics::CameraRgb>(4 * 2 * 3).unwrap();
+    let subscriber = b.frame_subscriber::<topics::CameraRgb>().unwrap();
     let header = FrameHeader {
         seq: 7,
         width: 4,
@@ -138,18 +126,24 @@ struct OldDecision {
     speed: f32,
 }
 
+/// `reasoning/decision` as a build with [`OldDecision`] declares it.
+struct OldDecisionTopic;
+
+impl topics::Topic for OldDecisionTopic {
+    const INFO: topics::TopicInfo = <topics::ReasoningDecision as topics::Topic>::INFO;
+}
+
+impl topics::MessageTopic for OldDecisionTopic {
+    type Message = OldDecision;
+}
+
 #[test]
 fn a_service_of_another_schema_is_refused_with_a_clear_error() {
     let f = flight("skew");
     let new = FlightBus::builder(&f).node_name("new").create().unwrap();
-    let _p = new
-        .publisher::<Decision>(topics::REASONING_DECISION)
-        .unwrap();
+    let _p = new.publisher::<topics::ReasoningDecision>().unwrap();
     let old = FlightBus::builder(&f).node_name("old").create().unwrap();
-    let err = old
-        .subscriber::<OldDecision>(topics::REASONING_DECISION)
-        .err()
-        .expect("refused");
+    let err = old.subscriber::<OldDecisionTopic>().err().expect("refused");
     assert!(
         matches!(err, BusError::IncompatibleSchema { .. }),
         "{err:?}"
@@ -172,9 +166,7 @@ fn joining_a_flight_logs_nothing_of_iceoryx2s_own() {
     if std::env::var_os(QUIET_CHILD).is_some() {
         let f = flight("quiet");
         let bus = FlightBus::builder(&f).node_name("quiet").create().unwrap();
-        let _publisher = bus
-            .publisher::<Decision>(topics::REASONING_DECISION)
-            .unwrap();
+        let _publisher = bus.publisher::<topics::ReasoningDecision>().unwrap();
         assert!(list_flight_services(&f).contains(&topics::REASONING_DECISION.to_string()));
         // iceoryx2's own paths that take its global configuration (the clean-up of a dead
         // node whose details are gone) find it set up, and say nothing either

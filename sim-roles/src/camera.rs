@@ -59,13 +59,11 @@ impl Role for CameraRole {
             .map_err(|e| RoleError::step("setting up the camera's renderer", e))?;
         let rgb = ctx
             .bus
-            .frame_publisher(topics::CAMERA_RGB, renderer.rgb_len())?;
+            .frame_publisher::<topics::CameraRgb>(renderer.rgb_len())?;
         let depth = ctx
             .bus
-            .frame_publisher(topics::CAMERA_DEPTH, renderer.depth_len())?;
-        let telemetry = ctx
-            .bus
-            .subscriber::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)?;
+            .frame_publisher::<topics::CameraDepth>(renderer.depth_len())?;
+        let telemetry = ctx.bus.subscriber::<topics::VehicleTelemetry>()?;
         let start = spec.mission.start;
         if !start.iter().all(|v| v.is_finite()) {
             return Err(RoleError::Config("mission start is not finite".into()));

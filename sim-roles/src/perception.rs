@@ -555,11 +555,9 @@ impl PerceptionRole {
 
 impl Role for PerceptionRole {
     fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
-        let rgb = ctx.bus.frame_subscriber(topics::CAMERA_RGB)?;
-        let depth = ctx.bus.frame_subscriber(topics::CAMERA_DEPTH)?;
-        let publisher = ctx
-            .bus
-            .publisher::<PerceptionState>(topics::PERCEPTION_STATE)?;
+        let rgb = ctx.bus.frame_subscriber::<topics::CameraRgb>()?;
+        let depth = ctx.bus.frame_subscriber::<topics::CameraDepth>()?;
+        let publisher = ctx.bus.publisher::<topics::PerceptionState>()?;
         Ok(Self {
             rgb,
             depth,

@@ -183,8 +183,8 @@ fn controller_flies_the_simulated_vehicle_holds_and_lands() {
         controller,
         cctx,
         report: CycleReport::default(),
-        publisher: hub.publisher(topics::HUB_SETPOINT).unwrap(),
-        telemetry: hub.subscriber(topics::VEHICLE_TELEMETRY).unwrap(),
+        publisher: hub.publisher::<topics::HubSetpoint>().unwrap(),
+        telemetry: hub.subscriber::<topics::VehicleTelemetry>().unwrap(),
         last: None,
         seq: 0,
     };

@@ -103,12 +103,8 @@ fn camera_and_perception_cycles_allocate_only_inside_the_transport() {
         .node_name("tool")
         .create()
         .unwrap();
-    let telemetry = tool
-        .publisher::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)
-        .unwrap();
-    let states = tool
-        .subscriber::<PerceptionState>(topics::PERCEPTION_STATE)
-        .unwrap();
+    let telemetry = tool.publisher::<topics::VehicleTelemetry>().unwrap();
+    let states = tool.subscriber::<topics::PerceptionState>().unwrap();
     // warm-up round (first sends may set up connections)
     telemetry
         .publish(&VehicleTelemetry {

@@ -3,8 +3,7 @@
 
 use aeris_runtime::{CycleOutcome, CycleReport, FlightBus, Role, RoleContext, RoleError, RoleSpec};
 use aeris_schemas::{
-    CameraCounters, FrameFormat, FrameHeader, GeometricPerceptionCounters, PerceptionState,
-    VehicleTelemetry, topics,
+    CameraCounters, FrameFormat, FrameHeader, GeometricPerceptionCounters, VehicleTelemetry, topics,
 };
 use aeris_sim::render::CAMERA_MOUNT_HEIGHT_M;
 use aeris_sim_roles::camera::CameraRole;
@@ -55,13 +54,9 @@ fn frames_from_the_camera_become_perception_states() {
     let mut perception = PerceptionRole::new(&mut per_ctx).unwrap();
     assert_eq!(camera.period(), std::time::Duration::from_millis(100));
     assert_eq!(perception.period(), std::time::Duration::from_millis(20));
-    let telemetry = tool
-        .publisher::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)
-        .unwrap();
-    let states = tool
-        .subscriber::<PerceptionState>(topics::PERCEPTION_STATE)
-        .unwrap();
-    let rgb_frames = tool.frame_subscriber(topics::CAMERA_RGB).unwrap();
+    let telemetry = tool.publisher::<topics::VehicleTelemetry>().unwrap();
+    let states = tool.subscriber::<topics::PerceptionState>().unwrap();
+    let rgb_frames = tool.frame_subscriber::<topics::CameraRgb>().unwrap();
 
     // before any telemetry: the mission start, yaw 0
     let mut report = CycleReport::default();
@@ -155,11 +150,9 @@ fn mismatched_frame_pairs_are_rejected() {
     let mut per_ctx = ctx(&f, "perception", "geometric", "village");
     let tool = FlightBus::builder(&f).node_name("tool").create().unwrap();
     let mut perception = PerceptionRole::new(&mut per_ctx).unwrap();
-    let rgb = tool.frame_publisher(topics::CAMERA_RGB, 24).unwrap();
-    let depth = tool.frame_publisher(topics::CAMERA_DEPTH, 16).unwrap();
-    let states = tool
-        .subscriber::<PerceptionState>(topics::PERCEPTION_STATE)
-        .unwrap();
+    let rgb = tool.frame_publisher::<topics::CameraRgb>(24).unwrap();
+    let depth = tool.frame_publisher::<topics::CameraDepth>(16).unwrap();
+    let states = tool.subscriber::<topics::PerceptionState>().unwrap();
     let h = FrameHeader {
         seq: 5,
         capture_ns: 10,

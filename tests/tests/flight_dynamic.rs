@@ -8,7 +8,7 @@
 
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::bus::FlightBus;
-use aeris_schemas::{RoleHeartbeat, RoleStatusEntry, SupervisorStatus, topics};
+use aeris_schemas::{RoleStatusEntry, SupervisorStatus, topics};
 use aeris_tests::*;
 use std::process::Command;
 use std::time::Duration;
@@ -56,9 +56,7 @@ fn a_role_moves_live_and_a_stopped_role_is_replaced_while_the_flight_completes()
     );
     let before = entry(&board, "reasoning").unwrap();
     let hub = entry(&board, "hub").unwrap();
-    let heartbeats = observer
-        .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
-        .unwrap();
+    let heartbeats = observer.subscriber::<topics::Heartbeat>().unwrap();
     let target_cpus = CpuSet::parse(hub.cpus.as_str().unwrap()).unwrap();
 
     // --- live move by hand

@@ -10,7 +10,7 @@
 use aeris_runtime::FlightBus;
 use aeris_runtime::bus::{FrameSubscriber, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
-use aeris_schemas::{CameraCounters, FrameFormat, RoleHeartbeat, VehicleTelemetry, topics};
+use aeris_schemas::{CameraCounters, FrameFormat, VehicleTelemetry, topics};
 use aeris_tests::*;
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -43,7 +43,7 @@ fn start_camera(tag: &str, params: serde_json::Value) -> Camera {
         .node_name("test")
         .create()
         .unwrap();
-    let rgb = bus.frame_subscriber(topics::CAMERA_RGB).unwrap();
+    let rgb = bus.frame_subscriber::<topics::CameraRgb>().unwrap();
     let spec = role_spec(&flight, "camera", "camera", "gstreamer", params);
     let path = write_spec(&dir.0, &spec);
     let log = dir.0.join("camera.log");
@@ -157,9 +157,9 @@ fn frames_are_posed_at_the_vehicle_telemetry_and_no_depth_is_made_up() {
         "gstcam-pose",
         serde_json::json!({ "pipeline": solid(0xff00_ff00, 160, 120) }),
     );
-    let depth = cam.bus.frame_subscriber(topics::CAMERA_DEPTH).unwrap();
+    let depth = cam.bus.frame_subscriber::<topics::CameraDepth>().unwrap();
     let telemetry: TypedPublisher<VehicleTelemetry> =
-        cam.bus.publisher(topics::VEHICLE_TELEMETRY).unwrap();
+        cam.bus.publisher::<topics::VehicleTelemetry>().unwrap();
     let at = [12.0f32, -7.5, 20.0];
     let mut seq = 0;
     // publish the pose until a frame captured after it carries it
@@ -203,10 +203,7 @@ fn a_pipeline_that_ends_is_restarted_and_frames_come_again() {
             "pipeline": "videotestsrc is-live=true num-buffers=5 pattern=solid-color foreground-color=0xffffffff ! appsink sync=false",
         }),
     );
-    let heartbeats = cam
-        .bus
-        .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
-        .unwrap();
+    let heartbeats = cam.bus.subscriber::<topics::Heartbeat>().unwrap();
     let mut max_seq = 0;
     let counters = poll_until(BOUND, || {
         while let Some(f) = cam.rgb.next().unwrap() {
@@ -299,10 +296,7 @@ fn a_video_file_plays_at_its_rate_ends_and_plays_again_from_its_start() {
             ),
         }),
     );
-    let heartbeats = cam
-        .bus
-        .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
-        .unwrap();
+    let heartbeats = cam.bus.subscriber::<topics::Heartbeat>().unwrap();
     let mut frames = 0u64;
     let counters = poll_until(BOUND, || {
         while let Some(f) = cam.rgb.next().unwrap() {

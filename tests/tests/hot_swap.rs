@@ -148,17 +148,13 @@ fn roles_are_hot_swapped_during_a_flight_and_broken_variants_roll_back() {
     let before = poll_flight(&mut run, &dir.0, "the flight came up", UP_BOUND, || {
         observer.read_status_board().ok().filter(board_ok)
     });
-    let telemetry = observer
-        .subscriber::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)
-        .unwrap();
+    let telemetry = observer.subscriber::<topics::VehicleTelemetry>().unwrap();
     let counters_before = controller_counters(&telemetry);
 
     // 1. the reasoner: SmolLM2 -> Gemma-3-270M, its heartbeats watched meanwhile
     let old = entry(&before, "reasoning");
     assert_eq!(old.variant.as_str(), Some("smollm2"));
-    let heartbeats = observer
-        .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
-        .unwrap();
+    let heartbeats = observer.subscriber::<topics::Heartbeat>().unwrap();
     let swapping = {
         let flight = flight.clone();
         std::thread::spawn(move || swap(&flight, "reasoning", "gemma3"))

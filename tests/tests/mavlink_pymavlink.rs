@@ -261,15 +261,9 @@ fn fly_against_pymavlink_peer_with(
         .node_name("test-hub")
         .create()
         .unwrap();
-    let hub = bus
-        .publisher::<BoundSetpoint>(topics::HUB_SETPOINT)
-        .unwrap();
-    let telemetry = bus
-        .subscriber::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)
-        .unwrap();
-    let link_status = bus
-        .subscriber::<AutopilotLinkStatus>(topics::CONTROLLER_LINK)
-        .unwrap();
+    let hub = bus.publisher::<topics::HubSetpoint>().unwrap();
+    let telemetry = bus.subscriber::<topics::VehicleTelemetry>().unwrap();
+    let link_status = bus.subscriber::<topics::ControllerLink>().unwrap();
     let mut last_link: Option<AutopilotLinkStatus> = None;
 
     let start = Instant::now();

@@ -9,7 +9,7 @@
 //! the video, cost the `V`.)
 
 use aeris_runtime::FlightBus;
-use aeris_schemas::{PerceptionState, topics};
+use aeris_schemas::topics;
 use aeris_tests::*;
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -53,9 +53,7 @@ fn the_text_reader_reads_the_sign_off_decoded_video() {
         .node_name("test")
         .create()
         .unwrap();
-    let text = bus
-        .subscriber::<PerceptionState>(topics::PERCEPTION_TEXT)
-        .unwrap();
+    let text = bus.subscriber::<topics::PerceptionText>().unwrap();
     let pipeline = format!(
         "udpsrc port={port} caps=\"application/x-rtp,media=video,clock-rate=90000,\
          encoding-name=H264,payload=96\" ! rtph264depay ! avdec_h264 ! appsink sync=false"

@@ -21,7 +21,7 @@ use aeris_geometry::CAMERA_MOUNT_HEIGHT_M;
 use aeris_runtime::FlightBus;
 use aeris_runtime::bus::{BusError, flight_node_alive, list_flights};
 use aeris_runtime::clock::{monotonic_ns, sleep_until_ns};
-use aeris_schemas::{VehicleTelemetry, topics};
+use aeris_schemas::topics;
 use aeris_sim::render::{RenderError, Renderer};
 use aeris_sim::world::World;
 use core::time::Duration;
@@ -373,7 +373,7 @@ pub fn follow(
         .create()
         .map_err(bus_error)?;
     let telemetry = bus
-        .subscriber::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)
+        .subscriber::<topics::VehicleTelemetry>()
         .map_err(bus_error)?;
     let mut encoder = Encoder::new(&EncoderConfig {
         width: camera.width,

@@ -19,7 +19,7 @@ impl HostLinks {
         let subscriber = if hosts.is_empty() {
             None
         } else {
-            Some(bus.subscriber::<HostLinkStatus>(topics::HOSTS_LINK)?)
+            Some(bus.subscriber::<topics::HostsLink>()?)
         };
         let links = hosts
             .iter()

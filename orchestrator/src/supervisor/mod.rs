@@ -77,7 +77,7 @@ use crate::rebind::RebindPolicy;
 use crate::workflow::{SchedulingSpec, Workflow};
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::bus::{BusError, FlightBus};
-use aeris_schemas::{RoleHeartbeat, SupervisorStatus, topics};
+use aeris_schemas::{SupervisorStatus, topics};
 use board::StatusBoard;
 use control_service::ControlService;
 use heartbeats::HeartbeatIntake;
@@ -248,9 +248,7 @@ impl Supervisor {
             .node_name("supervisor")
             .create()
             .map_err(bus_err)?;
-        let heartbeats = bus
-            .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
-            .map_err(bus_err)?;
+        let heartbeats = bus.subscriber::<topics::Heartbeat>().map_err(bus_err)?;
         let board = bus.create_status_board().map_err(bus_err)?;
         let hosts: Vec<String> = workflow.hosts.iter().map(|h| h.name.clone()).collect();
         let host_links = HostLinks::new(&bus, &hosts).map_err(bus_err)?;

@@ -224,11 +224,10 @@ impl Workflow {
                 t == topics::HEARTBEAT || r.publishes.iter().any(|p| p == t)
             };
             // (a recorder on the flight's host reads what crosses too)
-            // a reasoner also reads `hub/setpoint` once when it starts, to resume at the
-            // hub's active step (not a declared subscription: it would make a cycle)
             let reads = |r: &super::RoleDecl, t: &str| {
                 r.subscribes.iter().any(|s| s == t)
-                    || (r.kind == "reasoning" && t == topics::HUB_SETPOINT)
+                    || aeris_runtime::catalog::role_kind(&r.kind)
+                        .is_some_and(|k| k.reads_latest.contains(&t))
             };
             let mut to_host = Vec::new();
             let mut from_host = Vec::new();

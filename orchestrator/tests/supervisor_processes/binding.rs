@@ -45,7 +45,7 @@ fn burner_over_budget(tag: &str, run: &RunDir, edit: impl FnOnce(&mut Workflow))
         .node_name("fake-roles")
         .create()
         .unwrap();
-    let hbs: TypedPublisher<RoleHeartbeat> = bus.publisher(topics::HEARTBEAT).unwrap();
+    let hbs: TypedPublisher<RoleHeartbeat> = bus.publisher::<topics::Heartbeat>().unwrap();
     for seq in 1..=8 {
         hbs.publish(&heartbeat(
             "burner",

@@ -198,7 +198,7 @@ fn starts_every_role_bound_and_tracks_heartbeats_and_the_board() {
         .node_name("fake-roles")
         .create()
         .unwrap();
-    let hbs: TypedPublisher<RoleHeartbeat> = bus.publisher(topics::HEARTBEAT).unwrap();
+    let hbs: TypedPublisher<RoleHeartbeat> = bus.publisher::<topics::Heartbeat>().unwrap();
     let pids: Vec<(String, u32)> = sup
         .roles()
         .iter()
@@ -381,7 +381,7 @@ fn wait_ready_names_the_silent_roles_and_quotes_their_logs() {
         .node_name("fake-roles")
         .create()
         .unwrap();
-    let hbs: TypedPublisher<RoleHeartbeat> = bus.publisher(topics::HEARTBEAT).unwrap();
+    let hbs: TypedPublisher<RoleHeartbeat> = bus.publisher::<topics::Heartbeat>().unwrap();
     for role in sup.roles().iter().filter(|r| r.name() != "camera") {
         hbs.publish(&heartbeat(
             role.name(),

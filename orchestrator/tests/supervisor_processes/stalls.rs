@@ -57,7 +57,7 @@ fn a_pause_of_the_supervisor_is_discounted_and_a_silence_it_watches_is_not() {
         .node_name("fake-roles")
         .create()
         .unwrap();
-    let hbs: TypedPublisher<RoleHeartbeat> = bus.publisher(topics::HEARTBEAT).unwrap();
+    let hbs: TypedPublisher<RoleHeartbeat> = bus.publisher::<topics::Heartbeat>().unwrap();
     for role in sup.roles() {
         hbs.publish(&heartbeat(
             role.name(),

@@ -305,22 +305,12 @@ impl Role for ControllerRole {
             })?,
         };
         let tracker = Tracker::new(TrackerConfig::from_spec(spec));
-        let setpoints = ctx.bus.subscriber::<BoundSetpoint>(topics::HUB_SETPOINT)?;
-        let telemetry = ctx
-            .bus
-            .publisher::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)?;
-        let telemetry_in = ctx
-            .bus
-            .subscriber::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)?;
-        let lease_out = ctx
-            .bus
-            .publisher::<ControllerLease>(topics::CONTROLLER_LEASE)?;
-        let lease_in = ctx
-            .bus
-            .subscriber::<ControllerLease>(topics::CONTROLLER_LEASE)?;
-        let link_out = ctx
-            .bus
-            .publisher::<AutopilotLinkStatus>(topics::CONTROLLER_LINK)?;
+        let setpoints = ctx.bus.subscriber::<topics::HubSetpoint>()?;
+        let telemetry = ctx.bus.publisher::<topics::VehicleTelemetry>()?;
+        let telemetry_in = ctx.bus.subscriber::<topics::VehicleTelemetry>()?;
+        let lease_out = ctx.bus.publisher::<topics::ControllerLease>()?;
+        let lease_in = ctx.bus.subscriber::<topics::ControllerLease>()?;
+        let link_out = ctx.bus.publisher::<topics::ControllerLink>()?;
         let signing = signing_from_spec(spec)?;
         if signing.is_some() && framing == MavlinkFraming::V1 {
             return Err(RoleError::Config(

@@ -213,22 +213,18 @@ impl Role for FormationRole {
             spec.mission.max_duration_s,
         );
         tracks.program(&program);
-        let say = ctx.bus.subscriber(topics::FORMATION_SAY)?;
-        let reply = ctx.bus.publisher(topics::FORMATION_REPLY)?;
-        // vehicle K's topic; a flight of one vehicle has no vehicle scopes
-        let topic = |k: u8, t: &str| {
-            if vehicles > 1 {
-                topics::in_vehicle(k, t)
-            } else {
-                t.to_string()
-            }
-        };
+        let say = ctx.bus.subscriber::<topics::FormationSay>()?;
+        let reply = ctx.bus.publisher::<topics::FormationReply>()?;
+        // vehicle K's scope; a flight of one vehicle has no vehicle scopes
+        let scope = |k: u8| (vehicles > 1).then_some(k);
         let mut links = Vec::with_capacity(vehicles as usize);
         for k in 1..=vehicles {
             links.push(VehicleLink {
                 number: k,
-                setpoints: ctx.bus.publisher(&topic(k, topics::HUB_SETPOINT))?,
-                telemetry: ctx.bus.subscriber(&topic(k, topics::VEHICLE_TELEMETRY))?,
+                setpoints: ctx.bus.publisher_in::<topics::HubSetpoint>(scope(k))?,
+                telemetry: ctx
+                    .bus
+                    .subscriber_in::<topics::VehicleTelemetry>(scope(k))?,
                 last: None,
                 silent_since: None,
                 flew: false,

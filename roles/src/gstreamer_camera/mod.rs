@@ -252,17 +252,15 @@ impl Role for GstreamerCameraRole {
         }
         let rgb = ctx
             .bus
-            .frame_publisher(topics::CAMERA_RGB, rgb_source.capture.frame_len())?;
+            .frame_publisher::<topics::CameraRgb>(rgb_source.capture.frame_len())?;
         let depth = match &depth_source {
             Some(d) => Some(
                 ctx.bus
-                    .frame_publisher(topics::CAMERA_DEPTH, d.capture.frame_len())?,
+                    .frame_publisher::<topics::CameraDepth>(d.capture.frame_len())?,
             ),
             None => None,
         };
-        let telemetry = ctx
-            .bus
-            .subscriber::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)?;
+        let telemetry = ctx.bus.subscriber::<topics::VehicleTelemetry>()?;
         rgb_source
             .capture
             .start()

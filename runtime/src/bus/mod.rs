@@ -12,7 +12,8 @@
 //! - [`ownership`]: a flight joins only services its own user made (another local user
 //!   who creates them first is refused by name, never joined).
 
-use aeris_schemas::topics;
+pub use aeris_schemas::topics::Qos;
+use aeris_schemas::topics::{self, FrameTopic, MessageTopic, TopicInfo};
 use aeris_schemas::{
     FlightManifest, FrameHeader, SCHEMA_VERSION, SupervisorCommand, SupervisorReply,
     SupervisorStatus, ZeroCopySend,
@@ -169,6 +170,18 @@ pub enum BusError {
         /// This process's user.
         us: String,
     },
+    /// A topic name no topic of [`topics::ALL`] has (in a vehicle's scope or not).
+    #[error("`{topic}` is not a topic of a flight (topics: {known})", known = topics::ALL.join(", "))]
+    UnknownTopic {
+        /// The name given.
+        topic: String,
+    },
+    /// A frame port was asked of a topic of fixed-size messages.
+    #[error("`{topic}` carries messages, not frames")]
+    NotFrames {
+        /// The topic.
+        topic: String,
+    },
     /// The flight's manifest says it runs another schema.
     #[error("cannot join flight `{flight}`")]
     Manifest {
@@ -177,52 +190,6 @@ pub enum BusError {
         /// Why.
         source: aeris_schemas::ManifestError,
     },
-}
-
-/// Quality of service of one topic.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Qos {
-    /// Samples a late subscriber receives on connect.
-    pub history: usize,
-    /// Samples buffered per subscriber (oldest overwritten).
-    pub buffer: usize,
-    /// Maximum simultaneous publishers (2+ allows make-before-break swaps).
-    pub max_publishers: usize,
-    /// Maximum simultaneous subscribers.
-    pub max_subscribers: usize,
-}
-
-/// The one QoS table: every process opens a topic with these settings.
-pub fn qos(topic: &str) -> Qos {
-    let q = |history, buffer, max_publishers, max_subscribers| Qos {
-        history,
-        buffer,
-        max_publishers,
-        max_subscribers,
-    };
-    // every max_subscribers holds one more for the flight recorder (`aeris-record`), which
-    // subscribes to every topic of a recorded flight
-    match topic {
-        topics::CAMERA_RGB | topics::CAMERA_DEPTH => q(1, 2, 4, 9),
-        topics::PERCEPTION_STATE
-        | topics::PERCEPTION_TEXT
-        | topics::PERCEPTION_DETECTIONS
-        | topics::PERCEPTION_CUES
-        | topics::PERCEPTION_OCCUPANCY => q(1, 4, 4, 9),
-        topics::REASONING_DECISION => q(0, 32, 4, 9),
-        topics::HUB_SETPOINT => q(1, 8, 4, 9),
-        topics::HUB_REPORT => q(1, 64, 4, 9),
-        topics::VEHICLE_TELEMETRY => q(1, 64, 4, 13),
-        // no history: a lease is only evidence while it is fresh
-        topics::CONTROLLER_LEASE => q(0, 16, 4, 9),
-        // history 1: a watcher that joins late sees where the link is
-        topics::CONTROLLER_LINK => q(1, 16, 4, 9),
-        topics::HEARTBEAT => q(0, 1024, 32, 9),
-        // no history: an instruction is for the formation flying now, never a later one
-        topics::FORMATION_SAY => q(0, 4, 4, 9),
-        topics::FORMATION_REPLY => q(0, 8, 4, 9),
-        _ => q(1, 16, 4, 9),
-    }
 }
 
 /// Maximum iceoryx2 nodes per service (roles, restarts in flight, tools).
@@ -310,13 +277,12 @@ pub(super) type PubSubService<P, H> =
 /// A publish-subscribe service builder.
 type PubSubBuilder<P, H> = iceoryx2::service::builder::publish_subscribe::Builder<P, H, Ipc>;
 
-/// Apply the QoS of `topic` (from [`qos`]) to a service builder.
-fn with_qos<P, H>(builder: PubSubBuilder<P, H>, topic: &str) -> PubSubBuilder<P, H>
+/// Apply a topic's declared QoS ([`TopicInfo::qos`]) to a service builder.
+fn with_qos<P, H>(builder: PubSubBuilder<P, H>, q: Qos) -> PubSubBuilder<P, H>
 where
     P: Debug + iceoryx2::prelude::IceoryxSend + ?Sized,
     H: Debug + ZeroCopySend,
 {
-    let q = qos(topics::split_vehicle(topic).1);
     builder
         .history_size(q.history)
         .subscriber_max_buffer_size(q.buffer)
@@ -324,6 +290,14 @@ where
         .max_subscribers(q.max_subscribers)
         .max_nodes(MAX_NODES)
         .enable_safe_overflow(true)
+}
+
+/// `topic` in vehicle `vehicle`'s scope, or as it is.
+fn scoped(vehicle: Option<u8>, topic: &str) -> String {
+    match vehicle {
+        Some(k) => topics::in_vehicle(k, topic),
+        None => topic.to_string(),
+    }
 }
 
 /// Maps a port-creation failure on `service` to [`BusError::Port`].
@@ -498,8 +472,13 @@ impl FlightBus {
         })
     }
 
-    /// Open (or create) the fixed-size publish-subscribe service of `topic`.
-    fn open_fixed<T>(&self, topic: &str) -> Result<(String, PubSubService<T, ()>), BusError>
+    /// Open (or create) the fixed-size publish-subscribe service of `topic` (a name of a
+    /// topic declared as `info`, maybe in a vehicle's scope).
+    fn open_fixed<T>(
+        &self,
+        topic: &str,
+        info: &TopicInfo,
+    ) -> Result<(String, PubSubService<T, ()>), BusError>
     where
         T: Debug + ZeroCopySend + Copy + 'static,
     {
@@ -507,7 +486,7 @@ impl FlightBus {
         let iox = Self::iox_name(&name)?;
         ownership::check_before_open(iceoryx_config(), &iox, MessagingPattern::PublishSubscribe)?;
         let builder = self.node.service_builder(&iox).publish_subscribe::<T>();
-        let service = with_qos(builder, topic)
+        let service = with_qos(builder, info.qos)
             .open_or_create()
             .map_err(|e| ps_open_error(&name, e))?;
         ownership::check_opened(iceoryx_config(), &name, service.service_hash())?;
@@ -518,6 +497,7 @@ impl FlightBus {
     fn open_frames(
         &self,
         topic: &str,
+        info: &TopicInfo,
     ) -> Result<(String, PubSubService<[u8], FrameHeader>), BusError> {
         let name = self.service_name(topic);
         let iox = Self::iox_name(&name)?;
@@ -527,19 +507,60 @@ impl FlightBus {
             .service_builder(&iox)
             .publish_subscribe::<[u8]>()
             .user_header::<FrameHeader>();
-        let service = with_qos(builder, topic)
+        let service = with_qos(builder, info.qos)
             .open_or_create()
             .map_err(|e| ps_open_error(&name, e))?;
         ownership::check_opened(iceoryx_config(), &name, service.service_hash())?;
         Ok((name, service))
     }
 
-    /// A publisher of fixed-size `T` on `topic`.
-    pub fn publisher<T: Debug + ZeroCopySend + Copy + 'static>(
+    /// A publisher on topic `T` (in this node's vehicle scope, if it has one).
+    ///
+    /// A port is opened only through a declared topic: a message type or a name is not one.
+    /// ```compile_fail
+    /// # fn f(bus: &aeris_runtime::FlightBus) {
+    /// let _ = bus.publisher::<aeris_schemas::Decision>();
+    /// # }
+    /// ```
+    /// ```compile_fail
+    /// # fn f(bus: &aeris_runtime::FlightBus) {
+    /// let _ = bus.publisher("reasoning/decision");
+    /// # }
+    /// ```
+    pub fn publisher<T: MessageTopic>(&self) -> Result<TypedPublisher<T::Message>, BusError> {
+        self.publisher_on(T::INFO.name, &T::INFO)
+    }
+
+    /// A publisher on topic `T` in vehicle `vehicle`'s scope (`v2/hub/setpoint`; `None`:
+    /// unscoped, a one-vehicle flight's): what a role that flies several vehicles at once
+    /// opens.
+    pub fn publisher_in<T: MessageTopic>(
+        &self,
+        vehicle: Option<u8>,
+    ) -> Result<TypedPublisher<T::Message>, BusError> {
+        self.publisher_on(&scoped(vehicle, T::INFO.name), &T::INFO)
+    }
+
+    /// A subscriber of topic `T` (in this node's vehicle scope, if it has one).
+    pub fn subscriber<T: MessageTopic>(&self) -> Result<TypedSubscriber<T::Message>, BusError> {
+        self.subscriber_on(T::INFO.name, &T::INFO)
+    }
+
+    /// A subscriber of topic `T` in vehicle `vehicle`'s scope (`None`: unscoped).
+    pub fn subscriber_in<T: MessageTopic>(
+        &self,
+        vehicle: Option<u8>,
+    ) -> Result<TypedSubscriber<T::Message>, BusError> {
+        self.subscriber_on(&scoped(vehicle, T::INFO.name), &T::INFO)
+    }
+
+    /// A publisher of `M` on `topic`, a name of the topic declared as `info`.
+    pub(crate) fn publisher_on<M: Debug + ZeroCopySend + Copy + 'static>(
         &self,
         topic: &str,
-    ) -> Result<TypedPublisher<T>, BusError> {
-        let (name, service) = self.open_fixed::<T>(topic)?;
+        info: &TopicInfo,
+    ) -> Result<TypedPublisher<M>, BusError> {
+        let (name, service) = self.open_fixed::<M>(topic, info)?;
         let publisher = service
             .publisher_builder()
             .create()
@@ -550,12 +571,13 @@ impl FlightBus {
         })
     }
 
-    /// A subscriber of fixed-size `T` on `topic`.
-    pub fn subscriber<T: Debug + ZeroCopySend + Copy + 'static>(
+    /// A subscriber of `M` on `topic`, a name of the topic declared as `info`.
+    pub(crate) fn subscriber_on<M: Debug + ZeroCopySend + Copy + 'static>(
         &self,
         topic: &str,
-    ) -> Result<TypedSubscriber<T>, BusError> {
-        let (name, service) = self.open_fixed::<T>(topic)?;
+        info: &TopicInfo,
+    ) -> Result<TypedSubscriber<M>, BusError> {
+        let (name, service) = self.open_fixed::<M>(topic, info)?;
         let subscriber = service
             .subscriber_builder()
             .create()
@@ -637,13 +659,28 @@ impl FlightBus {
         })
     }
 
-    /// A publisher of frames (byte slices of up to `max_bytes`, with a [`FrameHeader`]).
-    pub fn frame_publisher(
+    /// A publisher of frames on topic `T` (byte slices of up to `max_bytes` to begin
+    /// with, with a [`FrameHeader`]).
+    pub fn frame_publisher<T: FrameTopic>(
         &self,
-        topic: &str,
         max_bytes: usize,
     ) -> Result<FramePublisher, BusError> {
-        let (name, service) = self.open_frames(topic)?;
+        self.frame_publisher_on(T::INFO.name, &T::INFO, max_bytes)
+    }
+
+    /// A subscriber of frames on topic `T`.
+    pub fn frame_subscriber<T: FrameTopic>(&self) -> Result<FrameSubscriber, BusError> {
+        self.frame_subscriber_on(T::INFO.name, &T::INFO)
+    }
+
+    /// A frame publisher on `topic`, a name of the frame topic declared as `info`.
+    pub(crate) fn frame_publisher_on(
+        &self,
+        topic: &str,
+        info: &TopicInfo,
+        max_bytes: usize,
+    ) -> Result<FramePublisher, BusError> {
+        let (name, service) = self.open_frames(topic, info)?;
         let publisher = service
             .publisher_builder()
             .initial_max_slice_len(max_bytes.max(1))
@@ -657,9 +694,13 @@ impl FlightBus {
         })
     }
 
-    /// A subscriber of frames.
-    pub fn frame_subscriber(&self, topic: &str) -> Result<FrameSubscriber, BusError> {
-        let (name, service) = self.open_frames(topic)?;
+    /// A frame subscriber on `topic`, a name of the frame topic declared as `info`.
+    pub(crate) fn frame_subscriber_on(
+        &self,
+        topic: &str,
+        info: &TopicInfo,
+    ) -> Result<FrameSubscriber, BusError> {
+        let (name, service) = self.open_frames(topic, info)?;
         let subscriber = service
             .subscriber_builder()
             .create()

@@ -91,7 +91,7 @@ fn run_flies_an_external_autopilot_over_mavlink() {
 
     // airborne: silence the autopilot until the flight reports the link lost, then resume it
     let telemetry = observer
-        .subscriber::<aeris_schemas::VehicleTelemetry>(aeris_schemas::topics::VEHICLE_TELEMETRY)
+        .subscriber::<aeris_schemas::topics::VehicleTelemetry>()
         .unwrap();
     poll_until(Duration::from_secs(300), || {
         telemetry

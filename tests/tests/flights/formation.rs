@@ -164,9 +164,7 @@ fn a_formation_reshaped_in_flight_then_a_vehicle_killed_reforms_and_lands() {
         .node_name("test-observer")
         .create()
         .unwrap();
-    let heartbeats = observer
-        .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
-        .unwrap();
+    let heartbeats = observer.subscriber::<topics::Heartbeat>().unwrap();
     // in the hold (phase 3), a new instruction: a circle instead, without landing first
     poll_flight(
         &mut run,

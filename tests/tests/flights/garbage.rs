@@ -7,7 +7,7 @@
 //! band (heartbeat counters[1]); the pymavlink test checks the same stream independently.
 
 use aeris_runtime::bus::FlightBus;
-use aeris_schemas::{PlannerCounters, RoleHeartbeat, VehicleCounters, topics};
+use aeris_schemas::{PlannerCounters, VehicleCounters, topics};
 use aeris_tests::*;
 use std::time::Duration;
 
@@ -19,9 +19,7 @@ fn garbage_decisions_never_reach_the_autopilot() {
         .node_name("test-observer")
         .create()
         .unwrap();
-    let heartbeats = observer
-        .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
-        .unwrap();
+    let heartbeats = observer.subscriber::<topics::Heartbeat>().unwrap();
     let mut workflow = default_workflow();
     // the subject is the gate, not the mission: a short hop
     short_hop(&mut workflow);

@@ -30,9 +30,7 @@ fn the_standby_takes_the_lease_when_the_holder_is_killed_or_stopped() {
         .node_name("test-observer")
         .create()
         .unwrap();
-    let leases = observer
-        .subscriber::<ControllerLease>(topics::CONTROLLER_LEASE)
-        .unwrap();
+    let leases = observer.subscriber::<topics::ControllerLease>().unwrap();
     // the newest lease sample with an epoch above `above`
     let newest = |above: u64| {
         let mut out: Option<ControllerLease> = None;

@@ -12,7 +12,7 @@
 //! from the decoded video.
 
 use aeris_runtime::FlightBus;
-use aeris_schemas::{CameraCounters, RoleHeartbeat, RoleStatus, topics};
+use aeris_schemas::{CameraCounters, RoleStatus, topics};
 use aeris_tests::*;
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -86,9 +86,7 @@ fn a_mission_flies_on_decoded_video_from_a_following_transmitter() {
 
     // the camera's heartbeats: frames published from the decoded stream
     let observer = join_flight(&flight);
-    let heartbeats = observer
-        .subscriber::<RoleHeartbeat>(topics::HEARTBEAT)
-        .unwrap();
+    let heartbeats = observer.subscriber::<topics::Heartbeat>().unwrap();
     // phases: 0 video up; 1 cut (transmitter killed), waiting for the stall; 2 stalled,
     // transmitter restarted, waiting for frames again; 3 restored
     let mut phase = 0;
@@ -228,9 +226,7 @@ fn rgb_perception_builds_s_t_from_the_decoded_video_and_the_mission_reaches_its_
     )
     .unwrap();
     let observer = join_flight(&flight);
-    let states = observer
-        .subscriber::<aeris_schemas::PerceptionState>(topics::PERCEPTION_STATE)
-        .unwrap();
+    let states = observer.subscriber::<topics::PerceptionState>().unwrap();
     let (mut seen, mut with_content, mut with_occupancy) = (0u64, 0u64, 0u64);
     let start = std::time::Instant::now();
     let status = loop {
