@@ -2,14 +2,15 @@
 //! JSON a reader sees, the JSON Schema of that JSON (inferred from the converter's own
 //! output, so the two cannot disagree) and the message's log time.
 
+use aeris_schemas::topics::Stamped;
 use aeris_schemas::{
-    AutopilotLinkStatus, BoundSetpoint, ControllerLease, Cue, Decision, Detection, FrameHeader,
-    HostLinkStatus, HubReport, MAX_CUES, MAX_DETECTIONS, MAX_SUBGOALS, PerceptionState,
-    RoleHeartbeat, SCHEMA_LAYOUT_HASH, SCHEMA_VERSION, VehicleTelemetry,
+    FrameHeader, MAX_CUES, MAX_DETECTIONS, MAX_SUBGOALS, PerceptionState, SCHEMA_LAYOUT_HASH,
+    SCHEMA_VERSION, VehicleTelemetry, with_payload_type,
 };
 use serde_json::{Map, Value, json};
 
 pub use aeris_runtime::raw::{Payload, bytes_of, payload_of, read};
+pub use aeris_schemas::json_form::base64;
 
 /// What the recorder adds to a [`Payload`]: its JSON, the JSON's schema, the raw channel's
 /// schema, its stamp and (for telemetry) its pose.
@@ -51,18 +52,7 @@ impl PayloadCodec for Payload {
 
     /// CLOCK_MONOTONIC ns the message was captured or published, by its own stamp.
     fn stamp_ns(self, bytes: &[u8]) -> Option<u64> {
-        Some(match self {
-            Payload::Frame => read::<FrameHeader>(bytes)?.capture_ns,
-            Payload::State => read::<PerceptionState>(bytes)?.publish_ns,
-            Payload::Decision => read::<Decision>(bytes)?.publish_ns,
-            Payload::Setpoint => read::<BoundSetpoint>(bytes)?.publish_ns,
-            Payload::HubReport => read::<HubReport>(bytes)?.publish_ns,
-            Payload::Telemetry => read::<VehicleTelemetry>(bytes)?.stamp_ns,
-            Payload::Lease => read::<ControllerLease>(bytes)?.stamp_ns,
-            Payload::Link => read::<AutopilotLinkStatus>(bytes)?.stamp_ns,
-            Payload::HostLink => read::<HostLinkStatus>(bytes)?.stamp_ns,
-            Payload::Heartbeat => read::<RoleHeartbeat>(bytes)?.stamp_ns,
-        })
+        with_payload_type!(self, T => Some(read::<T>(bytes)?.stamp_ns()))
     }
 
     /// The vehicle pose of a telemetry message in `bytes` as a `foxglove.PoseInFrame`
@@ -74,46 +64,25 @@ impl PayloadCodec for Payload {
         }
     }
 
-    /// The payload in `bytes` as JSON; `None` when the length is not the payload's.
+    /// The payload in `bytes` as JSON (its type's `Serialize`); `None` when the length is
+    /// not the payload's.
     fn to_json(self, bytes: &[u8]) -> Option<Value> {
-        Some(match self {
-            Payload::Frame => frame_json(&read(bytes)?),
-            Payload::State => state_json(&read(bytes)?),
-            Payload::Decision => decision_json(&read(bytes)?),
-            Payload::Setpoint => setpoint_json(&read(bytes)?),
-            Payload::HubReport => hub_report_json(&read(bytes)?),
-            Payload::Telemetry => telemetry_json(&read(bytes)?),
-            Payload::Lease => lease_json(&read(bytes)?),
-            Payload::Link => link_json(&read(bytes)?),
-            Payload::HostLink => host_link_json(&read(bytes)?),
-            Payload::Heartbeat => heartbeat_json(&read(bytes)?),
-        })
+        with_payload_type!(self, T => serde_json::to_value(read::<T>(bytes)?).ok())
     }
 
-    /// The JSON Schema of [`Payload::to_json`]'s output, inferred from a full example (every
-    /// variable-length list at its longest), so the schema and the encoder agree.
+    /// The JSON Schema of [`PayloadCodec::to_json`]'s output, inferred from a full example
+    /// (every variable-length list at its longest), so the schema and the encoder agree.
     fn json_schema(self) -> Value {
         let example = match self {
-            Payload::State => {
-                let s = PerceptionState {
-                    detection_count: MAX_DETECTIONS as u32,
-                    cue_count: MAX_CUES as u32,
-                    relevance_count: MAX_SUBGOALS as u32,
-                    ..PerceptionState::default()
-                };
-                state_json(&s)
-            }
-            Payload::Frame => frame_json(&FrameHeader::default()),
-            Payload::Decision => decision_json(&Decision::default()),
-            Payload::Setpoint => setpoint_json(&BoundSetpoint::default()),
-            Payload::HubReport => hub_report_json(&HubReport::default()),
-            Payload::Telemetry => telemetry_json(&VehicleTelemetry::default()),
-            Payload::Lease => lease_json(&ControllerLease::default()),
-            Payload::Link => link_json(&AutopilotLinkStatus::default()),
-            Payload::HostLink => host_link_json(&HostLinkStatus::default()),
-            Payload::Heartbeat => heartbeat_json(&RoleHeartbeat::default()),
+            Payload::State => serde_json::to_value(PerceptionState {
+                detection_count: MAX_DETECTIONS as u32,
+                cue_count: MAX_CUES as u32,
+                relevance_count: MAX_SUBGOALS as u32,
+                ..PerceptionState::default()
+            }),
+            other => with_payload_type!(other, T => serde_json::to_value(T::default())),
         };
-        document_schema(&self.json_schema_name(), &example)
+        document_schema(&self.json_schema_name(), &example.unwrap_or(Value::Null))
     }
 }
 
@@ -151,28 +120,6 @@ fn infer_schema(v: &Value) -> Value {
             json!({"type": "object", "properties": properties, "required": required})
         }
     }
-}
-
-/// Standard base64 (RFC 4648, padded): how JSON carries bytes (`foxglove.RawImage.data`).
-pub fn base64(bytes: &[u8]) -> String {
-    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
-    for chunk in bytes.chunks(3) {
-        let b = [
-            chunk[0],
-            *chunk.get(1).unwrap_or(&0),
-            *chunk.get(2).unwrap_or(&0),
-        ];
-        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
-        for i in 0..4 {
-            if i <= chunk.len() {
-                out.push(ALPHABET[(n >> (18 - 6 * i) & 63) as usize] as char);
-            } else {
-                out.push('=');
-            }
-        }
-    }
-    out
 }
 
 /// A `foxglove.RawImage` (JSON encoding) of one frame: `rgb8` or `16UC1` (depth, mm).
@@ -369,148 +316,10 @@ pub fn pose_in_frame_schema() -> Value {
     )
 }
 
-fn frame_json(h: &FrameHeader) -> Value {
-    json!({
-        "seq": h.seq, "capture_ns": h.capture_ns, "width": h.width, "height": h.height,
-        "camera_position": h.camera_position, "camera_yaw": h.camera_yaw, "hfov": h.hfov,
-        "format": h.format,
-    })
-}
-
-fn detection_json(d: &Detection) -> Value {
-    json!({
-        "label": d.label.as_str_lossy(), "class_id": d.class_id, "score": d.score,
-        "bbox": d.bbox, "range_m": d.range_m,
-    })
-}
-
-fn cue_json(c: &Cue) -> Value {
-    json!({"text": c.text.as_str_lossy(), "score": c.score})
-}
-
-fn state_json(s: &PerceptionState) -> Value {
-    let dets = &s.detections[..(s.detection_count as usize).min(MAX_DETECTIONS)];
-    let cues = &s.cues[..(s.cue_count as usize).min(MAX_CUES)];
-    let relevance = &s.subgoal_relevance[..(s.relevance_count as usize).min(MAX_SUBGOALS)];
-    json!({
-        "seq": s.seq, "frame_seq": s.frame_seq, "capture_ns": s.capture_ns,
-        "publish_ns": s.publish_ns, "position": s.position, "yaw": s.yaw,
-        "summary": s.summary.as_str_lossy(),
-        "detections": dets.iter().map(detection_json).collect::<Vec<_>>(),
-        "cues": cues.iter().map(cue_json).collect::<Vec<_>>(),
-        "occupancy": {
-            "origin": s.occupancy.origin, "resolution_m": s.occupancy.resolution_m,
-            "status": s.occupancy.status, "cells_base64": base64(&s.occupancy.cells),
-        },
-        "blocks": s.blocks,
-        "subgoal_relevance": relevance,
-    })
-}
-
-fn decision_json(d: &Decision) -> Value {
-    json!({
-        "seq": d.seq, "cycle": d.cycle, "cycle_start_ns": d.cycle_start_ns,
-        "state_stamp_ns": d.state_stamp_ns, "reasoning_start_ns": d.reasoning_start_ns,
-        "publish_ns": d.publish_ns, "target": d.target, "yaw": d.yaw, "speed": d.speed,
-        "altitude": d.altitude, "acceptance_radius": d.acceptance_radius,
-        "confidence": d.confidence, "step": d.step, "action": d.action, "source": d.source,
-    })
-}
-
-fn setpoint_json(s: &BoundSetpoint) -> Value {
-    json!({
-        "seq": s.seq, "decision_seq": s.decision_seq, "publish_ns": s.publish_ns,
-        "position": s.position, "yaw": s.yaw, "speed": s.speed,
-        "acceptance_radius": s.acceptance_radius, "active_step": s.active_step,
-        "mode": s.mode, "reused": s.reused, "clamped": s.clamped,
-    })
-}
-
-fn hub_report_json(r: &HubReport) -> Value {
-    let attention = &r.attention[..usize::from(r.subgoals).min(MAX_SUBGOALS)];
-    json!({
-        "seq": r.seq, "cycle": r.cycle, "publish_ns": r.publish_ns, "ct_ns": r.ct_ns,
-        "stage_ns": r.stage_ns, "committed": r.committed, "reused": r.reused,
-        "clamped": r.clamped, "occupancy": r.occupancy, "active_step": r.active_step,
-        "subgoals": r.subgoals, "attention": attention,
-        "decisions_received": r.decisions_received,
-        "decisions_committed": r.decisions_committed,
-        "decisions_rejected": r.decisions_rejected, "decisions_late": r.decisions_late,
-        "decisions_reused": r.decisions_reused, "sequence_gaps": r.sequence_gaps,
-        "sequence_reorders": r.sequence_reorders, "states_received": r.states_received,
-        "states_rejected": r.states_rejected, "decisions_superseded": r.decisions_superseded,
-        "source_switches": r.source_switches, "decision_source": r.decision_source,
-        "clamp_reasons": r.clamp_reasons,
-    })
-}
-
-fn telemetry_json(t: &VehicleTelemetry) -> Value {
-    json!({
-        "seq": t.seq, "stamp_ns": t.stamp_ns, "autopilot_time_ms": t.autopilot_time_ms,
-        "armed": t.armed, "offboard": t.offboard, "link_up": t.link_up, "landed": t.landed,
-        "position": t.position, "velocity": t.velocity, "attitude": t.attitude,
-        "controller_ticks": t.controller_ticks,
-        "controller_missed_ticks": t.controller_missed_ticks,
-        "setpoints_refused": t.setpoints_refused, "hold_ticks": t.hold_ticks,
-    })
-}
-
-fn lease_json(l: &ControllerLease) -> Value {
-    json!({
-        "epoch": l.epoch, "stamp_ns": l.stamp_ns, "sent": l.sent, "holder_pid": l.holder_pid,
-        "reference": l.reference, "anchor": l.anchor, "hold": l.hold, "hold_yaw": l.hold_yaw,
-        "rank": l.rank, "anchor_mode": l.anchor_mode, "flags": l.flags,
-    })
-}
-
-fn link_json(l: &AutopilotLinkStatus) -> Value {
-    json!({
-        "seq": l.seq, "stamp_ns": l.stamp_ns, "frames": l.frames,
-        "autopilot_frames": l.autopilot_frames, "other_frames": l.other_frames,
-        "v1_refused": l.v1_refused, "unsigned_refused": l.unsigned_refused,
-        "bad_signature_refused": l.bad_signature_refused,
-        "crc_failures": l.crc_failures,
-        "foreign_heartbeats": l.foreign_heartbeats, "commands_refused": l.commands_refused,
-        "losses": l.losses, "timeout_ms": l.timeout_ms,
-        "last_refused_command": l.last_refused_command, "state": l.state,
-        "autopilot": l.autopilot, "system_id": l.system_id, "component_id": l.component_id,
-        "heard_version": l.heard_version, "send_version": l.send_version,
-        "last_refused_result": l.last_refused_result, "other_system_id": l.other_system_id,
-        "other_component_id": l.other_component_id, "foreign_type": l.foreign_type,
-        "foreign_autopilot": l.foreign_autopilot, "signing": l.signing,
-        "url": l.url.as_str_lossy(), "last_refusal": l.last_refusal.as_str_lossy(),
-        "foreign": l.foreign.as_str_lossy(),
-    })
-}
-
-fn host_link_json(l: &HostLinkStatus) -> Value {
-    json!({
-        "host": l.host.as_str_lossy(), "probes": l.probes, "answered": l.answered,
-        "stamp_ns": l.stamp_ns, "rtt_ns": l.rtt_ns, "rtt_smoothed_ns": l.rtt_smoothed_ns,
-        "clock_offset_ns": l.clock_offset_ns, "frame_coding_ns": l.frame_coding_ns,
-        "busy_milli": l.busy_milli, "cpus": l.cpus, "loss_permille": l.loss_permille,
-        "connected": l.connected,
-    })
-}
-
-fn heartbeat_json(h: &RoleHeartbeat) -> Value {
-    let stages: Vec<Value> = h
-        .stages
-        .iter()
-        .map(|s| json!({"name": s.name.as_str_lossy(), "ns": s.ns}))
-        .collect();
-    json!({
-        "role": h.role.as_str_lossy(), "variant": h.variant.as_str_lossy(),
-        "executor": h.executor.as_str_lossy(), "pid": h.pid, "status": h.status,
-        "worked": h.worked, "seq": h.seq, "stamp_ns": h.stamp_ns,
-        "cycle_latency_ns": h.cycle_latency_ns, "stages": stages, "counters": h.counters,
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use aeris_schemas::topics;
+    use aeris_schemas::{Decision, topics};
 
     #[test]
     fn every_topic_has_a_payload_and_its_json_round_trips_the_bytes() {

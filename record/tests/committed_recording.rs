@@ -13,6 +13,10 @@ use aeris_record::read::Recording;
 use aeris_schemas::{SCHEMA_VERSION, VehicleTelemetry, topics};
 use std::path::PathBuf;
 
+/// Fields the JSON gained since the recording was made, by topic: the hand-written JSON of
+/// `controller/link` had drifted from its type and left out the lease epoch.
+const ADDED: &[(&str, &str)] = &[(topics::CONTROLLER_LINK, "lease_epoch")];
+
 fn committed() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("tests/data")
@@ -45,21 +49,32 @@ fn every_recorded_json_message_is_what_the_codec_makes_of_its_raw_bytes() {
             true
         })
         .unwrap();
-        assert_eq!(json.len(), raw.len(), "{topic}: one JSON message per raw one");
+        assert_eq!(
+            json.len(),
+            raw.len(),
+            "{topic}: one JSON message per raw one"
+        );
         for (i, (j, r)) in json.iter().zip(&raw).enumerate() {
-            let now = payload
+            let mut now = payload
                 .to_json(r)
                 .unwrap_or_else(|| panic!("{topic} #{i}: {} bytes are no payload", r.len()));
+            for (_, field) in ADDED.iter().filter(|(t, _)| *t == topic) {
+                let added = now.as_object_mut().and_then(|o| o.remove(*field));
+                assert!(added.is_some(), "{topic} #{i}: no {field}");
+            }
             assert_eq!(
-                now.to_string().as_bytes(),
-                j.as_slice(),
+                now.to_string(),
+                String::from_utf8_lossy(j),
                 "{topic} #{i}: the codec encodes this message differently from the recording"
             );
         }
         compared_topics += 1;
     }
     // telemetry, S_t, decisions, setpoints, hub reports, lease, link, heartbeats, frames
-    assert!(compared_topics >= 8, "only {compared_topics} topics compared");
+    assert!(
+        compared_topics >= 8,
+        "only {compared_topics} topics compared"
+    );
     let telemetry = rec
         .typed::<VehicleTelemetry>(topics::VEHICLE_TELEMETRY)
         .unwrap();

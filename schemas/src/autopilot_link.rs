@@ -84,6 +84,7 @@ impl AutopilotKind {
 
 /// What the lease-holding controller knows of its autopilot link, every control tick.
 /// Counters count from the controller process's start.
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[type_name("aeris::AutopilotLinkStatus@s8")]
 #[repr(C)]

@@ -68,6 +68,7 @@ impl ActionMode {
 ///
 /// `action` is a raw byte on purpose: a decision comes from another process (possibly a
 /// language model) and must be validated, never transmuted into an enum.
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[type_name("aeris::Decision@s8")]
 #[repr(C)]
@@ -101,6 +102,7 @@ pub struct Decision {
     /// Action mode a_t as [`ActionMode`] wire byte.
     pub action: u8,
     /// Reserved, zero.
+    #[cfg_attr(feature = "serde", serde(skip))]
     pub reserved: u8,
     /// Instance number of the publishing process, given by the supervisor at every spawn
     /// (0 outside a supervised flight). A newer instance of the reasoning role (restart or

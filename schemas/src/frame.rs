@@ -37,6 +37,7 @@ impl FrameFormat {
 }
 
 /// User header of a frame sample (`camera/rgb`, `camera/depth`).
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[type_name("aeris::FrameHeader@s8")]
 #[repr(C)]
@@ -58,6 +59,7 @@ pub struct FrameHeader {
     /// Pixel format as [`FrameFormat`] wire byte.
     pub format: u8,
     /// Reserved, zero.
+    #[cfg_attr(feature = "serde", serde(skip))]
     pub reserved: [u8; 3],
 }
 

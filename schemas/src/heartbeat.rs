@@ -47,6 +47,7 @@ impl RoleStatus {
 }
 
 /// Duration of one named stage of a role's cycle.
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
 #[repr(C)]
 pub struct StageTiming {
@@ -57,6 +58,7 @@ pub struct StageTiming {
 }
 
 /// A role's heartbeat (`heartbeat`).
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[type_name("aeris::RoleHeartbeat@s8")]
 #[repr(C)]
@@ -76,6 +78,7 @@ pub struct RoleHeartbeat {
     /// 0 for a liveness heartbeat of an idle role (figures repeat the last working cycle).
     pub worked: u8,
     /// Reserved, zero.
+    #[cfg_attr(feature = "serde", serde(skip))]
     pub reserved: [u8; 2],
     /// Heartbeat sequence number (from 1, +1 per cycle).
     pub seq: u64,

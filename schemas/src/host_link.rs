@@ -16,6 +16,7 @@ pub const LINK_LOSS_WINDOW: usize = 20;
 pub const MAX_HOSTS: usize = 4;
 
 /// One link's figures (`hosts/link`, one sample per probe answered or lost).
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
 #[type_name("aeris::HostLinkStatus@s8")]
 #[repr(C)]
@@ -49,6 +50,7 @@ pub struct HostLinkStatus {
     /// 1 while the other host's router is connected.
     pub connected: u8,
     /// Reserved, zero.
+    #[cfg_attr(feature = "serde", serde(skip))]
     pub reserved: [u8; 5],
 }
 

@@ -17,6 +17,7 @@ pub const LEASE_HAS_HOLD: u8 = 2;
 
 /// One poll's claim of the autopilot by its holder, with the tracking state a standby needs
 /// to go on from exactly where the holder was.
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
 #[type_name("aeris::ControllerLease@s8")]
 #[repr(C)]
@@ -45,6 +46,7 @@ pub struct ControllerLease {
     /// [`LEASE_HAS_REFERENCE`] | [`LEASE_HAS_HOLD`].
     pub flags: u8,
     /// Zero.
+    #[cfg_attr(feature = "serde", serde(skip))]
     pub reserved: u8,
 }
 

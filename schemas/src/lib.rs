@@ -25,6 +25,8 @@ pub mod frame;
 pub mod heartbeat;
 pub mod host_link;
 pub mod hub_report;
+#[cfg(feature = "serde")]
+pub mod json_form;
 pub mod lease;
 pub mod role_counters;
 pub mod setpoint;

@@ -6,6 +6,7 @@ use iceoryx2_bb_derive_macros::ZeroCopySend;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
 /// An executable control target produced by the hub's decision gate (`hub/setpoint`).
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[type_name("aeris::BoundSetpoint@s8")]
 #[repr(C)]
@@ -33,6 +34,7 @@ pub struct BoundSetpoint {
     /// 1 when the gate clamped the decision to make it feasible.
     pub clamped: u8,
     /// Reserved, zero.
+    #[cfg_attr(feature = "serde", serde(skip))]
     pub reserved: [u8; 3],
 }
 

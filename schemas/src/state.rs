@@ -43,6 +43,7 @@ pub mod block {
 }
 
 /// One detection: class, score and box.
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[repr(C)]
 pub struct Detection {
@@ -71,6 +72,7 @@ impl Default for Detection {
 }
 
 /// One instruction cue: a phrase with a relevance score.
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
 #[repr(C)]
 pub struct Cue {

@@ -5,6 +5,7 @@ use iceoryx2_bb_derive_macros::ZeroCopySend;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
 /// What the controller knows about the vehicle (`vehicle/telemetry`).
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
 #[type_name("aeris::VehicleTelemetry@s8")]
 #[repr(C)]
