@@ -293,12 +293,12 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
     println!(
         "  EER {:.2}%; decisions received {} rejected {} late {} reused {}; sequence gaps {} reorders {}",
         summary.eer * 100.0,
-        summary.decisions_received,
-        summary.decisions_rejected,
-        summary.decisions_late,
-        summary.decisions_reused,
-        summary.sequence_gaps,
-        summary.sequence_reorders
+        summary.hub.decisions_received,
+        summary.hub.decisions_rejected,
+        summary.hub.decisions_late,
+        summary.hub.decisions_reused,
+        summary.hub.sequence_gaps,
+        summary.hub.sequence_reorders
     );
     println!(
         "  controller ticks {} missed {} refused setpoints {}; role restarts {}, stalls {}, live migrations {}",

@@ -606,7 +606,7 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
             group.metrics.push(m);
             group.ct.extend_from_slice(&outcome.ct_samples_s);
             group.cycles += summary.cycles;
-            group.reused += summary.decisions_reused;
+            group.reused += summary.hub.decisions_reused;
         }
     }
     Ok(EvalReport {

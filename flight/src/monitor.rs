@@ -9,7 +9,7 @@ use aeris_runtime::MissionSpec;
 use aeris_runtime::bus::{BusError, FlightBus, TypedSubscriber};
 use aeris_runtime::stats::{mean_std, percentile};
 use aeris_schemas::{
-    ActionMode, AutopilotLinkStatus, BoundSetpoint, HubReport, VehicleTelemetry, topics,
+    ActionMode, AutopilotLinkStatus, BoundSetpoint, HubCounts, HubReport, VehicleTelemetry, topics,
 };
 use serde::Serialize;
 
@@ -41,18 +41,10 @@ pub struct FlightSummary {
     pub stages_mean_s: StageMeans,
     /// Execution error rate: reuses (late, rejected or missing decisions) over cycles.
     pub eer: f64,
-    /// Decisions the hub received.
-    pub decisions_received: u64,
-    /// Decisions rejected by the gate (invalid, infeasible, late, out of order).
-    pub decisions_rejected: u64,
-    /// Cycles that reused the last valid decision.
-    pub decisions_reused: u64,
-    /// Decisions that arrived after the deadline.
-    pub decisions_late: u64,
-    /// Sequence gaps seen by the hub.
-    pub sequence_gaps: u64,
-    /// Out-of-order / duplicate decisions seen by the hub.
-    pub sequence_reorders: u64,
+    /// What the hub did with the decisions and states it received, totalled over every hub
+    /// process of the flight (flat in the JSON: `decisions_received`, ...).
+    #[serde(flatten)]
+    pub hub: HubCounts,
     /// Controller ticks.
     pub controller_ticks: u64,
     /// Controller ticks that missed their deadline.
@@ -67,10 +59,6 @@ pub struct FlightSummary {
     pub max_setpoint_gap_ms: f64,
     /// Median interval between consecutive hub setpoints (ms): the normal period.
     pub setpoint_period_ms: f64,
-    /// Decisions of a replaced reasoning instance ignored after the hub switched.
-    pub decisions_superseded: u64,
-    /// Times the hub switched to another reasoning instance (swaps, restarts).
-    pub source_switches: u64,
     /// Hot swaps completed during the flight.
     pub swaps_done: u64,
     /// Hot swaps refused or rolled back during the flight.
@@ -171,15 +159,6 @@ pub struct StageMeans {
 }
 
 // Indices into the hub counters.
-const RECEIVED: usize = 0;
-const COMMITTED: usize = 1;
-const REJECTED: usize = 2;
-const LATE: usize = 3;
-const REUSED: usize = 4;
-const GAPS: usize = 5;
-const REORDERS: usize = 6;
-const SUPERSEDED: usize = 7;
-const SWITCHES: usize = 8;
 
 // Indices into the controller counters.
 const TICKS: usize = 0;
@@ -240,7 +219,7 @@ pub struct FlightMonitor {
     subgoals: u16,
     ct_s: Vec<f64>,
     stage_sums: [f64; 4],
-    hub: RestartSafeCounters<9>,
+    hub: RestartSafeCounters<{ HubCounts::LEN }>,
     controller: RestartSafeCounters<4>,
     last_report: Option<HubReport>,
     trace: Vec<CycleTrace>,
@@ -332,20 +311,7 @@ impl FlightMonitor {
                     *sum += ns as f64 * 1e-9;
                 }
             }
-            self.hub.update(
-                r.seq,
-                [
-                    r.decisions_received,
-                    r.decisions_committed,
-                    r.decisions_rejected,
-                    r.decisions_late,
-                    r.decisions_reused,
-                    r.sequence_gaps,
-                    r.sequence_reorders,
-                    r.decisions_superseded,
-                    r.source_switches,
-                ],
-            );
+            self.hub.update(r.seq, r.counts.to_array());
             if self.attention_steps.last() != Some(&r.active_step) {
                 self.attention_steps.push(r.active_step);
             }
@@ -468,23 +434,22 @@ impl FlightMonitor {
 
     /// Semantic cycles so far: committed decisions plus reuses of the last valid one.
     pub fn cycles(&self) -> u64 {
-        self.hub
-            .total(COMMITTED)
-            .saturating_add(self.hub.total(REUSED))
+        let hub = self.hub_totals();
+        hub.decisions_committed.saturating_add(hub.decisions_reused)
     }
 
     /// Execution error rate so far: reuses (a late, invalid or missing decision) over cycles.
     pub fn eer(&self) -> f64 {
         match self.cycles() {
             0 => 0.0,
-            n => self.hub.total(REUSED) as f64 / n as f64,
+            n => self.hub_totals().decisions_reused as f64 / n as f64,
         }
     }
 
     /// Cycles that reused the last valid decision so far: heartbeats that brought no fresh
     /// valid decision in time.
     pub fn reused(&self) -> u64 {
-        self.hub.total(REUSED)
+        self.hub_totals().decisions_reused
     }
 
     /// The longest interval between consecutive hub setpoints whose later one was published
@@ -502,21 +467,27 @@ impl FlightMonitor {
 
     /// Decisions the hub received past their deadline so far (also counted as rejected).
     pub fn late(&self) -> u64 {
-        self.hub.total(LATE)
+        self.hub_totals().decisions_late
     }
 
     /// Decisions rejected so far (over every hub process of the flight).
     pub fn rejected(&self) -> u64 {
-        self.hub.total(REJECTED)
+        self.hub_totals().decisions_rejected
     }
 
     /// Decisions received (superseded ones included) and committed so far, over every hub
     /// process of the flight.
     pub fn decisions_received_committed(&self) -> (u64, u64) {
+        let hub = self.hub_totals();
         (
-            self.hub.total(RECEIVED) + self.hub.total(SUPERSEDED),
-            self.hub.total(COMMITTED),
+            hub.decisions_received + hub.decisions_superseded,
+            hub.decisions_committed,
         )
+    }
+
+    /// The hub's counts so far, over every hub process of the flight.
+    pub fn hub_totals(&self) -> HubCounts {
+        HubCounts::from_array(core::array::from_fn(|i| self.hub.total(i)))
     }
 
     /// The summary of the flight so far.
@@ -531,7 +502,7 @@ impl FlightMonitor {
             final_position: p.map(f64::from),
             duration_s,
             cycles: self.cycles(),
-            cycles_committed: self.hub.total(COMMITTED),
+            cycles_committed: self.hub_totals().decisions_committed,
             ct_mean_s: ct_mean,
             ct_std_s: ct_std,
             ct_p95_s: percentile(&self.ct_s, 95.0).unwrap_or(0.0),
@@ -542,20 +513,13 @@ impl FlightMonitor {
                 binding: self.stage_sums[3] / n,
             },
             eer: self.eer(),
-            decisions_received: self.hub.total(RECEIVED),
-            decisions_rejected: self.hub.total(REJECTED),
-            decisions_reused: self.hub.total(REUSED),
-            decisions_late: self.hub.total(LATE),
-            sequence_gaps: self.hub.total(GAPS),
-            sequence_reorders: self.hub.total(REORDERS),
+            hub: self.hub_totals(),
             controller_ticks: self.controller.total(TICKS),
             controller_missed_ticks: self.controller.total(MISSED),
             controller_refused_setpoints: self.controller.total(REFUSED),
             controller_hold_ticks: self.controller.total(HOLDS),
             max_setpoint_gap_ms: self.setpoint_gaps_ms.iter().copied().fold(0.0, f64::max),
             setpoint_period_ms: percentile(&self.setpoint_gaps_ms, 50.0).unwrap_or(0.0),
-            decisions_superseded: self.hub.total(SUPERSEDED),
-            source_switches: self.hub.total(SWITCHES),
             swaps_done: 0,
             swaps_failed: 0,
             role_restarts,

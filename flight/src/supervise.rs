@@ -274,9 +274,9 @@ pub(crate) fn supervise<H: StepHook>(
     if monitor.cycles() == 0
         && let Some(hub) = hub_counters(&sup)
     {
-        summary.decisions_received = hub.received;
-        summary.decisions_rejected = hub.rejected;
-        summary.decisions_late = hub.late;
+        summary.hub.decisions_received = hub.received;
+        summary.hub.decisions_rejected = hub.rejected;
+        summary.hub.decisions_late = hub.late;
     }
     summary.migrations = u64::from(sup.total_migrations());
     summary.variant_steps = u64::from(sup.total_variant_steps());

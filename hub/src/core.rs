@@ -43,8 +43,8 @@ use crate::att::{Attention, AttentionResult};
 use crate::gate::{DecisionGate, GateError};
 use crate::ordering::{SeqVerdict, SequenceTracker, SourceSelector, SourceVerdict};
 use aeris_schemas::{
-    BoundSetpoint, Decision, HubReport, MAX_SUBGOALS, OccupancyGrid, PerceptionState, StateError,
-    all_finite,
+    BoundSetpoint, Decision, HubCounts, HubReport, MAX_SUBGOALS, OccupancyGrid, PerceptionState,
+    StateError, all_finite,
 };
 
 /// Timing and mode of the hub.
@@ -56,33 +56,6 @@ pub struct HubConfig {
     pub decision_deadline_ns: u64,
     /// No-ATT ablation: the active step is the reasoner's declared step.
     pub no_att: bool,
-}
-
-/// The hub's counters (also carried by every [`HubReport`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct HubCounters {
-    /// Decisions received.
-    pub decisions_received: u64,
-    /// Decisions committed.
-    pub decisions_committed: u64,
-    /// Decisions rejected (invalid, infeasible, out of order, late, future timestamp).
-    pub decisions_rejected: u64,
-    /// Decisions received after the deadline (also in `decisions_rejected`).
-    pub decisions_late: u64,
-    /// Cycles that reused the last valid decision.
-    pub decisions_reused: u64,
-    /// Sequence gaps detected.
-    pub sequence_gaps: u64,
-    /// Out-of-order or duplicate decisions.
-    pub sequence_reorders: u64,
-    /// States received.
-    pub states_received: u64,
-    /// States rejected by validation.
-    pub states_rejected: u64,
-    /// Decisions of an older reasoning instance ignored while a newer one was live.
-    pub decisions_superseded: u64,
-    /// Switches to another reasoning instance.
-    pub source_switches: u64,
 }
 
 /// Why a decision was rejected.
@@ -188,7 +161,7 @@ pub struct HubCore {
     subgoals: usize,
     sources: SourceSelector,
     sequence: SequenceTracker,
-    counters: HubCounters,
+    counters: HubCounts,
     position: [f32; 3],
     telemetry_seen: bool,
     /// The occupancy of the latest valid S_t (absent before the first).
@@ -241,7 +214,7 @@ impl HubCore {
                     .saturating_add(config.decision_deadline_ns),
             ),
             sequence: SequenceTracker::new(),
-            counters: HubCounters::default(),
+            counters: HubCounts::default(),
             position: start,
             telemetry_seen: false,
             grid: OccupancyGrid::default(),
@@ -489,7 +462,6 @@ impl HubCore {
         let l = self.subgoals.min(MAX_SUBGOALS);
         let mut attention = [0.0; MAX_SUBGOALS];
         attention[..l].copy_from_slice(&att.alpha[..l]);
-        let c = &self.counters;
         HubReport {
             seq: self.report_seq,
             cycle: 0,
@@ -503,17 +475,7 @@ impl HubCore {
             active_step: self.active_step(),
             subgoals: l as u16,
             attention,
-            decisions_received: c.decisions_received,
-            decisions_committed: c.decisions_committed,
-            decisions_rejected: c.decisions_rejected,
-            decisions_late: c.decisions_late,
-            decisions_reused: c.decisions_reused,
-            sequence_gaps: c.sequence_gaps,
-            sequence_reorders: c.sequence_reorders,
-            states_received: c.states_received,
-            states_rejected: c.states_rejected,
-            decisions_superseded: c.decisions_superseded,
-            source_switches: c.source_switches,
+            counts: self.counters,
             decision_source: self.sources.active().unwrap_or(0),
             clamp_reasons: 0,
         }
@@ -569,7 +531,7 @@ impl HubCore {
     }
 
     /// The counters so far.
-    pub fn counters(&self) -> HubCounters {
+    pub fn counters(&self) -> HubCounts {
         self.counters
     }
 

@@ -31,7 +31,7 @@ pub mod program_gate;
 pub mod role;
 pub mod testing;
 
-pub use crate::core::{DecisionVerdict, HubConfig, HubCore, HubCounters, RejectReason, TickOutput};
+pub use crate::core::{DecisionVerdict, HubConfig, HubCore, RejectReason, TickOutput};
 pub use att::{
     Attention, AttentionError, AttentionPrior, AttentionResult, AttentionScorer, EMBEDDING_GAIN,
     EmbeddingScorer, LexicalScorer, segment_instruction,

@@ -261,7 +261,7 @@ impl Role for HubRole {
                 self.verdicts_logged += 1;
                 eprintln!(
                     "hub: a heartbeat closed without a fresh decision from reasoner instance {}: the last one is reused ({} reused in this flight)",
-                    r.decision_source, r.decisions_reused
+                    r.decision_source, r.counts.decisions_reused
                 );
             }
             self.reports.publish(&r)?;

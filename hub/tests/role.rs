@@ -157,7 +157,10 @@ fn decisions_in_setpoints_and_reports_out() {
         (1, [40.0, 0.0, 10.0], 1)
     );
     let r = reports.latest().unwrap().expect("a reuse report");
-    assert_eq!((r.committed, r.reused, r.decisions_rejected), (0, 1, 1));
+    assert_eq!(
+        (r.committed, r.reused, r.counts.decisions_rejected),
+        (0, 1, 1)
+    );
     // [received, rejected, late, reused, gaps, reorders, states, 0]
     assert_eq!(report.counters, [2, 1, 0, 1, 0, 0, 1, 0]);
 

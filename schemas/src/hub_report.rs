@@ -22,6 +22,69 @@ pub mod clamp {
     pub const ALL: u32 = ALTITUDE | GEOFENCE | SPEED | OBSTACLE | NO_OCCUPANCY;
 }
 
+/// Declares [`HubCounts`] from its fields' names: the struct, and each count by name.
+macro_rules! hub_counts {
+    ($($(#[$doc:meta])* $field:ident,)*) => {
+        /// What the hub did with the decisions and states it received, counted since the
+        /// hub process started: one type for the hub's core, its report, the flight's
+        /// summary (totals over every hub process) and the recording.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+        #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+        #[repr(C)]
+        pub struct HubCounts {
+            $($(#[$doc])* pub $field: u64,)*
+        }
+
+        impl HubCounts {
+            /// How many counts there are.
+            pub const LEN: usize = [$(stringify!($field)),*].len();
+
+            /// Every count with its name, in declaration order.
+            pub fn named(&self) -> [(&'static str, u64); Self::LEN] {
+                [$((stringify!($field), self.$field)),*]
+            }
+
+            /// The counts in declaration order.
+            pub fn to_array(&self) -> [u64; Self::LEN] {
+                [$(self.$field),*]
+            }
+
+            /// Counts from [`HubCounts::to_array`]'s order.
+            pub fn from_array(values: [u64; Self::LEN]) -> Self {
+                let [$($field),*] = values;
+                Self { $($field),* }
+            }
+        }
+    };
+}
+
+hub_counts! {
+    /// Decisions received.
+    decisions_received,
+    /// Decisions committed (passed every check and became the decision in force).
+    decisions_committed,
+    /// Decisions rejected by validation or feasibility (late, out of order and from the
+    /// future included).
+    decisions_rejected,
+    /// Decisions that arrived after the deadline (also in `decisions_rejected`).
+    decisions_late,
+    /// Cycles that reused the last valid decision.
+    decisions_reused,
+    /// Sequence gaps detected on incoming decisions.
+    sequence_gaps,
+    /// Out-of-order (or duplicate) decisions detected.
+    sequence_reorders,
+    /// States received.
+    states_received,
+    /// States rejected by validation.
+    states_rejected,
+    /// Decisions of an older reasoning instance ignored after the hub switched to a newer
+    /// one (hot swap, restart): not rejections, they never had a slot.
+    decisions_superseded,
+    /// Times the hub switched to another reasoning instance.
+    source_switches,
+}
+
 /// Hub report (`hub/report`), published once per committed or reused cycle.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
 #[type_name("aeris::HubReport@s8")]
@@ -53,29 +116,8 @@ pub struct HubReport {
     pub subgoals: u16,
     /// Attention alpha over the subgoals (first `subgoals` entries valid).
     pub attention: [f32; MAX_SUBGOALS],
-    /// Decisions received.
-    pub decisions_received: u64,
-    /// Decisions committed (passed every check and became the decision in force).
-    pub decisions_committed: u64,
-    /// Decisions rejected by validation or feasibility.
-    pub decisions_rejected: u64,
-    /// Decisions that arrived after the deadline.
-    pub decisions_late: u64,
-    /// Cycles that reused the last valid decision.
-    pub decisions_reused: u64,
-    /// Sequence gaps detected on incoming decisions.
-    pub sequence_gaps: u64,
-    /// Out-of-order (or duplicate) decisions detected.
-    pub sequence_reorders: u64,
-    /// States received.
-    pub states_received: u64,
-    /// States rejected by validation.
-    pub states_rejected: u64,
-    /// Decisions of an older reasoning instance ignored after the hub switched to a newer
-    /// one (hot swap, restart): not rejections, they never had a slot.
-    pub decisions_superseded: u64,
-    /// Times the hub switched to another reasoning instance.
-    pub source_switches: u64,
+    /// What the hub did with what it received, counted since it started.
+    pub counts: HubCounts,
     /// Instance number of the reasoner whose decisions the hub takes now (0 = none yet or
     /// unsupervised).
     pub decision_source: u32,

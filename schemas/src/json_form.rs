@@ -3,7 +3,8 @@
 //! a list is cut to its count; the occupancy grid's cells are base64.
 
 use crate::{
-    FixedText, HubReport, MAX_CUES, MAX_DETECTIONS, MAX_SUBGOALS, OccupancyGrid, PerceptionState,
+    FixedText, HubCounts, HubReport, MAX_CUES, MAX_DETECTIONS, MAX_SUBGOALS, OccupancyGrid,
+    PerceptionState,
 };
 use serde::ser::{Serialize, SerializeStruct, Serializer};
 
@@ -72,7 +73,8 @@ impl Serialize for PerceptionState {
 impl Serialize for HubReport {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         let attention = &self.attention[..usize::from(self.subgoals).min(MAX_SUBGOALS)];
-        let mut out = s.serialize_struct("HubReport", 27)?;
+        // the counts lie flat beside the other fields, as they always have in recordings
+        let mut out = s.serialize_struct("HubReport", 16 + HubCounts::LEN)?;
         fields!(
             out,
             self,
@@ -87,20 +89,12 @@ impl Serialize for HubReport {
             occupancy,
             active_step,
             subgoals,
-            decisions_received,
-            decisions_committed,
-            decisions_rejected,
-            decisions_late,
-            decisions_reused,
-            sequence_gaps,
-            sequence_reorders,
-            states_received,
-            states_rejected,
-            decisions_superseded,
-            source_switches,
             decision_source,
             clamp_reasons,
         );
+        for (name, value) in self.counts.named() {
+            out.serialize_field(name, &value)?;
+        }
         out.serialize_field("attention", attention)?;
         out.end()
     }

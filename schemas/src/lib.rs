@@ -54,7 +54,7 @@ pub use formation_command::{
 pub use frame::{FrameError, FrameFormat, FrameHeader};
 pub use heartbeat::{HeartbeatError, MAX_STAGES, RoleHeartbeat, RoleStatus, StageTiming};
 pub use host_link::{HostLinkStatus, LINK_LOSS_WINDOW, LINK_PROBE_PERIOD_MS, MAX_HOSTS};
-pub use hub_report::{HubReport, HubReportError, clamp};
+pub use hub_report::{HubCounts, HubReport, HubReportError, clamp};
 pub use lease::{ControllerLease, LEASE_HAS_HOLD, LEASE_HAS_REFERENCE};
 pub use role_counters::{
     BlockCounters, BridgeCounters, CameraCounters, ComposeCounters, ControllerCounters,

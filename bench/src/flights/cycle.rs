@@ -307,7 +307,7 @@ pub fn run(
         eer: s.eer,
         stages: s.stages_mean_s,
         roles: watch.roles,
-        decisions_late: s.decisions_late,
+        decisions_late: s.hub.decisions_late,
         controller_missed_ticks: s.controller_missed_ticks,
         outside_load: config.flight.outside_load,
         priority: s.priority,

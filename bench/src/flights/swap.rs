@@ -349,7 +349,7 @@ pub fn run(
         swaps: rows.iter().filter(|r| r.done).count() as u32,
         swaps_failed: rows.iter().filter(|r| !r.done).count() as u32,
         missed_heartbeats: rows.iter().map(|r| r.missed_heartbeats).sum(),
-        flight_missed_heartbeats: outcome.summary.decisions_reused,
+        flight_missed_heartbeats: outcome.summary.hub.decisions_reused,
         max_setpoint_gap_ms: rows
             .iter()
             .map(|r| r.max_setpoint_gap_ms)

@@ -127,7 +127,7 @@ fn a_swapped_in_reasoner_takes_over_with_its_first_timely_decision_and_costs_no_
     assert_eq!(h.counters().decisions_reused, 0);
     // its next one is in time: it takes over, its own numbering (1, 2) accepted
     let (_, r) = committed(h.on_decision(&from(7, 2, 12 * S), 12 * S + 1));
-    assert_eq!((r.decision_source, r.source_switches), (7, 1));
+    assert_eq!((r.decision_source, r.counts.source_switches), (7, 1));
     // the old one, not stopped yet, is ignored without costing a slot
     let v = h.on_decision(&from(3, 46, 12 * S + 5), 12 * S + 6);
     assert_eq!(
@@ -200,7 +200,10 @@ fn a_garbage_decision_leaves_the_last_valid_one_in_force() {
         DecisionVerdict::Rejected {
             report: Some(r), ..
         } => {
-            assert_eq!((r.reused, r.committed, r.decisions_reused), (1, 0, 1));
+            assert_eq!(
+                (r.reused, r.committed, r.counts.decisions_reused),
+                (1, 0, 1)
+            );
             assert_eq!(r.validate(), Ok(()));
         }
         other => panic!("{other:?}"),
@@ -234,7 +237,7 @@ fn late_and_future_decisions_are_rejected() {
     match h.on_decision(&late, 14 * S + S / 2) {
         DecisionVerdict::Late { age_ns, report } => {
             assert_eq!(age_ns, 2 * S + S / 2);
-            assert_eq!(report.map(|r| r.decisions_late), Some(1));
+            assert_eq!(report.map(|r| r.counts.decisions_late), Some(1));
         }
         other => panic!("{other:?}"),
     }
@@ -272,18 +275,21 @@ fn each_missed_heartbeat_counts_one_reuse() {
     assert_eq!((t.report, t.setpoint.unwrap().reused), (None, 0));
     let t = h.on_tick(4 * S + 1);
     let r = t.report.unwrap();
-    assert_eq!((r.reused, r.cycle, r.decisions_reused), (1, 8, 1));
+    assert_eq!((r.reused, r.cycle, r.counts.decisions_reused), (1, 8, 1));
     assert_eq!(t.setpoint.unwrap().reused, 1);
     assert_eq!(h.on_tick(5 * S).report, None);
     let r = h.on_tick(6 * S + 1).report.unwrap();
-    assert_eq!((r.cycle, r.decisions_reused), (9, 2));
+    assert_eq!((r.cycle, r.counts.decisions_reused), (9, 2));
     // a stall over three more periods: three reuses, one report
     let r = h.on_tick(12 * S + 1).report.unwrap();
-    assert_eq!(r.decisions_reused, 5);
+    assert_eq!(r.counts.decisions_reused, 5);
     assert_eq!(h.on_tick(12 * S + 2).report, None);
     // a fresh decision ends the reuse
     let (_, r) = committed(h.on_decision(&goto(2, 13, 12 * S, [0.0, 20.0, 10.0]), 13 * S));
-    assert_eq!((r.committed, r.reused, r.decisions_reused), (1, 0, 5));
+    assert_eq!(
+        (r.committed, r.reused, r.counts.decisions_reused),
+        (1, 0, 5)
+    );
     assert_eq!(h.on_tick(13 * S).setpoint.unwrap().reused, 0);
     assert_eq!(h.counters().decisions_reused, 5);
 }
