@@ -202,3 +202,31 @@ fn opening_a_service_waits_for_a_slow_creator() {
     assert!(SERVICE_CREATION_TIMEOUT >= core::time::Duration::from_secs(10));
     assert!(iceoryx_config().global.creation_timeout >= SERVICE_CREATION_TIMEOUT);
 }
+
+#[test]
+fn a_refused_port_keeps_iceoryx2s_error_as_its_source() {
+    let f = flight("full");
+    let bus = FlightBus::builder(&f).node_name("many").create().unwrap();
+    let most = <topics::HubReport as topics::Topic>::INFO
+        .qos
+        .max_subscribers;
+    let _room: Vec<_> = (0..most)
+        .map(|_| bus.subscriber::<topics::HubReport>().unwrap())
+        .collect();
+    let err = bus
+        .subscriber::<topics::HubReport>()
+        .err()
+        .expect("one subscriber more than the topic's QoS allows is refused");
+    assert!(matches!(err, BusError::Port { .. }), "{err:?}");
+    let cause = std::error::Error::source(&err).expect("iceoryx2's error is the source");
+    assert!(
+        cause
+            .downcast_ref::<iceoryx2::port::subscriber::SubscriberCreateError>()
+            .is_some(),
+        "{cause:?}"
+    );
+    let text = aeris_runtime::error_chain::chain(&err).to_string();
+    assert!(text.starts_with("cannot create a port on `"), "{text}");
+    assert_eq!(text.matches("hub/report").count(), 1, "{text}");
+    assert!(text.contains("ExceedsMaxSupportedSubscribers"), "{text}");
+}

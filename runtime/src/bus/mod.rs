@@ -84,6 +84,9 @@ fn log_level_from(level: u8) -> LogLevel {
     }
 }
 
+/// The lower layer's error (iceoryx2's) behind a [`BusError`], kept whole as its source.
+pub type Cause = Box<dyn std::error::Error + Send + Sync + 'static>;
+
 /// Why a bus operation failed. Every variant names the service involved.
 #[derive(Debug, thiserror::Error)]
 pub enum BusError {
@@ -91,12 +94,12 @@ pub enum BusError {
     #[error("invalid name `{0}`")]
     InvalidName(String),
     /// The iceoryx2 node could not be created.
-    #[error("cannot create iceoryx2 node `{name}`: {reason}")]
+    #[error("cannot create iceoryx2 node `{name}`")]
     Node {
         /// Node name.
         name: String,
-        /// iceoryx2's reason.
-        reason: String,
+        /// iceoryx2's error.
+        source: Cause,
     },
     /// The service exists with another payload type, size or alignment: the other side was
     /// built with a different schema.
@@ -110,20 +113,27 @@ pub enum BusError {
         service: String,
     },
     /// The service exists with other quality-of-service settings.
-    #[error("service `{service}` exists with incompatible settings: {reason}")]
+    #[error("service `{service}` exists with incompatible settings")]
     IncompatibleSettings {
         /// Service name.
         service: String,
-        /// iceoryx2's reason.
-        reason: String,
+        /// iceoryx2's error (which setting).
+        source: Cause,
     },
     /// The service could not be opened or created for another reason.
-    #[error("cannot open service `{service}`: {reason}")]
+    #[error("cannot open service `{service}`")]
     Service {
         /// Service name.
         service: String,
-        /// iceoryx2's reason.
-        reason: String,
+        /// iceoryx2's error.
+        source: Cause,
+    },
+    /// The flight's manifest kept being created and removed by other processes while this
+    /// one tried to open it.
+    #[error("the flight manifest `{service}` could not be opened or created")]
+    ManifestUnavailable {
+        /// Service name.
+        service: String,
     },
     /// The service does not exist (only for open-only operations).
     #[error("service `{service}` does not exist (is the flight running?)")]
@@ -132,20 +142,20 @@ pub enum BusError {
         service: String,
     },
     /// A port (publisher, subscriber, reader, writer) could not be created.
-    #[error("cannot create a port on `{service}`: {reason}")]
+    #[error("cannot create a port on `{service}`")]
     Port {
         /// Service name.
         service: String,
-        /// iceoryx2's reason.
-        reason: String,
+        /// iceoryx2's error.
+        source: Cause,
     },
     /// Loaning, sending or receiving a sample failed.
-    #[error("transfer on `{service}` failed: {reason}")]
+    #[error("transfer on `{service}` failed")]
     Transfer {
         /// Service name.
         service: String,
-        /// iceoryx2's reason.
-        reason: String,
+        /// iceoryx2's error.
+        source: Cause,
     },
     /// An iceoryx2 directory belongs to another user, who could make any service of any
     /// flight.
@@ -249,7 +259,7 @@ impl FlightBusBuilder {
             .create::<Ipc>()
             .map_err(|e| BusError::Node {
                 name: full.clone(),
-                reason: format!("{e:?}"),
+                source: e.into(),
             })?;
         let cleaned = if self.cleanup_dead_nodes {
             node.try_cleanup_dead_nodes().cleanups
@@ -301,10 +311,12 @@ fn scoped(vehicle: Option<u8>, topic: &str) -> String {
 }
 
 /// Maps a port-creation failure on `service` to [`BusError::Port`].
-fn port_error<E: Debug>(service: &str) -> impl Fn(E) -> BusError + '_ {
+fn port_error<E: std::error::Error + Send + Sync + 'static>(
+    service: &str,
+) -> impl Fn(E) -> BusError + '_ {
     move |e| BusError::Port {
         service: service.to_string(),
-        reason: format!("{e:?}"),
+        source: e.into(),
     }
 }
 
@@ -339,11 +351,11 @@ fn ps_open_error(service: &str, e: PublishSubscribeOpenOrCreateError) -> BusErro
             | PublishSubscribeOpenError::IncompatibleOverflowBehavior),
         ) => BusError::IncompatibleSettings {
             service,
-            reason: format!("{o:?}"),
+            source: o.into(),
         },
         other => BusError::Service {
             service,
-            reason: format!("{other:?}"),
+            source: other.into(),
         },
     }
 }
@@ -461,15 +473,12 @@ impl FlightBus {
                 Err(e) => {
                     return Err(BusError::Service {
                         service: name,
-                        reason: format!("{e:?}"),
+                        source: e.into(),
                     });
                 }
             }
         }
-        Err(BusError::Service {
-            service: name,
-            reason: "the flight manifest could not be opened or created".into(),
-        })
+        Err(BusError::ManifestUnavailable { service: name })
     }
 
     /// Open (or create) the fixed-size publish-subscribe service of `topic` (a name of a
@@ -616,7 +625,7 @@ impl FlightBus {
             },
             other => BusError::Service {
                 service: name.clone(),
-                reason: format!("{other:?}"),
+                source: other.into(),
             },
         })?;
         ownership::check_opened(iceoryx_config(), &name, service.service_hash())?;
@@ -645,7 +654,7 @@ impl FlightBus {
             }
             other => BusError::Service {
                 service: name.clone(),
-                reason: format!("{other:?}"),
+                source: other.into(),
             },
         })?;
         ownership::check_opened(iceoryx_config(), &name, service.service_hash())?;
@@ -726,7 +735,7 @@ impl FlightBus {
             .create()
             .map_err(|e| BusError::Service {
                 service: name.clone(),
-                reason: format!("{e:?}"),
+                source: e.into(),
             })?;
         let writer = service
             .writer_builder()
@@ -763,7 +772,7 @@ impl FlightBus {
             Err(e) => {
                 return Err(BusError::Service {
                     service: name,
-                    reason: format!("{e:?}"),
+                    source: e.into(),
                 });
             }
         };

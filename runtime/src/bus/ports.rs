@@ -23,14 +23,14 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> TypedPublisher<T> {
             .loan_uninit()
             .map_err(|e| BusError::Transfer {
                 service: self.service.clone(),
-                reason: format!("{e:?}"),
+                source: e.into(),
             })?;
         sample
             .write_payload(*value)
             .send()
             .map_err(|e| BusError::Transfer {
                 service: self.service.clone(),
-                reason: format!("{e:?}"),
+                source: e.into(),
             })
     }
 
@@ -64,7 +64,7 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> TypedSubscriber<T> {
             Ok(None) => Ok(None),
             Err(e) => Err(BusError::Transfer {
                 service: self.service.clone(),
-                reason: format!("{e:?}"),
+                source: e.into(),
             }),
         }
     }
@@ -73,7 +73,7 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> TypedSubscriber<T> {
     pub fn next_sample(&self) -> Result<Option<Sample<Ipc, T, ()>>, BusError> {
         self.subscriber.receive().map_err(|e| BusError::Transfer {
             service: self.service.clone(),
-            reason: format!("{e:?}"),
+            source: e.into(),
         })
     }
 
@@ -122,7 +122,7 @@ impl FramePublisher {
             .loan_slice_uninit(len)
             .map_err(|e| BusError::Transfer {
                 service: self.service.clone(),
-                reason: format!("{e:?}"),
+                source: e.into(),
             })?;
         *sample.user_header_mut() = *header;
         let sample = sample.write_from_fn(|_| 0u8);
@@ -130,7 +130,7 @@ impl FramePublisher {
         fill(sample.payload_mut());
         sample.send().map_err(|e| BusError::Transfer {
             service: self.service.clone(),
-            reason: format!("{e:?}"),
+            source: e.into(),
         })?;
         Ok(())
     }
@@ -165,7 +165,7 @@ impl FrameSubscriber {
     pub fn next(&self) -> Result<Option<FrameSample>, BusError> {
         self.subscriber.receive().map_err(|e| BusError::Transfer {
             service: self.service.clone(),
-            reason: format!("{e:?}"),
+            source: e.into(),
         })
     }
 

@@ -49,7 +49,7 @@ impl ControlServer {
     pub fn receive(&self) -> Result<Option<ControlRequest>, BusError> {
         self.server.receive().map_err(|e| BusError::Transfer {
             service: self.service.clone(),
-            reason: format!("{e:?}"),
+            source: e.into(),
         })
     }
 
@@ -61,7 +61,7 @@ impl ControlServer {
         }
         request.send_copy(*reply).map_err(|e| BusError::Transfer {
             service: self.service.clone(),
-            reason: format!("{e:?}"),
+            source: e.into(),
         })
     }
 }
@@ -93,7 +93,7 @@ impl ControlClient {
             .send_copy(*command)
             .map_err(|e| BusError::Transfer {
                 service: self.service.clone(),
-                reason: format!("{e:?}"),
+                source: e.into(),
             })?;
         Ok(PendingControl {
             pending,
@@ -110,7 +110,7 @@ impl PendingControl {
             Ok(None) => Ok(None),
             Err(e) => Err(BusError::Transfer {
                 service: self.service.clone(),
-                reason: format!("{e:?}"),
+                source: e.into(),
             }),
         }
     }
