@@ -272,6 +272,8 @@ fn main() -> ExitCode {
     // config-file warning to print; what fails on the bus comes back as a BusError naming
     // the service, so its own log keeps to errors unless IOX2_LOG_LEVEL asks for more.
     iceoryx2::prelude::set_log_level_from_env_or(iceoryx2::prelude::LogLevel::Error);
+    // the libraries' messages, one plain line each on stderr (RUST_LOG filters)
+    aeris_runtime::log::init_stderr();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Run(args) => run_cmd::run(args),

@@ -126,6 +126,8 @@ pub(crate) fn supervise<H: StepHook>(
         role_executable,
         record,
     } = setup;
+    let span = tracing::info_span!("flight", flight = %name, run_dir = %run_dir.display());
+    let _in_flight = span.enter();
     let send = |event| {
         // nobody listening is no reason to stop flying
         let _ = events.send(event);

@@ -305,7 +305,7 @@ impl Role for BridgeRole {
             Err(e) => {
                 // the other host does not answer yet: the bridge runs without it (the
                 // flight never waits for a link) and keeps trying in the background
-                eprintln!(
+                tracing::warn!(
                     "bridge: {} not reachable yet ({e}); trying every second",
                     bridge.peer
                 );
@@ -385,7 +385,7 @@ impl Role for BridgeRole {
                 if let Some(e) = failed {
                     self.counters.dropped += 1;
                     if !self.refused_logged {
-                        eprintln!("bridge: cannot send `{}`: {e}", ex.topic);
+                        tracing::warn!("bridge: cannot send `{}`: {e}", ex.topic);
                         self.refused_logged = true;
                     }
                     continue;
@@ -446,7 +446,7 @@ impl Role for BridgeRole {
                 if let Err(e) = check_schema(&format!("the bridge of {}", self.peer), stamp) {
                     self.counters.refused += 1;
                     if !self.refused_logged {
-                        eprintln!("bridge: refused `{}`: {e}", im.topic);
+                        tracing::warn!("bridge: refused `{}`: {e}", im.topic);
                         self.refused_logged = true;
                     }
                     continue;
@@ -465,7 +465,7 @@ impl Role for BridgeRole {
                         if let Err(e) = decoded {
                             self.counters.refused += 1;
                             if !self.refused_logged {
-                                eprintln!("bridge: refused `{}`: {e}", im.topic);
+                                tracing::warn!("bridge: refused `{}`: {e}", im.topic);
                                 self.refused_logged = true;
                             }
                             continue;
@@ -611,7 +611,7 @@ impl BridgeRole {
                 }
                 Err(e) => {
                     self.counters.dropped += 1;
-                    eprintln!("bridge: cannot subscribe to `{}` on zenoh: {e}", im.topic);
+                    tracing::warn!("bridge: cannot subscribe to `{}` on zenoh: {e}", im.topic);
                 }
             }
         }
@@ -638,7 +638,7 @@ impl BridgeRole {
             if connected {
                 println!("bridge: connected to {}", self.peer);
             } else {
-                eprintln!("bridge: no link to {}", self.peer);
+                tracing::warn!("bridge: no link to {}", self.peer);
             }
         }
     }

@@ -130,7 +130,7 @@ fn log_verdict(logged: &mut u32, d: &Decision, verdict: &DecisionVerdict) {
         }
     };
     match verdict {
-        DecisionVerdict::Late { age_ns, report } => eprintln!(
+        DecisionVerdict::Late { age_ns, report } => tracing::warn!(
             "hub: late decision from reasoner instance {} (cycle {}, seq {}): received {:.0} ms after its cycle start; {}",
             d.source,
             d.cycle,
@@ -138,7 +138,7 @@ fn log_verdict(logged: &mut u32, d: &Decision, verdict: &DecisionVerdict) {
             *age_ns as f64 / 1e6,
             slot(report)
         ),
-        DecisionVerdict::Rejected { reason, report } => eprintln!(
+        DecisionVerdict::Rejected { reason, report } => tracing::warn!(
             "hub: rejected decision from reasoner instance {} (cycle {}, seq {}): {reason}; {}",
             d.source,
             d.cycle,
@@ -149,7 +149,7 @@ fn log_verdict(logged: &mut u32, d: &Decision, verdict: &DecisionVerdict) {
     }
     *logged += 1;
     if *logged == VERDICT_LOG_LINES {
-        eprintln!("hub: {VERDICT_LOG_LINES} lines about rejected decisions logged; no more");
+        tracing::warn!("hub: {VERDICT_LOG_LINES} lines about rejected decisions logged; no more");
     }
 }
 
@@ -165,7 +165,7 @@ impl Role for HubRole {
         let core = core_from_spec(&ctx.spec)?;
         let realtime = ctx.spec.param_bool("realtime", true)?;
         if realtime && !try_sched_fifo(HUB_FIFO_PRIORITY) {
-            eprintln!(
+            tracing::warn!(
                 "aeris hub `{}`: SCHED_FIFO not permitted, running with the normal scheduler",
                 ctx.spec.name
             );
@@ -217,10 +217,10 @@ impl Role for HubRole {
         if states > 0 && status != self.occupancy {
             self.occupancy = status;
             if status == Some(OccupancyStatus::Present) {
-                eprintln!("hub: occupancy present: the gate clamps against the grid");
+                tracing::info!("hub: occupancy present: the gate clamps against the grid");
             } else {
                 let b = self.core.gate().limits().blind_altitude();
-                eprintln!(
+                tracing::warn!(
                     "hub: occupancy {}: unknown space is not free; moves over {BLIND_MOVE_M} m \
                      are flown at the conservative altitude {b} m, inside the geofence",
                     status.map_or("unknown", OccupancyStatus::name)
@@ -259,9 +259,10 @@ impl Role for HubRole {
         if let Some(r) = tick.report {
             if r.reused == 1 && r.committed == 0 && self.verdicts_logged < VERDICT_LOG_LINES {
                 self.verdicts_logged += 1;
-                eprintln!(
+                tracing::warn!(
                     "hub: a heartbeat closed without a fresh decision from reasoner instance {}: the last one is reused ({} reused in this flight)",
-                    r.decision_source, r.counts.decisions_reused
+                    r.decision_source,
+                    r.counts.decisions_reused
                 );
             }
             self.reports.publish(&r)?;

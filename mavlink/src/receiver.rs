@@ -49,7 +49,7 @@ impl LinkReceiver {
                             line.push_str(&format!(": {c}"));
                             cause = c.source();
                         }
-                        eprintln!("{line}");
+                        tracing::warn!("{line}");
                     }
                 })?
         };

@@ -240,7 +240,7 @@ impl Role for RecorderRole {
             Ok((q, w)) => (Some(q), Some(w)),
             Err(e) => {
                 // the flight goes on without a recording: say so once, report Degraded
-                eprintln!(
+                tracing::warn!(
                     "recorder: {}; recording stopped, the flight goes on",
                     aeris_runtime::error_chain::chain(&e)
                 );
@@ -249,7 +249,7 @@ impl Role for RecorderRole {
             }
         };
         if queue.is_some() {
-            eprintln!("recorder: recording to {}", path.display());
+            tracing::info!("recorder: recording to {}", path.display());
         }
         Ok(Self {
             inputs,

@@ -280,7 +280,7 @@ impl Role for ReplaySource {
                     Some(waiting) if waiting.is_empty() => {
                         let t = self.start_at(now);
                         self.t0_wall = Some(t);
-                        eprintln!(
+                        tracing::info!(
                             "replay: every role is up; replaying from {:.3} s of the recording \
                              in {:.0} ms",
                             self.t0_rec as f64 / 1e9,
@@ -292,7 +292,7 @@ impl Role for ReplaySource {
                         let (since, said) = *self.waiting_since.get_or_insert((now, false));
                         if !said && now.saturating_sub(since) >= WAIT_NOTE_NS {
                             self.waiting_since = Some((since, true));
-                            eprintln!(
+                            tracing::info!(
                                 "replay: still waiting for {} to run before replaying",
                                 waiting.map_or_else(
                                     || "the supervisor's status board".to_string(),
@@ -319,14 +319,16 @@ impl Role for ReplaySource {
                             Some(Ok(Ok(()))) | None => {}
                             Some(Ok(Err(e))) => {
                                 self.failed = true;
-                                eprintln!(
+                                tracing::warn!(
                                     "replay: the recording ended early: {}",
                                     aeris_runtime::error_chain::chain(&e)
                                 );
                             }
                             Some(Err(_)) => {
                                 self.failed = true;
-                                eprintln!("replay: the recording's reader failed (it panicked)");
+                                tracing::warn!(
+                                    "replay: the recording's reader failed (it panicked)"
+                                );
                             }
                         }
                         break;

@@ -337,7 +337,7 @@ impl WriterThread {
                 path: self.path.clone(),
                 source,
             };
-            eprintln!(
+            tracing::warn!(
                 "recorder: {}; recording stopped, the flight goes on",
                 aeris_runtime::error_chain::chain(&e)
             );
@@ -411,7 +411,7 @@ impl WriterThread {
                                 // is not (said once)
                                 if !self.encode_failed {
                                     self.encode_failed = true;
-                                    eprintln!(
+                                    tracing::warn!(
                                         "recorder: a frame of {frame_id} was not recorded as \
                                          an image: {}",
                                         aeris_runtime::error_chain::chain(&e)

@@ -188,7 +188,7 @@ impl Role for CueRole {
         self.pending = None;
         self.done_frame = frame;
         if let Err(e) = self.embedder.embed_into(&refs, &mut self.embedded) {
-            eprintln!("cues: frame {frame}: {}", chain(&e));
+            tracing::warn!("cues: frame {frame}: {}", chain(&e));
             return Ok(CycleOutcome::Idle);
         }
         *self.state = PerceptionState::default();

@@ -144,7 +144,7 @@ impl Role for LanguageRole {
             aeris_runtime::clock::process_cpu_ns().saturating_sub(cpu),
             threads,
         );
-        eprintln!(
+        tracing::info!(
             "reasoning/{variant}: warmed up in {:.0} ms; a decision takes about {:.0} ms on its CPUs",
             wall.elapsed().as_secs_f64() * 1e3,
             decision.as_secs_f64() * 1e3
@@ -196,7 +196,7 @@ impl Role for LanguageRole {
                 let mut c = LanguageCounters::from_heartbeat(&report.counters);
                 c.failures = self.failures;
                 report.counters = c.to_heartbeat();
-                eprintln!("reasoning: no decision this heartbeat: {}", chain(&e));
+                tracing::warn!("reasoning: no decision this heartbeat: {}", chain(&e));
                 return Ok(CycleOutcome::Worked);
             }
         };

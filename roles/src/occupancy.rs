@@ -148,7 +148,7 @@ impl Role for OccupancyRole {
         if let Err(e) = result {
             self.rejected += 1;
             BlockCounters::update(&mut report.counters, |c| c.frames_rejected = self.rejected);
-            eprintln!("occupancy: frame {} rejected: {e}", header.seq);
+            tracing::warn!("occupancy: frame {} rejected: {e}", header.seq);
             return Ok(CycleOutcome::Idle);
         }
         // occupancy_from_depth fills the frame fields; the block holds nothing else

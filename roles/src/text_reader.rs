@@ -104,7 +104,7 @@ impl Role for TextReaderRole {
             // a frame the reader cannot take is dropped, the role keeps running
             self.rejected += 1;
             BlockCounters::update(&mut report.counters, |c| c.frames_rejected = self.rejected);
-            eprintln!("text-reader: frame {} rejected: {}", header.seq, chain(&e));
+            tracing::warn!("text-reader: frame {} rejected: {}", header.seq, chain(&e));
             return Ok(CycleOutcome::Idle);
         }
         begin_block(&mut self.state, &header, block::TEXT);

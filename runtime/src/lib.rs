@@ -21,6 +21,7 @@ pub mod bus;
 pub mod catalog;
 pub mod clock;
 pub mod error_chain;
+pub mod log;
 pub mod raw;
 pub mod role;
 pub mod signals;

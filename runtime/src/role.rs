@@ -139,6 +139,14 @@ pub struct RoleHost;
 impl RoleHost {
     /// Run role `R` with `spec` until SIGTERM/SIGINT, a fatal error, or `Finished`.
     pub fn run<R: Role>(spec: RoleSpec) -> Result<(), RoleError> {
+        let span = tracing::info_span!(
+            "role",
+            role = %spec.name,
+            kind = %spec.kind,
+            variant = %spec.variant,
+            flight = %spec.flight,
+        );
+        let _in_role = span.enter();
         signals::install_termination_handlers()
             .map_err(|e| RoleError::Fatal(format!("cannot install signal handlers: {e}")))?;
         let bus = FlightBus::builder(&spec.flight)

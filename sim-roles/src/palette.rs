@@ -45,7 +45,7 @@ impl DetectionEngine for PaletteDetection {
         let Some(depth) = depth else {
             self.without_depth = self.without_depth.saturating_add(1);
             if self.without_depth == NO_DEPTH_SAID_AFTER {
-                eprintln!(
+                tracing::info!(
                     "detector: palette: no depth frame came with the last \
                      {NO_DEPTH_SAID_AFTER} frames; the colour segmentation needs depth, so \
                      they give no detections (a camera without depth wants the yolo detector)"

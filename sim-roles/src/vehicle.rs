@@ -203,7 +203,7 @@ impl Role for VehicleRole {
             config.start = c.position;
             config.start_yaw = c.yaw;
             resumed = true;
-            eprintln!("vehicle: resumed from checkpoint at {:?}", c.position);
+            tracing::info!("vehicle: resumed from checkpoint at {:?}", c.position);
         }
         let checkpoint = match &state_file {
             Some(path) => Some(

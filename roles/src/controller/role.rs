@@ -191,7 +191,7 @@ impl ControllerRole {
         let version = self.framing.send_version(self.ap_cache.heartbeat_version);
         if link.send_version() != version {
             link.set_send_version(version);
-            eprintln!("aeris controller: sending MAVLink {version:?} to the autopilot");
+            tracing::info!("aeris controller: sending MAVLink {version:?} to the autopilot");
         }
         match link.send(&self.header, msg) {
             Ok(n) => n > 0,
@@ -219,7 +219,7 @@ impl ControllerRole {
             if target != self.target {
                 self.target = target;
                 self.sequencer.set_autopilot(id.autopilot);
-                eprintln!(
+                tracing::info!(
                     "aeris controller `{name}`: flying {} at system {} component {}",
                     id.autopilot.name(),
                     id.system_id,
@@ -243,7 +243,7 @@ impl ControllerRole {
             if state == LinkState::Lost {
                 self.link_losses += 1;
             }
-            eprintln!(
+            tracing::info!(
                 "aeris controller `{name}`: autopilot link {} ({})",
                 state.name(),
                 self.url.as_str_lossy()
@@ -347,7 +347,7 @@ impl Role for ControllerRole {
             .map_err(|e| RoleError::Fatal(format!("cannot spawn the receive thread: {e}")))?
         };
         if realtime && !try_sched_fifo(50) {
-            eprintln!(
+            tracing::warn!(
                 "aeris controller `{}`: SCHED_FIFO not permitted, running with the normal scheduler",
                 spec.name
             );
@@ -439,13 +439,13 @@ impl Role for ControllerRole {
             self.telemetry_seq = 0;
             self.ticks = 0;
             self.missed_ticks = 0;
-            eprintln!(
+            tracing::info!(
                 "aeris controller `{}`: took the autopilot lease (epoch {})",
                 ctx.spec.name,
                 self.arbiter.epoch()
             );
         } else if change == LeaseChange::SteppedDown {
-            eprintln!(
+            tracing::info!(
                 "aeris controller `{}`: another controller holds the autopilot lease, standing by",
                 ctx.spec.name
             );

@@ -137,7 +137,7 @@ fn plan(
         max_repairs,
     )
     .map_err(|e| RoleError::step("planning the formation", e))?;
-    eprintln!(
+    tracing::info!(
         "formation: {} (written in {:.0} ms, checked in {:.1} ms)",
         planned.outcome.summary(),
         planned.write_time.as_secs_f64() * 1e3,
@@ -151,7 +151,7 @@ fn plan(
                 RoleError::Fatal(format!("the hub's program gate refused the program: {e}"))
             })?;
             for (i, phase) in program.phases().iter().enumerate() {
-                eprintln!("formation: phase {}: {}", i + 1, phase_description(phase));
+                tracing::info!("formation: phase {}: {}", i + 1, phase_description(phase));
             }
             Ok((*program, report.trajectory))
         }
@@ -241,7 +241,7 @@ impl Role for FormationRole {
         // stay where they are, on the ground
         let flying = program.vehicles.min(vehicles);
         if flying < vehicles {
-            eprintln!(
+            tracing::info!(
                 "formation: the program flies {flying} of the flight's {vehicles} vehicles; \
                  vehicles {}..{vehicles} stay on the ground",
                 flying + 1
@@ -301,7 +301,7 @@ impl Role for FormationRole {
                 report.counters = self.counters.to_heartbeat();
                 return Ok(CycleOutcome::Idle);
             }
-            eprintln!(
+            tracing::info!(
                 "formation: every vehicle's controller reports its autopilot; flying {} phases",
                 self.flying.program.phases().len()
             );
@@ -367,7 +367,7 @@ impl Role for FormationRole {
             let segments = &self.flying.executor.trajectory().segments;
             for (i, wait) in settled.iter().enumerate().skip(self.settled_logged) {
                 let phase = segments.get(i).map_or(0, |s| s.phase);
-                eprintln!(
+                tracing::info!(
                     "formation: phase {phase}: every vehicle within {} m of its slot {wait:.2} s after the phase's end",
                     Tolerance::default().distance_m
                 );
@@ -383,7 +383,7 @@ impl Role for FormationRole {
             });
         if state == ExecutorState::Done && all_landed && !self.done {
             self.done = true;
-            eprintln!(
+            tracing::info!(
                 "formation: every vehicle landed; closest two {:.2} m apart",
                 self.min_separation_m
             );
@@ -507,16 +507,17 @@ impl FormationRole {
         ) {
             Ok(replanned) => {
                 // (the diagnosis numbers vehicles in the program flown, 1-based)
-                eprintln!(
+                tracing::info!(
                     "formation: {} (the flight's vehicle {})",
-                    replanned.diagnosis, self.links[lost].number
+                    replanned.diagnosis,
+                    self.links[lost].number
                 );
                 let members = remaining_members(&replanned.remaining);
                 match replanned.outcome {
                     PlanOutcome::Accepted {
                         program, report, ..
                     } if self.gate.admit(&program).is_ok() => {
-                        eprintln!(
+                        tracing::info!(
                             "formation: {} for the {} that remain ({})",
                             if replanned.landing {
                                 "landing where they are"
@@ -531,7 +532,7 @@ impl FormationRole {
                     outcome => {
                         // not even a landing is safe (or the gate refused it): hold where
                         // they are
-                        eprintln!(
+                        tracing::warn!(
                             "formation: no safe plan for the {} that remain ({}); holding",
                             members.len(),
                             outcome.summary()
@@ -541,7 +542,7 @@ impl FormationRole {
                 }
             }
             Err(e) => {
-                eprintln!(
+                tracing::warn!(
                     "formation: vehicle {} left the formation; no plan for the rest ({}); holding",
                     self.links[lost].number,
                     aeris_runtime::error_chain::chain(&e)
@@ -566,7 +567,7 @@ impl FormationRole {
     /// the controllers hold their positions (no fresh setpoints).
     fn reshape(&mut self, command: &FormationCommand, now: u64) -> Result<(), RoleError> {
         let text = command.text.as_str_lossy();
-        eprintln!("formation: new instruction {}: {text:?}", command.id);
+        tracing::info!("formation: new instruction {}: {text:?}", command.id);
         let (outcome, answer) = match self.plan_in_flight(text) {
             Ok((written, outcome)) => {
                 let shown = match &outcome {
@@ -598,7 +599,7 @@ impl FormationRole {
             }
             Err(why) => (SayOutcome::Refused, format!("refused: {why}")),
         };
-        eprintln!("formation: instruction {}: {answer}", command.id);
+        tracing::info!("formation: instruction {}: {answer}", command.id);
         let mut reply = FormationReply {
             id: command.id,
             outcome: outcome as u8,

@@ -85,8 +85,8 @@ impl TrackRecorder {
             .map_err(std::io::Error::other)
             .and_then(|text| std::fs::write(file, text));
         match written {
-            Ok(()) => eprintln!("formation: tracks in {}", file.display()),
-            Err(e) => eprintln!(
+            Ok(()) => tracing::info!("formation: tracks in {}", file.display()),
+            Err(e) => tracing::warn!(
                 "formation: cannot write the tracks to {}: {e}",
                 file.display()
             ),

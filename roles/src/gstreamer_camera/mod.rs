@@ -117,25 +117,25 @@ impl Source {
             match &event {
                 CaptureEvent::Error(text) => {
                     counters.errors += 1;
-                    eprintln!("camera: `{}` failed: {text}", self.param);
+                    tracing::warn!("camera: `{}` failed: {text}", self.param);
                     self.schedule_restart(now);
                 }
                 CaptureEvent::Eos => {
                     counters.ends_of_stream += 1;
-                    eprintln!("camera: `{}` reached the end of its stream", self.param);
+                    tracing::info!("camera: `{}` reached the end of its stream", self.param);
                     self.schedule_restart(now);
                 }
                 CaptureEvent::Stalled { silent_ms } => {
                     counters.stalls += 1;
                     self.stalled = true;
-                    eprintln!(
+                    tracing::info!(
                         "camera: `{}` stalled: no frame for {silent_ms} ms",
                         self.param
                     );
                 }
                 CaptureEvent::Resumed { after_ms } => {
                     self.stalled = false;
-                    eprintln!("camera: `{}` resumed after {after_ms} ms", self.param);
+                    tracing::info!("camera: `{}` resumed after {after_ms} ms", self.param);
                 }
             }
         }
@@ -147,10 +147,10 @@ impl Source {
                 Ok(()) => {
                     self.restart_at = None;
                     self.stalled = false;
-                    eprintln!("camera: `{}` restarted", self.param);
+                    tracing::info!("camera: `{}` restarted", self.param);
                 }
                 Err(e) => {
-                    eprintln!("camera: `{}` restart failed: {}", self.param, chain(&e));
+                    tracing::warn!("camera: `{}` restart failed: {}", self.param, chain(&e));
                     self.schedule_restart(now);
                 }
             }
@@ -162,7 +162,7 @@ impl Source {
         self.capture.stop();
         self.stalled = false;
         self.restart_at = Some(now.saturating_add(self.backoff_ns));
-        eprintln!(
+        tracing::info!(
             "camera: restarting `{}` in {} ms",
             self.param,
             self.backoff_ns / 1_000_000
@@ -314,7 +314,7 @@ impl Role for GstreamerCameraRole {
         };
         let t0 = monotonic_ns();
         if let Err(e) = frame.check() {
-            eprintln!("camera: frame dropped: {}", chain(&e));
+            tracing::warn!("camera: frame dropped: {}", chain(&e));
             return Ok(CycleOutcome::Idle);
         }
         // telemetry up to now, so a capture just before this cycle falls inside the ring
@@ -355,7 +355,7 @@ impl Role for GstreamerCameraRole {
             .publish_with(&header, len, |dst| copied = frame.copy_to(dst))?;
         // checked above; a failure here left a zeroed frame, which is logged
         if let Err(e) = copied {
-            eprintln!("camera: frame {} not copied: {}", header.seq, chain(&e));
+            tracing::warn!("camera: frame {} not copied: {}", header.seq, chain(&e));
         }
         drop(frame);
         self.seq += 1;
@@ -375,7 +375,7 @@ impl Role for GstreamerCameraRole {
                 copied = depth.copy_to(dst)
             })?;
             if let Err(e) = copied {
-                eprintln!(
+                tracing::info!(
                     "camera: depth frame {} not copied: {}",
                     header.seq,
                     chain(&e)

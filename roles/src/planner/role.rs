@@ -67,7 +67,7 @@ impl PlannerReasoner {
             self.blind_announced = Some(now);
             // rare (when the depth source goes or comes back): a line in the role's log
             match self.planner.occupancy() {
-                _ if self.planner.blind() => eprintln!(
+                _ if self.planner.blind() => tracing::warn!(
                     "reasoning: step {}: occupancy {}: unknown space is not free; planning \
                      inside the geofence at the conservative altitude",
                     d.step,
@@ -75,7 +75,7 @@ impl PlannerReasoner {
                         .occupancy()
                         .map_or("not seen yet (no S_t)", |s| s.name())
                 ),
-                _ => eprintln!(
+                _ => tracing::info!(
                     "reasoning: step {}: occupancy present: planning over the grid",
                     d.step
                 ),
@@ -85,10 +85,12 @@ impl PlannerReasoner {
             && n > before
         {
             // rare (a few per flight): worth a line in the role's log
-            eprintln!(
+            tracing::warn!(
                 "reasoning: step {}: the sign at [{:.0}, {:.0}] reads \"{read}\", not the one \
                  the instruction quotes; searching on",
-                d.step, p[0], p[1]
+                d.step,
+                p[0],
+                p[1]
             );
         }
         self.io.stamp(&mut d, &due, reasoning_start);
