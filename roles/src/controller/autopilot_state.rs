@@ -28,12 +28,18 @@ pub(super) struct AutopilotState {
     pub(super) landing_mode: bool,
     /// The last EXTENDED_SYS_STATE's landed state.
     pub(super) landed_state: Option<MavLandedState>,
+    /// When it arrived (CLOCK_MONOTONIC ns).
+    pub(super) landed_state_ns: Option<u64>,
     /// The last finite LOCAL_POSITION_NED position.
     pub(super) position_ned: Option<[f32; 3]>,
+    /// When it arrived (CLOCK_MONOTONIC ns).
+    pub(super) position_ns: Option<u64>,
     /// Its velocity (NED).
     pub(super) velocity_ned: [f32; 3],
     /// The last finite ATTITUDE `[roll, pitch, yaw]`, yaw in `[-pi, pi]`.
     pub(super) attitude: Option<[f32; 3]>,
+    /// When it arrived (CLOCK_MONOTONIC ns).
+    pub(super) attitude_ns: Option<u64>,
     /// The autopilot's boot time of the last position.
     pub(super) time_boot_ms: u32,
     /// COMMAND_ACKs received.
@@ -61,15 +67,18 @@ impl AutopilotState {
                     .all(|v| v.is_finite()) =>
             {
                 self.position_ned = Some([p.x, p.y, p.z]);
+                self.position_ns = Some(now_ns);
                 self.velocity_ned = [p.vx, p.vy, p.vz];
                 self.time_boot_ms = p.time_boot_ms;
             }
             MavMessage::ATTITUDE(a) if [a.roll, a.pitch, a.yaw].iter().all(|v| v.is_finite()) => {
                 // the yaw goes back out as a hold's setpoint yaw: the same heading in [-pi, pi]
                 self.attitude = Some([a.roll, a.pitch, wrap_pi(a.yaw)]);
+                self.attitude_ns = Some(now_ns);
             }
             MavMessage::EXTENDED_SYS_STATE(e) => {
                 self.landed_state = Some(e.landed_state);
+                self.landed_state_ns = Some(now_ns);
             }
             MavMessage::COMMAND_ACK(_) => self.acks += 1,
             _ => {}
@@ -94,9 +103,12 @@ impl AutopilotState {
             } else {
                 MavLandedState::MAV_LANDED_STATE_IN_AIR
             }),
+            landed_state_ns: Some(t.stamp_ns),
             position_ned: Some(neu_to_ned(t.position)),
+            position_ns: Some(t.stamp_ns),
             velocity_ned: neu_to_ned(t.velocity),
             attitude: Some(t.attitude),
+            attitude_ns: Some(t.stamp_ns),
             time_boot_ms: t.autopilot_time_ms,
             acks: 0,
             // a standby's own link tells the framing
@@ -104,28 +116,54 @@ impl AutopilotState {
         }
     }
 
-    /// This link's state, with what it has not received yet taken from `standby` (what
-    /// the previous holder reported, for the first ticks after a takeover).
-    pub(super) fn or_else(self, standby: &AutopilotState) -> Self {
-        let heard = self.last_heartbeat_ns.is_some();
+    /// This link's state where it heard it since `since_ns` (when this process took the
+    /// lease), the rest from `standby` (what the previous holder reported, for the first
+    /// ticks after a takeover). What the link heard before `since_ns` is used only where the
+    /// holder reported nothing: a standby that held the lease once may keep a vehicle still
+    /// on the helipad in its link's memory, and that is not where the vehicle is now.
+    pub(super) fn or_else(self, standby: &AutopilotState, since_ns: u64) -> Self {
+        // this link's word on a field: heard in this term, or the holder has none
+        let own = |heard: Option<u64>, holders: Option<u64>| {
+            heard.is_some_and(|t| t >= since_ns) || holders.is_none()
+        };
+        let heartbeat = own(self.last_heartbeat_ns, standby.last_heartbeat_ns);
+        let position = own(self.position_ns, standby.position_ns);
+        let attitude = own(self.attitude_ns, standby.attitude_ns);
+        let landed = own(self.landed_state_ns, standby.landed_state_ns);
+        let pick = |mine: bool, a: Option<u64>, b: Option<u64>| if mine { a } else { b };
         Self {
-            last_heartbeat_ns: self.last_heartbeat_ns.or(standby.last_heartbeat_ns),
-            armed: if heard { self.armed } else { standby.armed },
-            offboard: if heard {
+            last_heartbeat_ns: pick(heartbeat, self.last_heartbeat_ns, standby.last_heartbeat_ns),
+            armed: if heartbeat { self.armed } else { standby.armed },
+            offboard: if heartbeat {
                 self.offboard
             } else {
                 standby.offboard
             },
-            landing_mode: heard && self.landing_mode,
-            landed_state: self.landed_state.or(standby.landed_state),
-            velocity_ned: if self.position_ned.is_some() {
+            landing_mode: heartbeat && self.landing_mode,
+            landed_state: if landed {
+                self.landed_state
+            } else {
+                standby.landed_state
+            },
+            landed_state_ns: pick(landed, self.landed_state_ns, standby.landed_state_ns),
+            velocity_ned: if position {
                 self.velocity_ned
             } else {
                 standby.velocity_ned
             },
-            position_ned: self.position_ned.or(standby.position_ned),
-            attitude: self.attitude.or(standby.attitude),
-            time_boot_ms: if self.position_ned.is_some() {
+            position_ned: if position {
+                self.position_ned
+            } else {
+                standby.position_ned
+            },
+            position_ns: pick(position, self.position_ns, standby.position_ns),
+            attitude: if attitude {
+                self.attitude
+            } else {
+                standby.attitude
+            },
+            attitude_ns: pick(attitude, self.attitude_ns, standby.attitude_ns),
+            time_boot_ms: if position {
                 self.time_boot_ms
             } else {
                 standby.time_boot_ms
@@ -208,12 +246,12 @@ mod tests {
         };
         let standby = AutopilotState::from_telemetry(&t);
         let view = AutopilotState::default()
-            .or_else(&standby)
+            .or_else(&standby, 0)
             .vehicle_view(0.0);
         assert_eq!(view.position, Some([10.0, 5.0, 12.0]));
         assert_eq!(view.yaw, Some(0.3));
         assert!(!view.landed);
-        let merged = AutopilotState::default().or_else(&standby);
+        let merged = AutopilotState::default().or_else(&standby, 0);
         assert!(merged.armed && merged.offboard && merged.link_up(7));
         // what the link itself reports wins
         let mut link = AutopilotState::default();
@@ -230,12 +268,59 @@ mod tests {
             9,
             Autopilot::Px4,
         );
-        let merged = link.or_else(&standby);
+        let merged = link.or_else(&standby, 0);
         assert_eq!(merged.position_ned, Some([11.0, 5.0, -12.0]));
         assert_eq!(merged.time_boot_ms, 2000);
         assert!(
             merged.armed,
             "no heartbeat on the link yet: the holder's word"
         );
+    }
+
+    #[test]
+    fn what_the_link_heard_before_the_takeover_does_not_override_the_holders_word() {
+        use aeris_mavlink::dialect::{EXTENDED_SYS_STATE_DATA, LOCAL_POSITION_NED_DATA};
+        let position = |z: f32| {
+            MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
+                time_boot_ms: 1,
+                x: 0.0,
+                y: 0.0,
+                z,
+                vx: 0.0,
+                vy: 0.0,
+                vz: 0.0,
+            })
+        };
+        // this controller held the lease at take-off and heard the vehicle leave the pad
+        let mut link = AutopilotState::default();
+        link.apply(&position(-0.006), 5, Autopilot::Px4);
+        link.apply(
+            &MavMessage::EXTENDED_SYS_STATE(EXTENDED_SYS_STATE_DATA {
+                vtol_state: Default::default(),
+                landed_state: MavLandedState::MAV_LANDED_STATE_ON_GROUND,
+            }),
+            5,
+            Autopilot::Px4,
+        );
+        // the other controller flew it to 12 m since, and this one takes over at 100
+        let holder = AutopilotState::from_telemetry(&VehicleTelemetry {
+            stamp_ns: 90,
+            link_up: 1,
+            armed: 1,
+            offboard: 1,
+            landed: 0,
+            position: [0.0, 0.0, 12.0],
+            ..Default::default()
+        });
+        let view = link.or_else(&holder, 100).vehicle_view(0.0);
+        assert_eq!(view.position, Some([0.0, 0.0, 12.0]));
+        assert!(
+            !view.landed,
+            "the pad is where the vehicle was, not where it is"
+        );
+        // what the link hears in the new term is its own word again
+        link.apply(&position(-11.9), 110, Autopilot::Px4);
+        let view = link.or_else(&holder, 100).vehicle_view(0.0);
+        assert_eq!(view.position, Some([0.0, 0.0, 11.9]));
     }
 }

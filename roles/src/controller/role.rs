@@ -488,7 +488,9 @@ impl Role for ControllerRole {
             report.counters = self.counters();
             return Ok(CycleOutcome::Worked);
         }
-        let ap = self.ap_cache.or_else(&self.standby_ap);
+        let ap = self
+            .ap_cache
+            .or_else(&self.standby_ap, self.term_start_ns.unwrap_or(0));
 
         // track
         let view = ap.vehicle_view(self.tracker.config().floor());

@@ -22,6 +22,11 @@ fn eval(dir: &std::path::Path, args: &[&str]) -> (serde_json::Value, Vec<serde_j
         "eval {args:?} failed: {}\n{stdout}",
         String::from_utf8_lossy(&out.stderr)
     );
+    // the harness shows what the test printed only when it fails: the flights' events
+    eprintln!(
+        "aeris eval {args:?}:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let lines = std::fs::read_to_string(dir.join("episodes.jsonl")).expect("episodes.jsonl");
     let episodes = lines
         .lines()
