@@ -11,8 +11,10 @@ use std::process::Stdio;
 use std::time::Duration;
 
 const FLIGHT_BOUND: Duration = Duration::from_secs(600);
-/// The cut test's link timeout (ms): longer than the holds of a CPU measured on CI's VM.
-const CUT_LINK_TIMEOUT_MS: &str = "8000";
+/// The link timeout (ms) of the tests whose subject is not how soon a silent link is
+/// noticed: longer than the holds of a CPU measured on CI's VM (with the default, 1 s, a
+/// flight beside another on two cores lost its link to the ground host while starting).
+const LINK_TIMEOUT_MS: &str = "8000";
 
 /// The flight's keys for `hosts` in `dir` (a CA, the vehicle's and the ground's identities).
 fn keys(hosts: &TwoHosts, dir: &Path) -> HostLink {
@@ -47,6 +49,17 @@ fn ground_workflow(hosts: &TwoHosts, link: &HostLink) -> String {
         );
     assert_eq!(moved.matches("executor = \"gs\"").count(), 2, "{moved}");
     moved
+}
+
+/// `workflow`'s link to the ground host with a timeout of [`LINK_TIMEOUT_MS`].
+fn with_link_timeout(workflow: &str) -> String {
+    let text = workflow.replacen(
+        "[hosts.ground]\n",
+        &format!("[hosts.ground]\nlink_timeout_ms = {LINK_TIMEOUT_MS}\n"),
+        1,
+    );
+    assert!(text.contains("link_timeout_ms = "), "{text}");
+    text
 }
 
 /// Start `aeris agent --host ground` in the ground namespace on `link`; returns once it
@@ -123,9 +136,14 @@ fn a_flight_with_roles_on_another_host_and_its_reasoner_moved_there_and_back_rea
     let dir = TempDir::new("hosts-goal");
     let hosts = two_hosts();
     let link = keys(&hosts, &dir.0);
-    let _agent = start_agent(&hosts, &link, &dir.0);
+    let _agent = start_agent_with(
+        &hosts,
+        &link,
+        &dir.0,
+        &["--link-timeout-ms", LINK_TIMEOUT_MS],
+    );
     // the perception role on the ground host from the start, the reasoner on board
-    let text = ground_workflow(&hosts, &link).replacen(
+    let text = with_link_timeout(&ground_workflow(&hosts, &link)).replacen(
         "variants = [\"planner\", \"garbage\"]\nexecutor = \"gs\"",
         "variants = [\"planner\", \"garbage\"]\nexecutor = \"perception\"",
         1,
@@ -456,15 +474,10 @@ fn a_link_cut_mid_flight_hands_the_reasoner_to_its_fallback_which_hands_it_back_
         &hosts,
         &link,
         &dir.0,
-        &["--link-timeout-ms", CUT_LINK_TIMEOUT_MS],
+        &["--link-timeout-ms", LINK_TIMEOUT_MS],
     );
     // only the reasoner on the ground host, the on-board planner as its fallback
-    let text = ground_workflow(&hosts, &link).replacen(
-        "[hosts.ground]\n",
-        &format!("[hosts.ground]\nlink_timeout_ms = {CUT_LINK_TIMEOUT_MS}\n"),
-        1,
-    );
-    assert!(text.contains("link_timeout_ms = "), "{text}");
+    let text = with_link_timeout(&ground_workflow(&hosts, &link));
     let text = text.replacen(
         "kind = \"perception\"\nvariant = \"geometric\"\nexecutor = \"gs\"",
         "kind = \"perception\"\nvariant = \"geometric\"\nexecutor = \"perception\"",
