@@ -56,11 +56,10 @@ use crate::probe::LinkProbe;
 use crate::protocol::{SchemaStamp, check_schema, data_key};
 use crate::session::{LinkSecurity, Reach, SessionError, open_client};
 use aeris_runtime::clock::monotonic_ns;
-use aeris_runtime::error_chain;
 use aeris_runtime::raw::{
     Payload, RawPublisher, RawSubscriber, payload_of, raw_publisher, raw_subscriber, read,
 };
-use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_runtime::{ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::RoleStatus;
 use aeris_schemas::{BridgeCounters, FrameHeader};
 use core::time::Duration;
@@ -169,14 +168,14 @@ fn topics_param(ctx: &RoleContext, key: &str) -> Result<Vec<String>, RoleError> 
     let Some(v) = ctx.spec.params.get(key) else {
         return Ok(Vec::new());
     };
-    let list: Vec<String> = serde_json::from_value(v.clone()).map_err(|e| {
-        RoleError::Config(format!("bridge: params.{key} is not a list of topics: {e}"))
-    })?;
+    let list: Vec<String> = serde_json::from_value(v.clone())
+        .map_err(|e| RoleError::param(key, format!("is not a list of topics: {e}")))?;
     for t in &list {
         if payload_of(t).is_none() {
-            return Err(RoleError::Config(format!(
-                "bridge: params.{key} names `{t}`, which is not a topic"
-            )));
+            return Err(RoleError::param(
+                key,
+                format!("names `{t}`, which is not a topic"),
+            ));
         }
     }
     Ok(list)
@@ -187,12 +186,12 @@ impl Role for BridgeRole {
         let connect = ctx
             .spec
             .param_str("connect")
-            .ok_or_else(|| RoleError::Config("bridge: params.connect is required".into()))?
+            .ok_or_else(|| RoleError::param("connect", "is required"))?
             .to_string();
         // the link's identity (`keys`, this host's); none: a plain TCP link, which the
         // endpoint must then say (`tcp/`)
         let security = LinkSecurity::from_keys(ctx.spec.param_str("keys").map(Path::new))
-            .map_err(|e| RoleError::Config(format!("bridge: {}", error_chain::chain(&e))))?;
+            .map_err(|e| ConfigError::param_refused("keys", e))?;
         let export = topics_param(ctx, "export")?;
         let import = topics_param(ctx, "import")?;
         let peer = ctx
@@ -221,7 +220,7 @@ impl Role for BridgeRole {
                 .and_then(|v| v.as_u64())
                 .unwrap_or(DEFAULT_JPEG_QUALITY as u64),
         )
-        .map_err(|e| RoleError::Config(format!("bridge: {e}")))?;
+        .map_err(|e| ConfigError::param_refused("frames", e))?;
         let flight = ctx.spec.flight.clone();
         let probe = match ctx.spec.param_str("probe") {
             Some(host) => Some(LinkProbe::new(&ctx.bus, host, lease)?),
@@ -300,7 +299,7 @@ impl Role for BridgeRole {
         match open_client(&connect, Reach::Eventually, lease, &security) {
             Ok(session) => bridge.attach(session)?,
             Err(e @ (SessionError::Endpoint { .. } | SessionError::Security { .. })) => {
-                return Err(RoleError::Config(format!("bridge: {e}")));
+                return Err(ConfigError::param_refused("connect", e).into());
             }
             Err(e) => {
                 // the other host does not answer yet: the bridge runs without it (the

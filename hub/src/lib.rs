@@ -51,10 +51,11 @@ pub const HUB_VARIANT: &str = "gate";
 #[cfg(feature = "role")]
 pub fn run(spec: RoleSpec) -> Result<(), RoleError> {
     if spec.variant != HUB_VARIANT {
-        return Err(RoleError::Config(format!(
-            "no hub variant `{}` in this build (the hub has variant `gate`)",
-            spec.variant
-        )));
+        return Err(aeris_runtime::ConfigError::UnknownVariant {
+            kind: spec.kind,
+            variant: spec.variant,
+        }
+        .into());
     }
     RoleHost::run::<HubRole>(spec)
 }

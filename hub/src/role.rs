@@ -25,7 +25,9 @@ use aeris_runtime::bus::{BusError, TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::role::try_sched_fifo;
 use aeris_runtime::spec::TimingSpec;
-use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
+use aeris_runtime::{
+    ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec,
+};
 use aeris_schemas::{
     BLIND_MOVE_M, BoundSetpoint, Decision, HubBeatCounters, HubReport, MAX_SUBGOALS,
     OccupancyStatus, PerceptionState, RoleStatus, VehicleTelemetry, topics,
@@ -58,21 +60,23 @@ pub fn core_from_spec(spec: &RoleSpec) -> Result<HubCore, RoleError> {
         Some(v) => match v.as_f64() {
             Some(t) if t.is_finite() && t > 0.0 && t <= f32::MAX as f64 => t as f32,
             _ => {
-                return Err(RoleError::Config(format!(
-                    "hub param `att_temperature` must be a number > 0, got {v}"
-                )));
+                return Err(RoleError::param(
+                    "att_temperature",
+                    format!("must be a number > 0, got {v}"),
+                ));
             }
         },
     };
     let mission = &spec.mission;
     let count = mission.subgoals.len();
     if count == 0 || count > MAX_SUBGOALS {
-        return Err(RoleError::Config(format!(
-            "the mission has {count} subgoals; the hub needs 1..={MAX_SUBGOALS}"
-        )));
+        return Err(ConfigError::Mission(format!(
+            "has {count} subgoals; the hub needs 1..={MAX_SUBGOALS}"
+        ))
+        .into());
     }
     let gate = DecisionGate::new(mission.decision_limits())
-        .map_err(|e| RoleError::Config(format!("hub gate: {e}")))?;
+        .map_err(|e| ConfigError::refused("the hub's gate", e))?;
     let texts: Vec<&str> = mission.subgoals.iter().map(|s| s.text.as_str()).collect();
     let attention = Attention::new(
         Box::new(EmbeddingScorer::new(
@@ -86,14 +90,14 @@ pub fn core_from_spec(spec: &RoleSpec) -> Result<HubCore, RoleError> {
         AttentionPrior::default(),
         TRACE_CAPACITY,
     )
-    .map_err(|e| RoleError::Config(format!("hub attention: {e}")))?;
+    .map_err(|e| ConfigError::refused("the hub's attention", e))?;
     HubCore::new(
         gate,
         attention,
         hub_config(&spec.timing, no_att),
         mission.start,
     )
-    .map_err(|e| RoleError::Config(format!("hub: {e}")))
+    .map_err(|e| ConfigError::refused("the hub's core", e).into())
 }
 
 /// The hub role.

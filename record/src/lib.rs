@@ -145,28 +145,25 @@ impl Role for RecorderRole {
         let spec = &ctx.spec;
         let path = spec
             .param_str("path")
-            .ok_or_else(|| RoleError::Config("recorder: params.path is required".into()))?;
+            .ok_or_else(|| RoleError::param("path", "is required"))?;
         let topic_names: Vec<String> = match spec.params.get("topics") {
             None => topics::ALL.iter().map(|t| t.to_string()).collect(),
-            Some(v) => serde_json::from_value(v.clone()).map_err(|e| {
-                RoleError::Config(format!(
-                    "recorder: params.topics is not a list of topics: {e}"
-                ))
-            })?,
+            Some(v) => serde_json::from_value(v.clone())
+                .map_err(|e| RoleError::param("topics", format!("is not a list of topics: {e}")))?,
         };
         let mut topics_in = Vec::with_capacity(topic_names.len());
         for t in topic_names {
-            let payload = payload_of(&t).ok_or_else(|| {
-                RoleError::Config(format!("recorder: params.topics names unknown topic `{t}`"))
-            })?;
+            let payload = payload_of(&t)
+                .ok_or_else(|| RoleError::param("topics", format!("names unknown topic `{t}`")))?;
             topics_in.push((t, payload));
         }
         let frame_every = match spec.params.get("frame_every") {
             None => DEFAULT_FRAME_EVERY,
             Some(v) => v.as_u64().ok_or_else(|| {
-                RoleError::Config(format!(
-                    "recorder: params.frame_every = {v} is not a whole number of frames"
-                ))
+                RoleError::param(
+                    "frame_every",
+                    format!("= {v} is not a whole number of frames"),
+                )
             })?,
         };
         let image_format = match (spec.param_str("image"), spec.params.get("jpeg_quality")) {
@@ -176,25 +173,28 @@ impl Role for RecorderRole {
                     jpeg_quality: q as u8,
                 },
                 _ => {
-                    return Err(RoleError::Config(format!(
-                        "recorder: params.jpeg_quality = {q} is not a whole number in 1..=100"
-                    )));
+                    return Err(RoleError::param(
+                        "jpeg_quality",
+                        format!("= {q} is not a whole number in 1..=100"),
+                    ));
                 }
             },
             (Some("raw"), _) => ImageFormat::Raw,
             (Some(other), _) => {
-                return Err(RoleError::Config(format!(
-                    "recorder: params.image = {other:?} is neither \"jpeg\" nor \"raw\""
-                )));
+                return Err(RoleError::param(
+                    "image",
+                    format!("= {other:?} is neither \"jpeg\" nor \"raw\""),
+                ));
             }
         };
         let exact_frames = match spec.param_str("frames") {
             None => false,
             Some("exact") => true,
             Some(other) => {
-                return Err(RoleError::Config(format!(
-                    "recorder: params.frames = {other:?} is not \"exact\""
-                )));
+                return Err(RoleError::param(
+                    "frames",
+                    format!("= {other:?} is not \"exact\""),
+                ));
             }
         };
         let period = Duration::from_millis(spec.param_f64("period_ms").unwrap_or(10.0) as u64)

@@ -28,7 +28,7 @@
 use crate::read::{ReadError, Recording};
 use aeris_runtime::bus::{FramePublisher, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
-use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_runtime::{ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{FrameHeader, ReplayCounters, RoleStatus, VehicleTelemetry, topics};
 use core::time::Duration;
 use std::path::PathBuf;
@@ -200,26 +200,30 @@ impl Role for ReplaySource {
         let spec = &ctx.spec;
         let path = PathBuf::from(
             spec.param_str("path")
-                .ok_or_else(|| RoleError::Config("replay: params.path is required".into()))?,
+                .ok_or_else(|| RoleError::param("path", "is required"))?,
         );
         let speed = spec.param_f64("speed").unwrap_or(1.0);
         if !(speed.is_finite() && speed > 0.0) {
-            return Err(RoleError::Config(format!(
-                "replay: params.speed = {speed} is not a positive number"
-            )));
+            return Err(RoleError::param(
+                "speed",
+                format!("= {speed} is not a positive number"),
+            ));
         }
         let bound = |key: &str| spec.params.get(key).and_then(|v| v.as_u64());
         let (lead, align_ns) = (
             bound("lead_ns").unwrap_or(0),
             bound("align_ns").unwrap_or(0),
         );
-        let recording = Recording::open(&path)
-            .map_err(|e| RoleError::Config(aeris_runtime::error_chain::chain(&e).to_string()))?;
+        let recording =
+            Recording::open(&path).map_err(|e| ConfigError::param_refused("path", e))?;
         if !recording.flight().exact_frames {
-            return Err(RoleError::Config(format!(
-                "replay: {} holds no exact frames (recorded with --record-no-exact-frames)",
-                path.display()
-            )));
+            return Err(RoleError::param(
+                "path",
+                format!(
+                    "= {} holds no exact frames (recorded with --record-no-exact-frames)",
+                    path.display()
+                ),
+            ));
         }
         let start = recording.time_range().map_or(0, |r| r.0);
         let t0_rec = bound("from_ns").unwrap_or(start).max(start);
@@ -230,7 +234,7 @@ impl Role for ReplaySource {
         let reader = std::thread::Builder::new()
             .name("replay reader".into())
             .spawn(move || read_ahead(recording, (t0_rec, lead, to), items_tx, recycle_rx))
-            .map_err(|e| RoleError::Config(format!("replay: starting the reader: {e}")))?;
+            .map_err(|e| RoleError::step("starting the replay reader", e))?;
         Ok(Self {
             rgb: ctx.bus.frame_publisher::<topics::CameraRgb>(frame_bytes)?,
             depth: ctx

@@ -22,7 +22,7 @@
 use crate::heartbeat_clock::STALE_AFTER_TENTHS;
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
-use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_runtime::{ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{
     ComposeCounters, FixedText, OccupancyStatus, PerceptionState, SUMMARY_MAX, block, topics,
 };
@@ -169,7 +169,7 @@ const OCC: usize = 3;
 impl Role for ComposeRole {
     fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
         if ctx.spec.variant == "vlm" {
-            return Err(RoleError::Config(NO_CAPTIONING_WEIGHTS.into()));
+            return Err(ConfigError::NoWeights(NO_CAPTIONING_WEIGHTS).into());
         }
         Ok(Self {
             subs: [

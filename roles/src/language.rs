@@ -39,7 +39,9 @@ use aeris_llm::{
 };
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::error_chain::chain;
-use aeris_runtime::{CycleOutcome, CycleReport, MissionSpec, Role, RoleContext, RoleError};
+use aeris_runtime::{
+    ConfigError, CycleOutcome, CycleReport, MissionSpec, Role, RoleContext, RoleError,
+};
 use aeris_schemas::{Decision, LanguageCounters};
 use core::time::Duration;
 
@@ -54,7 +56,10 @@ pub fn mission_brief(mission: &MissionSpec) -> Result<MissionBrief, RoleError> {
             Ok(StepBrief {
                 text: s.text.clone(),
                 action: s.action_mode().ok_or_else(|| {
-                    RoleError::Config(format!("unknown action `{}` in the mission", s.action))
+                    RoleError::from(ConfigError::Mission(format!(
+                        "names unknown action `{}`",
+                        s.action
+                    )))
                 })?,
                 waypoint: s.waypoint,
             })
@@ -87,7 +92,7 @@ impl Role for LanguageRole {
             .spec
             .param_str("model")
             .or(aeris_llm::variant_model(&variant))
-            .ok_or_else(|| RoleError::Config(format!("no model for variant `{variant}`")))?
+            .ok_or_else(|| ConfigError::NoModel(variant.clone()))?
             .to_string();
         // never more threads than CPUs the process may run on: ggml's workers spin at their
         // barriers, and two spinning on one CPU (a role bound to a one-CPU executor) starve

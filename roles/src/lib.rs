@@ -69,9 +69,10 @@ pub fn runner(kind: &str, variant: &str) -> Option<RoleRunner> {
 pub fn run(spec: RoleSpec) -> Result<(), RoleError> {
     match runner(&spec.kind, &spec.variant) {
         Some(run) => run(spec),
-        None => Err(RoleError::Config(format!(
-            "no role kind `{}` with variant `{}` in this build (see `aeris roles`)",
-            spec.kind, spec.variant
-        ))),
+        None => Err(aeris_runtime::ConfigError::UnknownVariant {
+            kind: spec.kind,
+            variant: spec.variant,
+        }
+        .into()),
     }
 }

@@ -19,7 +19,7 @@ use aeris_models::OnnxModel;
 use aeris_runtime::bus::{FrameSubscriber, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::error_chain::chain;
-use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_runtime::{ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{
     BlockCounters, FrameFormat, FrameHeader, OCCUPANCY_CELLS, OCCUPANCY_UNKNOWN, OccupancyStatus,
     PerceptionState, block, topics,
@@ -95,7 +95,7 @@ impl Role for OccupancyRole {
             let file = ctx
                 .spec
                 .param_str("model")
-                .ok_or_else(|| RoleError::Config(NO_OCCUPANCY_WEIGHTS.into()))?
+                .ok_or(ConfigError::NoWeights(NO_OCCUPANCY_WEIGHTS))?
                 .to_string();
             let store = open_store(ctx)?;
             let model = OnnxModel::load_with(&store, &file, &session_options(ctx)?)

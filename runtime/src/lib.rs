@@ -24,11 +24,12 @@ pub mod error_chain;
 pub mod log;
 pub mod raw;
 pub mod role;
+mod role_error;
 pub mod signals;
 pub mod spec;
 pub mod stats;
 pub mod users;
 
 pub use bus::{BusError, FlightBus};
-pub use role::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleHost};
+pub use role::{ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleHost};
 pub use spec::{MissionSpec, RemoteSpec, RoleSpec};

@@ -8,51 +8,14 @@
 //! `cycle` must not allocate: ports and buffers are created in `new`.
 
 use crate::affinity::write_task_affinity;
-use crate::bus::{BusError, FlightBus, TypedPublisher};
+use crate::bus::{FlightBus, TypedPublisher};
 use crate::clock::{duration_ns, monotonic_ns, sleep_until_ns};
 use crate::signals;
 use crate::spec::RoleSpec;
 use aeris_schemas::{FixedText, MAX_STAGES, RoleHeartbeat, RoleStatus, StageTiming, topics};
 use core::time::Duration;
 
-/// Why a role failed. Roles map their own failures into one of these.
-#[derive(Debug, thiserror::Error)]
-pub enum RoleError {
-    /// A transport operation failed.
-    #[error(transparent)]
-    Bus(#[from] BusError),
-    /// The role's configuration is unusable.
-    #[error("invalid configuration: {0}")]
-    Config(String),
-    /// An external peer (autopilot, device) failed.
-    #[error("{0}")]
-    Io(String),
-    /// The role cannot go on.
-    #[error("{0}")]
-    Fatal(String),
-    /// A step of the role failed for a cause of its own (a model that would not load, a
-    /// frame a model refused): `what` says which step, the source says why.
-    #[error("{what}")]
-    Step {
-        /// The step that failed, e.g. "loading the PP-OCR reader".
-        what: String,
-        /// Why it failed.
-        source: Box<dyn std::error::Error + Send + Sync + 'static>,
-    },
-}
-
-impl RoleError {
-    /// `what` failed because of `source` (see [`RoleError::Step`]).
-    pub fn step(
-        what: impl Into<String>,
-        source: impl Into<Box<dyn std::error::Error + Send + Sync + 'static>>,
-    ) -> Self {
-        RoleError::Step {
-            what: what.into(),
-            source: source.into(),
-        }
-    }
-}
+pub use crate::role_error::{ConfigError, RoleError};
 
 /// What a cycle did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

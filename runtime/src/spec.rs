@@ -382,12 +382,9 @@ impl RoleSpec {
     pub fn param_bool(&self, key: &str, default: bool) -> Result<bool, crate::RoleError> {
         match self.params.get(key) {
             None => Ok(default),
-            Some(v) => v.as_bool().ok_or_else(|| {
-                crate::RoleError::Config(format!(
-                    "{} param `{key}` must be a bool, got {v}",
-                    self.kind
-                ))
-            }),
+            Some(v) => v
+                .as_bool()
+                .ok_or_else(|| crate::RoleError::param(key, format!("must be a bool, got {v}"))),
         }
     }
 }

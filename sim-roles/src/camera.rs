@@ -14,7 +14,7 @@
 use aeris_geometry::CAMERA_MOUNT_HEIGHT_M;
 use aeris_runtime::bus::{BusError, FramePublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
-use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_runtime::{ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{CameraCounters, FrameFormat, FrameHeader, VehicleTelemetry, topics};
 use aeris_sim::render::{RenderError, Renderer};
 use aeris_sim::world::World;
@@ -42,17 +42,18 @@ impl Role for CameraRole {
         let spec = &ctx.spec;
         let name = &spec.mission.world;
         let world = World::builtin(name).ok_or_else(|| {
-            RoleError::Config(format!(
-                "unknown world `{name}`; the built-in worlds are: {}",
+            RoleError::from(ConfigError::Mission(format!(
+                "names unknown world `{name}`; the built-in worlds are: {}",
                 World::NAMES_HELP
-            ))
+            )))
         })?;
         let cam = &spec.camera;
         if !(cam.fps > 0.0 && cam.fps <= MAX_FPS) {
-            return Err(RoleError::Config(format!(
-                "camera fps {} is outside (0, {MAX_FPS}]",
-                cam.fps
-            )));
+            return Err(ConfigError::Spec {
+                field: "camera.fps",
+                problem: format!("= {} is outside (0, {MAX_FPS}]", cam.fps),
+            }
+            .into());
         }
         let hfov = cam.hfov_deg.to_radians();
         let renderer = Renderer::new(cam.width, cam.height, hfov)
@@ -66,7 +67,7 @@ impl Role for CameraRole {
         let telemetry = ctx.bus.subscriber::<topics::VehicleTelemetry>()?;
         let start = spec.mission.start;
         if !start.iter().all(|v| v.is_finite()) {
-            return Err(RoleError::Config("mission start is not finite".into()));
+            return Err(ConfigError::Mission("start is not finite".into()).into());
         }
         Ok(Self {
             world,

@@ -141,7 +141,7 @@ impl Role for VehicleRole {
             None => DEFAULT_LISTEN,
             Some(v) => v
                 .as_str()
-                .ok_or_else(|| RoleError::Config("param `listen` must be a string".into()))?,
+                .ok_or_else(|| RoleError::param("listen", "must be a string"))?,
         };
         let limits = &spec.mission.limits;
         let mut fence_max = limits.geofence_max;
@@ -151,17 +151,19 @@ impl Role for VehicleRole {
             Some(v) if v.as_u64() == Some(2) => MavlinkVersion::V2,
             Some(v) if v.as_u64() == Some(1) => MavlinkVersion::V1,
             Some(v) => {
-                return Err(RoleError::Config(format!(
-                    "param `mavlink` = {v}: the vehicle speaks MAVLink 1 or 2"
-                )));
+                return Err(RoleError::param(
+                    "mavlink",
+                    format!("= {v}: the vehicle speaks MAVLink 1 or 2"),
+                ));
             }
         };
         let firmware = match spec.params.get("autopilot") {
             None => SimFirmware::Px4,
             Some(v) => v.as_str().and_then(SimFirmware::from_name).ok_or_else(|| {
-                RoleError::Config(format!(
-                    "param `autopilot` = {v}: the vehicle plays \"px4\" or \"ardupilot\""
-                ))
+                RoleError::param(
+                    "autopilot",
+                    format!("= {v}: the vehicle plays \"px4\" or \"ardupilot\""),
+                )
             })?,
         };
         let system_id = match spec.params.get("system_id") {
@@ -170,9 +172,7 @@ impl Role for VehicleRole {
                 .as_u64()
                 .and_then(|id| u8::try_from(id).ok())
                 .filter(|&id| id > 0)
-                .ok_or_else(|| {
-                    RoleError::Config(format!("param `system_id` = {v}: use 1..=255"))
-                })?,
+                .ok_or_else(|| RoleError::param("system_id", format!("= {v}: use 1..=255")))?,
         };
         let signing = aeris_roles::controller::signing_from_spec(spec)?;
         let mut config = SimVehicleConfig {
@@ -190,7 +190,7 @@ impl Role for VehicleRole {
             None => None,
             Some(v) => Some(
                 v.as_str()
-                    .ok_or_else(|| RoleError::Config("param `state_file` must be a string".into()))?
+                    .ok_or_else(|| RoleError::param("state_file", "must be a string"))?
                     .to_string(),
             ),
         };

@@ -210,7 +210,8 @@ fn an_unknown_world_is_a_config_error_naming_the_known_ones() {
     let f = flight("camworld");
     let mut c = ctx(&f, "camera", "sim-render", "atlantis");
     match CameraRole::new(&mut c) {
-        Err(RoleError::Config(msg)) => {
+        Err(RoleError::Config(e)) => {
+            let msg = e.to_string();
             assert!(msg.contains("atlantis") && msg.contains("village"), "{msg}")
         }
         Err(e) => panic!("unexpected error {e}"),

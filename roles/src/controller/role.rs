@@ -20,7 +20,9 @@ use aeris_mavlink::{
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::role::try_sched_fifo;
-use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
+use aeris_runtime::{
+    ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec,
+};
 use aeris_schemas::{
     ActionMode, AutopilotLinkStatus, BoundSetpoint, ControllerCounters, ControllerLease, FixedText,
     LinkState, VehicleTelemetry, topics,
@@ -64,9 +66,10 @@ impl MavlinkFraming {
             Some(v) if v.as_u64() == Some(1) => Ok(Self::V1),
             Some(v) if v.as_u64() == Some(2) => Ok(Self::V2),
             Some(v) if v.as_str() == Some("auto") => Ok(Self::Auto),
-            Some(v) => Err(RoleError::Config(format!(
-                "param `mavlink` = {v}: use 1, 2 or \"auto\""
-            ))),
+            Some(v) => Err(RoleError::param(
+                "mavlink",
+                format!("= {v}: use 1, 2 or \"auto\""),
+            )),
         }
     }
 
@@ -140,15 +143,6 @@ impl core::fmt::Debug for ControllerRole {
             .field("sent", &self.sent)
             .field("refused", &self.tracker.refused())
             .finish_non_exhaustive()
-    }
-}
-
-fn param_bool(spec: &RoleSpec, key: &str, default: bool) -> Result<bool, RoleError> {
-    match spec.params.get(key) {
-        None => Ok(default),
-        Some(v) => v
-            .as_bool()
-            .ok_or_else(|| RoleError::Config(format!("param `{key}` must be true or false"))),
     }
 }
 
@@ -282,26 +276,29 @@ impl Role for ControllerRole {
         let spec = &ctx.spec;
         let rate = spec.timing.control_rate_hz;
         if !(rate.is_finite() && rate > 0.0 && rate <= 1000.0) {
-            return Err(RoleError::Config(format!(
-                "timing.control_rate_hz = {rate} must be in (0, 1000]"
-            )));
+            return Err(ConfigError::Spec {
+                field: "timing.control_rate_hz",
+                problem: format!("= {rate} must be in (0, 1000]"),
+            }
+            .into());
         }
         let url = match spec.params.get("autopilot") {
             None => DEFAULT_AUTOPILOT.to_string(),
             Some(v) => v
                 .as_str()
-                .ok_or_else(|| RoleError::Config("param `autopilot` must be a string".into()))?
+                .ok_or_else(|| RoleError::param("autopilot", "must be a string"))?
                 .to_string(),
         };
-        let realtime = param_bool(spec, "realtime", true)?;
-        let standby = param_bool(spec, "standby", false)?;
+        let realtime = spec.param_bool("realtime", true)?;
+        let standby = spec.param_bool("standby", false)?;
         let framing = MavlinkFraming::from_spec(spec)?;
         let link_timeout_ms = match spec.params.get("link_timeout_ms") {
             None => DEFAULT_LINK_TIMEOUT_MS,
             Some(v) => v.as_u64().filter(|&ms| ms > 0).ok_or_else(|| {
-                RoleError::Config(format!(
-                    "param `link_timeout_ms` = {v}: use a whole number of milliseconds above 0"
-                ))
+                RoleError::param(
+                    "link_timeout_ms",
+                    format!("= {v}: use a whole number of milliseconds above 0"),
+                )
             })?,
         };
         let tracker = Tracker::new(TrackerConfig::from_spec(spec));
@@ -313,8 +310,9 @@ impl Role for ControllerRole {
         let link_out = ctx.bus.publisher::<topics::ControllerLink>()?;
         let signing = signing_from_spec(spec)?;
         if signing.is_some() && framing == MavlinkFraming::V1 {
-            return Err(RoleError::Config(
-                "params `signing_key_file` and `mavlink` = 1: MAVLink 1 cannot be signed".into(),
+            return Err(RoleError::param(
+                "signing_key_file",
+                "is set with `mavlink` = 1: MAVLink 1 cannot be signed",
             ));
         }
         let pending = prepare_link(&url, LINK_POLL)

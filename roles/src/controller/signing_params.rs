@@ -15,16 +15,14 @@ pub fn signing_from_spec(spec: &RoleSpec) -> Result<Option<LinkSigning>, RoleErr
         Some(v) => v
             .as_u64()
             .and_then(|id| u8::try_from(id).ok())
-            .ok_or_else(|| {
-                RoleError::Config(format!("param `signing_link_id` = {v}: use 0..=255"))
-            })?,
+            .ok_or_else(|| RoleError::param("signing_link_id", format!("= {v}: use 0..=255")))?,
     };
     let Some(v) = spec.params.get("signing_key_file") else {
         return Ok(None);
     };
     let path = v
         .as_str()
-        .ok_or_else(|| RoleError::Config("param `signing_key_file` must be a path".into()))?;
+        .ok_or_else(|| RoleError::param("signing_key_file", "must be a path"))?;
     LinkSigning::from_key_file(Path::new(path), link_id)
         .map(Some)
         .map_err(|e| RoleError::step("loading the MAVLink signing key", e))

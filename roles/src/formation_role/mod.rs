@@ -48,7 +48,7 @@ use aeris_formation::{
 use aeris_hub::program_gate::ProgramGate;
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
-use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_runtime::{ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::{
     BoundSetpoint, FormationCommand, FormationCounters, FormationPhase, FormationProgram,
     FormationReply, MAX_PHASES, MAX_VEHICLES, PhaseKind, SayOutcome, VehicleTelemetry, topics,
@@ -115,10 +115,6 @@ fn describe_phases(program: &FormationProgram) -> String {
         .join(", ")
 }
 
-fn config_error(what: &str) -> RoleError {
-    RoleError::Config(what.to_string())
-}
-
 /// Write and plan the program with `writer`; the accepted program and its trajectory, or
 /// the refusal as an error.
 fn plan(
@@ -168,14 +164,14 @@ impl Role for FormationRole {
             .param_f64("vehicles")
             .filter(|v| (1.0..=MAX_VEHICLES as f64).contains(v))
             .ok_or_else(|| {
-                config_error("param `vehicles` must be 1..=8 (the launch plan sets it)")
+                RoleError::param("vehicles", "must be 1..=8 (the launch plan sets it)")
             })? as u8;
         let starts: Vec<[f32; 3]> = spec
             .params
             .get("starts")
             .and_then(|v| serde_json::from_value(v.clone()).ok())
             .filter(|s: &Vec<[f32; 3]>| s.len() == vehicles as usize)
-            .ok_or_else(|| config_error("param `starts` must list one [N, E, U] per vehicle"))?;
+            .ok_or_else(|| RoleError::param("starts", "must list one [N, E, U] per vehicle"))?;
         let min_separation_m = spec.param_f64("min_separation_m").unwrap_or(2.0) as f32;
         let max_repairs = spec
             .param_f64("max_repairs")
@@ -184,7 +180,7 @@ impl Role for FormationRole {
         let lost_after_ms = spec.param_f64("lost_after_ms").unwrap_or(1000.0).max(100.0);
         let gate =
             ProgramGate::for_flight(&spec.mission.decision_limits(), vehicles, min_separation_m)
-                .map_err(|e| RoleError::Config(e.to_string()))?;
+                .map_err(|e| ConfigError::refused("the formation's program gate", e))?;
         let instruction = spec.mission.instruction.clone();
         let mut writer = match spec.variant.as_str() {
             "parser" => Writer::Parser(ParserWriter),
@@ -192,7 +188,7 @@ impl Role for FormationRole {
                 let file = spec
                     .param_str("model")
                     .or(aeris_llm::variant_model(variant))
-                    .ok_or_else(|| RoleError::Config(format!("no model for variant `{variant}`")))?
+                    .ok_or_else(|| ConfigError::NoModel(variant.to_string()))?
                     .to_string();
                 let threads = spec.param_f64("threads").unwrap_or(1.0).clamp(1.0, 64.0) as i32;
                 let store = open_store(ctx)?;

@@ -39,7 +39,9 @@ use aeris_geometry::CAMERA_MOUNT_HEIGHT_M;
 use aeris_runtime::bus::{FramePublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::error_chain::chain;
-use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
+use aeris_runtime::{
+    ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec,
+};
 use aeris_schemas::{
     CameraCounters, FrameFormat, FrameHeader, RoleStatus, VehicleTelemetry, topics,
 };
@@ -76,20 +78,16 @@ impl Source {
         let Some(value) = spec.params.get(param) else {
             return Ok(None);
         };
-        let pipeline = value.as_str().ok_or_else(|| {
-            RoleError::Config(format!(
-                "camera param `{param}` must be a string, got {value}"
-            ))
-        })?;
+        let pipeline = value
+            .as_str()
+            .ok_or_else(|| RoleError::param(param, format!("must be a string, got {value}")))?;
         let stall_ms = match spec.params.get("stall_ms") {
             None => DEFAULT_STALL_MS,
             Some(v) => v
                 .as_f64()
                 .filter(|ms| ms.is_finite() && *ms > 0.0)
                 .ok_or_else(|| {
-                    RoleError::Config(format!(
-                        "camera param `stall_ms` must be a positive number, got {v}"
-                    ))
+                    RoleError::param("stall_ms", format!("must be a positive number, got {v}"))
                 })?,
         };
         let config = CaptureConfig {
@@ -99,8 +97,7 @@ impl Source {
             height: spec.camera.height,
             stall: Duration::from_secs_f64(stall_ms / 1000.0),
         };
-        let capture = Capture::new(&config)
-            .map_err(|e| RoleError::Config(format!("camera param `{param}`: {}", chain(&e))))?;
+        let capture = Capture::new(&config).map_err(|e| ConfigError::param_refused(param, e))?;
         Ok(Some(Source {
             param,
             capture,
@@ -222,10 +219,11 @@ impl Role for GstreamerCameraRole {
         let spec = &ctx.spec;
         let cam = &spec.camera;
         if !(cam.fps.is_finite() && cam.fps > 0.0) {
-            return Err(RoleError::Config(format!(
-                "camera fps {} is not positive",
-                cam.fps
-            )));
+            return Err(ConfigError::Spec {
+                field: "camera.fps",
+                problem: format!("= {} is not positive", cam.fps),
+            }
+            .into());
         }
         let poll_ms = match spec.params.get("poll_ms") {
             None => DEFAULT_POLL_MS,
@@ -233,22 +231,21 @@ impl Role for GstreamerCameraRole {
                 .as_f64()
                 .filter(|ms| ms.is_finite() && *ms > 0.0 && *ms <= 1000.0)
                 .ok_or_else(|| {
-                    RoleError::Config(format!(
-                        "camera param `poll_ms` must be in (0, 1000], got {v}"
-                    ))
+                    RoleError::param("poll_ms", format!("must be in (0, 1000], got {v}"))
                 })?,
         };
-        let mut rgb_source = Source::new(spec, "pipeline", PixelFormat::Rgb8)?.ok_or_else(|| {
-            RoleError::Config(
-                "camera param `pipeline` is missing: the gstreamer camera needs a GStreamer \
-                 pipeline ending in `appsink`, e.g. `videotestsrc is-live=true ! appsink sync=false`"
-                    .into(),
-            )
-        })?;
+        let mut rgb_source =
+            Source::new(spec, "pipeline", PixelFormat::Rgb8)?.ok_or_else(|| {
+                RoleError::param(
+                    "pipeline",
+                    "is missing: the gstreamer camera needs a GStreamer pipeline ending in \
+                 `appsink`, e.g. `videotestsrc is-live=true ! appsink sync=false`",
+                )
+            })?;
         let mut depth_source = Source::new(spec, "depth_pipeline", PixelFormat::Gray16Le)?;
         let start = spec.mission.start;
         if !start.iter().all(|v| v.is_finite()) {
-            return Err(RoleError::Config("mission start is not finite".into()));
+            return Err(ConfigError::Mission("start is not finite".into()).into());
         }
         let rgb = ctx
             .bus

@@ -12,7 +12,9 @@
 use super::Planner;
 use crate::reasoner_io::{POLL, ReasonerIo};
 use aeris_runtime::clock::monotonic_ns;
-use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec};
+use aeris_runtime::{
+    ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec,
+};
 use aeris_schemas::{Decision, OccupancyStatus, PlannerCounters};
 use core::time::Duration;
 
@@ -20,7 +22,7 @@ use core::time::Duration;
 /// keeps one: the planner variants decide with it, the language roles show its plan).
 pub fn mission_planner(spec: &RoleSpec) -> Result<Planner, RoleError> {
     Planner::new(&spec.mission, &spec.camera).ok_or_else(|| {
-        RoleError::Config("the mission names an unknown action or the camera is invalid".into())
+        ConfigError::Mission("names an unknown action, or the camera is invalid".into()).into()
     })
 }
 
