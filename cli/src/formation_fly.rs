@@ -103,7 +103,7 @@ fn print_summary(name: &str, summary: &FlightSummary, failure: Option<String>) {
         println!("  reason: {f}");
     }
     if let Some(r) = &summary.recording {
-        crate::run_cmd::print_recording(r);
+        println!("{r}");
     }
     let Some(fleet) = &summary.fleet else {
         return;

@@ -65,19 +65,6 @@ pub struct RunArgs {
     pub record_no_exact_frames: bool,
 }
 
-/// The recording's line of a flight's summary: its files, messages, drops and size.
-pub(crate) fn print_recording(r: &aeris_flight::RecordingSummary) {
-    let files: Vec<String> = r.files.iter().map(|f| f.display().to_string()).collect();
-    println!(
-        "  recording {}: {} messages, {} dropped, {} bytes{}",
-        files.join(", "),
-        r.messages,
-        r.dropped,
-        r.bytes,
-        if r.failed { "; writing FAILED" } else { "" }
-    );
-}
-
 /// The file `--record` names: as given (relative to the working directory), or
 /// `flight.mcap` in the run directory when none is given.
 pub(crate) fn record_path(arg: Option<&Path>) -> Result<PathBuf> {
@@ -256,109 +243,9 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
     }
     let mut printer = FlightPrinter::new(true, "")?;
     let flight = flight.start()?;
-    let name = flight.name().to_string();
     let (outcome, _) = flight.watch(&mut printer)?;
-    let (summary, failure) = (outcome.summary, outcome.failure);
-
-    println!(
-        "flight {name}: {}",
-        if summary.reached_goal {
-            "goal reached"
-        } else {
-            "goal NOT reached"
-        }
-    );
-    if let Some(f) = &failure {
-        println!("  reason: {f}");
-    }
-    println!(
-        "  final distance to goal {:.2} m after {:.1} s; subgoals reached by ATT {}/{}",
-        summary.final_distance_m,
-        summary.duration_s,
-        summary.max_active_step,
-        summary.subgoals_total
-    );
-    println!(
-        "  cycles {} (committed {}), CT mean {:.3} s (std {:.3}, p95 {:.3}); stages: perception {:.3} reasoning {:.3} routing {:.4} binding {:.4} s",
-        summary.cycles,
-        summary.cycles_committed,
-        summary.ct_mean_s,
-        summary.ct_std_s,
-        summary.ct_p95_s,
-        summary.stages_mean_s.perception,
-        summary.stages_mean_s.reasoning,
-        summary.stages_mean_s.routing,
-        summary.stages_mean_s.binding
-    );
-    println!(
-        "  EER {:.2}%; decisions received {} rejected {} late {} reused {}; sequence gaps {} reorders {}",
-        summary.eer * 100.0,
-        summary.hub.decisions_received,
-        summary.hub.decisions_rejected,
-        summary.hub.decisions_late,
-        summary.hub.decisions_reused,
-        summary.hub.sequence_gaps,
-        summary.hub.sequence_reorders
-    );
-    println!(
-        "  controller ticks {} missed {} refused setpoints {}; role restarts {}, stalls {}, live migrations {}",
-        summary.controller_ticks,
-        summary.controller_missed_ticks,
-        summary.controller_refused_setpoints,
-        summary.role_restarts,
-        summary.stalls,
-        summary.migrations
-    );
-    println!(
-        "  autopilot {}; link losses {}, commands refused {}",
-        summary.autopilot.as_deref().unwrap_or("never heard"),
-        summary.autopilot_link_losses,
-        summary.autopilot_commands_refused
-    );
-    let m = &summary.memory;
-    if m.samples > 0 {
-        let roles: Vec<String> = m
-            .roles
-            .iter()
-            .map(|r| format!("{} {:.0}", r.role, r.pss_peak_mib.unwrap_or(r.rss_peak_mib)))
-            .collect();
-        println!(
-            "  memory of the roles (peak MiB, {}): flight {}{}; {}",
-            if m.total_pss_peak_mib.is_some() {
-                "PSS: shared pages divided among the roles"
-            } else {
-                "RSS: shared pages counted per role"
-            },
-            m.total_pss_peak_mib
-                .map(|p| format!("{p:.0}"))
-                .unwrap_or_else(|| format!("{:.0}", m.total_rss_peak_mib)),
-            m.total_pss_peak_mib
-                .map(|_| format!(" (RSS summed {:.0})", m.total_rss_peak_mib))
-                .unwrap_or_default(),
-            roles.join(", ")
-        );
-    }
-    for l in &summary.links {
-        println!(
-            "  link to host `{}`: round trip {}, loss {:.0} % of the last probes ({} of {} answered){}",
-            l.host,
-            l.rtt_ms
-                .map(|r| format!("{r:.3} ms"))
-                .unwrap_or_else(|| "never measured".into()),
-            l.loss * 100.0,
-            l.answered,
-            l.probes,
-            l.frame_coding_ms
-                .map(|f| format!(", a frame encoded in {f:.2} ms"))
-                .unwrap_or_default()
-        );
-    }
-    if let Some(s) = summary.first_decision_on_video_s {
-        println!("  first decision on the video {s:.2} s after its first frame");
-    }
-    if let Some(r) = &summary.recording {
-        print_recording(r);
-    }
+    println!("{outcome}");
+    let summary = outcome.summary;
     if args.json {
         println!(
             "{}",

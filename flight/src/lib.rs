@@ -55,6 +55,7 @@ mod handle;
 pub mod hook;
 pub mod memory;
 pub mod monitor;
+mod outcome_text;
 pub mod overrides;
 pub mod recording;
 pub mod replay;
