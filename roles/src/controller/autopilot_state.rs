@@ -126,51 +126,29 @@ impl AutopilotState {
         let own = |heard: Option<u64>, holders: Option<u64>| {
             heard.is_some_and(|t| t >= since_ns) || holders.is_none()
         };
-        let heartbeat = own(self.last_heartbeat_ns, standby.last_heartbeat_ns);
-        let position = own(self.position_ns, standby.position_ns);
-        let attitude = own(self.attitude_ns, standby.attitude_ns);
-        let landed = own(self.landed_state_ns, standby.landed_state_ns);
-        let pick = |mine: bool, a: Option<u64>, b: Option<u64>| if mine { a } else { b };
-        Self {
-            last_heartbeat_ns: pick(heartbeat, self.last_heartbeat_ns, standby.last_heartbeat_ns),
-            armed: if heartbeat { self.armed } else { standby.armed },
-            offboard: if heartbeat {
-                self.offboard
-            } else {
-                standby.offboard
-            },
-            landing_mode: heartbeat && self.landing_mode,
-            landed_state: if landed {
-                self.landed_state
-            } else {
-                standby.landed_state
-            },
-            landed_state_ns: pick(landed, self.landed_state_ns, standby.landed_state_ns),
-            velocity_ned: if position {
-                self.velocity_ned
-            } else {
-                standby.velocity_ned
-            },
-            position_ned: if position {
-                self.position_ned
-            } else {
-                standby.position_ned
-            },
-            position_ns: pick(position, self.position_ns, standby.position_ns),
-            attitude: if attitude {
-                self.attitude
-            } else {
-                standby.attitude
-            },
-            attitude_ns: pick(attitude, self.attitude_ns, standby.attitude_ns),
-            time_boot_ms: if position {
-                self.time_boot_ms
-            } else {
-                standby.time_boot_ms
-            },
-            acks: self.acks,
-            heartbeat_version: self.heartbeat_version,
+        let mut merged = self;
+        if !own(self.last_heartbeat_ns, standby.last_heartbeat_ns) {
+            merged.last_heartbeat_ns = standby.last_heartbeat_ns;
+            merged.armed = standby.armed;
+            merged.offboard = standby.offboard;
+            // the holder's telemetry does not say
+            merged.landing_mode = false;
         }
+        if !own(self.landed_state_ns, standby.landed_state_ns) {
+            merged.landed_state = standby.landed_state;
+            merged.landed_state_ns = standby.landed_state_ns;
+        }
+        if !own(self.position_ns, standby.position_ns) {
+            merged.position_ned = standby.position_ned;
+            merged.velocity_ned = standby.velocity_ned;
+            merged.time_boot_ms = standby.time_boot_ms;
+            merged.position_ns = standby.position_ns;
+        }
+        if !own(self.attitude_ns, standby.attitude_ns) {
+            merged.attitude = standby.attitude;
+            merged.attitude_ns = standby.attitude_ns;
+        }
+        merged
     }
 
     /// What the tracker sees of the vehicle (`floor`: the ground, m up).
