@@ -22,12 +22,14 @@ mod keys_cmd;
 mod plot_cmd;
 mod record_cmd;
 mod replay_cmd;
+mod role_registry;
 mod run_cmd;
 #[cfg(feature = "sim")]
 mod scene_cmd;
 #[cfg(feature = "sim")]
 mod scene_video_cmd;
 
+use aeris_schemas::RoleKind;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -213,55 +215,30 @@ fn run_role(spec: PathBuf, instance: Option<u32>) -> anyhow::Result<ExitCode> {
             .with_context(|| format!("role `{name}` on its host"))?;
         return Ok(ExitCode::from(exit.exit_code()));
     }
-    let result = if spec.kind == "hub" {
-        aeris_hub::run(spec)
-    } else if spec.kind == aeris_orchestrator::workflow::BRIDGE_KIND {
-        aeris_hosts::bridge::run(spec)
-    } else if let Some(run) = sim_runner(&spec.kind, &spec.variant) {
-        run(spec)
-    } else {
-        aeris_roles::run(spec)
-    };
+    let result = role_registry::run(spec);
     result.with_context(|| format!("role `{name}` failed"))?;
     Ok(ExitCode::SUCCESS)
-}
-
-/// The simulator's runner of `kind`/`variant`, in a build with the simulator.
-#[cfg(feature = "sim")]
-fn sim_runner(kind: &str, variant: &str) -> Option<aeris_roles::RoleRunner> {
-    aeris_sim_roles::runner(kind, variant)
-}
-
-/// A build without the simulator runs none of its roles ([`aeris_roles::run`] then refuses
-/// the variant).
-#[cfg(not(feature = "sim"))]
-fn sim_runner(_kind: &str, _variant: &str) -> Option<aeris_roles::RoleRunner> {
-    None
 }
 
 /// The catalog's kinds with the variants this build runs (a build without the simulator
 /// runs none of the simulator's).
 fn roles() -> anyhow::Result<ExitCode> {
-    for k in aeris_runtime::catalog::ROLE_KINDS {
-        let variants: Vec<&str> = k
+    for kind in RoleKind::ALL {
+        let info = kind.info();
+        let variants: Vec<&str> = info
             .variants
             .iter()
             .copied()
-            .filter(|v| {
-                k.kind == "hub"
-                    || k.kind == aeris_orchestrator::workflow::BRIDGE_KIND
-                    || aeris_roles::runner(k.kind, v).is_some()
-                    || sim_runner(k.kind, v).is_some()
-            })
+            .filter(|v| role_registry::runner(kind, v).is_some())
             .collect();
         if variants.is_empty() {
             continue;
         }
         println!(
             "{:<11} variants: {:<24} {}",
-            k.kind,
+            kind.name(),
             variants.join(", "),
-            k.summary
+            info.summary
         );
     }
     Ok(ExitCode::SUCCESS)

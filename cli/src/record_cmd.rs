@@ -64,7 +64,7 @@ pub fn run(args: RecordArgs) -> Result<()> {
         "aeris: recording flight {flight} into {} (Ctrl-C stops)",
         file.display()
     );
-    aeris_roles::run(spec).with_context(|| format!("recording flight `{flight}`"))?;
+    crate::role_registry::run(spec).with_context(|| format!("recording flight `{flight}`"))?;
     let recording = aeris_record::read::Recording::open(&file)
         .with_context(|| format!("reading back {}", file.display()))?;
     let messages = recording.message_count("hub/report");

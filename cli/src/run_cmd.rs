@@ -173,8 +173,9 @@ fn refuse_simulator_roles(
     variants: &[aeris_flight::VariantChoice],
     external_autopilot: bool,
 ) -> Result<()> {
+    use aeris_schemas::RoleKind;
     for role in &workflow.roles {
-        if role.kind == "hub" || (role.kind == "vehicle" && external_autopilot) {
+        if role.kind == RoleKind::Hub || (role.kind == RoleKind::Vehicle && external_autopilot) {
             continue;
         }
         let variant = variants
@@ -182,7 +183,7 @@ fn refuse_simulator_roles(
             .rev()
             .find(|v| v.role == role.name)
             .map_or(role.variant.as_str(), |v| v.variant.as_str());
-        if aeris_roles::runner(&role.kind, variant).is_none() {
+        if crate::role_registry::runner(role.kind, variant).is_none() {
             anyhow::bail!(
                 "role `{}` is the simulator's `{}/{variant}`, and this aeris was built without \
                  the simulator (`--no-default-features`); rebuild with the `sim` feature or fly \

@@ -11,6 +11,7 @@ use aeris_flight::{
 use aeris_orchestrator::workflow::{Workflow, WorkflowError};
 use aeris_runtime::MissionSpec;
 use aeris_runtime::stats::{mean_std, percentile};
+use aeris_schemas::RoleKind;
 use aeris_sim::world::World;
 use serde::Serialize;
 use std::io::Write;
@@ -401,7 +402,7 @@ fn episode_workflow(
         // the COCO detector has none of them
         w.roles
             .iter_mut()
-            .find(|r| r.kind == "detector")
+            .find(|r| r.kind == RoleKind::Detector)
             .ok_or(EvalError::MissingRole("detector"))?
             .variant = "palette".into();
         w
@@ -412,7 +413,7 @@ fn episode_workflow(
     let reasoning = workflow
         .roles
         .iter_mut()
-        .find(|r| r.kind == "reasoning")
+        .find(|r| r.kind == RoleKind::Reasoning)
         .ok_or(EvalError::MissingRole("reasoning"))?;
     reasoning.variant = setup.reasoning.clone();
     if !reasoning.variants.iter().any(|v| v == &reasoning.variant) {
@@ -438,7 +439,7 @@ fn episode_workflow(
         workflow
             .roles
             .iter_mut()
-            .find(|r| r.kind == "hub")
+            .find(|r| r.kind == RoleKind::Hub)
             .ok_or(EvalError::MissingRole("hub"))?
             .params
             .insert("no_att".into(), serde_json::Value::from(true));

@@ -2,6 +2,7 @@
 //! demand, and why it ended.
 
 use aeris_orchestrator::supervisor::{RoleState, ShutdownReport, SupervisorEvent};
+use aeris_schemas::RoleKind;
 use std::path::PathBuf;
 
 /// When a flight ends (besides a failure, the time limit or [`crate::Flight::stop`]).
@@ -183,7 +184,7 @@ pub struct RoleSnapshot {
     /// Role name.
     pub name: String,
     /// Role kind.
-    pub kind: String,
+    pub kind: RoleKind,
     /// Variant running.
     pub variant: String,
     /// Its process, when one runs.

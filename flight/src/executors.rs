@@ -7,6 +7,7 @@ use aeris_orchestrator::launch::{PlanError, plan_launch};
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::accelerator::AcceleratorKind;
 use aeris_runtime::affinity::CpuSet;
+use aeris_schemas::RoleKind;
 
 /// What the provisioned ONNX Runtime reports: its execution providers and the accelerator
 /// devices they found; `None` when no runtime is provisioned (a flight needs none unless
@@ -123,12 +124,12 @@ pub fn check_accelerators(workflow: &Workflow) -> Result<(), AcceleratorError> {
             executor: ex.name.clone(),
             source,
         };
-        let language = |kind: &str, variant: &str| {
+        let language = |kind: RoleKind, variant: &str| {
             aeris_orchestrator::workflow::LANGUAGE_MODEL_VARIANTS.contains(&(kind, variant))
         };
         let (mut onnx, mut llm) = (false, false);
         for r in workflow.roles.iter().filter(|r| starts_on(r, &ex.name)) {
-            if language(&r.kind, &r.variant) {
+            if language(r.kind, &r.variant) {
                 llm = true;
             } else {
                 onnx = true;

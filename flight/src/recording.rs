@@ -3,7 +3,8 @@
 //!
 //! [`FlightBuilder::record`]: crate::FlightBuilder::record
 
-use aeris_orchestrator::workflow::{RECORDER_KIND, RoleDecl, Workflow};
+use aeris_orchestrator::workflow::{RoleDecl, Workflow};
+use aeris_schemas::RoleKind;
 use aeris_schemas::{RecorderCounters, RoleHeartbeat};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -129,7 +130,7 @@ pub fn attach_spec(
     let mut specs: Vec<aeris_runtime::RoleSpec> = Vec::new();
     for f in files {
         let spec = aeris_runtime::RoleSpec::load(&f)?;
-        if spec.flight != flight || spec.kind == RECORDER_KIND {
+        if spec.flight != flight || spec.kind == RoleKind::Recorder {
             continue;
         }
         match specs.iter_mut().find(|s| s.name == spec.name) {
@@ -149,8 +150,7 @@ pub fn attach_spec(
     let topics = topics.unwrap_or_else(|| {
         let mut published = vec![aeris_schemas::topics::HEARTBEAT.to_string()];
         for s in &specs {
-            let kind = aeris_runtime::catalog::role_kind(&s.kind);
-            for t in kind.map_or(&[][..], |k| k.publishes) {
+            for t in s.kind.info().publishes {
                 for t in aeris_schemas::topics::in_fleet(t, vehicles) {
                     if !published.contains(&t) {
                         published.push(t);
@@ -165,7 +165,7 @@ pub fn attach_spec(
         .filter_map(|s| {
             recorded_role(
                 &s.name,
-                &s.kind,
+                s.kind,
                 &s.variant,
                 vec![s.variant.clone()],
                 None,
@@ -181,7 +181,7 @@ pub fn attach_spec(
     Ok(aeris_runtime::RoleSpec {
         flight: flight.to_string(),
         name: "recorder-attached".into(),
-        kind: RECORDER_KIND.into(),
+        kind: RoleKind::Recorder,
         variant: VARIANT.into(),
         cpus: String::new(),
         timing: first.timing.clone(),
@@ -238,11 +238,11 @@ pub(crate) fn add_recorder(
             source,
         })?;
     }
-    let mut name = RECORDER_KIND.to_string();
+    let mut name = RoleKind::Recorder.to_string();
     let mut n = 1;
     while workflow.role(&name).is_some() {
         n += 1;
-        name = format!("{RECORDER_KIND}-{n}");
+        name = format!("{}-{n}", RoleKind::Recorder);
     }
     let executor = workflow
         .executors
@@ -289,7 +289,7 @@ pub(crate) fn add_recorder(
     // fitted below to what the flight publishes
     workflow.roles.insert(
         0,
-        RoleDecl::new(&name, RECORDER_KIND, VARIANT, executor, params),
+        RoleDecl::new(&name, RoleKind::Recorder, VARIANT, executor, params),
     );
     workflow.fit_recorders();
     Ok(name)
@@ -301,11 +301,11 @@ fn recorded_roles(workflow: &Workflow) -> Vec<serde_json::Value> {
     workflow
         .roles
         .iter()
-        .filter(|r| r.kind != RECORDER_KIND)
+        .filter(|r| r.kind != RoleKind::Recorder)
         .filter_map(|r| {
             recorded_role(
                 &r.name,
-                &r.kind,
+                r.kind,
                 &r.variant,
                 r.variants.clone(),
                 r.executor.clone(),
@@ -318,7 +318,7 @@ fn recorded_roles(workflow: &Workflow) -> Vec<serde_json::Value> {
 /// One role as a recording describes it.
 fn recorded_role(
     name: &str,
-    kind: &str,
+    kind: RoleKind,
     variant: &str,
     variants: Vec<String>,
     executor: Option<String>,
@@ -387,7 +387,7 @@ mod tests {
             exact_frames: true,
         };
         let replay = crate::replay::replay_workflow(&flight, &path, 5, 10, 2.0).unwrap();
-        let kinds: Vec<&str> = replay.roles.iter().map(|r| r.kind.as_str()).collect();
+        let kinds: Vec<&str> = replay.roles.iter().map(|r| r.kind.name()).collect();
         assert_eq!(
             kinds,
             ["replay", "perception", "hub", "reasoning"],
@@ -438,7 +438,7 @@ mod tests {
         let recorder = plan
             .roles
             .iter()
-            .find(|r| r.spec.kind == RECORDER_KIND)
+            .find(|r| r.spec.kind == RoleKind::Recorder)
             .unwrap();
         let launched: Vec<String> =
             serde_json::from_value(recorder.spec.params["topics"].clone()).unwrap();
@@ -470,6 +470,6 @@ mod tests {
             assert!(err.to_string().starts_with(p), "{err}");
         }
         assert!(Path::new("/dev/null").exists());
-        assert!(w.roles.iter().all(|r| r.kind != RECORDER_KIND));
+        assert!(w.roles.iter().all(|r| r.kind != RoleKind::Recorder));
     }
 }

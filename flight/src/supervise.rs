@@ -14,6 +14,7 @@ use aeris_orchestrator::supervisor::{RoleState, Supervisor, SupervisorEvent, Sup
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::MissionSpec;
 use aeris_schemas::HubBeatCounters;
+use aeris_schemas::RoleKind;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::mpsc::{Sender, SyncSender};
@@ -97,7 +98,7 @@ impl Shared {
             s.roles.clear();
             s.roles.extend(sup.roles().iter().map(|r| RoleSnapshot {
                 name: r.name().to_string(),
-                kind: r.kind().to_string(),
+                kind: r.kind(),
                 variant: r.variant().to_string(),
                 pid: r.pid(),
                 state: r.state(),
@@ -332,7 +333,7 @@ pub(crate) fn supervise<H: StepHook>(
 fn hub_counters(sup: &Supervisor) -> Option<HubBeatCounters> {
     sup.roles()
         .iter()
-        .find(|r| r.kind() == "hub")
+        .find(|r| r.kind() == RoleKind::Hub)
         .and_then(|r| r.last_heartbeat())
         .map(|hb| HubBeatCounters::from_heartbeat(&hb.counters))
 }
@@ -342,7 +343,7 @@ fn formation_tally(sup: &Supervisor) -> crate::fleet::FormationTally {
     let counters = sup
         .roles()
         .iter()
-        .find(|r| r.kind() == aeris_orchestrator::workflow::FORMATION_KIND)
+        .find(|r| r.kind() == RoleKind::Formation)
         .and_then(|r| r.last_heartbeat())
         .map_or([0; 8], |h| h.counters);
     crate::fleet::FormationTally::from_counters(counters)

@@ -12,7 +12,7 @@ pub fn default_controller_spec() -> RoleSpec {
     RoleSpec {
         flight: "fuzz".into(),
         name: "controller".into(),
-        kind: "controller".into(),
+        kind: aeris_schemas::RoleKind::Controller,
         variant: "mavlink".into(),
         cpus: String::new(),
         timing: w.timing,

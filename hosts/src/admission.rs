@@ -15,6 +15,7 @@
 use crate::protocol::{SchemaMismatch, SpawnRequest, check_schema};
 use aeris_runtime::RoleSpec;
 use aeris_runtime::affinity::CpuSet;
+use aeris_schemas::RoleKind;
 use std::path::{Path, PathBuf};
 
 /// The largest spawn request an agent reads (bytes): a role spec is a few KB.
@@ -57,7 +58,7 @@ pub enum PolicyError {
         /// The entry.
         entry: String,
         /// The kind.
-        kind: String,
+        kind: RoleKind,
         /// The variant.
         variant: String,
         /// The kind's variants.
@@ -69,7 +70,7 @@ pub enum PolicyError {
         /// The entry.
         entry: String,
         /// The kind.
-        kind: String,
+        kind: RoleKind,
     },
     /// An agent parameter is not `KIND[/VARIANT].KEY=VALUE`.
     #[error("`{0}` is not KIND[/VARIANT].KEY=VALUE")]
@@ -79,7 +80,7 @@ pub enum PolicyError {
 /// One allowed kind, with one variant or all.
 #[derive(Debug, Clone, PartialEq, Eq)]
 struct Allowed {
-    kind: String,
+    kind: RoleKind,
     variant: Option<String>,
 }
 
@@ -105,34 +106,30 @@ impl AllowList {
                     Some((k, v)) => (k, Some(v)),
                     None => (entry, None),
                 };
-                let Some(k) = aeris_runtime::catalog::role_kind(kind) else {
-                    let known: Vec<&str> = aeris_runtime::catalog::ROLE_KINDS
-                        .iter()
-                        .map(|k| k.kind)
-                        .collect();
+                let Some(kind) = RoleKind::from_name(kind) else {
                     return Err(PolicyError::UnknownKind {
                         entry: entry.to_string(),
-                        known: known.join(", "),
+                        known: RoleKind::known_names(),
                     });
                 };
                 if aeris_orchestrator::workflow::FLIGHT_HOST_KINDS.contains(&kind) {
                     return Err(PolicyError::FlightHostKind {
                         entry: entry.to_string(),
-                        kind: kind.to_string(),
+                        kind,
                     });
                 }
                 if let Some(v) = variant
-                    && !k.variants.contains(&v)
+                    && !kind.info().variants.contains(&v)
                 {
                     return Err(PolicyError::UnknownVariant {
                         entry: entry.to_string(),
-                        kind: kind.to_string(),
+                        kind,
                         variant: v.to_string(),
-                        known: k.variants.join(", "),
+                        known: kind.info().variants.join(", "),
                     });
                 }
                 entries.push(Allowed {
-                    kind: kind.to_string(),
+                    kind,
                     variant: variant.map(str::to_string),
                 });
             }
@@ -149,8 +146,8 @@ impl AllowList {
 
     /// `true` when `kind`/`variant` may run here. The bridge always may: it is the
     /// agent's own link, configured by the agent.
-    pub fn allows(&self, kind: &str, variant: &str) -> bool {
-        (kind == aeris_orchestrator::workflow::BRIDGE_KIND && variant == "zenoh")
+    pub fn allows(&self, kind: RoleKind, variant: &str) -> bool {
+        (kind == RoleKind::Bridge && variant == "zenoh")
             || self
                 .entries
                 .iter()
@@ -208,8 +205,8 @@ impl OwnParam {
         })
     }
 
-    fn applies_to(&self, kind: &str, variant: &str) -> bool {
-        self.kind == kind && self.variant.as_deref().is_none_or(|v| v == variant)
+    fn applies_to(&self, kind: RoleKind, variant: &str) -> bool {
+        self.kind == kind.name() && self.variant.as_deref().is_none_or(|v| v == variant)
     }
 }
 
@@ -261,7 +258,7 @@ pub enum Refusal {
     )]
     NotAllowed {
         /// The kind.
-        kind: String,
+        kind: RoleKind,
         /// The variant.
         variant: String,
         /// The allow-list.
@@ -273,7 +270,7 @@ pub enum Refusal {
     )]
     Param {
         /// The kind.
-        kind: String,
+        kind: RoleKind,
         /// The parameter.
         key: String,
     },
@@ -361,7 +358,7 @@ pub fn admit(req: SpawnRequest, policy: &AgentPolicy) -> Result<Admission, Refus
     if !is_valid_role_name(&spec.name) {
         return Err(Refusal::RoleName(spec.name));
     }
-    if !policy.allow.allows(&spec.kind, &spec.variant) {
+    if !policy.allow.allows(spec.kind, &spec.variant) {
         return Err(Refusal::NotAllowed {
             kind: spec.kind,
             variant: spec.variant,
@@ -373,13 +370,13 @@ pub fn admit(req: SpawnRequest, policy: &AgentPolicy) -> Result<Admission, Refus
         .keys()
         .find(|k| !NETWORK_PARAMS.contains(&k.as_str()))
     {
-        if spec.kind == aeris_orchestrator::workflow::BRIDGE_KIND
+        if spec.kind == RoleKind::Bridge
             && (key == BRIDGE_CONNECT_PARAM || key == BRIDGE_KEYS_PARAM)
         {
             return Err(Refusal::BridgeLink(key.clone()));
         }
         return Err(Refusal::Param {
-            kind: spec.kind.clone(),
+            kind: spec.kind,
             key: key.clone(),
         });
     }
@@ -405,11 +402,11 @@ pub fn admit(req: SpawnRequest, policy: &AgentPolicy) -> Result<Admission, Refus
     }
     spec.mission.validate().map_err(Refusal::Mission)?;
     for p in &policy.own_params {
-        if p.applies_to(&spec.kind, &spec.variant) {
+        if p.applies_to(spec.kind, &spec.variant) {
             spec.params.insert(p.key.clone(), p.value.clone());
         }
     }
-    if spec.kind == aeris_orchestrator::workflow::BRIDGE_KIND {
+    if spec.kind == RoleKind::Bridge {
         spec.params.insert(
             BRIDGE_CONNECT_PARAM.into(),
             policy.link.connect.clone().into(),
@@ -539,8 +536,10 @@ mod tests {
     #[test]
     fn allow_lists_name_known_kinds_and_variants_only() {
         let l = AllowList::parse(&["reasoning/planner, detector"]).unwrap();
-        assert!(l.allows("reasoning", "planner") && !l.allows("reasoning", "smollm2"));
-        assert!(l.allows("detector", "yolov8") && l.allows("bridge", "zenoh"));
+        assert!(
+            l.allows(RoleKind::Reasoning, "planner") && !l.allows(RoleKind::Reasoning, "smollm2")
+        );
+        assert!(l.allows(RoleKind::Detector, "yolov8") && l.allows(RoleKind::Bridge, "zenoh"));
         assert!(matches!(
             AllowList::parse(&["hub/gate"]),
             Err(PolicyError::FlightHostKind { .. })

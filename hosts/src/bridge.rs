@@ -697,8 +697,3 @@ fn process_cpu_s() -> f64 {
     let t = |tv: libc::timeval| tv.tv_sec as f64 + tv.tv_usec as f64 / 1e6;
     t(u.ru_utime) + t(u.ru_stime)
 }
-
-/// Run the bridge role in this process ([`aeris_runtime::RoleHost`]).
-pub fn run(spec: aeris_runtime::RoleSpec) -> Result<(), RoleError> {
-    aeris_runtime::RoleHost::run::<BridgeRole>(spec)
-}

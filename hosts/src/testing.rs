@@ -8,6 +8,7 @@ use crate::admission::{
     OwnParam, admit, read_request,
 };
 use aeris_runtime::affinity::CpuSet;
+use aeris_schemas::RoleKind;
 use std::path::{Component, Path};
 
 /// The run directory the check admits against.
@@ -77,7 +78,7 @@ pub fn fuzz_check_spawn(bytes: &[u8]) -> Option<crate::admission::Admission> {
         );
     }
     assert!(
-        policy.allow.allows(&a.spec.kind, &a.spec.variant),
+        policy.allow.allows(a.spec.kind, &a.spec.variant),
         "{}/{} admitted",
         a.spec.kind,
         a.spec.variant
@@ -93,7 +94,7 @@ pub fn fuzz_check_spawn(bytes: &[u8]) -> Option<crate::admission::Admission> {
             .own_params
             .iter()
             .any(|p| &p.key == k && &p.value == v);
-        let link = a.spec.kind == "bridge"
+        let link = a.spec.kind == RoleKind::Bridge
             && ((k == BRIDGE_CONNECT_PARAM && v == policy.link.connect.as_str())
                 || (k == BRIDGE_KEYS_PARAM
                     && policy

@@ -40,32 +40,3 @@ pub use gate::{DecisionGate, Feasible, GateConfigError, GateError};
 pub use ordering::{SeqVerdict, SequenceTracker, SourceSelector, SourceVerdict};
 #[cfg(feature = "role")]
 pub use role::HubRole;
-
-#[cfg(feature = "role")]
-use aeris_runtime::{RoleError, RoleHost, RoleSpec};
-
-/// The one variant of the hub this build has.
-pub const HUB_VARIANT: &str = "gate";
-
-/// Run the hub role (kind `hub`, variant [`HUB_VARIANT`]) in this process.
-#[cfg(feature = "role")]
-pub fn run(spec: RoleSpec) -> Result<(), RoleError> {
-    if spec.variant != HUB_VARIANT {
-        return Err(aeris_runtime::ConfigError::UnknownVariant {
-            kind: spec.kind,
-            variant: spec.variant,
-        }
-        .into());
-    }
-    RoleHost::run::<HubRole>(spec)
-}
-
-#[cfg(all(test, feature = "role"))]
-mod catalog_tests {
-    /// The catalog the supervisor validates against must list exactly what `run` accepts.
-    #[test]
-    fn the_catalog_lists_the_hub_variant_this_build_runs() {
-        let hub = aeris_runtime::catalog::role_kind("hub").expect("hub in the catalog");
-        assert_eq!(hub.variants, [super::HUB_VARIANT]);
-    }
-}

@@ -21,7 +21,7 @@ fn spec(flight: &str) -> RoleSpec {
     RoleSpec {
         flight: flight.into(),
         name: "hub".into(),
-        kind: "hub".into(),
+        kind: aeris_schemas::RoleKind::Hub,
         variant: "gate".into(),
         cpus: String::new(),
         // a deadline of an hour: the test does not depend on how fast it runs

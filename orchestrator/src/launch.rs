@@ -5,12 +5,10 @@
 //! starting processes.
 
 use crate::restart::RestartPolicy;
-use crate::workflow::{
-    BRIDGE_KIND, Executor, ExecutorCpus, FORMATION_KIND, RECORDER_KIND, RoleDecl, Workflow,
-    WorkflowError, remote_cpus,
-};
+use crate::workflow::{Executor, ExecutorCpus, RoleDecl, Workflow, WorkflowError, remote_cpus};
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::spec::{MissionSpec, RemoteSpec, RoleSpec};
+use aeris_schemas::RoleKind;
 use aeris_schemas::topics;
 
 /// One role ready to start.
@@ -118,7 +116,7 @@ pub fn resolve_executors(workflow: &Workflow, online: &CpuSet) -> Vec<(String, C
 /// The parameter that puts a bridge role on another host (the host's name).
 pub const BRIDGE_HOST_PARAM: &str = "on_host";
 
-/// The bridge roles of `workflow` (kind [`BRIDGE_KIND`], variant `zenoh`), two per other
+/// The bridge roles of `workflow` (kind `bridge`, variant `zenoh`), two per other
 /// host ([`Workflow::bridge_plans`]): `bridge-to-HOST` on the flight's host and `bridge-on-HOST` there,
 /// each told what it sends (`export`) and what it receives (`import`); the one here also
 /// where the host's agent listens and the flight host's keys, while the one there is
@@ -153,7 +151,7 @@ pub fn bridge_roles(workflow: &Workflow) -> Vec<RoleDecl> {
         here.insert("probe".into(), h.name.clone().into());
         roles.push(RoleDecl::new(
             &format!("bridge-to-{}", h.name),
-            BRIDGE_KIND,
+            RoleKind::Bridge,
             "zenoh",
             None,
             here,
@@ -162,7 +160,7 @@ pub fn bridge_roles(workflow: &Workflow) -> Vec<RoleDecl> {
         there.insert(BRIDGE_HOST_PARAM.into(), h.name.clone().into());
         roles.push(RoleDecl::new(
             &format!("bridge-on-{}", h.name),
-            BRIDGE_KIND,
+            RoleKind::Bridge,
             "zenoh",
             None,
             there,
@@ -233,12 +231,16 @@ pub fn plan_launch(
             });
         }
         Some(url) => {
-            w.roles.retain(|r| r.kind != "vehicle");
+            w.roles.retain(|r| r.kind != RoleKind::Vehicle);
             // a hot standby shares the link only where two processes can each open it
             if !(url.starts_with("udpout:") || url.starts_with("tcpout:")) {
                 w.roles.retain(|r| !r.is_standby_controller());
             }
-            for r in w.roles.iter_mut().filter(|r| r.kind == "controller") {
+            for r in w
+                .roles
+                .iter_mut()
+                .filter(|r| r.kind == RoleKind::Controller)
+            {
                 r.params.insert("autopilot".into(), url.into());
             }
         }
@@ -254,16 +256,16 @@ pub fn plan_launch(
                 taken.push(port);
                 vehicle_port.get_or_insert(port);
                 for r in w.roles.iter_mut().filter(|r| r.vehicle == scope) {
-                    let (key, url) = match r.kind.as_str() {
-                        "vehicle" => ("listen", format!("udpin:127.0.0.1:{port}")),
-                        "controller" => ("autopilot", format!("udpout:127.0.0.1:{port}")),
+                    let (key, url) = match r.kind {
+                        RoleKind::Vehicle => ("listen", format!("udpin:127.0.0.1:{port}")),
+                        RoleKind::Controller => ("autopilot", format!("udpout:127.0.0.1:{port}")),
                         _ => continue,
                     };
                     if r.param_str(key).is_none_or(|v| v == "auto") {
                         r.params.insert(key.into(), url.into());
                     }
                     // vehicle K is MAVLink system K
-                    if let (Some(k), "vehicle") = (scope, r.kind.as_str()) {
+                    if let (Some(k), RoleKind::Vehicle) = (scope, r.kind) {
                         r.params.entry("system_id").or_insert(k.into());
                     }
                 }
@@ -273,7 +275,7 @@ pub fn plan_launch(
     }
     // the formation role flies the fleet from where it starts
     let starts = w.fleet.starts(w.mission.start);
-    for r in w.roles.iter_mut().filter(|r| r.kind == FORMATION_KIND) {
+    for r in w.roles.iter_mut().filter(|r| r.kind == RoleKind::Formation) {
         r.params.insert("vehicles".into(), w.fleet.vehicles.into());
         r.params.insert(
             "starts".into(),
@@ -283,7 +285,7 @@ pub fn plan_launch(
     // a recorder subscribes to the topics it was fitted to (`Workflow::fit_recorders`); in a
     // flight of several vehicles, those of a vehicle's scope once per vehicle (`v2/...`)
     let vehicles = w.fleet.vehicles;
-    for r in w.roles.iter_mut().filter(|r| r.kind == RECORDER_KIND) {
+    for r in w.roles.iter_mut().filter(|r| r.kind == RoleKind::Recorder) {
         if !r.params.contains_key("topics") {
             let topics: Vec<String> = r
                 .subscribes
@@ -320,7 +322,7 @@ pub fn plan_launch(
                 spec: RoleSpec {
                     flight: flight.to_string(),
                     name: r.name.clone(),
-                    kind: r.kind.clone(),
+                    kind: r.kind,
                     variant: r.variant.clone(),
                     cpus: cpus.as_ref().map(|c| c.to_string()).unwrap_or_default(),
                     timing: w.timing.clone(),
@@ -557,11 +559,11 @@ mod tests {
         )
         .unwrap();
         assert_eq!(plan.vehicle_port, None);
-        assert!(plan.roles.iter().all(|r| r.spec.kind != "vehicle"));
+        assert!(plan.roles.iter().all(|r| r.spec.kind != RoleKind::Vehicle));
         let controller = plan
             .roles
             .iter()
-            .find(|r| r.spec.kind == "controller")
+            .find(|r| r.spec.kind == RoleKind::Controller)
             .unwrap();
         assert_eq!(
             controller.spec.param_str("autopilot"),
@@ -572,7 +574,7 @@ mod tests {
                 .unwrap()
                 .roles
                 .iter()
-                .filter(|r| r.spec.kind == "controller")
+                .filter(|r| r.spec.kind == RoleKind::Controller)
                 .map(|r| r.spec.name.clone())
                 .collect::<Vec<_>>()
         };

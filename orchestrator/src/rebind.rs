@@ -99,7 +99,7 @@ pub struct RoleLoad {
     pub threads: usize,
     /// Its kind and variant (`detector`, `yolo`): which accelerators can run it
     /// ([`crate::workflow::runs_on_accelerator`]).
-    pub kind_variant: (String, String),
+    pub kind_variant: (aeris_schemas::RoleKind, String),
     /// Its latency (ms) as last measured on accelerator executors this flight: (executor
     /// index, ms). A role goes onto an accelerator by these figures, or, where it has not
     /// run yet, by a probe ([`RebindPlan::probe`]).

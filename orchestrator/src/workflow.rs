@@ -20,19 +20,14 @@ pub use builtin::{DEFAULT_WORKFLOW_TOML, FORMATION_WORKFLOW_TOML, MODELS_WORKFLO
 pub use error::{WorkflowError, WorkflowFileError};
 pub use hosts::{BridgePlan, REMOTE_PARAMS, SUPERVISOR_READS, movable_across_hosts, remote_cpus};
 pub use validate::{
-    FORMATION_KIND, LANGUAGE_MODEL_VARIANTS, ONNX_MODEL_VARIANTS, REQUIRED_KINDS,
-    is_valid_role_name, runs_on_accelerator,
+    LANGUAGE_MODEL_VARIANTS, ONNX_MODEL_VARIANTS, REQUIRED_KINDS, is_valid_role_name,
+    runs_on_accelerator,
 };
 
 use crate::restart::RestartPolicy;
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::spec::{CameraSpec, MissionSpec, TimingSpec};
-
-/// Kind of the flight recorder role (`aeris-record`).
-pub const RECORDER_KIND: &str = "recorder";
-
-/// Kind of the role that carries a flight's topics between hosts (`aeris-hosts`).
-pub const BRIDGE_KIND: &str = "bridge";
+use aeris_schemas::RoleKind;
 
 /// Default restart budget of a role.
 pub const DEFAULT_MAX_RESTARTS: u32 = 5;
@@ -105,7 +100,13 @@ pub const DEFAULT_LINK_TIMEOUT_MS: u64 = 1000;
 /// Role kinds that never run on another host: the hub and the controller keep the vehicle
 /// flying whatever the link does, and the simulated vehicle and the replay source stand
 /// for the vehicle itself.
-pub const FLIGHT_HOST_KINDS: &[&str] = &["hub", "controller", "vehicle", "replay", RECORDER_KIND];
+pub const FLIGHT_HOST_KINDS: &[RoleKind] = &[
+    RoleKind::Hub,
+    RoleKind::Controller,
+    RoleKind::Vehicle,
+    RoleKind::Replay,
+    RoleKind::Recorder,
+];
 
 /// Check that `endpoint` is a zenoh endpoint of ours: `tls/HOST:PORT` (mutual TLS), or
 /// `tcp/HOST:PORT` (plain, only on a link declared insecure).
@@ -127,8 +128,8 @@ pub fn check_endpoint(endpoint: &str) -> bool {
 pub struct RoleDecl {
     /// Unique instance name.
     pub name: String,
-    /// Kind from [`ROLE_KINDS`](aeris_runtime::catalog::ROLE_KINDS).
-    pub kind: String,
+    /// Its kind.
+    pub kind: RoleKind,
     /// The variant to start.
     pub variant: String,
     /// Variants this role may be switched to (contains `variant`).
@@ -185,24 +186,18 @@ impl RoleDecl {
 
     /// A role of `kind` running `variant` (its only variant), with the workflow defaults:
     /// no ladder, restarted on failure within the default budget and back-off, the kind's
-    /// default latency budget, and the catalog's topics (none for an unknown kind, which
-    /// [`Workflow::validate`] refuses).
+    /// default latency budget, and the kind's topics.
     pub fn new(
         name: &str,
-        kind: &str,
+        kind: RoleKind,
         variant: &str,
         executor: Option<String>,
         params: serde_json::Map<String, serde_json::Value>,
     ) -> Self {
-        let catalog = aeris_runtime::catalog::role_kind(kind);
-        let topics = |list: fn(&aeris_runtime::catalog::RoleKind) -> &'static [&'static str]| {
-            catalog.map_or_else(Vec::new, |k| {
-                list(k).iter().map(|t| t.to_string()).collect()
-            })
-        };
+        let topics = |list: &[&str]| list.iter().map(|t| t.to_string()).collect();
         Self {
             name: name.to_string(),
-            kind: kind.to_string(),
+            kind,
             variant: variant.to_string(),
             variants: vec![variant.to_string()],
             ladder: Vec::new(),
@@ -212,8 +207,8 @@ impl RoleDecl {
             backoff_ms: DEFAULT_BACKOFF_MS,
             budget_ms: None,
             params,
-            subscribes: topics(|k| k.subscribes),
-            publishes: topics(|k| k.publishes),
+            subscribes: topics(kind.info().subscribes),
+            publishes: topics(kind.info().publishes),
             fallback: None,
             vehicle: None,
         }
@@ -226,7 +221,7 @@ impl RoleDecl {
 
     /// A hot-standby controller (`kind = "controller"`, `params.standby = true`).
     pub fn is_standby_controller(&self) -> bool {
-        self.kind == "controller"
+        self.kind == RoleKind::Controller
             && self.params.get("standby").and_then(|v| v.as_bool()) == Some(true)
     }
 }
@@ -363,17 +358,24 @@ impl Workflow {
             return role.budget_ms;
         }
         let hb = self.timing.heartbeat_period_ms as f64;
-        match role.kind.as_str() {
-            "reasoning" => Some(hb * 0.5),
-            "camera" => Some(1000.0 / self.camera.fps.max(1.0)),
-            "hub" | "controller" => Some(1000.0 / self.timing.control_rate_hz),
+        match role.kind {
+            RoleKind::Reasoning => Some(hb * 0.5),
+            RoleKind::Camera => Some(1000.0 / self.camera.fps.max(1.0)),
+            RoleKind::Hub | RoleKind::Controller => Some(1000.0 / self.timing.control_rate_hz),
             // off the critical path: no budget, so the scheduler never moves roles for it
-            "vehicle" | RECORDER_KIND | BRIDGE_KIND => None,
-            _ => Some(hb * 0.25),
+            RoleKind::Vehicle | RoleKind::Recorder | RoleKind::Bridge => None,
+            RoleKind::Perception
+            | RoleKind::TextReader
+            | RoleKind::Detector
+            | RoleKind::Cues
+            | RoleKind::Occupancy
+            | RoleKind::ImageToText
+            | RoleKind::Replay
+            | RoleKind::Formation => Some(hb * 0.25),
         }
     }
 
-    /// Fit every recorder role (kind [`RECORDER_KIND`]) to what the flight publishes: its
+    /// Fit every recorder role (kind `recorder`) to what the flight publishes: its
     /// `subscribes` become every topic another role publishes, `heartbeat`, and
     /// `hosts/link` when the flight names other hosts (its bridges measure them), in the
     /// order of [`topics::ALL`](aeris_schemas::topics::ALL).
@@ -383,14 +385,17 @@ impl Workflow {
             .filter(|t| {
                 **t == aeris_schemas::topics::HEARTBEAT
                     || (**t == aeris_schemas::topics::HOSTS_LINK && !self.hosts.is_empty())
-                    || self
-                        .roles
-                        .iter()
-                        .any(|r| r.kind != RECORDER_KIND && r.publishes.iter().any(|p| p == *t))
+                    || self.roles.iter().any(|r| {
+                        r.kind != RoleKind::Recorder && r.publishes.iter().any(|p| p == *t)
+                    })
             })
             .map(|t| t.to_string())
             .collect();
-        for r in self.roles.iter_mut().filter(|r| r.kind == RECORDER_KIND) {
+        for r in self
+            .roles
+            .iter_mut()
+            .filter(|r| r.kind == RoleKind::Recorder)
+        {
             r.subscribes = published.clone();
         }
     }
@@ -400,7 +405,7 @@ impl Workflow {
     pub fn needs_builtin_vehicle(&self) -> bool {
         self.roles
             .iter()
-            .filter(|r| r.kind == "controller")
+            .filter(|r| r.kind == RoleKind::Controller)
             .any(|r| r.param_str("autopilot").is_none_or(|a| a == "auto"))
     }
 

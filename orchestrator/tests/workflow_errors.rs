@@ -4,6 +4,7 @@
 use aeris_orchestrator::workflow::{DEFAULT_WORKFLOW_TOML, MODELS_WORKFLOW_TOML};
 use aeris_orchestrator::{Workflow, WorkflowError, WorkflowFileError};
 use aeris_runtime::affinity::CpuSetError;
+use aeris_schemas::RoleKind;
 use proptest::prelude::*;
 use std::path::PathBuf;
 
@@ -52,7 +53,7 @@ fn missing_vehicle_explains_the_autopilot() {
         matches!(
             e,
             WorkflowError::MissingRole {
-                kind: "vehicle",
+                kind: RoleKind::Vehicle,
                 ..
             }
         ),
@@ -72,7 +73,7 @@ fn unknown_variant_lists_the_known_ones() {
             ..
         } => {
             assert_eq!(role, "reasoning");
-            assert_eq!(kind, "reasoning");
+            assert_eq!(*kind, RoleKind::Reasoning);
             assert_eq!(variant, "gpt5");
         }
         other => panic!("{other:?}"),

@@ -480,7 +480,7 @@ mod tests {
         let spec = RoleSpec {
             flight: "f".into(),
             name: "recorder".into(),
-            kind: "recorder".into(),
+            kind: aeris_schemas::RoleKind::Recorder,
             variant: "mcap".into(),
             cpus: String::new(),
             timing: TimingSpec::default(),

@@ -32,7 +32,7 @@ fn default_spec() -> RoleSpec {
     RoleSpec {
         flight: "fuzz".into(),
         name: "controller".into(),
-        kind: "controller".into(),
+        kind: aeris_schemas::RoleKind::Controller,
         variant: "mavlink".into(),
         cpus: String::new(),
         timing: w.timing,

@@ -18,7 +18,6 @@
 pub use aeris_schemas::accelerator;
 pub mod affinity;
 pub mod bus;
-pub mod catalog;
 pub mod clock;
 pub mod error_chain;
 pub mod log;

@@ -82,7 +82,7 @@ pub enum ConfigError {
     #[error("no role kind `{kind}` with variant `{variant}` in this build (see `aeris roles`)")]
     UnknownVariant {
         /// The role's kind.
-        kind: String,
+        kind: aeris_schemas::RoleKind,
         /// The variant asked for.
         variant: String,
     },

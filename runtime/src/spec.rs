@@ -243,8 +243,8 @@ pub struct RoleSpec {
     pub flight: String,
     /// Role instance name (unique in the flight).
     pub name: String,
-    /// Role kind (camera, perception, reasoning, hub, controller, vehicle).
-    pub kind: String,
+    /// Role kind.
+    pub kind: aeris_schemas::RoleKind,
     /// Variant of the kind.
     pub variant: String,
     /// Executor CPU list the supervisor bound the process to ("" = unbound).

@@ -29,6 +29,7 @@ pub mod hub_report;
 pub mod json_form;
 pub mod lease;
 pub mod role_counters;
+pub mod role_kinds;
 pub mod setpoint;
 pub mod state;
 pub mod supervisor;
@@ -61,6 +62,7 @@ pub use role_counters::{
     FormationCounters, GeometricPerceptionCounters, HubBeatCounters, LanguageCounters,
     PlannerCounters, RecorderCounters, ReplayCounters, VehicleCounters, reasoner_decisions,
 };
+pub use role_kinds::{RoleKind, RoleKindInfo, UnknownRoleKind};
 pub use setpoint::{BoundSetpoint, SetpointError};
 pub use state::{
     Cue, Detection, MAX_CUES, MAX_DETECTIONS, OCCUPANCY_CELLS, OCCUPANCY_SIDE, OCCUPANCY_UNKNOWN,

@@ -322,14 +322,14 @@ pub fn default_mission() -> aeris_runtime::MissionSpec {
 pub fn role_spec(
     flight: &str,
     name: &str,
-    kind: &str,
+    kind: aeris_schemas::RoleKind,
     variant: &str,
     params: serde_json::Value,
 ) -> aeris_runtime::RoleSpec {
     aeris_runtime::RoleSpec {
         flight: flight.to_string(),
         name: name.to_string(),
-        kind: kind.to_string(),
+        kind,
         variant: variant.to_string(),
         cpus: String::new(),
         timing: Default::default(),

@@ -44,7 +44,13 @@ fn start_camera(tag: &str, params: serde_json::Value) -> Camera {
         .create()
         .unwrap();
     let rgb = bus.frame_subscriber::<topics::CameraRgb>().unwrap();
-    let spec = role_spec(&flight, "camera", "camera", "gstreamer", params);
+    let spec = role_spec(
+        &flight,
+        "camera",
+        aeris_schemas::RoleKind::Camera,
+        "gstreamer",
+        params,
+    );
     let path = write_spec(&dir.0, &spec);
     let log = dir.0.join("camera.log");
     let child = ChildGuard::spawn(
@@ -240,7 +246,7 @@ fn a_bad_pipeline_is_a_configuration_error_naming_the_parameter_once() {
         let spec = role_spec(
             &flight,
             "camera",
-            "camera",
+            aeris_schemas::RoleKind::Camera,
             "gstreamer",
             serde_json::json!({ "pipeline": pipeline }),
         );

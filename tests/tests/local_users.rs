@@ -164,7 +164,7 @@ fn squatting_role(dir: &Path, flight: &str) -> std::path::PathBuf {
     let spec = role_spec(
         flight,
         "perception",
-        "perception",
+        aeris_schemas::RoleKind::Perception,
         "geometric",
         serde_json::json!({}),
     );

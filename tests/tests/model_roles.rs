@@ -56,7 +56,7 @@ fn missing_corrupt_or_absent_models_stop_the_role_with_a_clear_error() {
     let mut on_cuda = role_spec(
         &flight,
         "on-cuda",
-        "detector",
+        aeris_schemas::RoleKind::Detector,
         "yolo",
         serde_json::json!({}),
     );
@@ -75,7 +75,7 @@ fn missing_corrupt_or_absent_models_stop_the_role_with_a_clear_error() {
             role_spec(
                 &flight,
                 "missing",
-                "detector",
+                aeris_schemas::RoleKind::Detector,
                 "yolo",
                 serde_json::json!({ "model": "detect/nope.onnx" }),
             ),
@@ -85,7 +85,7 @@ fn missing_corrupt_or_absent_models_stop_the_role_with_a_clear_error() {
             role_spec(
                 &flight,
                 "corrupt",
-                "detector",
+                aeris_schemas::RoleKind::Detector,
                 "yolo",
                 serde_json::json!({ "models_dir": cache.to_str().unwrap() }),
             ),
@@ -95,7 +95,7 @@ fn missing_corrupt_or_absent_models_stop_the_role_with_a_clear_error() {
             role_spec(
                 &flight,
                 "lm-corrupt",
-                "reasoning",
+                aeris_schemas::RoleKind::Reasoning,
                 "smollm2",
                 serde_json::json!({ "models_dir": cache.to_str().unwrap() }),
             ),
@@ -105,7 +105,7 @@ fn missing_corrupt_or_absent_models_stop_the_role_with_a_clear_error() {
             role_spec(
                 &flight,
                 "vlm",
-                "image-to-text",
+                aeris_schemas::RoleKind::ImageToText,
                 "vlm",
                 serde_json::json!({}),
             ),
@@ -115,7 +115,7 @@ fn missing_corrupt_or_absent_models_stop_the_role_with_a_clear_error() {
             role_spec(
                 &flight,
                 "learned",
-                "occupancy",
+                aeris_schemas::RoleKind::Occupancy,
                 "onnx",
                 serde_json::json!({}),
             ),

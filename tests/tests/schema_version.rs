@@ -33,7 +33,7 @@ fn a_role_refuses_a_flight_of_another_schema() {
     let spec = role_spec(
         &flight,
         "reasoning",
-        "reasoning",
+        aeris_schemas::RoleKind::Reasoning,
         "planner",
         serde_json::json!({}),
     );

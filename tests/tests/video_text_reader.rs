@@ -63,7 +63,7 @@ fn the_text_reader_reads_the_sign_off_decoded_video() {
         &role_spec(
             &flight,
             "camera",
-            "camera",
+            aeris_schemas::RoleKind::Camera,
             "gstreamer",
             serde_json::json!({ "pipeline": pipeline }),
         ),
@@ -73,7 +73,7 @@ fn the_text_reader_reads_the_sign_off_decoded_video() {
         &role_spec(
             &flight,
             "text-reader",
-            "text-reader",
+            aeris_schemas::RoleKind::TextReader,
             "ppocr",
             serde_json::json!({ "interval_ms": 500 }),
         ),

@@ -10,6 +10,7 @@ use aeris_orchestrator::supervisor::SupervisorEvent;
 use aeris_roles::language::heartbeat as language;
 use aeris_runtime::stats::{mean_std, percentile};
 use aeris_schemas::LanguageCounters;
+use aeris_schemas::RoleKind;
 use serde::Serialize;
 use std::time::Instant;
 
@@ -210,7 +211,7 @@ impl DecisionLog {
         for role in supervisor
             .roles()
             .iter()
-            .filter(|r| r.kind() == "reasoning")
+            .filter(|r| r.kind() == RoleKind::Reasoning)
         {
             let Some(hb) = role.last_heartbeat() else {
                 continue;
@@ -270,7 +271,7 @@ pub fn run(
     let reasoning = w
         .roles
         .iter()
-        .find(|r| r.kind == "reasoning")
+        .find(|r| r.kind == RoleKind::Reasoning)
         .map(|r| r.variant.clone())
         .unwrap_or_default();
     // time for N heartbeats, whatever the mission does meanwhile (it lands and waits)

@@ -17,6 +17,7 @@ use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::stats::{mean_std, percentile};
+use aeris_schemas::RoleKind;
 use serde::Serialize;
 
 /// Settings of `aeris bench ds`.
@@ -109,7 +110,7 @@ fn workflow(config: &FlightBenchConfig, mode: DsMode) -> Result<Workflow, Flight
     // the built-in model flight runs its reasoner on every CPU, where a hog on "its
     // executor" leaves nowhere to go: bind it to the perception executor instead
     if config.workflow.is_none()
-        && let Some(r) = w.roles.iter_mut().find(|r| r.kind == "reasoning")
+        && let Some(r) = w.roles.iter_mut().find(|r| r.kind == RoleKind::Reasoning)
     {
         r.executor = Some("perception".into());
     }

@@ -23,6 +23,7 @@ use aeris_flight::{
 use aeris_orchestrator::supervisor::{Supervisor, SupervisorEvent, SwapError};
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::clock::monotonic_ns;
+use aeris_schemas::RoleKind;
 use aeris_schemas::{ControllerCounters, VehicleCounters, reasoner_decisions, topics};
 use serde::Serialize;
 use std::collections::HashMap;
@@ -276,7 +277,7 @@ fn plan_faults(config: &FaultsConfig, w: &Workflow) -> Result<Vec<Fault>, Flight
     } else {
         config.faults.clone()
     };
-    let reasoner = w.roles.iter().find(|r| r.kind == "reasoning");
+    let reasoner = w.roles.iter().find(|r| r.kind == RoleKind::Reasoning);
     let mut out = Vec::new();
     for kind in kinds {
         match kind {
@@ -294,7 +295,7 @@ fn plan_faults(config: &FaultsConfig, w: &Workflow) -> Result<Vec<Fault>, Flight
                 });
             }
             FaultKind::ServiceRemoved => {
-                let Some(camera) = w.roles.iter().find(|r| r.kind == "camera") else {
+                let Some(camera) = w.roles.iter().find(|r| r.kind == RoleKind::Camera) else {
                     return Err(FlightBenchError::NoCamera);
                 };
                 out.push(Fault {
@@ -591,13 +592,13 @@ pub fn run(
     let heartbeat_ns = w.timing.heartbeat_period_ms * 1_000_000;
     // every fault takes a few heartbeats: make room for them before the time limit
     w.mission.max_duration_s += faults.len() as f64 * 4.0 * heartbeat_ns as f64 * 1e-9;
-    let role_of_kind = |kind: &str| {
+    let role_of_kind = |kind: RoleKind| {
         w.roles
             .iter()
             .find(|r| r.kind == kind)
             .map(|r| (r.name.clone(), r.variant.clone()))
     };
-    let reasoner = role_of_kind("reasoning");
+    let reasoner = role_of_kind(RoleKind::Reasoning);
     let injector = FaultInjector {
         queue: faults.into_iter(),
         phase: Phase::Warmup,
@@ -605,13 +606,13 @@ pub fn run(
         counters: Counters {
             vehicle: PerProcess::default(),
             reasoner: PerProcess::default(),
-            vehicle_role: role_of_kind("vehicle").map(|(name, _)| name),
+            vehicle_role: role_of_kind(RoleKind::Vehicle).map(|(name, _)| name),
             reasoner_role: reasoner.as_ref().map(|(name, _)| name.clone()),
         },
         controllers: w
             .roles
             .iter()
-            .filter(|r| r.kind == "controller")
+            .filter(|r| r.kind == RoleKind::Controller)
             .map(|r| r.name.clone())
             .collect(),
         reasoner_variant: reasoner.map(|(_, variant)| variant).unwrap_or_default(),

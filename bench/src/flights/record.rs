@@ -7,7 +7,8 @@
 use super::{BusyProcesses, FlightBenchError, flight_name_and_dir};
 use aeris_flight::{Flight, FlightWatcher, HookError, StepContext, StepHook, StopRule};
 use aeris_orchestrator::executors::process_sched_time;
-use aeris_orchestrator::workflow::{RECORDER_KIND, Workflow};
+use aeris_orchestrator::workflow::Workflow;
+use aeris_schemas::RoleKind;
 use serde::Serialize;
 
 /// Settings of `aeris bench record`.
@@ -71,7 +72,7 @@ impl StepHook for RecorderCpu {
             .supervisor
             .roles()
             .iter()
-            .find(|r| r.kind() == RECORDER_KIND)
+            .find(|r| r.kind() == RoleKind::Recorder)
             .and_then(|r| r.pid());
         if let Some(pid) = pid
             && let Some(t) = process_sched_time(pid)

@@ -28,9 +28,10 @@ use crate::monitor::FlightOutcome;
 use crate::overrides::{Overrides, VariantChoice};
 use aeris_orchestrator::restart::RestartPolicy;
 use aeris_orchestrator::workflow::{
-    Executor, ExecutorCpus, RECORDER_KIND, RoleDecl, SchedulingSpec, Workflow, WorkflowError,
+    Executor, ExecutorCpus, RoleDecl, SchedulingSpec, Workflow, WorkflowError,
 };
 use aeris_record::read::{ReadError, RecordedFlight, Recording};
+use aeris_schemas::RoleKind;
 use aeris_schemas::{Decision, HubReport, LanguageCounters, ReplayCounters, topics};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -39,18 +40,17 @@ mod compare;
 pub use compare::{CompareRow, DecisionView, ReplayCycle, RunFigures, compare, same_content};
 use compare::{figures, pair};
 
-/// Kind and variant of the replay source role.
-pub const SOURCE_KIND: &str = "replay";
+/// Variant of the replay source role (kind `replay`).
 const SOURCE_VARIANT: &str = "mcap";
 /// The replay's own recording, in its run directory.
 pub const REPLAY_RECORDING: &str = "replay.mcap";
 /// Kinds a replay does not run: the recording stands in for them.
-const REPLACED_KINDS: [&str; 5] = [
-    "vehicle",
-    "controller",
-    "camera",
-    RECORDER_KIND,
-    SOURCE_KIND,
+const REPLACED_KINDS: [RoleKind; 5] = [
+    RoleKind::Vehicle,
+    RoleKind::Controller,
+    RoleKind::Camera,
+    RoleKind::Recorder,
+    RoleKind::Replay,
 ];
 
 /// What to replay, and how.
@@ -210,7 +210,11 @@ pub struct ReplayReport {
 
 /// Kinds whose roles keep the first frame of every `interval_ms` of the clock
 /// (`aeris_roles::vision::FrameStride`).
-const STRIDED_KINDS: [&str; 3] = ["text-reader", "detector", "occupancy"];
+const STRIDED_KINDS: [RoleKind; 3] = [
+    RoleKind::TextReader,
+    RoleKind::Detector,
+    RoleKind::Occupancy,
+];
 /// Their default interval (ms), `aeris_roles::vision::DEFAULT_INTERVAL_MS`.
 const DEFAULT_INTERVAL_MS: u64 = 2000;
 
@@ -220,7 +224,7 @@ fn frame_intervals_ms(flight: &RecordedFlight) -> Vec<u64> {
     flight
         .roles
         .iter()
-        .filter(|r| STRIDED_KINDS.contains(&r.kind.as_str()))
+        .filter(|r| RoleKind::from_name(&r.kind).is_some_and(|k| STRIDED_KINDS.contains(&k)))
         .map(|r| frame_interval_ms(&r.params))
         .collect()
 }
@@ -305,7 +309,7 @@ pub fn replay_workflow(
     source_params.insert("align_ns".into(), start_alignment_ns(flight).into());
     let mut source = RoleDecl::new(
         "replay",
-        SOURCE_KIND,
+        RoleKind::Replay,
         SOURCE_VARIANT,
         Some(executors[0].name.clone()),
         source_params,
@@ -314,13 +318,17 @@ pub fn replay_workflow(
     // instead ([`ReplayHook`])
     source.restart = RestartPolicy::Never;
     let mut roles = vec![source];
-    for r in flight
-        .roles
-        .iter()
-        .filter(|r| !REPLACED_KINDS.contains(&r.kind.as_str()))
-    {
+    for r in &flight.roles {
+        let kind = RoleKind::from_name(&r.kind).ok_or_else(|| WorkflowError::UnknownKind {
+            role: r.name.clone(),
+            kind: r.kind.clone(),
+            known: RoleKind::known_names(),
+        })?;
+        if REPLACED_KINDS.contains(&kind) {
+            continue;
+        }
         let mut params = r.params.clone();
-        if STRIDED_KINDS.contains(&r.kind.as_str()) {
+        if STRIDED_KINDS.contains(&kind) {
             let interval = frame_interval_ms(&r.params);
             params.insert("interval_ms".into(), scale(interval).into());
         }
@@ -328,7 +336,7 @@ pub fn replay_workflow(
             .executor
             .clone()
             .filter(|e| executors.iter().any(|x| &x.name == e));
-        let mut role = RoleDecl::new(&r.name, &r.kind, &r.variant, executor, params);
+        let mut role = RoleDecl::new(&r.name, kind, &r.variant, executor, params);
         role.variants = r.variants.clone();
         roles.push(role);
     }
@@ -484,7 +492,7 @@ pub fn replay(
     let reasoner = workflow
         .roles
         .iter()
-        .find(|r| r.kind == "reasoning")
+        .find(|r| r.kind == RoleKind::Reasoning)
         .map(|r| r.name.clone());
     let span_s = to_ns.min(end).saturating_sub(first) as f64 * 1e-9 / request.speed;
     let overrides = Overrides {
@@ -536,7 +544,7 @@ pub fn replay(
         .status()
         .roles
         .iter()
-        .filter(|r| !matches!(r.kind.as_str(), SOURCE_KIND | RECORDER_KIND))
+        .filter(|r| !matches!(r.kind, RoleKind::Replay | RoleKind::Recorder))
         .map(|r| format!("{}={}", r.name, r.variant))
         .collect();
     let (outcome, hook) = started.watch(watcher)?;

@@ -248,7 +248,7 @@ fn allowed(role: &RoleLoad, from: Option<&ExecutorLoad>, to: &ExecutorLoad) -> b
     (!live || to.capacity >= role.threads as f64)
         && to
             .accelerator
-            .is_none_or(|a| crate::workflow::runs_on_accelerator(kind, variant, a))
+            .is_none_or(|a| crate::workflow::runs_on_accelerator(*kind, variant, a))
         && to.reachable
         && (to.host.is_none() || role.crosses_hosts)
         && (from_host.is_none() || to.host.is_none() || from_host == to.host.as_ref())
@@ -620,7 +620,7 @@ mod tests {
     fn only_roles_an_accelerator_can_run_go_onto_it() {
         let (mut roles, mut executors) = accelerator_case();
         // a camera runs no model: no probe, no move there
-        roles[1].kind_variant = ("camera".into(), "sim-render".into());
+        roles[1].kind_variant = (aeris_schemas::RoleKind::Camera, "sim-render".into());
         roles[1].accelerator_ms = vec![(2, 5.0)];
         let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]);
         assert!(
@@ -629,7 +629,7 @@ mod tests {
             "{plan:?}"
         );
         // a language model offloads to CUDA, not to TensorRT
-        roles[1].kind_variant = ("reasoning".into(), "smollm2".into());
+        roles[1].kind_variant = (aeris_schemas::RoleKind::Reasoning, "smollm2".into());
         roles[1].accelerator_ms.clear();
         executors[2].accelerator = Some("tensorrt:0".parse().unwrap());
         let plan = plan_fewest_moves(&roles, &executors, 0.2, 3, &[]);

@@ -23,7 +23,7 @@ pub(super) fn role(
         crosses_hosts: true,
         reads_frames: false,
         threads: 1,
-        kind_variant: ("detector".into(), "yolo".into()),
+        kind_variant: (aeris_schemas::RoleKind::Detector, "yolo".into()),
         accelerator_ms: Vec::new(),
         cpu_base_ms: None,
     }

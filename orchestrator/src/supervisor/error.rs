@@ -136,7 +136,7 @@ pub enum SwapError {
         /// Role name.
         role: String,
         /// Its kind.
-        kind: String,
+        kind: aeris_schemas::RoleKind,
         /// Why (from the catalog).
         why: &'static str,
     },
@@ -311,7 +311,7 @@ pub enum MigrateError {
         /// Role name.
         role: String,
         /// Its kind.
-        kind: String,
+        kind: aeris_schemas::RoleKind,
     },
     /// The role already runs there.
     #[error("role `{role}` already runs on {place}")]

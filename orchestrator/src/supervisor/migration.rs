@@ -197,7 +197,7 @@ impl Supervisor {
         let Some(a) = accelerator else {
             return Ok(());
         };
-        if !crate::workflow::runs_on_accelerator(&r.kind, &r.variant, a) {
+        if !crate::workflow::runs_on_accelerator(r.kind, &r.variant, a) {
             return Err(MigrateError::NotAccelerated {
                 role: r.name.clone(),
                 target: target.to_string(),
@@ -206,8 +206,8 @@ impl Supervisor {
         }
         // a language model's offload is checked by its new process when it loads (a build
         // without offload, or no device, fails that start and the role stays where it runs)
-        let language = crate::workflow::LANGUAGE_MODEL_VARIANTS
-            .contains(&(r.kind.as_str(), r.variant.as_str()));
+        let language =
+            crate::workflow::LANGUAGE_MODEL_VARIANTS.contains(&(r.kind, r.variant.as_str()));
         if on_other_host || language {
             return Ok(());
         }
@@ -288,10 +288,10 @@ impl Supervisor {
         spec: RemoteSpec,
     ) -> Result<Placement, MigrateError> {
         let r = &self.roles[i];
-        if !movable_across_hosts(&r.kind) {
+        if !movable_across_hosts(r.kind) {
             return Err(MigrateError::NotMovable {
                 role: r.name.clone(),
-                kind: r.kind.clone(),
+                kind: r.kind,
             });
         }
         let place = format!("host `{}` (executor {executor})", spec.host);
@@ -301,7 +301,7 @@ impl Supervisor {
                 place,
             });
         }
-        let kind = aeris_runtime::catalog::role_kind(&r.kind);
+        let k = r.kind.info();
         for o in &self.roles {
             let Some(other_host) = o.link.as_ref().map(|l| &l.host) else {
                 continue;
@@ -309,9 +309,7 @@ impl Supervisor {
             if o.name == r.name || *other_host == spec.host {
                 continue;
             }
-            let (Some(k), Some(ok)) = (kind, aeris_runtime::catalog::role_kind(&o.kind)) else {
-                continue;
-            };
+            let ok = o.kind.info();
             let shared = k
                 .publishes
                 .iter()

@@ -77,6 +77,7 @@ use crate::rebind::RebindPolicy;
 use crate::workflow::{SchedulingSpec, Workflow};
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::bus::{BusError, FlightBus};
+use aeris_schemas::RoleKind;
 use aeris_schemas::{SupervisorStatus, topics};
 use board::StatusBoard;
 use control_service::ControlService;
@@ -209,7 +210,11 @@ impl Supervisor {
         let mut plan = plan;
         // A restarted simulated vehicle resumes from its last checkpoint instead of
         // teleporting back to the start.
-        for r in plan.roles.iter_mut().filter(|r| r.spec.kind == "vehicle") {
+        for r in plan
+            .roles
+            .iter_mut()
+            .filter(|r| r.spec.kind == RoleKind::Vehicle)
+        {
             if !r.spec.params.contains_key("state_file") {
                 let path = run_dir.join(format!("{}.state", r.spec.name));
                 r.spec
@@ -222,7 +227,7 @@ impl Supervisor {
         for r in plan
             .roles
             .iter_mut()
-            .filter(|r| r.spec.kind == crate::workflow::FORMATION_KIND)
+            .filter(|r| r.spec.kind == RoleKind::Formation)
         {
             if !r.spec.params.contains_key("tracks_file") {
                 let path = run_dir.join("formation.json");

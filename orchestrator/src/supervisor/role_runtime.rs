@@ -9,6 +9,7 @@ use crate::launch::{PlannedFallback, PlannedRole};
 use crate::restart::{RestartPolicy, RoleExit};
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::stats::LatencyWindow;
+use aeris_schemas::RoleKind;
 use aeris_schemas::{RoleHeartbeat, RoleStatus};
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
@@ -59,7 +60,7 @@ pub struct RoleRuntime {
     /// Role name.
     pub(super) name: String,
     /// Role kind.
-    pub(super) kind: String,
+    pub(super) kind: RoleKind,
     /// Variant it runs.
     pub(super) variant: String,
     /// CPU list it is bound to ("" = unbound).
@@ -159,8 +160,8 @@ impl RoleRuntime {
         &self.name
     }
     /// Role kind.
-    pub fn kind(&self) -> &str {
-        &self.kind
+    pub fn kind(&self) -> RoleKind {
+        self.kind
     }
     /// Variant it runs.
     pub fn variant(&self) -> &str {
@@ -286,11 +287,14 @@ impl RoleRuntime {
             held_policy: None,
         });
         let accelerator = spec.accelerator.as_deref().and_then(|a| a.parse().ok());
-        let threads = spec
-            .param_f64("threads")
-            .map_or(if spec.kind == "reasoning" { 2 } else { 1 }, |t| {
-                t.clamp(1.0, 64.0) as usize
-            });
+        let threads = spec.param_f64("threads").map_or(
+            if spec.kind == RoleKind::Reasoning {
+                2
+            } else {
+                1
+            },
+            |t| t.clamp(1.0, 64.0) as usize,
+        );
         RoleRuntime {
             threads,
             accelerator,
@@ -458,7 +462,7 @@ pub(super) mod tests {
             cpu_base_ms: None,
             declared_fallback: None,
             name: "r".into(),
-            kind: "hub".into(),
+            kind: RoleKind::Hub,
             variant: "gate".into(),
             cpus: String::new(),
             cpu_set: None,

@@ -15,7 +15,6 @@ use crate::rebind::{ExecutorLoad, RebindConfig, RebindPlan, RoleLoad, link_cost}
 use crate::workflow::SchedulingSpec;
 use crate::workflow::movable_across_hosts;
 use aeris_runtime::affinity::CpuSet;
-use aeris_runtime::catalog::role_kind;
 use aeris_schemas::topics;
 use std::time::{Duration, Instant};
 
@@ -268,9 +267,8 @@ impl Supervisor {
                             && r.swap.is_none()
                             && r.returns_to.is_none()
                             && !r.link.as_ref().is_some_and(|l| l.lost),
-                        crosses_hosts: movable_across_hosts(&r.kind),
-                        reads_frames: role_kind(&r.kind)
-                            .is_some_and(|k| k.subscribes.contains(&topics::CAMERA_RGB)),
+                        crosses_hosts: movable_across_hosts(r.kind),
+                        reads_frames: r.kind.info().subscribes.contains(&topics::CAMERA_RGB),
                         // a language model starts with no more threads than it had CPUs (and a
                         // live move keeps them): at most the CPUs it runs on now
                         threads: r.threads.min(
@@ -278,7 +276,7 @@ impl Supervisor {
                                 .as_ref()
                                 .map_or(r.threads, |s| s.cpus().len().max(1)),
                         ),
-                        kind_variant: (r.kind.clone(), r.variant.clone()),
+                        kind_variant: (r.kind, r.variant.clone()),
                         accelerator_ms: Vec::new(),
                         cpu_base_ms: None,
                     };

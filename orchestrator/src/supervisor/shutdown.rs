@@ -4,6 +4,7 @@
 use super::Supervisor;
 use super::role_runtime::RoleState;
 use crate::restart::RoleExit;
+use aeris_schemas::RoleKind;
 use std::time::{Duration, Instant};
 
 /// Pause between checks for exited roles during [`Supervisor::shutdown`].
@@ -89,15 +90,23 @@ impl core::fmt::Display for ShutdownReport {
 
 /// Order in which shutdown stops kinds: reasoning first, controller, vehicle and recorder
 /// last.
-fn shutdown_rank(kind: &str) -> u8 {
+fn shutdown_rank(kind: RoleKind) -> u8 {
     match kind {
-        "reasoning" => 0,
-        "perception" | "camera" => 1,
-        "controller" => 3,
-        "vehicle" => 4,
+        RoleKind::Reasoning => 0,
+        RoleKind::Perception | RoleKind::Camera => 1,
+        RoleKind::TextReader
+        | RoleKind::Detector
+        | RoleKind::Cues
+        | RoleKind::Occupancy
+        | RoleKind::ImageToText
+        | RoleKind::Hub
+        | RoleKind::Bridge
+        | RoleKind::Replay
+        | RoleKind::Formation => 2,
+        RoleKind::Controller => 3,
+        RoleKind::Vehicle => 4,
         // last: it records the flight down to its end
-        "recorder" => 5,
-        _ => 2,
+        RoleKind::Recorder => 5,
     }
 }
 
@@ -109,7 +118,7 @@ impl Supervisor {
         let start = Instant::now();
         self.stop_swaps();
         let mut order: Vec<usize> = (0..self.roles.len()).collect();
-        order.sort_by_key(|&i| shutdown_rank(&self.roles[i].kind));
+        order.sort_by_key(|&i| shutdown_rank(self.roles[i].kind));
         let mut outcomes: Vec<Option<ShutdownOutcome>> = vec![None; self.roles.len()];
         for &i in &order {
             let role = &mut self.roles[i];
@@ -124,7 +133,7 @@ impl Supervisor {
             let in_phase = |rank: u8| ranks.contains(&rank);
             for &i in &order {
                 let role = &self.roles[i];
-                if in_phase(shutdown_rank(&role.kind))
+                if in_phase(shutdown_rank(role.kind))
                     && let Some(child) = &role.child
                     && let Ok(pid) = libc::pid_t::try_from(child.id())
                 {
@@ -135,9 +144,9 @@ impl Supervisor {
             }
             loop {
                 self.collect_exits(&mut outcomes);
-                let waiting = order.iter().any(|&i| {
-                    outcomes[i].is_none() && in_phase(shutdown_rank(&self.roles[i].kind))
-                });
+                let waiting = order
+                    .iter()
+                    .any(|&i| outcomes[i].is_none() && in_phase(shutdown_rank(self.roles[i].kind)));
                 if !waiting || start.elapsed() >= until {
                     break;
                 }
@@ -217,16 +226,16 @@ mod tests {
     #[test]
     fn shutdown_ranks_put_reasoning_first_and_vehicle_last() {
         let mut kinds = [
-            "vehicle",
-            "controller",
-            "hub",
-            "camera",
-            "reasoning",
-            "perception",
+            RoleKind::Vehicle,
+            RoleKind::Controller,
+            RoleKind::Hub,
+            RoleKind::Camera,
+            RoleKind::Reasoning,
+            RoleKind::Perception,
         ];
-        kinds.sort_by_key(|k| shutdown_rank(k));
-        assert_eq!(kinds[0], "reasoning");
-        assert_eq!(kinds[4], "controller");
-        assert_eq!(kinds[5], "vehicle");
+        kinds.sort_by_key(|k| shutdown_rank(*k));
+        assert_eq!(kinds[0], RoleKind::Reasoning);
+        assert_eq!(kinds[4], RoleKind::Controller);
+        assert_eq!(kinds[5], RoleKind::Vehicle);
     }
 }

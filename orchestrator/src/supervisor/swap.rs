@@ -16,6 +16,7 @@ use super::warm_up_gate::WarmUpGate;
 use crate::restart::RoleExit;
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::stats::LatencyWindow;
+use aeris_schemas::RoleKind;
 use std::path::Path;
 use std::process::Child;
 use std::time::{Duration, Instant};
@@ -233,12 +234,10 @@ impl Supervisor {
         let instance = self.launcher.next_instance();
         let exe = self.launcher.exe().to_path_buf();
         let r = &mut self.roles[i];
-        let refusal = aeris_runtime::catalog::role_kind(&r.kind)
-            .map_or(Some("unknown kind"), |k| k.swap_refusal);
-        if let Some(why) = refusal {
+        if let Some(why) = r.kind.info().swap_refusal {
             return Err(SwapError::NotSwappable {
                 role: r.name.clone(),
-                kind: r.kind.clone(),
+                kind: r.kind,
                 why,
             });
         }
@@ -329,7 +328,7 @@ impl Supervisor {
             abort: None,
             // on this host only: a move to another host starts a handle here, which relays
             gate: (policy == LoadPolicy::IdleUntilReady
-                && r.kind == "reasoning"
+                && r.kind == RoleKind::Reasoning
                 && spec.remote.is_none())
             .then(|| WarmUpGate::new(spec.timing.heartbeat_period_ms.saturating_mul(1_000_000))),
         });

@@ -73,7 +73,7 @@ mod tests {
     use super::*;
     use crate::workflow::ExecutorCpus;
     use aeris_runtime::spec::TimingSpec;
-    use aeris_schemas::topics;
+    use aeris_schemas::{RoleKind, topics};
 
     #[test]
     fn the_builtin_default_is_valid_and_complete() {
@@ -105,26 +105,33 @@ mod tests {
     fn the_builtin_formation_has_every_vehicle_in_its_own_scope() {
         let w = Workflow::builtin_formation().unwrap();
         assert_eq!(w.fleet.vehicles, 4);
-        let scoped = |kind: &str| -> Vec<(String, Option<u8>)> {
+        let scoped = |kind: RoleKind| -> Vec<(String, Option<u8>)> {
             w.roles
                 .iter()
                 .filter(|r| r.kind == kind)
                 .map(|r| (r.name.clone(), r.vehicle))
                 .collect()
         };
-        for kind in ["vehicle", "controller"] {
+        for kind in [RoleKind::Vehicle, RoleKind::Controller] {
             let expected: Vec<(String, Option<u8>)> =
                 (1..=4).map(|k| (format!("{kind}-v{k}"), Some(k))).collect();
             assert_eq!(scoped(kind), expected);
         }
-        assert_eq!(scoped("formation"), vec![("formation".to_string(), None)]);
+        assert_eq!(
+            scoped(RoleKind::Formation),
+            vec![("formation".to_string(), None)]
+        );
         // the formation role feeds every controller; vehicles' roles never feed each other
         let edges = w.service_edges();
-        let formation = w.roles.iter().position(|r| r.kind == "formation").unwrap();
+        let formation = w
+            .roles
+            .iter()
+            .position(|r| r.kind == RoleKind::Formation)
+            .unwrap();
         for (from, to, topic) in &edges {
             assert_eq!(*from, formation, "{edges:?}");
             assert_eq!(topic, topics::HUB_SETPOINT);
-            assert_eq!(w.roles[*to].kind, "controller");
+            assert_eq!(w.roles[*to].kind, RoleKind::Controller);
         }
         assert_eq!(edges.len(), 4);
         // side by side on the ground, 4 m apart, centred on the start

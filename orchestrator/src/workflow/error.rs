@@ -3,6 +3,7 @@
 
 use aeris_runtime::affinity::CpuSetError;
 use aeris_runtime::spec::MissionError;
+use aeris_schemas::RoleKind;
 use aeris_schemas::heartbeat::NAME_MAX;
 
 /// Why a workflow is unusable.
@@ -156,7 +157,7 @@ pub enum WorkflowError {
         /// Role name.
         role: String,
         /// Its kind.
-        kind: String,
+        kind: RoleKind,
         /// Its executor's host.
         host: String,
     },
@@ -227,7 +228,7 @@ pub enum WorkflowError {
         /// Role name.
         role: String,
         /// Its kind.
-        kind: String,
+        kind: RoleKind,
         /// The variant as written.
         variant: String,
         /// Known variants, comma-separated.
@@ -356,7 +357,7 @@ pub enum WorkflowError {
     #[error("the workflow has no role of kind `{kind}`{hint}")]
     MissingRole {
         /// The missing kind.
-        kind: &'static str,
+        kind: RoleKind,
         /// Why it is needed / how to fix, may be empty.
         hint: &'static str,
     },

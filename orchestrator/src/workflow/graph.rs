@@ -2,7 +2,8 @@
 //! topic (feedback topics, `heartbeat` and the recorder's subscriptions excepted), the cycle [`Workflow::validate`]
 //! refuses, and the start order (publishers first).
 
-use super::{RECORDER_KIND, Workflow};
+use super::Workflow;
+use aeris_schemas::RoleKind;
 use aeris_schemas::topics;
 
 impl Workflow {
@@ -22,7 +23,7 @@ impl Workflow {
                 for (to, b) in self.roles.iter().enumerate() {
                     // the recorder is nobody's dependant: it may start first and see the
                     // flight from its first message
-                    if b.kind != RECORDER_KIND
+                    if b.kind != RoleKind::Recorder
                         && a.shares_scope_with(b)
                         && b.subscribes.contains(topic)
                         && !b.publishes.contains(topic)

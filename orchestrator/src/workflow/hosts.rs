@@ -1,10 +1,8 @@
 //! Other hosts of a workflow: checking `[hosts.NAME]` and the executors on them, and which
 //! topics the bridges carry between the flight's host and each other host.
 
-use super::{
-    BRIDGE_KIND, ExecutorCpus, FLIGHT_HOST_KINDS, Host, Workflow, WorkflowError, check_endpoint,
-};
-use aeris_schemas::{MAX_HOSTS, topics};
+use super::{ExecutorCpus, FLIGHT_HOST_KINDS, Host, Workflow, WorkflowError, check_endpoint};
+use aeris_schemas::{MAX_HOSTS, RoleKind, topics};
 
 /// Topics the supervisor itself reads on the flight's host (its own subscriptions, beside
 /// the roles'): every role's heartbeat, the hub's reports, telemetry, the autopilot link.
@@ -126,10 +124,10 @@ impl Workflow {
         }
         for r in &self.roles {
             let Some(h) = self.role_host(r) else { continue };
-            if FLIGHT_HOST_KINDS.contains(&r.kind.as_str()) {
+            if FLIGHT_HOST_KINDS.contains(&r.kind) {
                 return Err(WorkflowError::RemoteNotAllowed {
                     role: r.name.clone(),
-                    kind: r.kind.clone(),
+                    kind: r.kind,
                     host: h.name.clone(),
                 });
             }
@@ -156,9 +154,7 @@ impl Workflow {
                     "is only for a role on another host (its executor's `host`)".into(),
                 ));
             }
-            let known = aeris_runtime::catalog::role_kind(&r.kind)
-                .is_some_and(|k| k.variants.contains(&fb.variant.as_str()));
-            if !known {
+            if !r.kind.info().variants.contains(&fb.variant.as_str()) {
                 return Err(bad(format!(
                     "`{}` is not a variant of kind {}",
                     fb.variant, r.kind
@@ -214,20 +210,18 @@ impl Workflow {
                 self.role_host(r).map(|h| h.name.as_str()) == Some(host.name.as_str())
             };
             let may_be_there = |r: &&super::RoleDecl| {
-                r.kind != BRIDGE_KIND && (placed_there(r) || movable_across_hosts(&r.kind))
+                r.kind != RoleKind::Bridge && (placed_there(r) || movable_across_hosts(r.kind))
             };
             let may_be_here = |r: &&super::RoleDecl| {
-                r.kind != BRIDGE_KIND
-                    && (self.role_host(r).is_none() || movable_across_hosts(&r.kind))
+                r.kind != RoleKind::Bridge
+                    && (self.role_host(r).is_none() || movable_across_hosts(r.kind))
             };
             let publishes = |r: &super::RoleDecl, t: &str| {
                 t == topics::HEARTBEAT || r.publishes.iter().any(|p| p == t)
             };
             // (a recorder on the flight's host reads what crosses too)
             let reads = |r: &super::RoleDecl, t: &str| {
-                r.subscribes.iter().any(|s| s == t)
-                    || aeris_runtime::catalog::role_kind(&r.kind)
-                        .is_some_and(|k| k.reads_latest.contains(&t))
+                r.subscribes.iter().any(|s| s == t) || r.kind.info().reads_latest.contains(&t)
             };
             let mut to_host = Vec::new();
             let mut from_host = Vec::new();
@@ -266,9 +260,8 @@ impl Workflow {
 /// and back during the flight: a kind the hub, the controller and the autopilot link do
 /// not depend on being local (not [`FLIGHT_HOST_KINDS`]) and that may run twice for a
 /// moment (make-before-break: its catalog entry allows a hot swap).
-pub fn movable_across_hosts(kind: &str) -> bool {
-    !FLIGHT_HOST_KINDS.contains(&kind)
-        && aeris_runtime::catalog::role_kind(kind).is_some_and(|k| k.swap_refusal.is_none())
+pub fn movable_across_hosts(kind: RoleKind) -> bool {
+    !FLIGHT_HOST_KINDS.contains(&kind) && kind.info().swap_refusal.is_none()
 }
 
 /// The CPUs of an executor on another host as its agent is asked for them ("" = wherever
@@ -283,6 +276,7 @@ pub fn remote_cpus(cpus: &ExecutorCpus) -> String {
 #[cfg(test)]
 mod tests {
     use crate::workflow::{DEFAULT_WORKFLOW_TOML, Workflow, WorkflowError};
+    use aeris_schemas::RoleKind;
 
     /// The default flight with the reasoner (and, with `perception`, the perception role)
     /// on host `ground`.
@@ -309,7 +303,11 @@ mod tests {
     #[test]
     fn the_bridges_carry_exactly_the_topics_that_cross() {
         let w = Workflow::from_toml_str(&ground(false)).unwrap();
-        let reasoner = w.roles.iter().find(|r| r.kind == "reasoning").unwrap();
+        let reasoner = w
+            .roles
+            .iter()
+            .find(|r| r.kind == RoleKind::Reasoning)
+            .unwrap();
         assert_eq!(w.role_host(reasoner).unwrap().name, "ground");
         let plans = w.bridge_plans();
         assert_eq!(plans.len(), 1);
@@ -345,9 +343,9 @@ mod tests {
         assert!(w3.roles.iter().all(|r| w3.role_host(r).is_none()));
         assert_eq!(w3.bridge_plans(), plans);
         assert!(!p.from_host.contains(&"hub/setpoint".to_string()));
-        assert!(super::movable_across_hosts("reasoning"));
-        assert!(!super::movable_across_hosts("hub"));
-        assert!(!super::movable_across_hosts("camera"));
+        assert!(super::movable_across_hosts(RoleKind::Reasoning));
+        assert!(!super::movable_across_hosts(RoleKind::Hub));
+        assert!(!super::movable_across_hosts(RoleKind::Camera));
     }
 
     #[test]

@@ -8,9 +8,8 @@ use super::{
 };
 use crate::restart::RestartPolicy;
 use aeris_runtime::affinity::CpuSet;
-use aeris_runtime::catalog::role_kind;
 use aeris_runtime::spec::{CameraSpec, MissionSpec, TimingSpec};
-use aeris_schemas::topics;
+use aeris_schemas::{RoleKind, topics};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -272,16 +271,20 @@ impl Workflow {
                     })?
                 }
             };
-            // Topics default to the catalog's; an unknown kind is reported by validate().
-            let entry = role_kind(&r.kind);
-            let catalog = |f: fn(&aeris_runtime::catalog::RoleKind) -> &'static [&'static str]| {
-                entry
-                    .map(|k| f(k).iter().map(|t| t.to_string()).collect())
-                    .unwrap_or_default()
-            };
-            fit_recorders |= r.kind == super::RECORDER_KIND && r.subscribes.is_none();
-            let subscribes = r.subscribes.unwrap_or_else(|| catalog(|k| k.subscribes));
-            let publishes = r.publishes.unwrap_or_else(|| catalog(|k| k.publishes));
+            let kind = RoleKind::from_name(&r.kind).ok_or_else(|| WorkflowError::UnknownKind {
+                role: r.name.clone(),
+                kind: r.kind.clone(),
+                known: RoleKind::known_names(),
+            })?;
+            // topics default to the kind's
+            let catalog = |topics: &[&str]| topics.iter().map(|t| t.to_string()).collect();
+            fit_recorders |= kind == RoleKind::Recorder && r.subscribes.is_none();
+            let subscribes = r
+                .subscribes
+                .unwrap_or_else(|| catalog(kind.info().subscribes));
+            let publishes = r
+                .publishes
+                .unwrap_or_else(|| catalog(kind.info().publishes));
             let fallback = r.fallback.map(|variant| RoleFallback {
                 variant,
                 executor: r.fallback_executor,
@@ -291,7 +294,7 @@ impl Workflow {
                 variants: r.variants.unwrap_or_else(|| vec![r.variant.clone()]),
                 ladder: r.ladder.unwrap_or_default(),
                 name: r.name,
-                kind: r.kind,
+                kind,
                 variant: r.variant,
                 executor: r.executor,
                 restart,

@@ -4,20 +4,20 @@
 //! has no cycle.
 
 use super::{ExecutorCpus, Workflow, WorkflowError};
-use aeris_runtime::catalog::{ROLE_KINDS, role_kind};
 use aeris_schemas::accelerator::{Accelerator, AcceleratorKind};
 use aeris_schemas::heartbeat::NAME_MAX;
-use aeris_schemas::{MAX_ROLES, topics};
+use aeris_schemas::{MAX_ROLES, RoleKind, topics};
 
 /// Role kinds every workflow must have (plus `vehicle` while the controller's autopilot is
 /// `auto`; a replayed flight's `replay` role stands in for the controller and camera). S_t may come from one `perception` role or from the perception pipeline
 /// (`image-to-text` composing the blocks): the topic check requires a publisher of
 /// `perception/state` either way.
-pub const REQUIRED_KINDS: [&str; 4] = ["hub", "reasoning", "controller", "camera"];
-
-/// The role kind that flies a formation of several vehicles (`aeris-roles`' formation
-/// role); a flight with one replaces [`REQUIRED_KINDS`] by it and a controller per vehicle.
-pub const FORMATION_KIND: &str = "formation";
+pub const REQUIRED_KINDS: [RoleKind; 4] = [
+    RoleKind::Hub,
+    RoleKind::Reasoning,
+    RoleKind::Controller,
+    RoleKind::Camera,
+];
 
 fn known_topics() -> String {
     topics::ALL.join(", ")
@@ -36,22 +36,24 @@ pub fn is_valid_role_name(name: &str) -> bool {
 
 /// The role variants whose work is ONNX Runtime sessions, which an accelerator executor can
 /// run (`kind`, `variant`).
-pub const ONNX_MODEL_VARIANTS: &[(&str, &str)] = &[
-    ("text-reader", "ppocr"),
-    ("detector", "yolo"),
-    ("detector", "yolov8"),
-    ("cues", "minilm"),
-    ("occupancy", "onnx"),
+pub const ONNX_MODEL_VARIANTS: &[(RoleKind, &str)] = &[
+    (RoleKind::TextReader, "ppocr"),
+    (RoleKind::Detector, "yolo"),
+    (RoleKind::Detector, "yolov8"),
+    (RoleKind::Cues, "minilm"),
+    (RoleKind::Occupancy, "onnx"),
 ];
 
 /// The role variants whose work is a llama.cpp language model, which offloads its layers to a
 /// CUDA accelerator (in a build with the cargo feature `cuda`).
-pub const LANGUAGE_MODEL_VARIANTS: &[(&str, &str)] =
-    &[("reasoning", "smollm2"), ("reasoning", "gemma3")];
+pub const LANGUAGE_MODEL_VARIANTS: &[(RoleKind, &str)] = &[
+    (RoleKind::Reasoning, "smollm2"),
+    (RoleKind::Reasoning, "gemma3"),
+];
 
 /// Whether `kind`/`variant` can run on `accelerator`: ONNX models on any, language models on
 /// CUDA devices.
-pub fn runs_on_accelerator(kind: &str, variant: &str, accelerator: Accelerator) -> bool {
+pub fn runs_on_accelerator(kind: RoleKind, variant: &str, accelerator: Accelerator) -> bool {
     ONNX_MODEL_VARIANTS.contains(&(kind, variant))
         || (accelerator.kind == AcceleratorKind::Cuda
             && LANGUAGE_MODEL_VARIANTS.contains(&(kind, variant)))
@@ -215,13 +217,6 @@ impl Workflow {
                 max: MAX_ROLES,
             });
         }
-        let known_kinds = || {
-            ROLE_KINDS
-                .iter()
-                .map(|k| k.kind)
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
         for (i, r) in self.roles.iter().enumerate() {
             if !is_valid_role_name(&r.name) {
                 return Err(WorkflowError::BadRoleName {
@@ -233,18 +228,12 @@ impl Workflow {
                     name: r.name.clone(),
                 });
             }
-            let Some(kind) = role_kind(&r.kind) else {
-                return Err(WorkflowError::UnknownKind {
-                    role: r.name.clone(),
-                    kind: r.kind.clone(),
-                    known: known_kinds(),
-                });
-            };
+            let kind = r.kind.info();
             for v in core::iter::once(&r.variant).chain(r.variants.iter()) {
                 if !kind.variants.contains(&v.as_str()) {
                     return Err(WorkflowError::UnknownVariant {
                         role: r.name.clone(),
-                        kind: r.kind.clone(),
+                        kind: r.kind,
                         variant: v.clone(),
                         known: kind.variants.join(", "),
                     });
@@ -332,7 +321,7 @@ impl Workflow {
                 };
                 if let Some(variant) = variants
                     .into_iter()
-                    .find(|v| !runs_on_accelerator(&r.kind, v, accelerator))
+                    .find(|v| !runs_on_accelerator(r.kind, v, accelerator))
                 {
                     return Err(WorkflowError::NotAccelerated {
                         role: r.name.clone(),
@@ -350,8 +339,8 @@ impl Workflow {
                 }),
                 _ => Ok(()),
             };
-            match r.kind.as_str() {
-                "controller" => {
+            match r.kind {
+                RoleKind::Controller => {
                     string_param("autopilot")?;
                     if r.params.get("standby").is_some_and(|v| !v.is_boolean()) {
                         return Err(WorkflowError::BadParam {
@@ -361,7 +350,7 @@ impl Workflow {
                         });
                     }
                 }
-                "vehicle" => string_param("listen")?,
+                RoleKind::Vehicle => string_param("listen")?,
                 _ => {}
             }
             for (list, topics_of) in [("subscribes", &r.subscribes), ("publishes", &r.publishes)] {
@@ -385,21 +374,23 @@ impl Workflow {
     }
 
     fn validate_required(&self) -> Result<(), WorkflowError> {
-        let has = |kind: &str| self.roles.iter().any(|r| r.kind == kind);
+        let has = |kind: RoleKind| self.roles.iter().any(|r| r.kind == kind);
         // a replayed flight's camera and vehicle are its recording (`aeris replay`)
-        let replayed = |kind: &str| matches!(kind, "controller" | "camera") && has("replay");
-        if self.fleet.vehicles > 1 || has(FORMATION_KIND) {
+        let replayed = |kind: RoleKind| {
+            matches!(kind, RoleKind::Controller | RoleKind::Camera) && has(RoleKind::Replay)
+        };
+        if self.fleet.vehicles > 1 || has(RoleKind::Formation) {
             // a formation flight: the formation role flies every vehicle's controller
-            if !has(FORMATION_KIND) {
+            if !has(RoleKind::Formation) {
                 return Err(WorkflowError::MissingRole {
-                    kind: FORMATION_KIND,
+                    kind: RoleKind::Formation,
                     hint: " ([flight] vehicles > 1: a formation role flies them)",
                 });
             }
             if let Some(r) = self.roles.iter().find(|r| {
                 self.fleet.vehicles > 1
                     && r.vehicle.is_none()
-                    && matches!(r.kind.as_str(), "vehicle" | "controller")
+                    && matches!(r.kind, RoleKind::Vehicle | RoleKind::Controller)
             }) {
                 return Err(WorkflowError::NotPerVehicle {
                     role: r.name.clone(),
@@ -409,11 +400,11 @@ impl Workflow {
             let controlled = |k: u8| {
                 self.roles
                     .iter()
-                    .any(|r| r.kind == "controller" && r.vehicle.is_none_or(|v| v == k))
+                    .any(|r| r.kind == RoleKind::Controller && r.vehicle.is_none_or(|v| v == k))
             };
             if !(1..=self.fleet.vehicles).all(controlled) {
                 return Err(WorkflowError::MissingRole {
-                    kind: "controller",
+                    kind: RoleKind::Controller,
                     hint: " for every vehicle (declare it with per_vehicle = true)",
                 });
             }
@@ -424,9 +415,9 @@ impl Workflow {
                 }
             }
         }
-        if self.needs_builtin_vehicle() && !has("vehicle") {
+        if self.needs_builtin_vehicle() && !has(RoleKind::Vehicle) {
             return Err(WorkflowError::MissingRole {
-                kind: "vehicle",
+                kind: RoleKind::Vehicle,
                 hint: " (the controller's autopilot is \"auto\", which flies the built-in vehicle; \
                        add a vehicle role or set the controller's params.autopilot to a MAVLink URL)",
             });
@@ -483,7 +474,11 @@ mod tests {
         assert!(w.scheduling.adapt_variants);
         let ladder_error = |ladder: &[&str], variant: &str| {
             let mut w = Workflow::builtin_models().unwrap();
-            let r = w.roles.iter_mut().find(|r| r.kind == "reasoning").unwrap();
+            let r = w
+                .roles
+                .iter_mut()
+                .find(|r| r.kind == RoleKind::Reasoning)
+                .unwrap();
             r.ladder = ladder.iter().map(|v| v.to_string()).collect();
             r.variant = variant.into();
             match w.validate() {
@@ -539,15 +534,19 @@ mod tests {
     #[test]
     fn an_external_autopilot_makes_the_vehicle_optional() {
         let mut w = Workflow::builtin_default().unwrap();
-        w.roles.retain(|r| r.kind != "vehicle");
+        w.roles.retain(|r| r.kind != RoleKind::Vehicle);
         assert!(matches!(
             w.validate(),
             Err(WorkflowError::MissingRole {
-                kind: "vehicle",
+                kind: RoleKind::Vehicle,
                 ..
             })
         ));
-        for r in w.roles.iter_mut().filter(|r| r.kind == "controller") {
+        for r in w
+            .roles
+            .iter_mut()
+            .filter(|r| r.kind == RoleKind::Controller)
+        {
             r.params
                 .insert("autopilot".into(), "udpout:127.0.0.1:14540".into());
         }

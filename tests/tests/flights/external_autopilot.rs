@@ -38,7 +38,7 @@ fn run_flies_an_external_autopilot_over_mavlink() {
     let spec = role_spec(
         &autopilot_flight,
         "px4",
-        "vehicle",
+        aeris_schemas::RoleKind::Vehicle,
         "sim-multirotor",
         serde_json::json!({
             "listen": format!("udpin:127.0.0.1:{port}"),

@@ -429,7 +429,7 @@ fn a_host_or_a_peer_of_another_schema_is_refused_by_name() {
     let spec = role_spec(
         &flight,
         "bridge-on-ground",
-        "bridge",
+        aeris_schemas::RoleKind::Bridge,
         "zenoh",
         serde_json::json!({
             "connect": endpoint,

@@ -25,7 +25,7 @@ fn a_short_hop_reaches_its_goal_through_mavproxy() {
     let spec = role_spec(
         &autopilot_flight,
         "px4",
-        "vehicle",
+        aeris_schemas::RoleKind::Vehicle,
         "sim-multirotor",
         serde_json::json!({ "listen": format!("udpin:127.0.0.1:{vehicle_port}") }),
     );
