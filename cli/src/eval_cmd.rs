@@ -157,6 +157,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         episodes: args.episodes,
         out,
         record: args.record,
+        offload_check: Some(aeris_llm::offload_check),
     };
     let mut printer = EpisodePrinter(FlightPrinter::new(false, "aeris: ")?);
     let report = runner::run(&config, &mut printer)?;

@@ -52,7 +52,9 @@ pub fn fly(a: FlyArgs) -> anyhow::Result<ExitCode> {
                 FORMATION_WORKFLOW_TOML.len()
             )
         })?;
-    let mut flight = Flight::builder(workflow).stop_when(StopRule::Landed);
+    let mut flight = Flight::builder(workflow)
+        .stop_when(StopRule::Landed)
+        .language_offload_check(aeris_llm::offload_check);
     if let Some(name) = &a.flight {
         flight = flight.name(name);
     }

@@ -161,7 +161,7 @@ pub fn validate(path: &Path) -> Result<ExitCode> {
             ex.accelerator.map(|a| a.to_string()).unwrap_or_default()
         );
     }
-    check_accelerators(&w)?;
+    check_accelerators(&w, Some(aeris_llm::offload_check))?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -225,7 +225,8 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
     let mut flight = Flight::builder(workflow)
         .autopilot(args.autopilot.clone())
         .overrides(overrides)
-        .stop_when(StopRule::Goal);
+        .stop_when(StopRule::Goal)
+        .language_offload_check(aeris_llm::offload_check);
     if let Some(name) = &args.flight {
         flight = flight.name(name);
     }

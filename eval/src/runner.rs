@@ -181,6 +181,9 @@ pub struct EvalConfig {
     /// Record every episode (`RUN_DIR/flight.mcap`, replayable; open a failed one in
     /// Foxglove or replay it with another variant).
     pub record: bool,
+    /// The language-model engine's offload check for the flights
+    /// ([`aeris_flight::FlightBuilder::language_offload_check`]).
+    pub offload_check: Option<aeris_flight::executors::OffloadCheck>,
 }
 
 /// An episode's recording, in its run folder (`aeris eval --record`).
@@ -508,6 +511,9 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
                 dynamic: setup.no_ds.then_some(false),
                 ..Overrides::default()
             });
+        if let Some(check) = config.offload_check {
+            builder = builder.language_offload_check(check);
+        }
         let recording = config.record.then(|| run_dir.join(EPISODE_RECORDING));
         if let Some(path) = &recording {
             builder = builder.record(path);

@@ -7,6 +7,13 @@ use aeris_orchestrator::launch::{PlanError, plan_launch};
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::accelerator::AcceleratorKind;
 use aeris_runtime::affinity::CpuSet;
+use aeris_schemas::accelerator::Accelerator;
+
+/// Whether this build's language-model engine can offload a model's layers to an
+/// accelerator. The binary passes llama.cpp's (`aeris_llm::check_offload`), so that this
+/// library does not link llama.cpp; a flight started without one leaves the check to each
+/// language-model role, when it loads.
+pub type OffloadCheck = fn(Accelerator) -> Result<(), Box<dyn std::error::Error + Send + Sync>>;
 use aeris_schemas::RoleKind;
 
 /// What the provisioned ONNX Runtime reports: its execution providers and the accelerator
@@ -96,20 +103,25 @@ pub enum AcceleratorRefusal {
     /// offered (the error names those that are).
     #[error(transparent)]
     Onnx(#[from] aeris_models::ModelError),
-    /// For its language-model roles: this build of llama.cpp cannot offload to it.
+    /// For its language-model roles: this build's language-model engine cannot offload to
+    /// it ([`OffloadCheck`]).
     #[error(transparent)]
-    Language(#[from] aeris_llm::LlmError),
+    Language(Box<dyn std::error::Error + Send + Sync>),
 }
 
 /// Check every accelerator executor on the flight's host that a role starts on (or falls
 /// back to when its link to another host is lost): for its ONNX model roles, against the
 /// ONNX Runtime they would load (the provisioned one, or `$AERIS_ONNXRUNTIME`); for its
-/// language-model roles, against this build's llama.cpp (GPU offload is the cargo feature
-/// `cuda`). A provider or build that cannot run them is refused before any role starts. An
+/// language-model roles, with `offload` (this build's llama.cpp, where GPU offload is the
+/// cargo feature `cuda`; without one, each role checks when it loads). A provider or build
+/// that cannot run them is refused before any role starts. An
 /// executor no role starts on is checked when a role is moved there (`aeris migrate`);
 /// another host's are checked there, when their roles load; whether a GPU device is present
 /// is checked by each language-model role when it loads.
-pub fn check_accelerators(workflow: &Workflow) -> Result<(), AcceleratorError> {
+pub fn check_accelerators(
+    workflow: &Workflow,
+    offload: Option<OffloadCheck>,
+) -> Result<(), AcceleratorError> {
     let starts_on = |r: &aeris_orchestrator::workflow::RoleDecl, name: &str| {
         r.executor.as_deref() == Some(name)
             || r.fallback.as_ref().and_then(|f| f.executor.as_deref()) == Some(name)
@@ -135,8 +147,8 @@ pub fn check_accelerators(workflow: &Workflow) -> Result<(), AcceleratorError> {
                 onnx = true;
             }
         }
-        if llm {
-            aeris_llm::check_offload(accelerator).map_err(|e| err(e.into()))?;
+        if llm && let Some(check) = offload {
+            check(accelerator).map_err(|e| err(AcceleratorRefusal::Language(e)))?;
         }
         if onnx {
             let store = match &mut store {

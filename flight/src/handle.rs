@@ -28,6 +28,7 @@ pub struct FlightBuilder<H: StepHook = NoHook> {
     stop: StopRule,
     role_executable: Option<PathBuf>,
     record: Option<crate::recording::RecordRequest>,
+    offload_check: Option<crate::executors::OffloadCheck>,
     hook: H,
 }
 
@@ -59,6 +60,14 @@ impl<H: StepHook> FlightBuilder<H> {
     /// When the flight ends (default [`StopRule::Goal`]).
     pub fn stop_when(mut self, rule: StopRule) -> Self {
         self.stop = rule;
+        self
+    }
+
+    /// Check before any role starts that this build's language-model engine can offload to
+    /// the accelerator executors its language-model roles start on (the binary passes
+    /// llama.cpp's; without one, each role checks when it loads).
+    pub fn language_offload_check(mut self, check: crate::executors::OffloadCheck) -> Self {
+        self.offload_check = Some(check);
         self
     }
 
@@ -143,6 +152,7 @@ impl<H: StepHook> FlightBuilder<H> {
             stop: self.stop,
             role_executable: self.role_executable,
             record: self.record,
+            offload_check: self.offload_check,
             hook,
         }
     }
@@ -185,6 +195,7 @@ impl<H: StepHook> FlightBuilder<H> {
             stop: self.stop,
             role_executable,
             record,
+            offload_check: self.offload_check,
         };
         let hook = self.hook;
         let thread_shared = shared.clone();
@@ -237,6 +248,7 @@ impl Flight {
             stop: StopRule::Goal,
             role_executable: None,
             record: None,
+            offload_check: None,
             hook: NoHook,
         }
     }

@@ -41,6 +41,8 @@ pub(crate) struct FlightSetup {
     pub role_executable: PathBuf,
     /// The recording's path and its recorder role's name, when recorded.
     pub record: Option<(PathBuf, String)>,
+    /// The language-model engine's offload check, when the caller has one.
+    pub offload_check: Option<crate::executors::OffloadCheck>,
 }
 
 /// Why the flight was asked to end.
@@ -126,6 +128,7 @@ pub(crate) fn supervise<H: StepHook>(
         stop,
         role_executable,
         record,
+        offload_check,
     } = setup;
     let span = tracing::info_span!("flight", flight = %name, run_dir = %run_dir.display());
     let _in_flight = span.enter();
@@ -138,7 +141,7 @@ pub(crate) fn supervise<H: StepHook>(
     let max_duration = Duration::from_secs_f64(mission.max_duration_s);
     let heartbeat = Duration::from_millis(workflow.timing.heartbeat_period_ms);
     let deadline_ms = workflow.timing.decision_deadline_ms;
-    crate::executors::check_accelerators(&workflow)
+    crate::executors::check_accelerators(&workflow, offload_check)
         .map_err(|e| FlightError::Accelerator(Box::new(e)))?;
     let mut sup = Supervisor::start(SupervisorOptions {
         workflow,

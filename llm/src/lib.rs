@@ -22,6 +22,6 @@ pub use grammar::{GrammarError, decision_grammar};
 pub use prompt::{MissionBrief, Observation, StepBrief, sanitize};
 pub use reasoner::{
     GEMMA3_270M, GPU_OFFLOAD_BUILT, LanguageReasoner, LlmError, QWEN25_CODER_05B, ReasonerConfig,
-    SMOLLM2_135M, SMOLLM2_135M_Q4_1, Thought, check_offload, variant_model,
+    SMOLLM2_135M, SMOLLM2_135M_Q4_1, Thought, check_offload, offload_check, variant_model,
 };
 pub use view::{DecisionView, ViewError};

@@ -96,6 +96,15 @@ pub fn check_offload(accelerator: Accelerator) -> Result<(), LlmError> {
     Ok(())
 }
 
+/// [`check_offload`] with its error boxed: the shape of a flight's offload check
+/// (`aeris_flight::executors::OffloadCheck`), which the binary hands to its flights so that
+/// the flight library does not link llama.cpp.
+pub fn offload_check(
+    accelerator: Accelerator,
+) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+    Ok(check_offload(accelerator)?)
+}
+
 /// The model's load parameters: every layer on the accelerator's device, or none (a CUDA
 /// build would otherwise offload by default, also for a role bound to a CPU set).
 pub(crate) fn model_params(

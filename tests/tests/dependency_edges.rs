@@ -240,3 +240,19 @@ fn architecture_md_names_each_crates_dependencies_of_ours() {
         wrong.join("\n")
     );
 }
+
+/// The flight library composes the supervisor: it links no language-model engine (the
+/// caller hands in the offload check, `aeris_llm::offload_check`), and the flight roles do
+/// not link the recorder (the binary's role registry runs it).
+#[test]
+fn the_flight_links_no_llama_cpp_and_the_roles_no_recorder() {
+    let flight = normal_dependencies("aeris-flight");
+    for engine in ["aeris-llm", "llama-cpp-2", "llama-cpp-sys-2"] {
+        assert!(!flight.contains(engine), "aeris-flight compiles {engine}");
+    }
+    let roles = normal_dependencies("aeris-roles");
+    assert!(!roles.contains("aeris-record"), "aeris-roles compiles aeris-record");
+    // not vacuous: the binary links both
+    let binary = normal_dependencies("aeris");
+    assert!(binary.contains("llama-cpp-2") && binary.contains("aeris-record"));
+}

@@ -287,6 +287,7 @@ pub fn run(
     let _load = BusyProcesses::start(None, config.flight.outside_load)?;
     let (outcome, watch) = Flight::builder(w)
         .name(name)
+        .language_offload_check(aeris_llm::offload_check)
         .run_dir(run_dir)
         .stop_when(StopRule::Cycles(config.heartbeats))
         .step_hook(LatencyWatch::default())

@@ -210,6 +210,7 @@ fn fly_once(
     };
     let (outcome, mut scenario) = Flight::builder(w)
         .name(name)
+        .language_offload_check(aeris_llm::offload_check)
         .run_dir(run_dir)
         .stop_when(StopRule::Cycles(config.heartbeats))
         .overrides(Overrides {

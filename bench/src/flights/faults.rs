@@ -623,6 +623,7 @@ pub fn run(
     let (name, run_dir) = super::flight_name_and_dir("faults", config.run_dir.clone());
     let (outcome, injector) = Flight::builder(w)
         .name(name)
+        .language_offload_check(aeris_llm::offload_check)
         .run_dir(run_dir)
         .stop_when(StopRule::Hook)
         // moves are not faults: keep the declared binding so rows compare

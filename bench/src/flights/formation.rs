@@ -88,6 +88,7 @@ pub fn run(
         let (name, run_dir) = flight_name_and_dir(&format!("formation-{}", i + 1), None);
         let (outcome, _) = Flight::builder(workflow)
             .name(name)
+            .language_offload_check(aeris_llm::offload_check)
             .run_dir(run_dir)
             .stop_when(StopRule::Landed)
             .start()?

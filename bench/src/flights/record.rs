@@ -129,6 +129,7 @@ pub fn run(
             let (name, run_dir) = flight_name_and_dir(&tag, None);
             let mut builder = Flight::builder(w)
                 .name(name)
+                .language_offload_check(aeris_llm::offload_check)
                 .run_dir(run_dir)
                 .stop_when(StopRule::Cycles(config.heartbeats));
             if recorded {

@@ -331,6 +331,7 @@ pub fn run(
     // the swaps end the flight, not the goal (the vehicle lands and the loop goes on)
     let (outcome, schedule) = Flight::builder(w)
         .name(name)
+        .language_offload_check(aeris_llm::offload_check)
         .run_dir(run_dir)
         .stop_when(StopRule::Hook)
         .step_hook(schedule)
