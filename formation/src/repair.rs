@@ -39,6 +39,8 @@ impl core::fmt::Display for Problem {
     }
 }
 
+impl std::error::Error for Problem {}
+
 /// How a program came out of [`plan_program`].
 #[derive(Debug, Clone, PartialEq)]
 pub enum PlanOutcome {

@@ -540,9 +540,7 @@ impl BridgeRole {
     /// a subscriber per imported one (frames: once read here).
     fn attach(&mut self, session: Session) -> Result<(), RoleError> {
         let declare = |what: String| {
-            move |e: zenoh::Error| {
-                RoleError::Io(format!("bridge: cannot declare {what} on zenoh: {e}"))
-            }
+            move |e: zenoh::Error| RoleError::step(format!("declaring {what} on zenoh"), e)
         };
         for im in self
             .imports

@@ -111,7 +111,7 @@ impl RoleHost {
         );
         let _in_role = span.enter();
         signals::install_termination_handlers()
-            .map_err(|e| RoleError::Fatal(format!("cannot install signal handlers: {e}")))?;
+            .map_err(|e| RoleError::step("installing the signal handlers", e))?;
         let bus = FlightBus::builder(&spec.flight)
             .node_name(&spec.name)
             .vehicle(spec.vehicle)

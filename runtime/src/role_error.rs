@@ -12,12 +12,6 @@ pub enum RoleError {
     /// The role's configuration is unusable; the source says what in it.
     #[error("invalid configuration")]
     Config(#[from] ConfigError),
-    /// An external peer (autopilot, device) failed.
-    #[error("{0}")]
-    Io(String),
-    /// The role cannot go on.
-    #[error("{0}")]
-    Fatal(String),
     /// A step of the role failed for a cause of its own (a model that would not load, a
     /// frame a model refused): `what` says which step, the source says why.
     #[error("{what}")]

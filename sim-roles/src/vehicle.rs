@@ -252,9 +252,7 @@ impl Role for VehicleRole {
             };
             // One 32-byte positional write: no allocation; a torn write fails its checksum.
             if let Err(e) = file.write_all_at(&c.encode(), 0) {
-                return Err(RoleError::Io(format!(
-                    "writing the vehicle checkpoint: {e}"
-                )));
+                return Err(RoleError::step("writing the vehicle checkpoint", e));
             }
         }
         report.counters = VehicleCounters {

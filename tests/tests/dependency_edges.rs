@@ -251,7 +251,10 @@ fn the_flight_links_no_llama_cpp_and_the_roles_no_recorder() {
         assert!(!flight.contains(engine), "aeris-flight compiles {engine}");
     }
     let roles = normal_dependencies("aeris-roles");
-    assert!(!roles.contains("aeris-record"), "aeris-roles compiles aeris-record");
+    assert!(
+        !roles.contains("aeris-record"),
+        "aeris-roles compiles aeris-record"
+    );
     // not vacuous: the binary links both
     let binary = normal_dependencies("aeris");
     assert!(binary.contains("llama-cpp-2") && binary.contains("aeris-record"));

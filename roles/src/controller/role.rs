@@ -342,7 +342,7 @@ impl Role for ControllerRole {
                     ControlFlow::Continue(())
                 },
             )
-            .map_err(|e| RoleError::Fatal(format!("cannot spawn the receive thread: {e}")))?
+            .map_err(|e| RoleError::step("spawning the receive thread", e))?
         };
         if realtime && !try_sched_fifo(50) {
             tracing::warn!(

@@ -143,17 +143,17 @@ fn plan(
         PlanOutcome::Accepted {
             program, report, ..
         } => {
-            gate.admit(&program).map_err(|e| {
-                RoleError::Fatal(format!("the hub's program gate refused the program: {e}"))
-            })?;
+            gate.admit(&program)
+                .map_err(|e| RoleError::step("the hub's program gate refused the program", e))?;
             for (i, phase) in program.phases().iter().enumerate() {
                 tracing::info!("formation: phase {}: {}", i + 1, phase_description(phase));
             }
             Ok((*program, report.trajectory))
         }
-        PlanOutcome::Refused { problem, .. } => Err(RoleError::Fatal(format!(
-            "the formation program was refused, nothing flies: {problem}"
-        ))),
+        PlanOutcome::Refused { problem, .. } => Err(RoleError::step(
+            "the formation program was refused, nothing flies",
+            problem,
+        )),
     }
 }
 
