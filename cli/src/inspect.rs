@@ -3,7 +3,7 @@
 use aeris_runtime::bus::{self, FlightBus};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::raw;
-use aeris_schemas::{FrameHeader, RoleStatus, topics, with_payload_type};
+use aeris_schemas::{FrameHeader, topics, with_payload_type};
 use anyhow::{Context, Result, bail};
 use core::time::Duration;
 
@@ -32,225 +32,17 @@ pub fn tool_bus(flight: &str, tool: &str) -> Result<FlightBus> {
         .with_context(|| format!("cannot join flight `{flight}`"))
 }
 
-const MIB: f64 = 1024.0 * 1024.0;
-
 /// `aeris status`.
 pub fn status(flight: Option<String>, json: bool) -> Result<()> {
     let flight = resolve_flight(flight)?;
     let bus = tool_bus(&flight, "status")?;
-    let board = bus.read_status_board().with_context(|| {
-        format!("flight `{flight}` has no supervisor status board (is its supervisor running?)")
-    })?;
-    let now = monotonic_ns();
-    let roles: Vec<serde_json::Value> = board
-        .roles()
-        .iter()
-        .map(|r| {
-            let age_ms = (r.last_heartbeat_ns > 0)
-                .then(|| now.saturating_sub(r.last_heartbeat_ns) as f64 / 1e6);
-            // a role on another host runs on an executor `HOST:EXECUTOR`; its pid is that
-            // host's, its memory not readable here
-            let executor = r.executor.as_str_lossy();
-            let memory = (r.pid != 0 && !executor.contains(':'))
-                .then(|| aeris_orchestrator::executors::process_memory(r.pid))
-                .flatten();
-            serde_json::json!({
-                "name": r.name.as_str_lossy(),
-                "pid": r.pid,
-                "cpus": r.cpus.as_str_lossy(),
-                "variant": r.variant.as_str_lossy(),
-                "status": RoleStatus::from_u8(r.status).map(|s| s.name()).unwrap_or("no-heartbeat"),
-                "heartbeat_age_ms": age_ms,
-                "heartbeats": r.heartbeats,
-                "latency_p50_ms": r.latency_ms[0],
-                "latency_p95_ms": r.latency_ms[1],
-                "latency_p99_ms": r.latency_ms[2],
-                "restarts": r.restarts,
-                "heartbeat_gaps": r.heartbeat_gaps,
-                "executor": r.executor.as_str_lossy(),
-                "budget_ms": (r.budget_ms > 0.0).then_some(r.budget_ms),
-                "migrations": r.migrations,
-                "stalls": r.stalls,
-                "binding": r.binding.as_str_lossy(),
-                "rss_mib": memory.map(|m| m.rss_bytes as f64 / MIB),
-                "pss_mib": memory.and_then(|m| m.pss_bytes).map(|b| b as f64 / MIB),
-            })
-        })
-        .collect();
-    let links: Vec<serde_json::Value> = board
-        .links()
-        .iter()
-        .map(|l| {
-            let measured = l.probes > 0;
-            serde_json::json!({
-                "host": l.host.as_str_lossy(),
-                "connected": measured.then_some(l.connected == 1),
-                "rtt_ms": l.rtt_ms(),
-                "rtt_last_ms": (l.answered > 0).then(|| l.rtt_ns as f64 / 1e6),
-                "loss": measured.then(|| l.loss()),
-                "probes": l.probes,
-                "answered": l.answered,
-                "clock_offset_ms": (l.answered > 0).then(|| l.clock_offset_ns as f64 / 1e6),
-                "busy_cores": (l.cpus > 0).then(|| l.busy_cores()),
-                "cpus": l.cpus,
-                "frame_coding_ms": (l.frame_coding_ns > 0).then(|| l.frame_coding_ns as f64 / 1e6),
-            })
-        })
-        .collect();
-    let sum = |key: &str| -> Option<f64> {
-        let known: Vec<f64> = roles.iter().filter_map(|r| r[key].as_f64()).collect();
-        (!known.is_empty()).then(|| known.iter().sum())
-    };
-    let (rss_total, pss_total) = (sum("rss_mib"), sum("pss_mib"));
+    let report = aeris_flight::status_report::FlightStatusReport::read(&bus, &flight)?;
     if json {
-        let out = serde_json::json!({
-            "memory": {"rss_total_mib": rss_total, "pss_total_mib": pss_total},
-            "flight": flight,
-            "supervisor_pid": board.supervisor_pid,
-            "active_step": board.active_step,
-            "subgoals": board.subgoals,
-            "distance_to_goal_m": (board.distance_to_goal_m >= 0.0).then_some(board.distance_to_goal_m),
-            "ct_mean_s": board.ct_mean_s,
-            "migrations": board.migrations,
-            "roles": roles,
-            "links": links,
-        });
-        println!("{out}");
-        return Ok(());
-    }
-    println!(
-        "flight {flight}  supervisor pid {}  step {}/{}  distance to goal {}  CT mean {:.3} s  migrations {}",
-        board.supervisor_pid,
-        board.active_step,
-        board.subgoals,
-        if board.distance_to_goal_m >= 0.0 {
-            format!("{:.1} m", board.distance_to_goal_m)
-        } else {
-            "?".into()
-        },
-        board.ct_mean_s,
-        board.migrations
-    );
-    // the role column fits the longest name (`controller-standby`)
-    let w = roles
-        .iter()
-        .filter_map(|r| r["name"].as_str().map(str::len))
-        .max()
-        .unwrap_or(0)
-        .max(12);
-    println!(
-        "{:<w$} {:>7} {:<12} {:<6} {:<15} {:<12} {:>9} {:>9} {:>9} {:>9} {:>8} {:>5} {:>6} {:>7}",
-        "ROLE",
-        "PID",
-        "EXECUTOR",
-        "CPUS",
-        "VARIANT",
-        "STATUS",
-        "HB AGE",
-        "P50 ms",
-        "P95 ms",
-        "BUDGET ms",
-        "RESTARTS",
-        "MOVES",
-        "STALLS",
-        "MEM MiB"
-    );
-    for r in &roles {
-        let age = r["heartbeat_age_ms"]
-            .as_f64()
-            .map(|a| format!("{a:.0} ms"))
-            .unwrap_or_else(|| "-".into());
-        println!(
-            "{:<w$} {:>7} {:<12} {:<6} {:<15} {:<12} {:>9} {:>9.3} {:>9.3} {:>9} {:>8} {:>5} {:>6} {:>7}",
-            r["name"].as_str().unwrap_or(""),
-            r["pid"],
-            r["executor"].as_str().unwrap_or(""),
-            r["cpus"].as_str().unwrap_or(""),
-            r["variant"].as_str().unwrap_or(""),
-            r["status"].as_str().unwrap_or(""),
-            age,
-            r["latency_p50_ms"].as_f64().unwrap_or(0.0),
-            r["latency_p95_ms"].as_f64().unwrap_or(0.0),
-            r["budget_ms"]
-                .as_f64()
-                .map(|b| format!("{b:.0}"))
-                .unwrap_or_else(|| "-".into()),
-            r["restarts"].as_u64().unwrap_or(0),
-            r["migrations"].as_u64().unwrap_or(0),
-            r["stalls"].as_u64().unwrap_or(0),
-            r["pss_mib"]
-                .as_f64()
-                .or(r["rss_mib"].as_f64())
-                .map(|m| format!("{m:.0}"))
-                .unwrap_or_else(|| "-".into())
-        );
-    }
-    if let Some(rss) = rss_total {
-        match pss_total {
-            Some(pss) => println!(
-                "memory of the roles on this host: {pss:.0} MiB (PSS: shared pages divided among them; RSS summed {rss:.0} MiB)"
-            ),
-            None => println!("memory of the roles on this host: RSS summed {rss:.0} MiB"),
-        }
-    }
-    println!("binding:");
-    for r in &roles {
-        println!(
-            "  {:<w$} {}",
-            r["name"].as_str().unwrap_or(""),
-            r["binding"].as_str().unwrap_or("")
-        );
-    }
-    if !links.is_empty() {
-        print_links(&links);
+        println!("{}", serde_json::to_string(&report)?);
+    } else {
+        print!("{report}");
     }
     Ok(())
-}
-
-/// The links to other hosts (`aeris status`).
-fn print_links(links: &[serde_json::Value]) {
-    let ms = |v: &serde_json::Value, digits: usize| {
-        v.as_f64()
-            .map(|x| format!("{x:.digits$}"))
-            .unwrap_or_else(|| "-".into())
-    };
-    println!(
-        "{:<12} {:<9} {:>8} {:>8} {:>6} {:>13} {:>11} {:>12}",
-        "LINK",
-        "CONNECTED",
-        "RTT ms",
-        "LAST ms",
-        "LOSS",
-        "CLOCK OFF ms",
-        "BUSY CORES",
-        "FRAME ENC ms"
-    );
-    for l in links {
-        let connected = match l["connected"].as_bool() {
-            Some(true) => "yes",
-            Some(false) => "no",
-            None => "-",
-        };
-        let loss = l["loss"]
-            .as_f64()
-            .map(|x| format!("{:.0} %", x * 100.0))
-            .unwrap_or_else(|| "-".into());
-        let busy = match (l["busy_cores"].as_f64(), l["cpus"].as_u64()) {
-            (Some(b), Some(c)) => format!("{b:.2}/{c}"),
-            _ => "-".into(),
-        };
-        println!(
-            "{:<12} {:<9} {:>8} {:>8} {:>6} {:>13} {:>11} {:>12}",
-            l["host"].as_str().unwrap_or(""),
-            connected,
-            ms(&l["rtt_ms"], 3),
-            ms(&l["rtt_last_ms"], 3),
-            loss,
-            ms(&l["clock_offset_ms"], 3),
-            busy,
-            ms(&l["frame_coding_ms"], 2),
-        );
-    }
 }
 
 fn type_of(topic: &str) -> &'static str {

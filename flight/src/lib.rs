@@ -40,7 +40,9 @@
 //! - [`replay`]: a recorded flight replayed with live roles, decision by decision against
 //!   the recording, and variants compared on it;
 //! - [`executors`]: the executor registry a workflow would start with, and the
-//!   accelerators ONNX Runtime offers.
+//!   accelerators ONNX Runtime offers;
+//! - [`status_report`]: a running flight seen from another process (`aeris status`), as a
+//!   typed value whose `Serialize` is `--json` and whose `Display` is the table.
 
 #![deny(missing_docs)]
 
@@ -59,6 +61,7 @@ mod outcome_text;
 pub mod overrides;
 pub mod recording;
 pub mod replay;
+pub mod status_report;
 mod supervise;
 mod telemetry;
 mod video_start;
