@@ -1,5 +1,6 @@
 //! `aeris status` and `aeris topic ...`: looking at running flights from another process.
 
+use aeris_orchestrator::control::{MigrateReport, SwapReport};
 use aeris_runtime::bus::{self, FlightBus};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::raw;
@@ -191,47 +192,15 @@ pub fn swap(
         }
         replies.push(*r);
     });
-    let stage_name = |r: &aeris_schemas::SupervisorReply| match r.stage() {
-        Some(aeris_schemas::ReplyStage::Started) => "started",
-        Some(aeris_schemas::ReplyStage::Ready) => "ready",
-        Some(aeris_schemas::ReplyStage::Done) => "done",
-        Some(aeris_schemas::ReplyStage::Failed) => "failed",
-        None => "unknown",
-    };
+    let report = SwapReport::new(&flight, role, variant, &replies, &outcome);
     if json {
-        let steps: Vec<serde_json::Value> = replies
-            .iter()
-            .map(|r| {
-                serde_json::json!({
-                    "stage": stage_name(r),
-                    "elapsed_ms": r.elapsed_ms,
-                    "old_pid": r.old_pid,
-                    "new_pid": r.new_pid,
-                    "new_instance": r.new_instance,
-                    "message": r.message.as_str_lossy(),
-                })
-            })
-            .collect();
-        let (ok, error) = match &outcome {
-            Ok(_) => (true, None),
-            Err(e) => (false, Some(e.to_string())),
-        };
-        println!(
-            "{}",
-            serde_json::json!({
-                "flight": flight, "role": role, "variant": variant,
-                "ok": ok, "error": error, "steps": steps,
-            })
-        );
+        println!("{}", serde_json::to_string(&report)?);
     }
-    let done = outcome.with_context(|| {
+    outcome.with_context(|| {
         format!("swap of role `{role}` to `{variant}` in flight `{flight}` failed")
     })?;
     if !json {
-        println!(
-            "role `{role}` now runs `{variant}` as pid {} (instance {}), old pid {} stopped, {} ms",
-            done.new_pid, done.new_instance, done.old_pid, done.elapsed_ms
-        );
+        println!("{report}");
     }
     Ok(())
 }
@@ -241,49 +210,28 @@ pub fn swap(
 pub fn migrate(flight: Option<String>, role: &str, target: &str, json: bool) -> Result<()> {
     let flight = resolve_flight(flight)?;
     let bus = tool_bus(&flight, "migrate")?;
-    let mut steps = Vec::new();
+    let mut replies = Vec::new();
     let outcome = aeris_orchestrator::control::request_migrate(&bus, role, target, |r| {
-        let stage = r.stage();
         // the final reply is printed below; a refusal is the error
         if !json
             && !matches!(
-                stage,
+                r.stage(),
                 Some(aeris_schemas::ReplyStage::Failed | aeris_schemas::ReplyStage::Done)
             )
         {
             eprintln!("[{:>6} ms] {}", r.elapsed_ms, r.message.as_str_lossy());
         }
-        steps.push(serde_json::json!({
-            "elapsed_ms": r.elapsed_ms,
-            "old_pid": r.old_pid,
-            "new_pid": r.new_pid,
-            "message": r.message.as_str_lossy(),
-        }));
+        replies.push(*r);
     });
+    let report = MigrateReport::new(&flight, role, target, &replies, &outcome);
     if json {
-        let (ok, error, message, pid, elapsed_ms) = match &outcome {
-            Ok(r) => (
-                true,
-                None,
-                r.message.as_str_lossy().to_string(),
-                r.new_pid,
-                r.elapsed_ms,
-            ),
-            Err(e) => (false, Some(e.to_string()), String::new(), 0, 0),
-        };
-        println!(
-            "{}",
-            serde_json::json!({
-                "flight": flight, "role": role, "target": target, "ok": ok, "error": error,
-                "pid": pid, "elapsed_ms": elapsed_ms, "message": message, "steps": steps,
-            })
-        );
+        println!("{}", serde_json::to_string(&report)?);
     }
-    let done = outcome.with_context(|| {
+    outcome.with_context(|| {
         format!("moving role `{role}` to `{target}` in flight `{flight}` failed")
     })?;
     if !json {
-        println!("{} [{} ms]", done.message.as_str_lossy(), done.elapsed_ms);
+        println!("{report}");
     }
     Ok(())
 }
