@@ -1,15 +1,7 @@
 //! The `aeris` command line.
 
 mod agent_cmd;
-mod bench_camera;
-mod bench_cmd;
-mod bench_ds;
-mod bench_faults;
-mod bench_flight;
-mod bench_formation;
-mod bench_hosts;
-mod bench_json;
-mod bench_models;
+mod bench;
 #[cfg(feature = "sim")]
 mod eval_cmd;
 mod flight_print;
@@ -128,7 +120,7 @@ enum Command {
         command: keys_cmd::KeysCommand,
     },
     /// Run benchmarks (IPC, camera, gate, control, models, cycle, swap, ds) and print their figures.
-    Bench(bench_cmd::BenchArgs),
+    Bench(bench::BenchArgs),
     #[cfg(feature = "sim")]
     /// Fly VLN episodes through the full pipeline and score them (NE, SR, OSR, nDTW, SPL,
     /// ASR, CT, EER), per airspace; writes OUT/episodes.jsonl.
@@ -291,7 +283,7 @@ fn main() -> ExitCode {
         Command::Record(args) => record_cmd::run(args).map(|_| ExitCode::SUCCESS),
         Command::Agent(args) => agent_cmd::run(args).map(|_| ExitCode::SUCCESS),
         Command::Keys { command } => keys_cmd::run(command).map(|_| ExitCode::SUCCESS),
-        Command::Bench(args) => bench_cmd::run(args).map(|_| ExitCode::SUCCESS),
+        Command::Bench(args) => bench::run(args).map(|_| ExitCode::SUCCESS),
         #[cfg(feature = "sim")]
         Command::Eval(args) => eval_cmd::run(args).map(|_| ExitCode::SUCCESS),
         #[cfg(feature = "sim")]

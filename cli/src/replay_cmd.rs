@@ -2,8 +2,8 @@
 //! the recording, or variants compared on it (`--compare`). The replay itself lives in
 //! `aeris_flight::replay`; this parses and prints.
 
-use crate::bench_flight::variant_choices;
 use crate::flight_print::FlightPrinter;
+use crate::run_cmd::variant_choices;
 use aeris_flight::replay::{CompareRow, ReplayCycle, ReplayReport, ReplayRequest, compare, replay};
 use anyhow::{Context, Result, bail};
 use clap::Args;

@@ -1,6 +1,5 @@
 //! `aeris run` (the main job) and `aeris validate`.
 
-use crate::bench_flight::variant_choices;
 use crate::flight_print::FlightPrinter;
 use aeris_flight::executors::{accelerator_line, check_accelerators, planned_registry};
 use aeris_flight::{Flight, Overrides, StopRule};
@@ -259,4 +258,11 @@ pub fn run(args: RunArgs) -> Result<ExitCode> {
     } else {
         ExitCode::from(2)
     })
+}
+
+/// `--variant ROLE=VARIANT` arguments (`aeris run`, `aeris replay`, the flight benchmarks).
+pub(crate) fn variant_choices(args: &[String]) -> Result<Vec<aeris_flight::VariantChoice>> {
+    args.iter()
+        .map(|v| v.parse().context("--variant"))
+        .collect()
 }

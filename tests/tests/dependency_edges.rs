@@ -125,8 +125,20 @@ fn the_binary_holds_no_supervisor_and_no_flight_monitor() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cli/src");
     let mut files = 0;
     let mut found = Vec::new();
-    for entry in std::fs::read_dir(&dir).expect("cli/src") {
-        let path = entry.expect("dir entry").path();
+    // every file of cli/src, its folders (`bench/`) included
+    let mut paths = Vec::new();
+    let mut folders = vec![dir];
+    while let Some(folder) = folders.pop() {
+        for entry in std::fs::read_dir(&folder).expect("a cli/src folder") {
+            let path = entry.expect("dir entry").path();
+            if path.is_dir() {
+                folders.push(path);
+            } else {
+                paths.push(path);
+            }
+        }
+    }
+    for path in paths {
         if path.extension().is_none_or(|e| e != "rs") {
             continue;
         }

@@ -1,7 +1,7 @@
 //! `aeris bench ds`: parse, fly the interference scenario with re-binding and the variant
 //! ladder, re-binding alone, and neither (`aeris_bench::flights::ds`), print the comparison.
 
-use crate::bench_flight::FlightBenchArgs;
+use crate::bench::flight::FlightBenchArgs;
 use crate::flight_print::FlightPrinter;
 use aeris_bench::flights::ds::{self, DsConfig};
 use anyhow::Result;
@@ -68,7 +68,7 @@ pub fn ds(a: DsArgs) -> Result<()> {
         }
     }
     if a.flight.json {
-        crate::bench_json::print(&report)?;
+        crate::bench::json::print(&report)?;
     }
     Ok(())
 }

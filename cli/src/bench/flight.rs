@@ -2,9 +2,9 @@
 //! print their figures.
 
 use crate::flight_print::FlightPrinter;
+use crate::run_cmd::variant_choices;
 use aeris_bench::flights::{CycleConfig, FlightBenchConfig, SwapConfig, cycle, swap};
-use aeris_flight::VariantChoice;
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
 
@@ -51,13 +51,6 @@ impl FlightBenchArgs {
             priority: self.priority,
         })
     }
-}
-
-/// `--variant ROLE=VARIANT` arguments.
-pub fn variant_choices(args: &[String]) -> Result<Vec<VariantChoice>> {
-    args.iter()
-        .map(|v| v.parse().context("--variant"))
-        .collect()
 }
 
 /// Arguments of `aeris bench cycle`.
@@ -167,7 +160,7 @@ pub fn cycle(a: CycleArgs) -> Result<()> {
         );
     }
     if a.flight.json {
-        crate::bench_json::print(&report)?;
+        crate::bench::json::print(&report)?;
     }
     Ok(())
 }
@@ -218,7 +211,7 @@ pub fn swap(a: SwapArgs) -> Result<()> {
         report.flight_max_setpoint_gap_ms
     );
     if a.flight.json {
-        crate::bench_json::print(&report)?;
+        crate::bench::json::print(&report)?;
     }
     Ok(())
 }
@@ -282,7 +275,7 @@ pub fn record(a: RecordArgs) -> Result<()> {
         );
     }
     if a.json {
-        crate::bench_json::print(&report)?;
+        crate::bench::json::print(&report)?;
     }
     Ok(())
 }

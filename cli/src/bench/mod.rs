@@ -1,5 +1,14 @@
 //! `aeris bench ...`: run the benchmarks of `aeris-bench` and print their figures.
 
+pub mod camera;
+pub mod ds;
+pub mod faults;
+pub mod flight;
+pub mod formation;
+pub mod hosts;
+pub mod json;
+pub mod models;
+
 use aeris_bench::control::{self, ControlConfig, ControlReport, SchedChoice};
 use aeris_bench::ipc::{self, IpcConfig, IpcReport, PongSpec, Transport, Wake};
 use anyhow::Context;
@@ -20,40 +29,40 @@ pub enum BenchCommand {
     /// Glass-to-shared-memory latency of the `gstreamer` camera role (buffer capture time to
     /// frame readable on `camera/rgb`), p50/p99, and dropped frames, on live videotestsrc
     /// streams (640x480 and 1280x720).
-    Camera(crate::bench_camera::CameraArgs),
+    Camera(crate::bench::camera::CameraArgs),
     /// Cost per decision of the hub's gate: validate + clamp + bind (median, p99).
     Gate(GateArgs),
     /// Controller period jitter on absolute deadlines, alone and with a CPU hog on every core.
     Control(ControlArgs),
     /// Every model a role hosts: load time, latency p50/p95, memory (a process per model).
-    Models(crate::bench_models::ModelsArgs),
+    Models(crate::bench::models::ModelsArgs),
     /// The model flight end to end: cycle time per stage (mean, std, p95) and EER over N
     /// heartbeats.
-    Cycle(crate::bench_flight::CycleArgs),
+    Cycle(crate::bench::flight::CycleArgs),
     /// Hot swaps during the model flight: missed heartbeats and setpoint gaps per swap.
-    Swap(crate::bench_flight::SwapArgs),
+    Swap(crate::bench::flight::SwapArgs),
     /// Dynamic scheduling with the variant ladder, alone, and off, under a CPU hog landing
     /// on the heaviest role's CPUs: CT, EER, live migrations, ladder steps, time from the
     /// hog's landing to the completed move.
-    Ds(crate::bench_ds::DsArgs),
+    Ds(crate::bench::ds::DsArgs),
     /// Fault injection over one default flight: SIGKILL and SIGSTOP of every role, a
     /// garbage reasoner, a shared-memory service removed; detection and recovery times,
     /// missed controller ticks, lost decisions, invalid setpoints per fault.
-    Faults(crate::bench_faults::FaultsArgs),
+    Faults(crate::bench::faults::FaultsArgs),
     /// What recording costs: the default (and --models the model) flight without and with
     /// the recorder: controller missed ticks, CT, EER, recorder CPU, MB per minute.
-    Record(crate::bench_flight::RecordArgs),
+    Record(crate::bench::flight::RecordArgs),
     /// Roles on a second host (two network namespaces on this machine; needs root): CT of
     /// the default flight with the reasoner and perception there vs on board, per link
     /// delay (netem), frames across; the reasoner moved there and back; a link cut.
-    Hosts(crate::bench_hosts::HostsArgs),
+    Hosts(crate::bench::hosts::HostsArgs),
     /// Formation programs from the benchmark instructions by every variant (parser,
     /// language models): time to write, valid as written, accepted, repaired or refused,
     /// the parser's phases or not, closest approach in simulation.
-    Formation(crate::bench_formation::FormationArgs),
+    Formation(crate::bench::formation::FormationArgs),
     /// One model of `bench models` (started by it).
     #[command(name = "model-probe", hide = true)]
-    ModelProbe(crate::bench_models::ModelProbeArgs),
+    ModelProbe(crate::bench::models::ModelProbeArgs),
     /// The second process of `bench ipc` (started by it).
     #[command(name = "ipc-pong", hide = true)]
     IpcPong(IpcPongArgs),
@@ -160,22 +169,22 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         args.command,
         BenchCommand::ModelProbe(_) | BenchCommand::IpcPong(_)
     ) {
-        crate::bench_json::start();
+        crate::bench::json::start();
     }
     match args.command {
         BenchCommand::Ipc(a) => run_ipc(a),
         BenchCommand::Gate(a) => run_gate(a),
-        BenchCommand::Camera(a) => crate::bench_camera::run(a),
+        BenchCommand::Camera(a) => crate::bench::camera::run(a),
         BenchCommand::Control(a) => run_control(a),
-        BenchCommand::Models(a) => crate::bench_models::run(a),
-        BenchCommand::Cycle(a) => crate::bench_flight::cycle(a),
-        BenchCommand::Swap(a) => crate::bench_flight::swap(a),
-        BenchCommand::Ds(a) => crate::bench_ds::ds(a),
-        BenchCommand::Faults(a) => crate::bench_faults::faults(a),
-        BenchCommand::Record(a) => crate::bench_flight::record(a),
-        BenchCommand::Hosts(a) => crate::bench_hosts::run(a),
-        BenchCommand::Formation(a) => crate::bench_formation::run(a),
-        BenchCommand::ModelProbe(a) => crate::bench_models::probe(a),
+        BenchCommand::Models(a) => crate::bench::models::run(a),
+        BenchCommand::Cycle(a) => crate::bench::flight::cycle(a),
+        BenchCommand::Swap(a) => crate::bench::flight::swap(a),
+        BenchCommand::Ds(a) => crate::bench::ds::ds(a),
+        BenchCommand::Faults(a) => crate::bench::faults::faults(a),
+        BenchCommand::Record(a) => crate::bench::flight::record(a),
+        BenchCommand::Hosts(a) => crate::bench::hosts::run(a),
+        BenchCommand::Formation(a) => crate::bench::formation::run(a),
+        BenchCommand::ModelProbe(a) => crate::bench::models::probe(a),
         BenchCommand::IpcPong(a) => {
             let spec = PongSpec::from_json(&a.spec).context("bench ipc-pong: bad --spec")?;
             ipc::run_pong(&spec).context("bench ipc-pong failed")
@@ -239,7 +248,7 @@ fn run_ipc(a: IpcArgs) -> anyhow::Result<()> {
     .context("bench ipc failed")?;
     print_ipc_footer(&report);
     if a.json {
-        crate::bench_json::print(&report)?;
+        crate::bench::json::print(&report)?;
     }
     Ok(())
 }
@@ -295,7 +304,7 @@ fn run_gate(a: GateArgs) -> anyhow::Result<()> {
         report.clock_overhead_ns
     );
     if a.json {
-        crate::bench_json::print(&report)?;
+        crate::bench::json::print(&report)?;
     }
     Ok(())
 }
@@ -345,7 +354,7 @@ fn run_control(a: ControlArgs) -> anyhow::Result<()> {
         }
     );
     if a.json {
-        crate::bench_json::print(&report)?;
+        crate::bench::json::print(&report)?;
     }
     Ok(())
 }

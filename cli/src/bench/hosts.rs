@@ -171,7 +171,7 @@ pub fn run(a: HostsArgs) -> Result<()> {
         }
     }
     if a.json {
-        crate::bench_json::print(&report)?;
+        crate::bench::json::print(&report)?;
     }
     Ok(())
 }
@@ -240,7 +240,7 @@ fn print_links(report: &aeris_bench::hosts::SecurityReport, json: bool) -> Resul
         }
     }
     if json {
-        crate::bench_json::print(report)?;
+        crate::bench::json::print(report)?;
     }
     Ok(())
 }

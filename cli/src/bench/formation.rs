@@ -194,7 +194,7 @@ pub fn run(a: FormationArgs) -> anyhow::Result<()> {
         }
     }
     if a.json {
-        crate::bench_json::print(&report)?;
+        crate::bench::json::print(&report)?;
     }
     Ok(())
 }

@@ -81,7 +81,7 @@ pub fn faults(a: FaultsArgs) -> Result<()> {
         println!("  flight ended early: {f}");
     }
     if a.json {
-        crate::bench_json::print(report)?;
+        crate::bench::json::print(report)?;
     }
     if let Some(f) = outcome.failure {
         bail!("bench faults: the flight ended early: {f}");

@@ -76,7 +76,7 @@ pub fn run(a: CameraArgs) -> anyhow::Result<()> {
         );
     }
     if a.json {
-        crate::bench_json::print(&report)?;
+        crate::bench::json::print(&report)?;
     }
     Ok(())
 }

@@ -38,7 +38,7 @@ pub struct ModelsArgs {
     pub outside_load: usize,
     /// How the models get priority over outside work, as a flight's roles do: `auto` (the
     /// flight's CPU control group where permitted, else nice -5), `nice` or `off`.
-    #[arg(long, value_name = "MODE", default_value = "auto", value_parser = crate::bench_flight::parse_priority)]
+    #[arg(long, value_name = "MODE", default_value = "auto", value_parser = crate::bench::flight::parse_priority)]
     pub priority: PriorityMode,
     /// Print one JSON object on the last line of stdout.
     #[arg(long)]
@@ -180,7 +180,7 @@ pub fn run(a: ModelsArgs) -> Result<()> {
             priority_detail: priority.priority().to_string(),
             rows,
         };
-        crate::bench_json::print(&report)?;
+        crate::bench::json::print(&report)?;
     }
     if !failures.is_empty() {
         bail!(
