@@ -119,7 +119,7 @@ enum Command {
         #[command(subcommand)]
         command: keys_cmd::KeysCommand,
     },
-    /// Run benchmarks (IPC, camera, gate, control, models, cycle, swap, ds) and print their figures.
+    /// Run a benchmark (IPC, camera, gate, control, models, flights: cycle, swap, ds, faults, record, hosts, formation) and print its figures.
     Bench(bench::BenchArgs),
     #[cfg(feature = "sim")]
     /// Fly VLN episodes through the full pipeline and score them (NE, SR, OSR, nDTW, SPL,
