@@ -154,3 +154,10 @@ pub fn run(args: AgentArgs) -> Result<()> {
     }
     Ok(())
 }
+
+impl crate::command::Execute for AgentArgs {
+    fn execute(self) -> anyhow::Result<std::process::ExitCode> {
+        run(self)?;
+        Ok(std::process::ExitCode::SUCCESS)
+    }
+}

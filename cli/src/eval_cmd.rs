@@ -220,3 +220,10 @@ pub fn run(args: EvalArgs) -> Result<()> {
     }
     Ok(())
 }
+
+impl crate::command::Execute for EvalArgs {
+    fn execute(self) -> anyhow::Result<std::process::ExitCode> {
+        run(self)?;
+        Ok(std::process::ExitCode::SUCCESS)
+    }
+}

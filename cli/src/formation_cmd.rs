@@ -9,6 +9,13 @@ use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+/// Arguments of `aeris formation`.
+#[derive(Debug, clap::Args)]
+pub struct FormationArgs {
+    #[command(subcommand)]
+    command: FormationCommand,
+}
+
 /// `aeris formation` subcommands.
 #[derive(Debug, Subcommand)]
 pub enum FormationCommand {
@@ -352,4 +359,10 @@ fn phases_json(program: &FormationProgram) -> serde_json::Value {
             })
         })
         .collect()
+}
+
+impl crate::command::Execute for FormationArgs {
+    fn execute(self) -> anyhow::Result<std::process::ExitCode> {
+        run(self.command)
+    }
 }

@@ -6,6 +6,13 @@ use anyhow::{Context, Result};
 use clap::Subcommand;
 use std::path::PathBuf;
 
+/// Arguments of `aeris keys`.
+#[derive(Debug, clap::Args)]
+pub struct KeysArgs {
+    #[command(subcommand)]
+    command: KeysCommand,
+}
+
 /// `aeris keys` subcommands.
 #[derive(Debug, Subcommand)]
 pub enum KeysCommand {
@@ -95,4 +102,11 @@ pub fn run(command: KeysCommand) -> Result<()> {
         }
     }
     Ok(())
+}
+
+impl crate::command::Execute for KeysArgs {
+    fn execute(self) -> anyhow::Result<std::process::ExitCode> {
+        run(self.command)?;
+        Ok(std::process::ExitCode::SUCCESS)
+    }
 }

@@ -226,3 +226,10 @@ fn read_spec(run: &Path) -> Result<RoleSpec> {
         .with_context(|| format!("no role spec in {}", dir.display()))?;
     RoleSpec::load(hub).with_context(|| format!("reading {}", hub.display()))
 }
+
+impl crate::command::Execute for PlotArgs {
+    fn execute(self) -> anyhow::Result<std::process::ExitCode> {
+        run(self)?;
+        Ok(std::process::ExitCode::SUCCESS)
+    }
+}

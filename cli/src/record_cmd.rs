@@ -76,3 +76,10 @@ pub fn run(args: RecordArgs) -> Result<()> {
     );
     Ok(())
 }
+
+impl crate::command::Execute for RecordArgs {
+    fn execute(self) -> anyhow::Result<std::process::ExitCode> {
+        run(self)?;
+        Ok(std::process::ExitCode::SUCCESS)
+    }
+}

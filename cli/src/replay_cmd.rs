@@ -201,3 +201,10 @@ fn print_comparison(rows: &[CompareRow]) {
         first.summary.recorded.eer * 100.0
     );
 }
+
+impl crate::command::Execute for ReplayArgs {
+    fn execute(self) -> anyhow::Result<std::process::ExitCode> {
+        run(self)?;
+        Ok(std::process::ExitCode::SUCCESS)
+    }
+}

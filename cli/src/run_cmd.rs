@@ -1,9 +1,8 @@
-//! `aeris run` (the main job) and `aeris validate`.
+//! `aeris run`: the main job.
 
+use crate::command::Execute;
 use crate::flight_print::FlightPrinter;
-use aeris_flight::executors::{accelerator_line, check_accelerators, planned_registry};
 use aeris_flight::{Flight, Overrides, StopRule};
-use aeris_orchestrator::executors::ExecutorOrigin;
 use aeris_orchestrator::workflow::Workflow;
 use anyhow::{Context, Result};
 use clap::Args;
@@ -83,85 +82,12 @@ fn positive_seconds(text: &str) -> std::result::Result<f64, String> {
     }
 }
 
-fn load(path: Option<&Path>) -> Result<Workflow> {
+pub(crate) fn load(path: Option<&Path>) -> Result<Workflow> {
     match path {
         // the error names the file
         Some(p) => Ok(Workflow::from_path(p)?),
         None => Workflow::builtin_default().context("built-in default workflow"),
     }
-}
-
-/// `aeris validate WORKFLOW`.
-pub fn validate(path: &Path) -> Result<ExitCode> {
-    let w = load(Some(path))?;
-    println!(
-        "{}: ok — {} roles, {} subgoals",
-        path.display(),
-        w.roles.len(),
-        w.mission.subgoals.len()
-    );
-    for r in &w.roles {
-        let host = w
-            .role_host(r)
-            .map(|h| format!(" on host {}", h.name))
-            .unwrap_or_default();
-        println!(
-            "  {:<18} {:<10} {:<15} executor {}{host}",
-            r.name,
-            r.kind,
-            r.variant,
-            r.executor.as_deref().unwrap_or("-")
-        );
-    }
-    if !w.hosts.is_empty() {
-        println!("hosts (an `aeris agent` runs on each):");
-        for h in &w.hosts {
-            let link = match &h.keys {
-                Some(k) => format!("mutual TLS, keys {k}"),
-                None => "INSECURE plain TCP".to_string(),
-            };
-            println!(
-                "  {:<18} {:<22} {link}, link timeout {} ms",
-                h.name, h.endpoint, h.link_timeout_ms
-            );
-        }
-        for b in w.bridge_plans() {
-            println!(
-                "  bridge to {}: sends {}; receives {}",
-                b.host.name,
-                b.to_host.join(", "),
-                b.from_host.join(", ")
-            );
-        }
-        for ex in w.executors.iter().filter(|e| e.host.is_some()) {
-            let host = ex.host.as_deref().unwrap_or_default();
-            println!(
-                "  executor {:<9} CPUs {:<8} on host {host}",
-                ex.name,
-                ex.cpus.to_string()
-            );
-        }
-    }
-    // the executor registry a flight of it would start with
-    let registry = planned_registry(&w).context("resolving the executors")?;
-    println!("executors:");
-    for e in registry.executors() {
-        let origin = match e.origin {
-            ExecutorOrigin::Declared => "declared",
-            ExecutorOrigin::Discovered => "discovered",
-        };
-        println!("  {:<18} CPUs {:<8} {origin}", e.name, e.cpus.to_string());
-    }
-    println!("{}", accelerator_line(&registry));
-    for ex in w.executors.iter().filter(|e| e.accelerator.is_some()) {
-        println!(
-            "  executor {} runs its model roles on {}",
-            ex.name,
-            ex.accelerator.map(|a| a.to_string()).unwrap_or_default()
-        );
-    }
-    check_accelerators(&w, Some(aeris_llm::offload_check))?;
-    Ok(ExitCode::SUCCESS)
 }
 
 /// A build without the simulator cannot run its roles: say so before anything starts,
@@ -196,7 +122,13 @@ fn refuse_simulator_roles(
 }
 
 /// `aeris run`.
-pub fn run(args: RunArgs) -> Result<ExitCode> {
+impl Execute for RunArgs {
+    fn execute(self) -> Result<ExitCode> {
+        run(self)
+    }
+}
+
+fn run(args: RunArgs) -> Result<ExitCode> {
     let workflow = load(args.workflow.as_deref())?;
     // a host's link fails here, naming the host, rather than in its bridge once flying
     for h in &workflow.hosts {

@@ -388,3 +388,17 @@ pub fn run_map(
     println!("wrote {}", out.display());
     Ok(())
 }
+
+impl crate::command::Execute for EpisodesArgs {
+    fn execute(self) -> anyhow::Result<std::process::ExitCode> {
+        episodes(self)?;
+        Ok(std::process::ExitCode::SUCCESS)
+    }
+}
+
+impl crate::command::Execute for SceneArgs {
+    fn execute(self) -> anyhow::Result<std::process::ExitCode> {
+        scene(self)?;
+        Ok(std::process::ExitCode::SUCCESS)
+    }
+}

@@ -274,7 +274,8 @@ impl RoleKind {
 
 impl core::fmt::Display for RoleKind {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.write_str(self.name())
+        // `pad`, not `write_str`: `{:<10}` in a table aligns a kind as it did a string
+        f.pad(self.name())
     }
 }
 
@@ -301,6 +302,7 @@ mod tests {
             assert_eq!(k.name().parse::<RoleKind>(), Ok(k));
             assert_eq!(k.to_string(), k.name());
         }
+        assert_eq!(format!("[{:<6}]", RoleKind::Hub), "[hub   ]");
         let err = "gpt".parse::<RoleKind>().expect_err("no such kind");
         assert!(
             err.to_string()

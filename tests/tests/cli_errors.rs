@@ -271,3 +271,22 @@ fn an_own_onnx_runtime_that_is_missing_or_too_old_is_refused_clearly() {
         "{err}"
     );
 }
+
+/// A command that only prints, whose reader is gone (`aeris roles | head -1` once head
+/// exits), ends as other Unix tools do, by SIGPIPE, not with a panic in println!.
+#[test]
+fn a_printing_command_whose_reader_is_gone_ends_without_a_panic() {
+    use std::os::unix::process::ExitStatusExt;
+    let (reader, writer) = std::io::pipe().expect("a pipe");
+    // every write to the pipe fails: its only reader is closed before the command starts
+    drop(reader);
+    let out = Command::new(aeris_bin())
+        .arg("roles")
+        .stdout(writer)
+        .stderr(std::process::Stdio::piped())
+        .output()
+        .expect("run aeris roles");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(out.status.signal(), Some(libc::SIGPIPE), "{:?}: {stderr}", out.status);
+}

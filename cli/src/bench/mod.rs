@@ -358,3 +358,10 @@ fn run_control(a: ControlArgs) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+impl crate::command::Execute for BenchArgs {
+    fn execute(self) -> anyhow::Result<std::process::ExitCode> {
+        run(self)?;
+        Ok(std::process::ExitCode::SUCCESS)
+    }
+}
