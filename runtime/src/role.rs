@@ -115,6 +115,7 @@ impl RoleHost {
         let bus = FlightBus::builder(&spec.flight)
             .node_name(&spec.name)
             .vehicle(spec.vehicle)
+            .declared_by(spec.kind)
             .create()?;
         let heartbeats: TypedPublisher<RoleHeartbeat> = bus.publisher::<topics::Heartbeat>()?;
         let mut ctx = RoleContext {

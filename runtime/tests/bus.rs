@@ -230,3 +230,51 @@ fn a_refused_port_keeps_iceoryx2s_error_as_its_source() {
     assert_eq!(text.matches("hub/report").count(), 1, "{text}");
     assert!(text.contains("ExceedsMaxSupportedSubscribers"), "{text}");
 }
+
+/// A role process's bus opens typed ports only on the topics its kind declares, so the
+/// flight's graph the supervisor derives from the declarations is what the role does; the
+/// supervisor's and tools' buses open any.
+#[test]
+fn a_role_opens_ports_only_on_the_topics_its_kind_declares() {
+    use aeris_schemas::RoleKind;
+    let f = flight("declared");
+    let hub = FlightBus::builder(&f)
+        .node_name("hub")
+        .declared_by(RoleKind::Hub)
+        .create()
+        .unwrap();
+    hub.subscriber::<topics::ReasoningDecision>().unwrap();
+    hub.publisher::<topics::HubSetpoint>().unwrap();
+    hub.publisher::<topics::Heartbeat>().unwrap();
+    match hub.publisher::<topics::ReasoningDecision>() {
+        Err(BusError::Undeclared { kind, topic, way }) => {
+            assert_eq!(
+                (kind, topic, way),
+                (RoleKind::Hub, topics::REASONING_DECISION, "publishes")
+            );
+        }
+        Err(other) => panic!("not refused as undeclared: {other}"),
+        Ok(_) => panic!("the hub opened a publisher of decisions"),
+    }
+    assert!(matches!(
+        hub.frame_subscriber::<topics::CameraRgb>(),
+        Err(BusError::Undeclared { .. })
+    ));
+    // a reasoner reads the hub's setpoint without waiting (reads_latest); the formation
+    // role answers `aeris formation say` (a tool's topic)
+    let reasoner = FlightBus::builder(&f)
+        .node_name("reasoning")
+        .declared_by(RoleKind::Reasoning)
+        .create()
+        .unwrap();
+    reasoner.subscriber::<topics::HubSetpoint>().unwrap();
+    let formation = FlightBus::builder(&f)
+        .node_name("formation")
+        .declared_by(RoleKind::Formation)
+        .create()
+        .unwrap();
+    formation.subscriber::<topics::FormationSay>().unwrap();
+    formation.publisher::<topics::FormationReply>().unwrap();
+    let tool = FlightBus::builder(&f).node_name("tool").create().unwrap();
+    tool.subscriber::<topics::HubReport>().unwrap();
+}

@@ -59,6 +59,9 @@ pub struct RoleKindInfo {
     /// step). Such a read orders nothing, so it closes no cycle in the flight's graph; it
     /// still crosses hosts like a subscription.
     pub reads_latest: &'static [&'static str],
+    /// Topics it exchanges with tools outside the flight (`aeris formation say`), not with
+    /// other roles: the flight's graph leaves them out.
+    pub with_tools: &'static [&'static str],
     /// What it does, for `--help` and errors.
     pub summary: &'static str,
     /// `None`: a running role of this kind can be hot-swapped make-before-break (old and new
@@ -125,6 +128,7 @@ impl RoleKind {
                 subscribes: &[],
                 publishes: &[],
                 reads_latest: &[],
+                with_tools: &[],
                 summary: "built-in simulated multirotor behind a MAVLink 1/2 endpoint, playing PX4 (offboard) or ArduPilot Copter (guided)",
                 swap_refusal: Some("two vehicles would share one MAVLink endpoint"),
             },
@@ -133,6 +137,7 @@ impl RoleKind {
                 subscribes: &[topics::VEHICLE_TELEMETRY],
                 publishes: &[topics::CAMERA_RGB, topics::CAMERA_DEPTH],
                 reads_latest: &[],
+                with_tools: &[],
                 summary: "FPV frames: `sim-render` renders the built-in world at the vehicle's pose; `gstreamer` captures any GStreamer pipeline (params.pipeline, depth_pipeline)",
                 swap_refusal: Some("two cameras would number the same frames twice"),
             },
@@ -141,6 +146,7 @@ impl RoleKind {
                 subscribes: &[topics::CAMERA_RGB, topics::CAMERA_DEPTH],
                 publishes: &[topics::PERCEPTION_STATE],
                 reads_latest: &[],
+                with_tools: &[],
                 summary: "frames -> S_t: colour-segment detections, scene summary, depth occupancy grid",
                 swap_refusal: None,
             },
@@ -149,6 +155,7 @@ impl RoleKind {
                 subscribes: &[topics::CAMERA_RGB],
                 publishes: &[topics::PERCEPTION_TEXT],
                 reads_latest: &[],
+                with_tools: &[],
                 summary: "reads sign text in FPV frames (PP-OCRv4 detection + recognition, ONNX Runtime)",
                 swap_refusal: None,
             },
@@ -157,6 +164,7 @@ impl RoleKind {
                 subscribes: &[topics::CAMERA_RGB, topics::CAMERA_DEPTH],
                 publishes: &[topics::PERCEPTION_DETECTIONS],
                 reads_latest: &[],
+                with_tools: &[],
                 summary: "object detections with range (YOLO COCO / YOLOv8-layout via ONNX Runtime, or palette)",
                 swap_refusal: None,
             },
@@ -165,6 +173,7 @@ impl RoleKind {
                 subscribes: &[topics::PERCEPTION_TEXT, topics::PERCEPTION_DETECTIONS],
                 publishes: &[topics::PERCEPTION_CUES],
                 reads_latest: &[],
+                with_tools: &[],
                 summary: "top-k instruction cues and subgoal relevance from MiniLM sentence embeddings",
                 swap_refusal: None,
             },
@@ -173,6 +182,7 @@ impl RoleKind {
                 subscribes: &[topics::CAMERA_DEPTH],
                 publishes: &[topics::PERCEPTION_OCCUPANCY],
                 reads_latest: &[],
+                with_tools: &[],
                 summary: "ego occupancy grid from depth (`onnx`: slot for a learned model, needs params.model)",
                 swap_refusal: None,
             },
@@ -186,6 +196,7 @@ impl RoleKind {
                 ],
                 publishes: &[topics::PERCEPTION_STATE],
                 reads_latest: &[],
+                with_tools: &[],
                 summary: "composes S_t and its scene summary from the blocks (`vlm`: no weights exist, refuses)",
                 swap_refusal: None,
             },
@@ -194,6 +205,7 @@ impl RoleKind {
                 subscribes: &[topics::PERCEPTION_STATE, topics::VEHICLE_TELEMETRY],
                 publishes: &[topics::REASONING_DECISION],
                 reads_latest: &[topics::HUB_SETPOINT],
+                with_tools: &[],
                 summary: "(S_t, G, M) -> D_t every heartbeat: planner, GGUF language models under the D_t grammar, `garbage` fault injector, `random` VLN baseline",
                 swap_refusal: None,
             },
@@ -206,6 +218,7 @@ impl RoleKind {
                 ],
                 publishes: &[topics::HUB_SETPOINT, topics::HUB_REPORT],
                 reads_latest: &[],
+                with_tools: &[],
                 summary: "decision gate (validate, clamp, bind), deadline, ordered delivery, ATT",
                 swap_refusal: Some("two hubs would both send setpoints"),
             },
@@ -222,6 +235,7 @@ impl RoleKind {
                     topics::CONTROLLER_LINK,
                 ],
                 reads_latest: &[],
+                with_tools: &[],
                 summary: "tracks setpoints at the control rate and talks MAVLink 1 or 2 to a PX4 or ArduPilot autopilot; a hot standby takes the autopilot lease when the holder goes silent",
                 swap_refusal: Some(
                     "a controller is replaced by its hot standby (a second controller role), not swapped",
@@ -234,15 +248,18 @@ impl RoleKind {
                 subscribes: &topics::ALL,
                 publishes: &[],
                 reads_latest: &[],
+                with_tools: &[],
                 summary: "records every topic of the flight into an MCAP file (JSON and raw shared-memory bytes, images at a reduced rate); never slows the flight",
                 swap_refusal: None,
             },
             RoleKind::Bridge => &RoleKindInfo {
                 variants: &["zenoh"],
-                // the topics that cross between two hosts, given in its params by the supervisor
+                // the topics that cross between two hosts move as raw bytes, given in its
+                // params by the supervisor; it publishes the link's measurements itself
                 subscribes: &[],
-                publishes: &[],
+                publishes: &[topics::HOSTS_LINK],
                 reads_latest: &[],
+                with_tools: &[],
                 summary: "carries the topics that cross between the flight's host and another host over zenoh: exact bytes, schema checked per message (added by the supervisor)",
                 swap_refusal: Some(
                     "a bridge is a flight's link to another host: it restarts, it is not swapped",
@@ -257,6 +274,7 @@ impl RoleKind {
                     topics::VEHICLE_TELEMETRY,
                 ],
                 reads_latest: &[],
+                with_tools: &[],
                 summary: "the camera and the vehicle of a replayed flight: a recording's exact frames and telemetry at their recorded times (`aeris replay`)",
                 swap_refusal: Some("two sources would publish the recording twice"),
             },
@@ -265,6 +283,8 @@ impl RoleKind {
                 subscribes: &[topics::VEHICLE_TELEMETRY],
                 publishes: &[topics::HUB_SETPOINT],
                 reads_latest: &[],
+                // `aeris formation say` asks to reshape the formation and reads the reply
+                with_tools: &[topics::FORMATION_SAY, topics::FORMATION_REPLY],
                 summary: "flies several vehicles in formation from the mission's instruction: writes a formation program (parser or a GGUF model under a grammar), checks and repairs it in simulation, then tracks every vehicle's slot at the control rate (the vehicles' `hub/setpoint`), replanning when a vehicle is lost",
                 swap_refusal: Some("the program being flown lives in the formation process"),
             },
