@@ -56,6 +56,7 @@ pub fn run(args: ReplayArgs) -> Result<()> {
         name: args.flight.clone(),
         run_dir: args.run_dir.clone(),
         role_executable: None,
+        offload_check: Some(aeris_llm::offload_check),
     };
     let mut printer = FlightPrinter::new(true, "")?;
     if let Some(spec) = &args.compare {

@@ -72,6 +72,9 @@ pub struct ReplayRequest {
     pub run_dir: Option<PathBuf>,
     /// The executable the roles run as (default: this one).
     pub role_executable: Option<PathBuf>,
+    /// The language-model engine's offload check for the replay's flights
+    /// ([`crate::FlightBuilder::language_offload_check`]).
+    pub offload_check: Option<crate::executors::OffloadCheck>,
 }
 
 impl ReplayRequest {
@@ -86,6 +89,7 @@ impl ReplayRequest {
             name: None,
             run_dir: None,
             role_executable: None,
+            offload_check: None,
         }
     }
 }
@@ -522,6 +526,9 @@ pub fn replay(
         ]);
     if let Some(dir) = &request.run_dir {
         builder = builder.run_dir(dir.clone());
+    }
+    if let Some(check) = request.offload_check {
+        builder = builder.language_offload_check(check);
     }
     if let Some(exe) = &request.role_executable {
         builder = builder.role_executable(exe.clone());
