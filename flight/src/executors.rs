@@ -7,14 +7,14 @@ use aeris_orchestrator::launch::{PlanError, plan_launch};
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::accelerator::AcceleratorKind;
 use aeris_runtime::affinity::CpuSet;
+use aeris_schemas::RoleKind;
 use aeris_schemas::accelerator::Accelerator;
 
 /// Whether this build's language-model engine can offload a model's layers to an
-/// accelerator. The binary passes llama.cpp's (`aeris_llm::check_offload`), so that this
+/// accelerator. The binary passes llama.cpp's (`aeris_llm::offload_check`), so that this
 /// library does not link llama.cpp; a flight started without one leaves the check to each
 /// language-model role, when it loads.
 pub type OffloadCheck = fn(Accelerator) -> Result<(), Box<dyn std::error::Error + Send + Sync>>;
-use aeris_schemas::RoleKind;
 
 /// What the provisioned ONNX Runtime reports: its execution providers and the accelerator
 /// devices they found; `None` when no runtime is provisioned (a flight needs none unless

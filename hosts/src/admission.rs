@@ -44,7 +44,7 @@ pub const BRIDGE_KEYS_PARAM: &str = "keys";
 /// Why an allow-list or an agent parameter is unusable.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum PolicyError {
-    /// An entry names no role kind of the catalog.
+    /// An entry names no role kind (`RoleKind`).
     #[error("`{entry}` names no role kind (write KIND/VARIANT or KIND/*; kinds: {known})")]
     UnknownKind {
         /// The entry.

@@ -123,7 +123,7 @@ pub fn check_endpoint(endpoint: &str) -> bool {
     !host.is_empty() && port.parse::<u16>().is_ok_and(|p| p > 0)
 }
 
-/// One role of the workflow, validated against the catalog.
+/// One role of the workflow, validated against its kind (`RoleKind::info`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RoleDecl {
     /// Unique instance name.
@@ -151,9 +151,9 @@ pub struct RoleDecl {
     pub budget_ms: Option<f64>,
     /// Free-form parameters handed to the role.
     pub params: serde_json::Map<String, serde_json::Value>,
-    /// Topics it subscribes to (the catalog's unless overridden).
+    /// Topics it subscribes to (its kind's unless overridden).
     pub subscribes: Vec<String>,
-    /// Topics it publishes (the catalog's unless overridden; `heartbeat` is implicit).
+    /// Topics it publishes (its kind's unless overridden; `heartbeat` is implicit).
     pub publishes: Vec<String>,
     /// For a role on another host: the variant that takes over on the flight's host when the
     /// link to that host is lost (`fallback`, `fallback_executor`).

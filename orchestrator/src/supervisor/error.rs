@@ -137,7 +137,7 @@ pub enum SwapError {
         role: String,
         /// Its kind.
         kind: aeris_schemas::RoleKind,
-        /// Why (from the catalog).
+        /// Why (its kind's `swap_refusal`).
         why: &'static str,
     },
     /// The variant is not in the role's pool.

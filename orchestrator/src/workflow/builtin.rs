@@ -49,7 +49,8 @@ impl Workflow {
         let roles = table.get_mut("roles").and_then(|r| r.as_array_mut());
         for role in roles.into_iter().flatten() {
             if let Some(role) = role.as_table_mut()
-                && role.get("kind").and_then(|k| k.as_str()) == Some("formation")
+                && role.get("kind").and_then(|k| k.as_str())
+                    == Some(aeris_schemas::RoleKind::Formation.name())
             {
                 role.insert("variant".into(), variant.into());
             }

@@ -212,7 +212,7 @@ pub enum WorkflowError {
         /// The name.
         name: String,
     },
-    /// A role's kind is not in the catalog.
+    /// A role's kind is not a role kind (`RoleKind`).
     #[error("role `{role}`: unknown kind `{kind}` (known kinds: {known})")]
     UnknownKind {
         /// Role name.

@@ -259,7 +259,7 @@ impl Workflow {
 /// Whether a role of `kind` may run on another host than the flight's and be moved there
 /// and back during the flight: a kind the hub, the controller and the autopilot link do
 /// not depend on being local (not [`FLIGHT_HOST_KINDS`]) and that may run twice for a
-/// moment (make-before-break: its catalog entry allows a hot swap).
+/// moment (make-before-break: its kind allows a hot swap).
 pub fn movable_across_hosts(kind: RoleKind) -> bool {
     !FLIGHT_HOST_KINDS.contains(&kind) && kind.info().swap_refusal.is_none()
 }

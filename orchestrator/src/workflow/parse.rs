@@ -277,14 +277,14 @@ impl Workflow {
                 known: RoleKind::known_names(),
             })?;
             // topics default to the kind's
-            let catalog = |topics: &[&str]| topics.iter().map(|t| t.to_string()).collect();
+            let declared = |topics: &[&str]| topics.iter().map(|t| t.to_string()).collect();
             fit_recorders |= kind == RoleKind::Recorder && r.subscribes.is_none();
             let subscribes = r
                 .subscribes
-                .unwrap_or_else(|| catalog(kind.info().subscribes));
+                .unwrap_or_else(|| declared(kind.info().subscribes));
             let publishes = r
                 .publishes
-                .unwrap_or_else(|| catalog(kind.info().publishes));
+                .unwrap_or_else(|| declared(kind.info().publishes));
             let fallback = r.fallback.map(|variant| RoleFallback {
                 variant,
                 executor: r.fallback_executor,
@@ -373,7 +373,7 @@ impl Workflow {
             fleet,
         };
         if fit_recorders {
-            // a recorder records what this flight publishes, not the catalog's every topic
+            // a recorder records what this flight publishes, not every topic there is
             workflow.fit_recorders();
         }
         Ok(workflow)

@@ -1,5 +1,5 @@
 //! Validating a workflow: timing, scheduling, camera and mission ranges, executors, every
-//! role against the catalog (kinds, variants, pools, ladders, parameters, topics), the
+//! role against its kind (`RoleKind::info`: kinds, variants, pools, ladders, parameters, topics), the
 //! required kinds, that every subscribed topic has a publisher, and that the services graph
 //! has no cycle.
 
@@ -69,7 +69,7 @@ pub(crate) fn accelerated_variants_text() -> String {
     onnx.chain(language).collect::<Vec<_>>().join(", ")
 }
 impl Workflow {
-    /// Check everything: timing, camera, mission, executors, roles against the catalog,
+    /// Check everything: timing, camera, mission, executors, roles against their kinds,
     /// required kinds, topics, and that the services graph has no cycle.
     pub fn validate(&self) -> Result<(), WorkflowError> {
         self.validate_timing()?;

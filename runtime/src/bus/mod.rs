@@ -103,7 +103,7 @@ pub struct FlightBusBuilder {
 impl FlightBusBuilder {
     /// Open typed ports only on the topics role kind `kind` declares
     /// ([`RoleKind::info`]: what it subscribes to, reads the latest of, publishes, and
-    /// exchanges with tools; the heartbeat always), so that the flight's graph, which the
+    /// exchanges with tools; and its heartbeat), so that the flight's graph, which the
     /// supervisor derives from those declarations, is what the role's code does. What a
     /// role process's bus is ([`crate::RoleHost`]); the supervisor's and tools' open any
     /// topic, and raw ports ([`crate::raw`]: the recorder, the bridge) carry what their
