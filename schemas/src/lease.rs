@@ -3,9 +3,9 @@
 //!
 //! A flight may run a hot-standby controller beside the primary one. Both track the hub's
 //! setpoints; only the holder of the lease writes to the autopilot, and it publishes a
-//! [`ControllerLease`] every control tick. A controller that hears no lease for a little
-//! more than one control period claims it with a higher epoch, so a dead or stopped holder
-//! is replaced before the autopilot misses a setpoint.
+//! [`ControllerLease`] at every poll. A controller that hears no lease for a few control
+//! periods claims it with a higher epoch, so a dead or stopped holder is replaced long before
+//! the autopilot gives up on its setpoints (PX4's offboard loss timeout is 1 s by default).
 
 use iceoryx2_bb_derive_macros::ZeroCopySend;
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
@@ -14,6 +14,10 @@ use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 pub const LEASE_HAS_REFERENCE: u8 = 1;
 /// [`ControllerLease::flags`]: `hold` and `hold_yaw` hold a latched hold position.
 pub const LEASE_HAS_HOLD: u8 = 2;
+/// [`ControllerLease::flags`]: the flight's autopilot has been heard (by this holder or one
+/// before it), so a new holder whose own link hears nothing reports the link lost, not
+/// silent from the start.
+pub const LEASE_LINK_HEARD: u8 = 4;
 
 /// One poll's claim of the autopilot by its holder, with the tracking state a standby needs
 /// to go on from exactly where the holder was.
@@ -43,7 +47,7 @@ pub struct ControllerLease {
     pub rank: u8,
     /// Wire value of the `ActionMode` `anchor` belongs to; 0: no anchor.
     pub anchor_mode: u8,
-    /// [`LEASE_HAS_REFERENCE`] | [`LEASE_HAS_HOLD`].
+    /// [`LEASE_HAS_REFERENCE`] | [`LEASE_HAS_HOLD`] | [`LEASE_LINK_HEARD`].
     pub flags: u8,
     /// Zero.
     #[cfg_attr(feature = "serde", serde(skip))]

@@ -56,7 +56,7 @@ pub use frame::{FrameError, FrameFormat, FrameHeader};
 pub use heartbeat::{HeartbeatError, MAX_STAGES, RoleHeartbeat, RoleStatus, StageTiming};
 pub use host_link::{HostLinkStatus, LINK_LOSS_WINDOW, LINK_PROBE_PERIOD_MS, MAX_HOSTS};
 pub use hub_report::{HubCounts, HubReport, HubReportError, clamp};
-pub use lease::{ControllerLease, LEASE_HAS_HOLD, LEASE_HAS_REFERENCE};
+pub use lease::{ControllerLease, LEASE_HAS_HOLD, LEASE_HAS_REFERENCE, LEASE_LINK_HEARD};
 pub use role_counters::{
     BlockCounters, BridgeCounters, CameraCounters, ComposeCounters, ControllerCounters,
     FormationCounters, GeometricPerceptionCounters, HubBeatCounters, LanguageCounters,

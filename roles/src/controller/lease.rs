@@ -3,7 +3,7 @@
 //! `controller/lease` and publishes the one it holds.
 //!
 //! The holder publishes a [`ControllerLease`] at every poll. A standby claims the lease when
-//! none was heard for one control period, with an epoch above every epoch it heard and at
+//! none was heard for [`LEASE_SILENCE_PERIODS`] control periods, with an epoch above every epoch it heard and at
 //! least the system's monotonic clock in milliseconds (so a controller that never heard the
 //! holder, which was stopped before it came up, still outranks every earlier claim when
 //! that holder resumes). A holder that hears a higher claim steps down. A controller
@@ -11,6 +11,12 @@
 //! standby twice as long); two claims of one epoch go to the primary.
 
 use aeris_schemas::ControllerLease;
+
+/// Control periods without a lease heard after which a standby claims it: long enough that
+/// a holder delayed by a busy machine for a few ticks keeps it (a takeover moves the
+/// autopilot link to another process), short enough that the autopilot, which gives up on
+/// offboard setpoints after PX4's `COM_OF_LOSS_T` (1 s by default), never notices a dead one.
+pub const LEASE_SILENCE_PERIODS: u64 = 5;
 
 /// Control periods a primary controller listens for a lease holder after it starts before
 /// it claims the lease itself (a standby listens twice as long).
@@ -176,7 +182,7 @@ mod tests {
     }
 
     #[test]
-    fn a_standby_waits_while_the_holder_is_heard_and_takes_over_after_one_period_of_silence() {
+    fn a_standby_waits_while_the_holder_is_heard_and_takes_over_after_its_silence_window() {
         let mut holder = LeaseArbiter::new(10, true, 0, PERIOD, LISTEN);
         assert_eq!(holder.decide(LISTEN), LeaseChange::TookOver);
         // the standby starts later (a restarted controller) and hears the holder every poll

@@ -130,6 +130,21 @@ pub fn link_state(
     }
 }
 
+/// The autopilot heartbeat a lease holder's link is judged by in its term, which began at
+/// `term_start_ns`: its own link's last one (counted from the term's start), or, when its link
+/// has heard none but the flight's autopilot was heard before the term (`heard_before_term`,
+/// from the lease it took over), the term's start, so that a vehicle gone quiet reads as a
+/// lost link rather than one never heard.
+pub fn term_heartbeat(
+    own_last_ns: Option<u64>,
+    term_start_ns: u64,
+    heard_before_term: bool,
+) -> Option<u64> {
+    own_last_ns
+        .map(|t| t.max(term_start_ns))
+        .or(heard_before_term.then_some(term_start_ns))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -255,5 +270,24 @@ mod tests {
             link_state(s + 9_501, s, Some(s + 4_500), timeout),
             LinkState::Lost
         );
+    }
+
+    #[test]
+    fn a_holder_that_took_over_from_one_that_heard_the_autopilot_reports_its_silence_as_lost() {
+        let (term, timeout) = (1_000, 5_000);
+        // its own link never heard the vehicle (over udpout the vehicle answers one peer),
+        // the holder before it did: the vehicle's silence is a lost link
+        let judged =
+            |now, own, before| link_state(now, term, term_heartbeat(own, term, before), timeout);
+        assert_eq!(judged(term + 5_000, None, true), LinkState::Up);
+        assert_eq!(judged(term + 5_001, None, true), LinkState::Lost);
+        // nobody ever heard it: silent, as for a controller that starts alone
+        assert_eq!(judged(term + 5_001, None, false), LinkState::Silent);
+        // its own heartbeats count, from the term's start
+        assert_eq!(
+            judged(term + 8_000, Some(term + 4_000), true),
+            LinkState::Up
+        );
+        assert_eq!(judged(term + 5_001, Some(10), false), LinkState::Lost);
     }
 }

@@ -58,13 +58,16 @@
 //! `controller/lease` at every poll (the role polls [`POLLS_PER_TICK`] times per control
 //! period), carrying its tracker's reference, anchor and hold latch. The other one is a
 //! standby: it keeps the hub's newest setpoints and the holder's `vehicle/telemetry`, and
-//! claims the lease when no lease has been heard for one control period, with an epoch
-//! above every epoch it heard and at least the system's monotonic clock in milliseconds (so
-//! a controller that never heard the holder, which was stopped before it came up, still
+//! claims the lease when no lease has been heard for [`LEASE_SILENCE_PERIODS`] control
+//! periods, with an epoch above every epoch it heard and at least the system's monotonic
+//! clock in milliseconds (so a controller that never heard the holder, which was stopped before it came up, still
 //! outranks every earlier claim when that holder resumes); its tracker then adopts the
 //! holder's last published state ([`Tracker::adopt`]) and it sends in the same poll: the
-//! autopilot sees at most a period and a poll without a setpoint, and the reference goes on
-//! from where it was, when the holder is killed or stopped. A holder that hears a higher
+//! autopilot sees at most that silence and a poll without a setpoint, and the reference goes
+//! on from where it was, when the holder is killed or stopped. The lease also says whether
+//! the flight's autopilot was heard ([`aeris_schemas::LEASE_LINK_HEARD`]): a new holder whose
+//! own link hears nothing (over `udpout` the vehicle answers one peer) reports a quiet vehicle
+//! as a lost link, not as one never heard. A holder that hears a higher
 //! claim steps down before its next send. A controller listens [`LEASE_LISTEN_PERIODS`]
 //! control periods after it starts before it claims (a standby twice as long), so a
 //! restarted controller joins as the standby and at a flight's start the primary (`standby`
@@ -109,8 +112,8 @@ pub mod testing;
 pub mod tracker;
 
 pub use autopilot_state::LINK_TIMEOUT_NS;
-pub use lease::{LEASE_LISTEN_PERIODS, LeaseArbiter, LeaseChange};
-pub use link_watch::{AutopilotIdentity, LinkLedger, link_state};
+pub use lease::{LEASE_LISTEN_PERIODS, LEASE_SILENCE_PERIODS, LeaseArbiter, LeaseChange};
+pub use link_watch::{AutopilotIdentity, LinkLedger, link_state, term_heartbeat};
 pub use messages::{
     COMPANION_COMPONENT_ID, COMPANION_SYSTEM_ID, Target, position_target_message,
     position_velocity_yaw_mask,

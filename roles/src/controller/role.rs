@@ -3,8 +3,8 @@
 //! documentation of [`crate::controller`]).
 
 use super::autopilot_state::AutopilotState;
-use super::lease::{LEASE_LISTEN_PERIODS, LeaseArbiter, LeaseChange};
-use super::link_watch::{LinkLedger, link_state};
+use super::lease::{LEASE_LISTEN_PERIODS, LEASE_SILENCE_PERIODS, LeaseArbiter, LeaseChange};
+use super::link_watch::{LinkLedger, link_state, term_heartbeat};
 use super::messages::{
     Target, command_long, companion_header, companion_heartbeat, position_target_message,
     takeoff_params, three_params,
@@ -25,7 +25,7 @@ use aeris_runtime::{
 };
 use aeris_schemas::{
     ActionMode, AutopilotLinkStatus, BoundSetpoint, ControllerCounters, ControllerLease, FixedText,
-    LinkState, VehicleTelemetry, topics,
+    LEASE_LINK_HEARD, LinkState, VehicleTelemetry, topics,
 };
 use std::ops::ControlFlow;
 use std::sync::{Arc, Mutex};
@@ -106,6 +106,8 @@ pub struct ControllerRole {
     link_losses: u64,
     /// When this process last took the autopilot lease (`None`: never held it).
     term_start_ns: Option<u64>,
+    /// The lease this process took over said the flight's autopilot had been heard.
+    heard_before_term: bool,
     url: FixedText<{ aeris_schemas::LINK_URL_MAX }>,
     setpoints: TypedSubscriber<BoundSetpoint>,
     telemetry: TypedPublisher<VehicleTelemetry>,
@@ -230,7 +232,11 @@ impl ControllerRole {
         let state = link_state(
             now_ns,
             term_start,
-            self.ap_cache.last_heartbeat_ns.map(|t| t.max(term_start)),
+            term_heartbeat(
+                self.ap_cache.last_heartbeat_ns,
+                term_start,
+                self.heard_before_term,
+            ),
             self.link_timeout_ns,
         );
         if state != self.link_state {
@@ -365,6 +371,7 @@ impl Role for ControllerRole {
             link_state: LinkState::Waiting,
             link_losses: 0,
             term_start_ns: None,
+            heard_before_term: false,
             url: FixedText::from_str_truncated(&url),
             setpoints,
             telemetry,
@@ -375,7 +382,7 @@ impl Role for ControllerRole {
                 std::process::id(),
                 !standby,
                 now,
-                period_ns,
+                period_ns.saturating_mul(LEASE_SILENCE_PERIODS),
                 // a standby listens twice as long, so that at a flight's start the primary
                 // claims first
                 period_ns.saturating_mul(LEASE_LISTEN_PERIODS * if standby { 2 } else { 1 }),
@@ -428,9 +435,11 @@ impl Role for ControllerRole {
             // the reference the holder last published
             self.next_tick_ns = t0;
             self.term_start_ns = Some(t0);
-            if let Some(l) = self.arbiter.highest_seen() {
+            let before = self.arbiter.highest_seen();
+            if let Some(l) = before {
                 self.tracker.adopt(l);
             }
+            self.heard_before_term = before.is_some_and(|l| l.flags & LEASE_LINK_HEARD != 0);
             self.hold_ticks_base = self.tracker.hold_ticks();
             self.term_sent = 0;
             // a new term publishes like a new process: sequence and counters from zero
@@ -451,6 +460,9 @@ impl Role for ControllerRole {
         if active {
             let mut lease = self.arbiter.lease(t0, self.term_sent);
             self.tracker.write_handover(&mut lease);
+            if self.heard_before_term || self.ap_cache.last_heartbeat_ns.is_some() {
+                lease.flags |= LEASE_LINK_HEARD;
+            }
             self.lease_out.publish(&lease)?;
         }
         if t0 < self.next_tick_ns {
