@@ -5,13 +5,34 @@
 //! flight roles (`aeris-roles`), the hub (`aeris-hub`), the bridge (`aeris-hosts`), the
 //! recorder and the replay source (`aeris-record`) and, in a build with the simulator, its
 //! roles (`aeris-sim-roles`). The match is on the kind first, so a new kind does not compile
-//! until it is given its runners.
+//! until it is given its runners, and each runner carries the kind its role type declares
+//! (`Role::Kind`), which the tests hold to the kind it runs for.
 
-use aeris_runtime::{RoleError, RoleHost, RoleSpec};
+use aeris_runtime::{Role, RoleError, RoleHost, RoleSpec};
 use aeris_schemas::RoleKind;
+use aeris_schemas::kinds::DeclaredKind;
 
-/// How a role process runs: the [`RoleHost`] instantiated for one role type.
-pub type RoleRunner = fn(RoleSpec) -> Result<(), RoleError>;
+/// How a role process runs: the [`RoleHost`] instantiated for one role type, and the kind
+/// that type declares it is.
+#[derive(Clone, Copy)]
+pub struct RoleRunner {
+    /// The kind of the role type ([`Role::Kind`]); the tests hold it to the kind the
+    /// runner is registered for (a role process checks it again from its spec).
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub kind: RoleKind,
+    /// Runs it in this process.
+    pub run: fn(RoleSpec) -> Result<(), RoleError>,
+}
+
+impl RoleRunner {
+    /// The runner of role type `R`.
+    fn of<R: Role>() -> Self {
+        Self {
+            kind: <R::Kind as DeclaredKind>::KIND,
+            run: RoleHost::run::<R>,
+        }
+    }
+}
 
 /// The runner of `kind`/`variant` in this build, if it has one (a build without the
 /// simulator has none for the simulator's roles).
@@ -23,59 +44,59 @@ pub fn runner(kind: RoleKind, variant: &str) -> Option<RoleRunner> {
     let run: RoleRunner = match kind {
         RoleKind::Vehicle | RoleKind::Perception => return sim_runner(kind, variant),
         RoleKind::Camera => match variant {
-            "gstreamer" => RoleHost::run::<gstreamer_camera::GstreamerCameraRole>,
+            "gstreamer" => RoleRunner::of::<gstreamer_camera::GstreamerCameraRole>(),
             _ => return sim_runner(kind, variant),
         },
         RoleKind::Detector => match variant {
-            "yolo" | "yolov8" => RoleHost::run::<detector::ModelDetectorRole>,
+            "yolo" | "yolov8" => RoleRunner::of::<detector::ModelDetectorRole>(),
             _ => return sim_runner(kind, variant),
         },
         RoleKind::TextReader => match variant {
-            "ppocr" => RoleHost::run::<text_reader::TextReaderRole>,
+            "ppocr" => RoleRunner::of::<text_reader::TextReaderRole>(),
             _ => return None,
         },
         RoleKind::Cues => match variant {
-            "minilm" => RoleHost::run::<cues::CueRole>,
+            "minilm" => RoleRunner::of::<cues::CueRole>(),
             _ => return None,
         },
         RoleKind::Occupancy => match variant {
-            "depth" | "onnx" => RoleHost::run::<occupancy::OccupancyRole>,
+            "depth" | "onnx" => RoleRunner::of::<occupancy::OccupancyRole>(),
             _ => return None,
         },
         RoleKind::ImageToText => match variant {
-            "compose" | "vlm" => RoleHost::run::<compose::ComposeRole>,
+            "compose" | "vlm" => RoleRunner::of::<compose::ComposeRole>(),
             _ => return None,
         },
         RoleKind::Reasoning => match variant {
-            "planner" => RoleHost::run::<planner::PlannerRole>,
-            "garbage" => RoleHost::run::<planner::GarbageRole>,
-            "random" => RoleHost::run::<planner::RandomRole>,
-            "smollm2" | "gemma3" => RoleHost::run::<language::LanguageRole>,
+            "planner" => RoleRunner::of::<planner::PlannerRole>(),
+            "garbage" => RoleRunner::of::<planner::GarbageRole>(),
+            "random" => RoleRunner::of::<planner::RandomRole>(),
+            "smollm2" | "gemma3" => RoleRunner::of::<language::LanguageRole>(),
             _ => return None,
         },
         RoleKind::Hub => match variant {
-            "gate" => RoleHost::run::<aeris_hub::HubRole>,
+            "gate" => RoleRunner::of::<aeris_hub::HubRole>(),
             _ => return None,
         },
         RoleKind::Controller => match variant {
-            "mavlink" => RoleHost::run::<controller::ControllerRole>,
+            "mavlink" => RoleRunner::of::<controller::ControllerRole>(),
             _ => return None,
         },
         RoleKind::Recorder => match variant {
-            "mcap" => RoleHost::run::<aeris_record::RecorderRole>,
+            "mcap" => RoleRunner::of::<aeris_record::RecorderRole>(),
             _ => return None,
         },
         RoleKind::Replay => match variant {
-            "mcap" => RoleHost::run::<aeris_record::replay::ReplaySource>,
+            "mcap" => RoleRunner::of::<aeris_record::replay::ReplaySource>(),
             _ => return None,
         },
         RoleKind::Bridge => match variant {
-            "zenoh" => RoleHost::run::<aeris_hosts::bridge::BridgeRole>,
+            "zenoh" => RoleRunner::of::<aeris_hosts::bridge::BridgeRole>(),
             _ => return None,
         },
         RoleKind::Formation => match variant {
             "parser" | "qwen-coder" | "smollm2" | "gemma3" => {
-                RoleHost::run::<formation_role::FormationRole>
+                RoleRunner::of::<formation_role::FormationRole>()
             }
             _ => return None,
         },
@@ -88,10 +109,10 @@ pub fn runner(kind: RoleKind, variant: &str) -> Option<RoleRunner> {
 fn sim_runner(kind: RoleKind, variant: &str) -> Option<RoleRunner> {
     use aeris_sim_roles::{camera, palette, perception, vehicle};
     let run: RoleRunner = match (kind, variant) {
-        (RoleKind::Vehicle, "sim-multirotor") => RoleHost::run::<vehicle::VehicleRole>,
-        (RoleKind::Camera, "sim-render") => RoleHost::run::<camera::CameraRole>,
-        (RoleKind::Perception, "geometric") => RoleHost::run::<perception::PerceptionRole>,
-        (RoleKind::Detector, "palette") => RoleHost::run::<palette::PaletteDetectorRole>,
+        (RoleKind::Vehicle, "sim-multirotor") => RoleRunner::of::<vehicle::VehicleRole>(),
+        (RoleKind::Camera, "sim-render") => RoleRunner::of::<camera::CameraRole>(),
+        (RoleKind::Perception, "geometric") => RoleRunner::of::<perception::PerceptionRole>(),
+        (RoleKind::Detector, "palette") => RoleRunner::of::<palette::PaletteDetectorRole>(),
         _ => return None,
     };
     Some(run)
@@ -106,7 +127,7 @@ fn sim_runner(_kind: RoleKind, _variant: &str) -> Option<RoleRunner> {
 /// Run the role `spec` describes in this process.
 pub fn run(spec: RoleSpec) -> Result<(), RoleError> {
     match runner(spec.kind, &spec.variant) {
-        Some(run) => run(spec),
+        Some(runner) => (runner.run)(spec),
         None => Err(aeris_runtime::ConfigError::UnknownVariant {
             kind: spec.kind,
             variant: spec.variant,
@@ -127,7 +148,8 @@ mod tests {
     fn every_variant_of_every_kind_has_a_runner_and_nothing_else_has_one() {
         for kind in RoleKind::ALL {
             for v in kind.info().variants {
-                assert!(runner(kind, v).is_some(), "{kind}/{v} has no runner");
+                let r = runner(kind, v).unwrap_or_else(|| panic!("{kind}/{v} has no runner"));
+                assert_eq!(r.kind, kind, "{kind}/{v} runs a role of another kind");
             }
             assert!(runner(kind, "gpt-9").is_none(), "{kind}/gpt-9 has a runner");
         }
@@ -146,7 +168,9 @@ mod tests {
         for kind in RoleKind::ALL {
             for v in kind.info().variants {
                 let simulated = simulator.contains(&(kind, *v));
-                assert_eq!(runner(kind, v).is_none(), simulated, "{kind}/{v}");
+                let r = runner(kind, v);
+                assert_eq!(r.is_none(), simulated, "{kind}/{v}");
+                assert!(r.is_none_or(|r| r.kind == kind), "{kind}/{v}: another kind");
             }
         }
     }

@@ -61,6 +61,7 @@ use aeris_runtime::raw::{
 };
 use aeris_runtime::{ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::RoleStatus;
+use aeris_schemas::kinds;
 use aeris_schemas::{BridgeCounters, FrameHeader};
 use core::time::Duration;
 use iceoryx2::identifiers::UniquePublisherId;
@@ -164,7 +165,7 @@ pub struct BridgeRole {
     started_ns: u64,
 }
 
-fn topics_param(ctx: &RoleContext, key: &str) -> Result<Vec<String>, RoleError> {
+fn topics_param(ctx: &RoleContext<kinds::Bridge>, key: &str) -> Result<Vec<String>, RoleError> {
     let Some(v) = ctx.spec.params.get(key) else {
         return Ok(Vec::new());
     };
@@ -182,7 +183,9 @@ fn topics_param(ctx: &RoleContext, key: &str) -> Result<Vec<String>, RoleError> 
 }
 
 impl Role for BridgeRole {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::Bridge;
+
+    fn new(ctx: &mut RoleContext<kinds::Bridge>) -> Result<Self, RoleError> {
         let connect = ctx
             .spec
             .param_str("connect")
@@ -230,7 +233,7 @@ impl Role for BridgeRole {
         let mut own = Vec::with_capacity(import.len());
         for t in import {
             let payload = payload_of(&t).unwrap_or(Payload::Heartbeat);
-            let publisher = raw_publisher(&ctx.bus, &t, frame_bytes)?;
+            let publisher = raw_publisher(ctx.bus.flight_bus(), &t, frame_bytes)?;
             own.push(publisher.id());
             // subscribed on zenoh once the session is open ([`BridgeRole::attach`]); frames
             // once a reader appears here too ([`BridgeRole::follow_readers`])
@@ -247,7 +250,7 @@ impl Role for BridgeRole {
         let mut exports = Vec::with_capacity(export.len());
         for t in export {
             let payload = payload_of(&t).unwrap_or(Payload::Heartbeat);
-            let sub = raw_subscriber(&ctx.bus, &t)?;
+            let sub = raw_subscriber(ctx.bus.flight_bus(), &t)?;
             exports.push(Export {
                 topic: t,
                 payload,
@@ -325,7 +328,7 @@ impl Role for BridgeRole {
 
     fn cycle(
         &mut self,
-        _ctx: &mut RoleContext,
+        _ctx: &mut RoleContext<kinds::Bridge>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         let t0 = monotonic_ns();

@@ -10,7 +10,8 @@
 //! their round trip is what a decision's crossing sees.
 
 use crate::protocol::{AgentReply, HostInfo, agent_request_key};
-use aeris_runtime::bus::{BusError, FlightBus, TypedPublisher};
+use aeris_runtime::bus::{BusError, RoleBus, TypedPublisher};
+use aeris_schemas::kinds;
 use aeris_schemas::{FixedText, HostLinkStatus, LINK_LOSS_WINDOW, LINK_PROBE_PERIOD_MS, topics};
 use core::time::Duration;
 use std::collections::VecDeque;
@@ -148,7 +149,11 @@ pub struct LinkProbe {
 
 impl LinkProbe {
     /// A probe of `host`'s agent; a probe unanswered after `timeout` is lost.
-    pub fn new(bus: &FlightBus, host: &str, timeout: Duration) -> Result<Self, BusError> {
+    pub fn new(
+        bus: &RoleBus<kinds::Bridge>,
+        host: &str,
+        timeout: Duration,
+    ) -> Result<Self, BusError> {
         Ok(LinkProbe {
             key: agent_request_key(host, "info"),
             timeout_ns: timeout.as_nanos() as u64,

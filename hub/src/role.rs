@@ -28,6 +28,7 @@ use aeris_runtime::spec::TimingSpec;
 use aeris_runtime::{
     ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec,
 };
+use aeris_schemas::kinds;
 use aeris_schemas::{
     BLIND_MOVE_M, BoundSetpoint, Decision, HubBeatCounters, HubReport, MAX_SUBGOALS,
     OccupancyStatus, PerceptionState, RoleStatus, VehicleTelemetry, topics,
@@ -165,7 +166,9 @@ impl HubRole {
 }
 
 impl Role for HubRole {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::Hub;
+
+    fn new(ctx: &mut RoleContext<kinds::Hub>) -> Result<Self, RoleError> {
         let core = core_from_spec(&ctx.spec)?;
         let realtime = ctx.spec.param_bool("realtime", true)?;
         if realtime && !try_sched_fifo(HUB_FIFO_PRIORITY) {
@@ -192,7 +195,7 @@ impl Role for HubRole {
 
     fn cycle(
         &mut self,
-        _ctx: &mut RoleContext,
+        _ctx: &mut RoleContext<kinds::Hub>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         let start = monotonic_ns();

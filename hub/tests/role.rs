@@ -84,12 +84,7 @@ fn goto(seq: u64, start_ns: u64) -> Decision {
 fn decisions_in_setpoints_and_reports_out() {
     let f = flight("io");
     let bus = FlightBus::builder(&f).node_name("hub").create().unwrap();
-    let mut ctx = RoleContext {
-        spec: spec(&f),
-        bus,
-        cycles: 0,
-        missed_deadlines: 0,
-    };
+    let mut ctx = RoleContext::new(spec(&f), bus).unwrap();
     let mut role = HubRole::new(&mut ctx).unwrap();
     assert_eq!(role.period().as_millis(), 20);
 

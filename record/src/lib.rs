@@ -51,6 +51,7 @@ pub mod writer;
 use aeris_runtime::bus::{BusError, FrameSubscriber};
 use aeris_runtime::raw::{RawSubscriber, frame_subscriber, raw_subscriber};
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::kinds;
 use aeris_schemas::{RecorderCounters, RoleStatus, topics};
 use codec::{ImageFormat, Payload, PayloadCodec, bytes_of, payload_of};
 use core::time::Duration;
@@ -130,18 +131,24 @@ pub struct RecorderRole {
     file_index: u64,
 }
 
-fn subscribe(ctx: &RoleContext, topic: &str, payload: Payload) -> Result<Source, BusError> {
+fn subscribe(
+    ctx: &RoleContext<kinds::Recorder>,
+    topic: &str,
+    payload: Payload,
+) -> Result<Source, BusError> {
     Ok(match payload {
         Payload::Frame => Source::Frames {
-            sub: frame_subscriber(&ctx.bus, topic)?,
+            sub: frame_subscriber(ctx.bus.flight_bus(), topic)?,
             seen: 0,
         },
-        _ => Source::Typed(raw_subscriber(&ctx.bus, topic)?),
+        _ => Source::Typed(raw_subscriber(ctx.bus.flight_bus(), topic)?),
     })
 }
 
 impl Role for RecorderRole {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::Recorder;
+
+    fn new(ctx: &mut RoleContext<kinds::Recorder>) -> Result<Self, RoleError> {
         let spec = &ctx.spec;
         let path = spec
             .param_str("path")
@@ -271,7 +278,7 @@ impl Role for RecorderRole {
 
     fn cycle(
         &mut self,
-        _ctx: &mut RoleContext,
+        _ctx: &mut RoleContext<kinds::Recorder>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         let failed = self.counters.failed.load(Ordering::SeqCst);
@@ -365,7 +372,7 @@ impl Role for RecorderRole {
         })
     }
 
-    fn shutdown(&mut self, _ctx: &mut RoleContext) {
+    fn shutdown(&mut self, _ctx: &mut RoleContext<kinds::Recorder>) {
         // closing the queue lets the writer write what is queued and finish the file
         self.queue = None;
         if let Some(w) = self.writer.take() {

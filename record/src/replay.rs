@@ -29,6 +29,7 @@ use crate::read::{ReadError, Recording};
 use aeris_runtime::bus::{FramePublisher, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::kinds;
 use aeris_schemas::{FrameHeader, ReplayCounters, RoleStatus, VehicleTelemetry, topics};
 use core::time::Duration;
 use std::path::PathBuf;
@@ -98,7 +99,7 @@ impl ReplaySource {
     /// The roles of the flight, other than this one, that are not yet built and running (a
     /// `Starting` heartbeat comes before their ports exist); `None` before the supervisor's
     /// status board is readable. Only called while waiting to start.
-    fn not_running(ctx: &RoleContext) -> Option<Vec<String>> {
+    fn not_running(ctx: &RoleContext<kinds::Replay>) -> Option<Vec<String>> {
         let board = ctx.bus.read_status_board().ok()?;
         let n = (board.role_count as usize).min(board.roles.len());
         if n == 0 {
@@ -196,7 +197,9 @@ fn read_ahead(
 }
 
 impl Role for ReplaySource {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::Replay;
+
+    fn new(ctx: &mut RoleContext<kinds::Replay>) -> Result<Self, RoleError> {
         let spec = &ctx.spec;
         let path = PathBuf::from(
             spec.param_str("path")
@@ -265,7 +268,7 @@ impl Role for ReplaySource {
 
     fn cycle(
         &mut self,
-        ctx: &mut RoleContext,
+        ctx: &mut RoleContext<kinds::Replay>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         let now = monotonic_ns();

@@ -23,6 +23,7 @@ use crate::heartbeat_clock::STALE_AFTER_TENTHS;
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::kinds;
 use aeris_schemas::{
     ComposeCounters, FixedText, OccupancyStatus, PerceptionState, SUMMARY_MAX, block, topics,
 };
@@ -167,7 +168,9 @@ const CUES: usize = 2;
 const OCC: usize = 3;
 
 impl Role for ComposeRole {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::ImageToText;
+
+    fn new(ctx: &mut RoleContext<kinds::ImageToText>) -> Result<Self, RoleError> {
         if ctx.spec.variant == "vlm" {
             return Err(ConfigError::NoWeights(NO_CAPTIONING_WEIGHTS).into());
         }
@@ -201,7 +204,7 @@ impl Role for ComposeRole {
 
     fn cycle(
         &mut self,
-        _ctx: &mut RoleContext,
+        _ctx: &mut RoleContext<kinds::ImageToText>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         let now = monotonic_ns();

@@ -16,6 +16,7 @@ use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::error_chain::chain;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::kinds;
 use aeris_schemas::{
     BlockCounters, Cue, FixedText, MAX_CUES, MAX_DETECTIONS, MAX_SUBGOALS, PerceptionState, block,
     topics,
@@ -111,7 +112,9 @@ pub struct CueRole {
 }
 
 impl Role for CueRole {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::Cues;
+
+    fn new(ctx: &mut RoleContext<kinds::Cues>) -> Result<Self, RoleError> {
         let store = open_store(ctx)?;
         let mut embedder = TextEmbedder::load(&store, &session_options(ctx)?)
             .map_err(|e| RoleError::step("loading the sentence embedder", e))?;
@@ -149,7 +152,7 @@ impl Role for CueRole {
 
     fn cycle(
         &mut self,
-        _ctx: &mut RoleContext,
+        _ctx: &mut RoleContext<kinds::Cues>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         let now = monotonic_ns();

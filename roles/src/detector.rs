@@ -21,6 +21,7 @@ use aeris_models::{DetectedBox, Detector};
 use aeris_runtime::bus::{FrameSample, FrameSubscriber, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::kinds;
 use aeris_schemas::{
     BlockCounters, Detection, FixedText, FrameFormat, FrameHeader, MAX_DETECTIONS, PerceptionState,
     block, topics,
@@ -69,7 +70,7 @@ pub fn box_range_m(
 /// `palette`) is another engine, beside the simulator (`aeris-sim-roles`).
 pub trait DetectionEngine: Sized {
     /// The engine for the role's spec (loads and warms up its models, if any).
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError>;
+    fn new(ctx: &mut RoleContext<kinds::Detector>) -> Result<Self, RoleError>;
 
     /// Detect in `rgb` (RGB8, described by `header`, already validated), with the same
     /// frame's `depth` (u16 LE mm z-depth) when at hand, into `state.detections` and
@@ -93,7 +94,7 @@ pub struct ModelDetection {
 }
 
 impl DetectionEngine for ModelDetection {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    fn new(ctx: &mut RoleContext<kinds::Detector>) -> Result<Self, RoleError> {
         let default = if ctx.spec.variant == "yolov8" {
             YOLOV8_DETECTOR
         } else {
@@ -173,7 +174,9 @@ pub struct DetectorRole<E> {
 pub type ModelDetectorRole = DetectorRole<ModelDetection>;
 
 impl<E: DetectionEngine> Role for DetectorRole<E> {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::Detector;
+
+    fn new(ctx: &mut RoleContext<kinds::Detector>) -> Result<Self, RoleError> {
         let engine = E::new(ctx)?;
         Ok(Self {
             rgb: ctx.bus.frame_subscriber::<topics::CameraRgb>()?,
@@ -194,7 +197,7 @@ impl<E: DetectionEngine> Role for DetectorRole<E> {
 
     fn cycle(
         &mut self,
-        _ctx: &mut RoleContext,
+        _ctx: &mut RoleContext<kinds::Detector>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         while let Some(d) = self.depth.next()? {

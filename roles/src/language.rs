@@ -42,6 +42,7 @@ use aeris_runtime::error_chain::chain;
 use aeris_runtime::{
     ConfigError, CycleOutcome, CycleReport, MissionSpec, Role, RoleContext, RoleError,
 };
+use aeris_schemas::kinds;
 use aeris_schemas::{Decision, LanguageCounters};
 use core::time::Duration;
 
@@ -86,7 +87,9 @@ pub struct LanguageRole {
 }
 
 impl Role for LanguageRole {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::Reasoning;
+
+    fn new(ctx: &mut RoleContext<kinds::Reasoning>) -> Result<Self, RoleError> {
         let variant = ctx.spec.variant.clone();
         let file = ctx
             .spec
@@ -173,7 +176,7 @@ impl Role for LanguageRole {
 
     fn cycle(
         &mut self,
-        _ctx: &mut RoleContext,
+        _ctx: &mut RoleContext<kinds::Reasoning>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         let Some(due) = self.io.poll()? else {

@@ -20,6 +20,7 @@ use aeris_runtime::bus::{FrameSubscriber, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::error_chain::chain;
 use aeris_runtime::{ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::kinds;
 use aeris_schemas::{
     BlockCounters, FrameFormat, FrameHeader, OCCUPANCY_CELLS, OCCUPANCY_UNKNOWN, OccupancyStatus,
     PerceptionState, block, topics,
@@ -90,7 +91,9 @@ pub struct OccupancyRole {
 }
 
 impl Role for OccupancyRole {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::Occupancy;
+
+    fn new(ctx: &mut RoleContext<kinds::Occupancy>) -> Result<Self, RoleError> {
         let learned = if ctx.spec.variant == "onnx" {
             let file = ctx
                 .spec
@@ -124,7 +127,7 @@ impl Role for OccupancyRole {
 
     fn cycle(
         &mut self,
-        _ctx: &mut RoleContext,
+        _ctx: &mut RoleContext<kinds::Occupancy>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         let Some(frame) = self.stride.next_frame(&self.depth)? else {

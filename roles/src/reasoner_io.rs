@@ -21,6 +21,7 @@ use crate::planner::Planner;
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleReport, RoleContext, RoleError};
+use aeris_schemas::kinds;
 use aeris_schemas::{Decision, PerceptionState, VehicleTelemetry, topics};
 use core::time::Duration;
 
@@ -38,7 +39,10 @@ pub const RESUME_WAIT: Duration = Duration::from_millis(250);
 /// The hub's active instruction step if the flight is under way: from the latest
 /// `hub/setpoint`, which its history hands to a new subscriber, waited for up to `wait`.
 /// `None` before the first decision of the flight.
-pub fn hub_active_step(ctx: &RoleContext, wait: Duration) -> Result<Option<u16>, RoleError> {
+pub fn hub_active_step(
+    ctx: &RoleContext<kinds::Reasoning>,
+    wait: Duration,
+) -> Result<Option<u16>, RoleError> {
     let setpoints = ctx.bus.subscriber::<topics::HubSetpoint>()?;
     let deadline = monotonic_ns().saturating_add(aeris_runtime::clock::duration_ns(wait));
     loop {
@@ -56,7 +60,7 @@ pub fn hub_active_step(ctx: &RoleContext, wait: Duration) -> Result<Option<u16>,
 
 /// The oldest a reasoner's first S_t may be: the decision deadline less `decision` (what a
 /// decision takes) and the hub's routing margin ([`ROUTING_MARGIN`]).
-fn first_state_max_age(ctx: &RoleContext, decision: Duration) -> u64 {
+fn first_state_max_age(ctx: &RoleContext<kinds::Reasoning>, decision: Duration) -> u64 {
     let deadline = ctx
         .spec
         .timing
@@ -128,7 +132,7 @@ impl ReasonerIo {
     /// topic's last, up to a heartbeat old (a flight's or replay's start is unchanged, so a
     /// replay still decides alike).
     pub fn new(
-        ctx: &mut RoleContext,
+        ctx: &mut RoleContext<kinds::Reasoning>,
         planner: &mut Planner,
         decision: Duration,
     ) -> Result<Self, RoleError> {

@@ -12,6 +12,7 @@ use aeris_runtime::bus::{FrameSubscriber, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::error_chain::chain;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::kinds;
 use aeris_schemas::{
     BlockCounters, FixedText, FrameFormat, MAX_CUES, PerceptionState, block, topics,
 };
@@ -52,7 +53,9 @@ pub struct TextReaderRole {
 }
 
 impl Role for TextReaderRole {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::TextReader;
+
+    fn new(ctx: &mut RoleContext<kinds::TextReader>) -> Result<Self, RoleError> {
         let store = open_store(ctx)?;
         let mut reader = OcrReader::load(&store, &session_options(ctx)?)
             .map_err(|e| RoleError::step("loading PP-OCR", e))?;
@@ -79,7 +82,7 @@ impl Role for TextReaderRole {
 
     fn cycle(
         &mut self,
-        _ctx: &mut RoleContext,
+        _ctx: &mut RoleContext<kinds::TextReader>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         let Some(frame) = self.stride.next_frame(&self.rgb)? else {

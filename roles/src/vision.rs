@@ -30,7 +30,7 @@ impl FrameStride {
     }
 
     /// The stride from the role's `interval_ms` parameter (default [`DEFAULT_INTERVAL_MS`]).
-    pub fn from_ctx(ctx: &RoleContext) -> Self {
+    pub fn from_ctx<K>(ctx: &RoleContext<K>) -> Self {
         Self::new(
             ctx.spec
                 .param_f64("interval_ms")
@@ -66,18 +66,18 @@ impl FrameStride {
 
 /// The model cache a role reads: the `models_dir` parameter, else `$AERIS_MODELS`, else
 /// `~/.cache/aeris/models`. Errors name the provisioning command.
-pub fn open_store(ctx: &RoleContext) -> Result<ModelStore, RoleError> {
+pub fn open_store<K>(ctx: &RoleContext<K>) -> Result<ModelStore, RoleError> {
     ModelStore::open(ctx.spec.param_str("models_dir").map(Path::new))
         .map_err(|e| RoleError::step("opening the model cache", e))
 }
 
 /// The role's `model` parameter, or `default`.
-pub fn model_file<'a>(ctx: &'a RoleContext, default: &'a str) -> &'a str {
+pub fn model_file<'a, K>(ctx: &'a RoleContext<K>, default: &'a str) -> &'a str {
     ctx.spec.param_str("model").unwrap_or(default)
 }
 
 /// Threads for a model role (`threads` parameter, default 1: the LM needs the rest).
-pub fn threads(ctx: &RoleContext) -> usize {
+pub fn threads<K>(ctx: &RoleContext<K>) -> usize {
     ctx.spec
         .param_f64("threads")
         .unwrap_or(1.0)
@@ -87,7 +87,7 @@ pub fn threads(ctx: &RoleContext) -> usize {
 /// Where a model role's sessions run: its `threads`, on its executor's accelerator if the
 /// spec names one (`cuda:0`). Loading checks the accelerator's execution provider, and the
 /// error names the providers the ONNX Runtime offers.
-pub fn session_options(ctx: &RoleContext) -> Result<SessionOptions, RoleError> {
+pub fn session_options<K>(ctx: &RoleContext<K>) -> Result<SessionOptions, RoleError> {
     Ok(SessionOptions {
         threads: threads(ctx),
         accelerator: accelerator(ctx)?,
@@ -95,7 +95,7 @@ pub fn session_options(ctx: &RoleContext) -> Result<SessionOptions, RoleError> {
 }
 
 /// The accelerator of the role's executor (`cuda:0`), if its spec names one.
-pub fn accelerator(ctx: &RoleContext) -> Result<Option<Accelerator>, RoleError> {
+pub fn accelerator<K>(ctx: &RoleContext<K>) -> Result<Option<Accelerator>, RoleError> {
     ctx.spec
         .accelerator
         .as_deref()

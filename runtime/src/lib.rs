@@ -29,6 +29,6 @@ pub mod spec;
 pub mod stats;
 pub mod users;
 
-pub use bus::{BusError, FlightBus};
+pub use bus::{BusError, FlightBus, RoleBus};
 pub use role::{ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleHost};
 pub use spec::{MissionSpec, RemoteSpec, RoleSpec};

@@ -8,10 +8,11 @@
 //! `cycle` must not allocate: ports and buffers are created in `new`.
 
 use crate::affinity::write_task_affinity;
-use crate::bus::{FlightBus, TypedPublisher};
+use crate::bus::{FlightBus, RoleBus, TypedPublisher};
 use crate::clock::{duration_ns, monotonic_ns, sleep_until_ns};
 use crate::signals;
 use crate::spec::RoleSpec;
+use aeris_schemas::kinds::DeclaredKind;
 use aeris_schemas::{FixedText, MAX_STAGES, RoleHeartbeat, RoleStatus, StageTiming, topics};
 use core::time::Duration;
 
@@ -64,12 +65,12 @@ impl CycleReport {
     }
 }
 
-/// What a role sees of its process.
-pub struct RoleContext {
+/// What a role of kind `K` sees of its process.
+pub struct RoleContext<K> {
     /// The launch spec.
     pub spec: RoleSpec,
-    /// This process's node in the flight.
-    pub bus: FlightBus,
+    /// This process's node in the flight, opening ports only on the topics `K` declares.
+    pub bus: RoleBus<K>,
     /// Cycles run so far.
     pub cycles: u64,
     /// Periods skipped because a cycle overran its deadline (the loop re-anchors instead of
@@ -77,10 +78,33 @@ pub struct RoleContext {
     pub missed_deadlines: u64,
 }
 
+impl<K: DeclaredKind> RoleContext<K> {
+    /// The context of a role of kind `K` launched with `spec` on `bus`; refused when the
+    /// spec names another kind (a runner given the wrong role).
+    pub fn new(spec: RoleSpec, bus: FlightBus) -> Result<Self, RoleError> {
+        if spec.kind != K::KIND {
+            return Err(ConfigError::Spec {
+                field: "kind",
+                problem: format!("is {}, but this role is a {}", spec.kind, K::KIND),
+            }
+            .into());
+        }
+        Ok(Self {
+            spec,
+            bus: RoleBus::new(bus),
+            cycles: 0,
+            missed_deadlines: 0,
+        })
+    }
+}
+
 /// The role abstraction every role implements.
 pub trait Role: Sized {
+    /// The kind the role is one variant of: the topics it may open ports on.
+    type Kind: DeclaredKind;
+
     /// Build the role inside its process: open ports, load models, allocate buffers.
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError>;
+    fn new(ctx: &mut RoleContext<Self::Kind>) -> Result<Self, RoleError>;
 
     /// Period of the cycle.
     fn period(&self) -> Duration;
@@ -88,12 +112,12 @@ pub trait Role: Sized {
     /// One cycle. Must not allocate on the heap.
     fn cycle(
         &mut self,
-        ctx: &mut RoleContext,
+        ctx: &mut RoleContext<Self::Kind>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError>;
 
     /// Called once when the process is asked to stop.
-    fn shutdown(&mut self, _ctx: &mut RoleContext) {}
+    fn shutdown(&mut self, _ctx: &mut RoleContext<Self::Kind>) {}
 }
 
 /// Runs one role as the current process.
@@ -115,15 +139,9 @@ impl RoleHost {
         let bus = FlightBus::builder(&spec.flight)
             .node_name(&spec.name)
             .vehicle(spec.vehicle)
-            .declared_by(spec.kind)
             .create()?;
         let heartbeats: TypedPublisher<RoleHeartbeat> = bus.publisher::<topics::Heartbeat>()?;
-        let mut ctx = RoleContext {
-            spec,
-            bus,
-            cycles: 0,
-            missed_deadlines: 0,
-        };
+        let mut ctx = RoleContext::<R::Kind>::new(spec, bus)?;
         let mut hb = RoleHeartbeat::default();
         hb.role.set(&ctx.spec.name);
         hb.variant.set(&ctx.spec.variant);

@@ -235,46 +235,37 @@ fn a_refused_port_keeps_iceoryx2s_error_as_its_source() {
 /// flight's graph the supervisor derives from the declarations is what the role does; the
 /// supervisor's and tools' buses open any.
 #[test]
-fn a_role_opens_ports_only_on_the_topics_its_kind_declares() {
-    use aeris_schemas::RoleKind;
+fn a_role_bus_opens_the_ports_its_kind_declares_and_a_context_refuses_another_kind() {
+    // (an undeclared port does not compile: the `compile_fail` examples on `RoleBus`)
+    use aeris_runtime::{RoleBus, RoleContext, RoleSpec};
+    use aeris_schemas::kinds;
     let f = flight("declared");
-    let hub = FlightBus::builder(&f)
-        .node_name("hub")
-        .declared_by(RoleKind::Hub)
-        .create()
-        .unwrap();
+    let node = |name: &str| FlightBus::builder(&f).node_name(name).create().unwrap();
+    let hub = RoleBus::<kinds::Hub>::new(node("hub"));
     hub.subscriber::<topics::ReasoningDecision>().unwrap();
     hub.publisher::<topics::HubSetpoint>().unwrap();
-    hub.publisher::<topics::Heartbeat>().unwrap();
-    match hub.publisher::<topics::ReasoningDecision>() {
-        Err(BusError::Undeclared { kind, topic, way }) => {
-            assert_eq!(
-                (kind, topic, way),
-                (RoleKind::Hub, topics::REASONING_DECISION, "publishes")
-            );
-        }
-        Err(other) => panic!("not refused as undeclared: {other}"),
-        Ok(_) => panic!("the hub opened a publisher of decisions"),
-    }
-    assert!(matches!(
-        hub.frame_subscriber::<topics::CameraRgb>(),
-        Err(BusError::Undeclared { .. })
-    ));
     // a reasoner reads the hub's setpoint without waiting (reads_latest); the formation
     // role answers `aeris formation say` (a tool's topic)
-    let reasoner = FlightBus::builder(&f)
-        .node_name("reasoning")
-        .declared_by(RoleKind::Reasoning)
-        .create()
-        .unwrap();
+    let reasoner = RoleBus::<kinds::Reasoning>::new(node("reasoning"));
     reasoner.subscriber::<topics::HubSetpoint>().unwrap();
-    let formation = FlightBus::builder(&f)
-        .node_name("formation")
-        .declared_by(RoleKind::Formation)
-        .create()
-        .unwrap();
+    let formation = RoleBus::<kinds::Formation>::new(node("formation"));
     formation.subscriber::<topics::FormationSay>().unwrap();
     formation.publisher::<topics::FormationReply>().unwrap();
-    let tool = FlightBus::builder(&f).node_name("tool").create().unwrap();
-    tool.subscriber::<topics::HubReport>().unwrap();
+    // a runner handed a spec of another kind is refused, naming both
+    let spec: RoleSpec = serde_json::from_value(serde_json::json!({
+        "flight": f, "name": "det", "kind": "detector", "variant": "yolo",
+        "mission": { "instruction": "x", "subgoals": [] }
+    }))
+    .unwrap();
+    match RoleContext::<kinds::Hub>::new(spec, node("det")) {
+        Err(e) => assert_eq!(
+            format!(
+                "{}: {}",
+                e,
+                std::error::Error::source(&e).map_or(String::new(), |s| s.to_string())
+            ),
+            "invalid configuration: `kind` is detector, but this role is a hub"
+        ),
+        Ok(_) => panic!("a hub context was made from a detector's spec"),
+    }
 }

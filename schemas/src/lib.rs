@@ -27,6 +27,7 @@ pub mod host_link;
 pub mod hub_report;
 #[cfg(feature = "serde")]
 pub mod json_form;
+pub mod kinds;
 pub mod lease;
 pub mod role_counters;
 pub mod role_kinds;

@@ -1,9 +1,10 @@
 //! The role kinds: what a workflow's `kind = "..."` names, and what each kind is: the
 //! variants this build can run, the topics it reads and writes, whether it can be
-//! hot-swapped. The supervisor validates workflows against it, hosts' agents admit roles by
-//! it, and `aeris role` dispatches on it (the runners are the binary's, one per variant).
+//! hot-swapped (each declared once, by its type in [`crate::kinds`]). The supervisor
+//! validates workflows against it, hosts' agents admit roles by it, and `aeris role`
+//! dispatches on it (the runners are the binary's, one per variant).
 
-use crate::topics;
+use crate::kinds::{self, DeclaredKind};
 
 /// A role kind, as written in workflow files and role specs (`text-reader`, `hub`, ...).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -120,174 +121,24 @@ impl RoleKind {
         Self::ALL.map(RoleKind::name).join(", ")
     }
 
-    /// What this kind is.
+    /// What this kind is (its [`DeclaredKind::INFO`]).
     pub const fn info(self) -> &'static RoleKindInfo {
         match self {
-            RoleKind::Vehicle => &RoleKindInfo {
-                variants: &["sim-multirotor"],
-                subscribes: &[],
-                publishes: &[],
-                reads_latest: &[],
-                with_tools: &[],
-                summary: "built-in simulated multirotor behind a MAVLink 1/2 endpoint, playing PX4 (offboard) or ArduPilot Copter (guided)",
-                swap_refusal: Some("two vehicles would share one MAVLink endpoint"),
-            },
-            RoleKind::Camera => &RoleKindInfo {
-                variants: &["sim-render", "gstreamer"],
-                subscribes: &[topics::VEHICLE_TELEMETRY],
-                publishes: &[topics::CAMERA_RGB, topics::CAMERA_DEPTH],
-                reads_latest: &[],
-                with_tools: &[],
-                summary: "FPV frames: `sim-render` renders the built-in world at the vehicle's pose; `gstreamer` captures any GStreamer pipeline (params.pipeline, depth_pipeline)",
-                swap_refusal: Some("two cameras would number the same frames twice"),
-            },
-            RoleKind::Perception => &RoleKindInfo {
-                variants: &["geometric"],
-                subscribes: &[topics::CAMERA_RGB, topics::CAMERA_DEPTH],
-                publishes: &[topics::PERCEPTION_STATE],
-                reads_latest: &[],
-                with_tools: &[],
-                summary: "frames -> S_t: colour-segment detections, scene summary, depth occupancy grid",
-                swap_refusal: None,
-            },
-            RoleKind::TextReader => &RoleKindInfo {
-                variants: &["ppocr"],
-                subscribes: &[topics::CAMERA_RGB],
-                publishes: &[topics::PERCEPTION_TEXT],
-                reads_latest: &[],
-                with_tools: &[],
-                summary: "reads sign text in FPV frames (PP-OCRv4 detection + recognition, ONNX Runtime)",
-                swap_refusal: None,
-            },
-            RoleKind::Detector => &RoleKindInfo {
-                variants: &["yolo", "yolov8", "palette"],
-                subscribes: &[topics::CAMERA_RGB, topics::CAMERA_DEPTH],
-                publishes: &[topics::PERCEPTION_DETECTIONS],
-                reads_latest: &[],
-                with_tools: &[],
-                summary: "object detections with range (YOLO COCO / YOLOv8-layout via ONNX Runtime, or palette)",
-                swap_refusal: None,
-            },
-            RoleKind::Cues => &RoleKindInfo {
-                variants: &["minilm"],
-                subscribes: &[topics::PERCEPTION_TEXT, topics::PERCEPTION_DETECTIONS],
-                publishes: &[topics::PERCEPTION_CUES],
-                reads_latest: &[],
-                with_tools: &[],
-                summary: "top-k instruction cues and subgoal relevance from MiniLM sentence embeddings",
-                swap_refusal: None,
-            },
-            RoleKind::Occupancy => &RoleKindInfo {
-                variants: &["depth", "onnx"],
-                subscribes: &[topics::CAMERA_DEPTH],
-                publishes: &[topics::PERCEPTION_OCCUPANCY],
-                reads_latest: &[],
-                with_tools: &[],
-                summary: "ego occupancy grid from depth (`onnx`: slot for a learned model, needs params.model)",
-                swap_refusal: None,
-            },
-            RoleKind::ImageToText => &RoleKindInfo {
-                variants: &["compose", "vlm"],
-                subscribes: &[
-                    topics::PERCEPTION_TEXT,
-                    topics::PERCEPTION_DETECTIONS,
-                    topics::PERCEPTION_CUES,
-                    topics::PERCEPTION_OCCUPANCY,
-                ],
-                publishes: &[topics::PERCEPTION_STATE],
-                reads_latest: &[],
-                with_tools: &[],
-                summary: "composes S_t and its scene summary from the blocks (`vlm`: no weights exist, refuses)",
-                swap_refusal: None,
-            },
-            RoleKind::Reasoning => &RoleKindInfo {
-                variants: &["planner", "garbage", "random", "smollm2", "gemma3"],
-                subscribes: &[topics::PERCEPTION_STATE, topics::VEHICLE_TELEMETRY],
-                publishes: &[topics::REASONING_DECISION],
-                reads_latest: &[topics::HUB_SETPOINT],
-                with_tools: &[],
-                summary: "(S_t, G, M) -> D_t every heartbeat: planner, GGUF language models under the D_t grammar, `garbage` fault injector, `random` VLN baseline",
-                swap_refusal: None,
-            },
-            RoleKind::Hub => &RoleKindInfo {
-                variants: &["gate"],
-                subscribes: &[
-                    topics::REASONING_DECISION,
-                    topics::PERCEPTION_STATE,
-                    topics::VEHICLE_TELEMETRY,
-                ],
-                publishes: &[topics::HUB_SETPOINT, topics::HUB_REPORT],
-                reads_latest: &[],
-                with_tools: &[],
-                summary: "decision gate (validate, clamp, bind), deadline, ordered delivery, ATT",
-                swap_refusal: Some("two hubs would both send setpoints"),
-            },
-            RoleKind::Controller => &RoleKindInfo {
-                variants: &["mavlink"],
-                subscribes: &[
-                    topics::HUB_SETPOINT,
-                    topics::VEHICLE_TELEMETRY,
-                    topics::CONTROLLER_LEASE,
-                ],
-                publishes: &[
-                    topics::VEHICLE_TELEMETRY,
-                    topics::CONTROLLER_LEASE,
-                    topics::CONTROLLER_LINK,
-                ],
-                reads_latest: &[],
-                with_tools: &[],
-                summary: "tracks setpoints at the control rate and talks MAVLink 1 or 2 to a PX4 or ArduPilot autopilot; a hot standby takes the autopilot lease when the holder goes silent",
-                swap_refusal: Some(
-                    "a controller is replaced by its hot standby (a second controller role), not swapped",
-                ),
-            },
-            RoleKind::Recorder => &RoleKindInfo {
-                variants: &["mcap"],
-                // every topic; a workflow's recorder is fitted to the topics its flight publishes
-                // (`Workflow::fit_recorders`)
-                subscribes: &topics::ALL,
-                publishes: &[],
-                reads_latest: &[],
-                with_tools: &[],
-                summary: "records every topic of the flight into an MCAP file (JSON and raw shared-memory bytes, images at a reduced rate); never slows the flight",
-                swap_refusal: None,
-            },
-            RoleKind::Bridge => &RoleKindInfo {
-                variants: &["zenoh"],
-                // the topics that cross between two hosts move as raw bytes, given in its
-                // params by the supervisor; it publishes the link's measurements itself
-                subscribes: &[],
-                publishes: &[topics::HOSTS_LINK],
-                reads_latest: &[],
-                with_tools: &[],
-                summary: "carries the topics that cross between the flight's host and another host over zenoh: exact bytes, schema checked per message (added by the supervisor)",
-                swap_refusal: Some(
-                    "a bridge is a flight's link to another host: it restarts, it is not swapped",
-                ),
-            },
-            RoleKind::Replay => &RoleKindInfo {
-                variants: &["mcap"],
-                subscribes: &[],
-                publishes: &[
-                    topics::CAMERA_RGB,
-                    topics::CAMERA_DEPTH,
-                    topics::VEHICLE_TELEMETRY,
-                ],
-                reads_latest: &[],
-                with_tools: &[],
-                summary: "the camera and the vehicle of a replayed flight: a recording's exact frames and telemetry at their recorded times (`aeris replay`)",
-                swap_refusal: Some("two sources would publish the recording twice"),
-            },
-            RoleKind::Formation => &RoleKindInfo {
-                variants: &["parser", "qwen-coder", "smollm2", "gemma3"],
-                subscribes: &[topics::VEHICLE_TELEMETRY],
-                publishes: &[topics::HUB_SETPOINT],
-                reads_latest: &[],
-                // `aeris formation say` asks to reshape the formation and reads the reply
-                with_tools: &[topics::FORMATION_SAY, topics::FORMATION_REPLY],
-                summary: "flies several vehicles in formation from the mission's instruction: writes a formation program (parser or a GGUF model under a grammar), checks and repairs it in simulation, then tracks every vehicle's slot at the control rate (the vehicles' `hub/setpoint`), replanning when a vehicle is lost",
-                swap_refusal: Some("the program being flown lives in the formation process"),
-            },
+            RoleKind::Vehicle => &<kinds::Vehicle as DeclaredKind>::INFO,
+            RoleKind::Camera => &<kinds::Camera as DeclaredKind>::INFO,
+            RoleKind::Perception => &<kinds::Perception as DeclaredKind>::INFO,
+            RoleKind::TextReader => &<kinds::TextReader as DeclaredKind>::INFO,
+            RoleKind::Detector => &<kinds::Detector as DeclaredKind>::INFO,
+            RoleKind::Cues => &<kinds::Cues as DeclaredKind>::INFO,
+            RoleKind::Occupancy => &<kinds::Occupancy as DeclaredKind>::INFO,
+            RoleKind::ImageToText => &<kinds::ImageToText as DeclaredKind>::INFO,
+            RoleKind::Reasoning => &<kinds::Reasoning as DeclaredKind>::INFO,
+            RoleKind::Hub => &<kinds::Hub as DeclaredKind>::INFO,
+            RoleKind::Controller => &<kinds::Controller as DeclaredKind>::INFO,
+            RoleKind::Recorder => &<kinds::Recorder as DeclaredKind>::INFO,
+            RoleKind::Bridge => &<kinds::Bridge as DeclaredKind>::INFO,
+            RoleKind::Replay => &<kinds::Replay as DeclaredKind>::INFO,
+            RoleKind::Formation => &<kinds::Formation as DeclaredKind>::INFO,
         }
     }
 }

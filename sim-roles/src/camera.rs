@@ -15,6 +15,7 @@ use aeris_geometry::CAMERA_MOUNT_HEIGHT_M;
 use aeris_runtime::bus::{BusError, FramePublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::kinds;
 use aeris_schemas::{CameraCounters, FrameFormat, FrameHeader, VehicleTelemetry, topics};
 use aeris_sim::render::{RenderError, Renderer};
 use aeris_sim::world::World;
@@ -38,7 +39,9 @@ pub struct CameraRole {
 }
 
 impl Role for CameraRole {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::Camera;
+
+    fn new(ctx: &mut RoleContext<kinds::Camera>) -> Result<Self, RoleError> {
         let spec = &ctx.spec;
         let name = &spec.mission.world;
         let world = World::builtin(name).ok_or_else(|| {
@@ -89,7 +92,7 @@ impl Role for CameraRole {
 
     fn cycle(
         &mut self,
-        _ctx: &mut RoleContext,
+        _ctx: &mut RoleContext<kinds::Camera>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         let t0 = monotonic_ns();

@@ -6,6 +6,7 @@
 use crate::perception::{InstructionWords, Segmenter};
 use aeris_roles::detector::{DetectionEngine, DetectorRole};
 use aeris_runtime::{RoleContext, RoleError};
+use aeris_schemas::kinds;
 use aeris_schemas::{FrameHeader, PerceptionState};
 
 /// Frames in a row without depth after which the engine says it cannot detect (once).
@@ -26,7 +27,7 @@ pub struct PaletteDetection {
 pub type PaletteDetectorRole = DetectorRole<PaletteDetection>;
 
 impl DetectionEngine for PaletteDetection {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    fn new(ctx: &mut RoleContext<kinds::Detector>) -> Result<Self, RoleError> {
         Ok(Self {
             without_depth: 0,
             segmenter: Box::default(),

@@ -27,6 +27,7 @@ use aeris_roles::depth_occupancy::fill_occupancy;
 use aeris_runtime::bus::{FrameSample, FrameSubscriber, TypedPublisher};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, MissionSpec, Role, RoleContext, RoleError};
+use aeris_schemas::kinds;
 use aeris_schemas::{
     Cue, FixedText, FrameError, FrameFormat, FrameHeader, GeometricPerceptionCounters, MAX_CUES,
     MAX_DETECTIONS, PerceptionState, block, topics,
@@ -554,7 +555,9 @@ impl PerceptionRole {
 }
 
 impl Role for PerceptionRole {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::Perception;
+
+    fn new(ctx: &mut RoleContext<kinds::Perception>) -> Result<Self, RoleError> {
         let rgb = ctx.bus.frame_subscriber::<topics::CameraRgb>()?;
         let depth = ctx.bus.frame_subscriber::<topics::CameraDepth>()?;
         let publisher = ctx.bus.publisher::<topics::PerceptionState>()?;
@@ -580,7 +583,7 @@ impl Role for PerceptionRole {
 
     fn cycle(
         &mut self,
-        _ctx: &mut RoleContext,
+        _ctx: &mut RoleContext<kinds::Perception>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         // keep the newest sample of each stream (at most one held plus one being received)

@@ -36,6 +36,7 @@ use aeris_mavlink::MavlinkVersion;
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::VehicleCounters;
+use aeris_schemas::kinds;
 use aeris_sim::mav_vehicle::{SimFirmware, SimVehicle, SimVehicleConfig};
 use std::fs::File;
 use std::os::unix::fs::FileExt;
@@ -135,7 +136,9 @@ impl VehicleRole {
 }
 
 impl Role for VehicleRole {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::Vehicle;
+
+    fn new(ctx: &mut RoleContext<kinds::Vehicle>) -> Result<Self, RoleError> {
         let spec = &ctx.spec;
         let url = match spec.params.get("listen") {
             None => DEFAULT_LISTEN,
@@ -232,7 +235,7 @@ impl Role for VehicleRole {
 
     fn cycle(
         &mut self,
-        ctx: &mut RoleContext,
+        ctx: &mut RoleContext<kinds::Vehicle>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         let now = monotonic_ns();
@@ -269,7 +272,7 @@ impl Role for VehicleRole {
         Ok(CycleOutcome::Worked)
     }
 
-    fn shutdown(&mut self, _ctx: &mut RoleContext) {
+    fn shutdown(&mut self, _ctx: &mut RoleContext<kinds::Vehicle>) {
         self.sim.shutdown();
     }
 }

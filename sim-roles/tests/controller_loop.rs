@@ -47,9 +47,9 @@ fn spec(
 
 struct Loop {
     vehicle: VehicleRole,
-    vctx: RoleContext,
+    vctx: RoleContext<aeris_schemas::kinds::Vehicle>,
     controller: ControllerRole,
-    cctx: RoleContext,
+    cctx: RoleContext<aeris_schemas::kinds::Controller>,
     report: CycleReport,
     publisher: aeris_runtime::bus::TypedPublisher<BoundSetpoint>,
     telemetry: aeris_runtime::bus::TypedSubscriber<VehicleTelemetry>,
@@ -148,24 +148,22 @@ fn controller_flies_the_simulated_vehicle_holds_and_lands() {
         "mavlink",
         serde_json::json!({"autopilot": format!("udpout:127.0.0.1:{port}"), "realtime": false}),
     );
-    let mut vctx = RoleContext {
-        bus: FlightBus::builder(&flight)
+    let mut vctx = RoleContext::new(
+        vspec,
+        FlightBus::builder(&flight)
             .node_name("vehicle")
             .create()
             .unwrap(),
-        spec: vspec,
-        cycles: 0,
-        missed_deadlines: 0,
-    };
-    let mut cctx = RoleContext {
-        bus: FlightBus::builder(&flight)
+    )
+    .unwrap();
+    let mut cctx = RoleContext::new(
+        cspec,
+        FlightBus::builder(&flight)
             .node_name("controller")
             .create()
             .unwrap(),
-        spec: cspec,
-        cycles: 0,
-        missed_deadlines: 0,
-    };
+    )
+    .unwrap();
     let hub = FlightBus::builder(&flight)
         .node_name("hub")
         .create()

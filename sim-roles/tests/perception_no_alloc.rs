@@ -86,17 +86,14 @@ fn camera_and_perception_cycles_allocate_only_inside_the_transport() {
         }))
         .unwrap()
     };
-    let mk = |kind: &str, variant: &str| RoleContext {
-        spec: spec(kind, variant),
-        bus: FlightBus::builder(&flight)
+    let bus = |kind: &str| {
+        FlightBus::builder(&flight)
             .node_name(kind)
             .create()
-            .unwrap(),
-        cycles: 0,
-        missed_deadlines: 0,
+            .unwrap()
     };
-    let mut cam_ctx = mk("camera", "sim-render");
-    let mut per_ctx = mk("perception", "geometric");
+    let mut cam_ctx = RoleContext::new(spec("camera", "sim-render"), bus("camera")).unwrap();
+    let mut per_ctx = RoleContext::new(spec("perception", "geometric"), bus("perception")).unwrap();
     let mut camera = CameraRole::new(&mut cam_ctx).unwrap();
     let mut perception = PerceptionRole::new(&mut per_ctx).unwrap();
     let tool = FlightBus::builder(&flight)

@@ -2,6 +2,7 @@
 //! camera frames in shared memory -> perception state.
 
 use aeris_runtime::{CycleOutcome, CycleReport, FlightBus, Role, RoleContext, RoleError, RoleSpec};
+use aeris_schemas::kinds::DeclaredKind;
 use aeris_schemas::{
     CameraCounters, FrameFormat, FrameHeader, GeometricPerceptionCounters, VehicleTelemetry, topics,
 };
@@ -30,14 +31,9 @@ fn spec(flight: &str, kind: &str, variant: &str, world: &str) -> RoleSpec {
     serde_json::from_value(json).unwrap()
 }
 
-fn ctx(flight: &str, kind: &str, variant: &str, world: &str) -> RoleContext {
+fn ctx<K: DeclaredKind>(flight: &str, kind: &str, variant: &str, world: &str) -> RoleContext<K> {
     let bus = FlightBus::builder(flight).node_name(kind).create().unwrap();
-    RoleContext {
-        spec: spec(flight, kind, variant, world),
-        bus,
-        cycles: 0,
-        missed_deadlines: 0,
-    }
+    RoleContext::new(spec(flight, kind, variant, world), bus).unwrap()
 }
 
 fn flight(tag: &str) -> String {

@@ -23,6 +23,7 @@ use aeris_runtime::role::try_sched_fifo;
 use aeris_runtime::{
     ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec,
 };
+use aeris_schemas::kinds;
 use aeris_schemas::{
     ActionMode, AutopilotLinkStatus, BoundSetpoint, ControllerCounters, ControllerLease, FixedText,
     LEASE_LINK_HEARD, LinkState, VehicleTelemetry, topics,
@@ -278,7 +279,9 @@ impl ControllerRole {
 }
 
 impl Role for ControllerRole {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::Controller;
+
+    fn new(ctx: &mut RoleContext<kinds::Controller>) -> Result<Self, RoleError> {
         let spec = &ctx.spec;
         let rate = spec.timing.control_rate_hz;
         if !(rate.is_finite() && rate > 0.0 && rate <= 1000.0) {
@@ -414,7 +417,7 @@ impl Role for ControllerRole {
 
     fn cycle(
         &mut self,
-        ctx: &mut RoleContext,
+        ctx: &mut RoleContext<kinds::Controller>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         // lease: who may write to the autopilot
@@ -611,7 +614,7 @@ impl Role for ControllerRole {
         Ok(CycleOutcome::Worked)
     }
 
-    fn shutdown(&mut self, _ctx: &mut RoleContext) {
+    fn shutdown(&mut self, _ctx: &mut RoleContext<kinds::Controller>) {
         self.receiver.stop();
     }
 }

@@ -49,6 +49,7 @@ use aeris_hub::program_gate::ProgramGate;
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::kinds;
 use aeris_schemas::{
     BoundSetpoint, FormationCommand, FormationCounters, FormationPhase, FormationProgram,
     FormationReply, MAX_PHASES, MAX_VEHICLES, PhaseKind, SayOutcome, VehicleTelemetry, topics,
@@ -158,7 +159,9 @@ fn plan(
 }
 
 impl Role for FormationRole {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::Formation;
+
+    fn new(ctx: &mut RoleContext<kinds::Formation>) -> Result<Self, RoleError> {
         let spec = &ctx.spec;
         let vehicles = spec
             .param_f64("vehicles")
@@ -281,7 +284,7 @@ impl Role for FormationRole {
 
     fn cycle(
         &mut self,
-        _ctx: &mut RoleContext,
+        _ctx: &mut RoleContext<kinds::Formation>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         let now = monotonic_ns();
@@ -389,7 +392,7 @@ impl Role for FormationRole {
         Ok(CycleOutcome::Worked)
     }
 
-    fn shutdown(&mut self, _ctx: &mut RoleContext) {
+    fn shutdown(&mut self, _ctx: &mut RoleContext<kinds::Formation>) {
         self.tracks.write(self.links.len());
     }
 }

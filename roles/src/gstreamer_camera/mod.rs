@@ -42,6 +42,7 @@ use aeris_runtime::error_chain::chain;
 use aeris_runtime::{
     ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec,
 };
+use aeris_schemas::kinds;
 use aeris_schemas::{
     CameraCounters, FrameFormat, FrameHeader, RoleStatus, VehicleTelemetry, topics,
 };
@@ -215,7 +216,9 @@ impl GstreamerCameraRole {
 }
 
 impl Role for GstreamerCameraRole {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::Camera;
+
+    fn new(ctx: &mut RoleContext<kinds::Camera>) -> Result<Self, RoleError> {
         let spec = &ctx.spec;
         let cam = &spec.camera;
         if !(cam.fps.is_finite() && cam.fps > 0.0) {
@@ -291,7 +294,7 @@ impl Role for GstreamerCameraRole {
 
     fn cycle(
         &mut self,
-        _ctx: &mut RoleContext,
+        _ctx: &mut RoleContext<kinds::Camera>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         let now = monotonic_ns();
@@ -385,7 +388,7 @@ impl Role for GstreamerCameraRole {
         Ok(CycleOutcome::Worked)
     }
 
-    fn shutdown(&mut self, _ctx: &mut RoleContext) {
+    fn shutdown(&mut self, _ctx: &mut RoleContext<kinds::Camera>) {
         self.rgb_source.capture.stop();
         if let Some(d) = &mut self.depth_source {
             d.capture.stop();

@@ -15,6 +15,7 @@ use super::role::PlannerReasoner;
 use crate::reasoner_io::POLL;
 use aeris_geometry::wrap_pi;
 use aeris_runtime::{CycleOutcome, CycleReport, Role, RoleContext, RoleError};
+use aeris_schemas::kinds;
 use aeris_schemas::{ActionMode, Decision, PlannerCounters};
 use core::time::Duration;
 
@@ -63,7 +64,9 @@ impl GarbageRole {
 }
 
 impl Role for GarbageRole {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::Reasoning;
+
+    fn new(ctx: &mut RoleContext<kinds::Reasoning>) -> Result<Self, RoleError> {
         let seed = ctx.spec.param_f64("seed").unwrap_or(7.0) as u64;
         Ok(Self {
             reasoner: PlannerReasoner::new(ctx)?,
@@ -78,7 +81,7 @@ impl Role for GarbageRole {
 
     fn cycle(
         &mut self,
-        _ctx: &mut RoleContext,
+        _ctx: &mut RoleContext<kinds::Reasoning>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         let Some(mut d) = self.reasoner.think(report)? else {
@@ -187,7 +190,9 @@ pub struct RandomRole {
 }
 
 impl Role for RandomRole {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::Reasoning;
+
+    fn new(ctx: &mut RoleContext<kinds::Reasoning>) -> Result<Self, RoleError> {
         let seed = ctx.spec.param_f64("seed").unwrap_or(1.0) as u64;
         Ok(Self {
             reasoner: PlannerReasoner::new(ctx)?,
@@ -204,7 +209,7 @@ impl Role for RandomRole {
 
     fn cycle(
         &mut self,
-        _ctx: &mut RoleContext,
+        _ctx: &mut RoleContext<kinds::Reasoning>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         let Some(mut d) = self.reasoner.think(report)? else {

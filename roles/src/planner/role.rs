@@ -15,6 +15,7 @@ use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{
     ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec,
 };
+use aeris_schemas::kinds;
 use aeris_schemas::{Decision, OccupancyStatus, PlannerCounters};
 use core::time::Duration;
 
@@ -38,7 +39,7 @@ pub(crate) struct PlannerReasoner {
 
 impl PlannerReasoner {
     /// The mission's planner, resumed where the hub has the flight, and the role's ports.
-    pub(crate) fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    pub(crate) fn new(ctx: &mut RoleContext<kinds::Reasoning>) -> Result<Self, RoleError> {
         let mut planner = mission_planner(&ctx.spec)?;
         // a plan takes microseconds: a first S_t is taken up to the deadline's age
         let io = ReasonerIo::new(ctx, &mut planner, Duration::ZERO)?;
@@ -123,7 +124,9 @@ pub struct PlannerRole {
 }
 
 impl Role for PlannerRole {
-    fn new(ctx: &mut RoleContext) -> Result<Self, RoleError> {
+    type Kind = kinds::Reasoning;
+
+    fn new(ctx: &mut RoleContext<kinds::Reasoning>) -> Result<Self, RoleError> {
         Ok(Self {
             reasoner: PlannerReasoner::new(ctx)?,
         })
@@ -135,7 +138,7 @@ impl Role for PlannerRole {
 
     fn cycle(
         &mut self,
-        _ctx: &mut RoleContext,
+        _ctx: &mut RoleContext<kinds::Reasoning>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
         let Some(mut d) = self.reasoner.think(report)? else {

@@ -12,20 +12,6 @@ pub enum BusError {
     /// The flight or node name is not usable as an iceoryx2 name.
     #[error("invalid name `{0}`")]
     InvalidName(String),
-    /// A role opened a typed port on a topic its kind does not declare
-    /// ([`aeris_schemas::RoleKind::info`]): the flight's graph would not know of it.
-    #[error(
-        "role kind {kind} does not declare that it {way} `{topic}` (its declaration is \
-         aeris_schemas::RoleKind::info, which the supervisor derives the flight's graph from)"
-    )]
-    Undeclared {
-        /// The role's kind.
-        kind: aeris_schemas::RoleKind,
-        /// The topic.
-        topic: &'static str,
-        /// `publishes` or `subscribes to`.
-        way: &'static str,
-    },
     /// The iceoryx2 node could not be created.
     #[error("cannot create iceoryx2 node `{name}`")]
     Node {

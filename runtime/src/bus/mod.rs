@@ -15,7 +15,7 @@
 pub use aeris_schemas::topics::Qos;
 use aeris_schemas::topics::{self, FrameTopic, MessageTopic, TopicInfo};
 use aeris_schemas::{
-    FlightManifest, FrameHeader, RoleKind, SCHEMA_VERSION, SupervisorCommand, SupervisorReply,
+    FlightManifest, FrameHeader, SCHEMA_VERSION, SupervisorCommand, SupervisorReply,
     SupervisorStatus, ZeroCopySend,
 };
 use core::fmt::Debug;
@@ -33,11 +33,13 @@ pub mod census;
 mod error;
 pub mod ownership;
 pub mod ports;
+mod role_bus;
 pub mod supervisor_services;
 
 pub use census::*;
 pub use error::{BusError, Cause};
 pub use ports::*;
+pub use role_bus::RoleBus;
 pub use supervisor_services::*;
 
 /// The iceoryx2 service flavour AERIS uses between processes.
@@ -97,22 +99,9 @@ pub struct FlightBusBuilder {
     cleanup_dead_nodes: bool,
     join: bool,
     vehicle: Option<u8>,
-    declared_by: Option<RoleKind>,
 }
 
 impl FlightBusBuilder {
-    /// Open typed ports only on the topics role kind `kind` declares
-    /// ([`RoleKind::info`]: what it subscribes to, reads the latest of, publishes, and
-    /// exchanges with tools; and its heartbeat), so that the flight's graph, which the
-    /// supervisor derives from those declarations, is what the role's code does. What a
-    /// role process's bus is ([`crate::RoleHost`]); the supervisor's and tools' open any
-    /// topic, and raw ports ([`crate::raw`]: the recorder, the bridge) carry what their
-    /// configuration names.
-    pub fn declared_by(mut self, kind: RoleKind) -> Self {
-        self.declared_by = Some(kind);
-        self
-    }
-
     /// Open every topic that is not flight-wide in vehicle `vehicle`'s scope
     /// (`aeris/s{V}/{flight}/v{K}/{topic}`, [`topics::in_vehicle`]): what a role of one
     /// vehicle of a flight with several does, so its code stays that of a one-vehicle
@@ -169,7 +158,6 @@ impl FlightBusBuilder {
             cleaned_dead_nodes: cleaned,
             manifest: None,
             vehicle: self.vehicle,
-            declared_by: self.declared_by,
         };
         if self.join {
             bus.join_flight()?;
@@ -227,14 +215,6 @@ pub struct FlightBus {
     cleaned_dead_nodes: u64,
     manifest: Option<ManifestService>,
     vehicle: Option<u8>,
-    declared_by: Option<RoleKind>,
-}
-
-/// Which way a port moves its topic.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum PortWay {
-    Publish,
-    Subscribe,
 }
 
 impl Debug for FlightBus {
@@ -275,7 +255,6 @@ impl FlightBus {
             cleanup_dead_nodes: true,
             join: true,
             vehicle: None,
-            declared_by: None,
         }
     }
 
@@ -444,7 +423,6 @@ impl FlightBus {
     /// # }
     /// ```
     pub fn publisher<T: MessageTopic>(&self) -> Result<TypedPublisher<T::Message>, BusError> {
-        self.check_declared(PortWay::Publish, &T::INFO)?;
         self.publisher_on(T::INFO.name, &T::INFO)
     }
 
@@ -455,13 +433,11 @@ impl FlightBus {
         &self,
         vehicle: Option<u8>,
     ) -> Result<TypedPublisher<T::Message>, BusError> {
-        self.check_declared(PortWay::Publish, &T::INFO)?;
         self.publisher_on(&scoped(vehicle, T::INFO.name), &T::INFO)
     }
 
     /// A subscriber of topic `T` (in this node's vehicle scope, if it has one).
     pub fn subscriber<T: MessageTopic>(&self) -> Result<TypedSubscriber<T::Message>, BusError> {
-        self.check_declared(PortWay::Subscribe, &T::INFO)?;
         self.subscriber_on(T::INFO.name, &T::INFO)
     }
 
@@ -470,41 +446,7 @@ impl FlightBus {
         &self,
         vehicle: Option<u8>,
     ) -> Result<TypedSubscriber<T::Message>, BusError> {
-        self.check_declared(PortWay::Subscribe, &T::INFO)?;
         self.subscriber_on(&scoped(vehicle, T::INFO.name), &T::INFO)
-    }
-
-    /// Refuse a typed port on a topic this bus's role kind does not declare
-    /// ([`FlightBusBuilder::declared_by`]).
-    fn check_declared(&self, way: PortWay, info: &TopicInfo) -> Result<(), BusError> {
-        let Some(kind) = self.declared_by else {
-            return Ok(());
-        };
-        let k = kind.info();
-        let topic = info.name;
-        let declared = match way {
-            PortWay::Publish => {
-                topic == topics::HEARTBEAT
-                    || k.publishes.contains(&topic)
-                    || k.with_tools.contains(&topic)
-            }
-            PortWay::Subscribe => {
-                k.subscribes.contains(&topic)
-                    || k.reads_latest.contains(&topic)
-                    || k.with_tools.contains(&topic)
-            }
-        };
-        if declared {
-            return Ok(());
-        }
-        Err(BusError::Undeclared {
-            kind,
-            topic,
-            way: match way {
-                PortWay::Publish => "publishes",
-                PortWay::Subscribe => "subscribes to",
-            },
-        })
     }
 
     /// A publisher of `M` on `topic`, a name of the topic declared as `info`.
@@ -618,13 +560,11 @@ impl FlightBus {
         &self,
         max_bytes: usize,
     ) -> Result<FramePublisher, BusError> {
-        self.check_declared(PortWay::Publish, &T::INFO)?;
         self.frame_publisher_on(T::INFO.name, &T::INFO, max_bytes)
     }
 
     /// A subscriber of frames on topic `T`.
     pub fn frame_subscriber<T: FrameTopic>(&self) -> Result<FrameSubscriber, BusError> {
-        self.check_declared(PortWay::Subscribe, &T::INFO)?;
         self.frame_subscriber_on(T::INFO.name, &T::INFO)
     }
 
