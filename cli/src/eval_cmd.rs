@@ -4,11 +4,10 @@
 use crate::flight_print::FlightPrinter;
 use aeris_eval::episode::Episode;
 use aeris_eval::generate::{AirspaceFilter, Split};
-use aeris_eval::mission::Agent;
 use aeris_eval::runner::{
     self, AgentOptions, AgentSetup, EpisodeLine, EpisodeSource, EvalConfig, EvalWatcher,
-    GroupSummary,
 };
+use aeris_eval::table::EvalTable;
 use aeris_flight::{FlightEvent, FlightWatcher};
 use anyhow::{Context, Result};
 use clap::Args;
@@ -161,62 +160,10 @@ pub fn run(args: EvalArgs) -> Result<()> {
     };
     let mut printer = EpisodePrinter(FlightPrinter::new(false, "aeris: ")?);
     let report = runner::run(&config, &mut printer)?;
-    let setup = &config.agent;
-    println!(
-        "{}, agent {}: {} episodes (details in {})",
-        report.label,
-        setup.label,
-        report.all.metrics.episodes,
-        report.jsonl_path.display()
-    );
-    println!(
-        "  {:<8} {:>4} {:>8} {:>6} {:>6} {:>6} {:>6} {:>6} {:>8} {:>8} {:>6}",
-        "airspace", "n", "NE m", "SR%", "OSR%", "nDTW%", "SPL%", "ASR%", "CT s", "P95 s", "EER%"
-    );
-    let pct = |v: f64| format!("{:.1}", v * 100.0);
-    let groups = [
-        ("open", &report.open),
-        ("dense", &report.dense),
-        ("full", &report.all),
-    ];
-    for (name, g) in groups {
-        let GroupSummary {
-            metrics: s,
-            ct_mean_s,
-            ct_p95_s,
-            eer,
-        } = g;
-        if s.episodes == 0 {
-            continue;
-        }
-        println!(
-            "  {:<8} {:>4} {:>8} {:>6} {:>6} {:>6} {:>6} {:>6} {:>8.3} {:>8.3} {:>6}",
-            name,
-            s.episodes,
-            s.ne.map(|v| format!("{v:.1}"))
-                .unwrap_or_else(|| "-".into()),
-            pct(s.sr),
-            pct(s.osr),
-            pct(s.ndtw),
-            pct(s.spl),
-            s.asr.map(pct).unwrap_or_else(|| "-".into()),
-            ct_mean_s,
-            ct_p95_s,
-            pct(*eer)
-        );
-    }
+    let table = EvalTable::new(&report, &config.agent);
+    print!("{table}");
     if args.json {
-        let mut obj = serde_json::to_value(&report.all)?;
-        obj["split"] = serde_json::Value::from(report.label.as_str());
-        obj["agent"] = serde_json::Value::from(setup.label.as_str());
-        obj["baseline"] = match setup.agent {
-            Agent::Aeris => serde_json::Value::Null,
-            a => serde_json::Value::from(a.as_str()),
-        };
-        obj["reasoning"] = serde_json::Value::from(setup.reasoning.as_str());
-        obj["open"] = serde_json::to_value(&report.open)?;
-        obj["dense"] = serde_json::to_value(&report.dense)?;
-        println!("{obj}");
+        println!("{}", serde_json::to_string(&table)?);
     }
     Ok(())
 }

@@ -4,6 +4,7 @@ mod agent_cmd;
 mod bench;
 mod command;
 #[cfg(feature = "sim")]
+mod episodes_cmd;
 mod eval_cmd;
 mod flight_print;
 mod formation_cmd;
@@ -90,7 +91,7 @@ enum Command {
     Eval(eval_cmd::EvalArgs),
     #[cfg(feature = "sim")]
     /// Generate and check VLN episodes (AerialVLN JSON format, train/val_unseen/test_unseen).
-    Episodes(scene_cmd::EpisodesArgs),
+    Episodes(episodes_cmd::EpisodesArgs),
     #[cfg(feature = "sim")]
     /// Look at a scene: its landmarks, an FPV frame from a pose, a video along a path or of a
     /// flight, a top-down map.

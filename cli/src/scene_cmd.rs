@@ -1,51 +1,13 @@
-//! `aeris episodes ...` and `aeris scene ...`: generate and check VLN episodes, render a
-//! scene's FPV frames and top-down maps.
+//! `aeris scene ...`: a scene's landmarks, its FPV frames, video and top-down maps.
 
-use aeris_eval::episode::{Episode, load_episodes, save_episodes};
-use aeris_eval::generate::{AirspaceFilter, Split, generate_split};
+use aeris_eval::episode::load_episodes;
 use aeris_eval::plot::{MapLayers, save_png, top_down};
-use aeris_runtime::stats::mean_std;
+use aeris_eval::table::ExecutedEpisode;
 use aeris_sim::render::{CAMERA_MOUNT_HEIGHT_M, Renderer};
 use aeris_sim::world::World;
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand};
-use std::io::Write;
 use std::path::{Path, PathBuf};
-
-/// Arguments of `aeris episodes`.
-#[derive(Debug, Args)]
-pub struct EpisodesArgs {
-    #[command(subcommand)]
-    pub command: EpisodesCommand,
-}
-
-/// What `aeris episodes` does.
-#[derive(Debug, Subcommand)]
-pub enum EpisodesCommand {
-    /// Generate a split's episodes (AerialVLN JSON with our subgoal annotation).
-    Generate {
-        /// Split: train, val_unseen or test_unseen (their scenes do not overlap).
-        #[arg(long)]
-        split: String,
-        /// Episodes to generate.
-        #[arg(long, default_value_t = 20)]
-        episodes: usize,
-        /// Airspace: open, dense or full (both, alternating).
-        #[arg(long, default_value = "full")]
-        airspace: String,
-        /// Output file (JSON).
-        #[arg(long)]
-        out: PathBuf,
-    },
-    /// Load and validate an episode file (ours or AerialVLN's) and summarise it.
-    Check {
-        /// Episode file (JSON).
-        file: PathBuf,
-        /// Print one JSON object instead of a table.
-        #[arg(long)]
-        json: bool,
-    },
-}
 
 /// Arguments of `aeris scene`.
 #[derive(Debug, Args)]
@@ -117,119 +79,6 @@ pub enum SceneCommand {
         #[arg(long)]
         out: PathBuf,
     },
-}
-
-/// The executed and reference paths, goal and scene of one line of episodes.jsonl.
-struct RunLine {
-    scene: String,
-    id: String,
-    positions: Vec<[f64; 3]>,
-    reference: Vec<[f64; 3]>,
-    goal: [f64; 3],
-}
-
-fn run_line(file: &Path, episode: Option<&str>) -> anyhow::Result<RunLine> {
-    let text =
-        std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))?;
-    for (n, line) in text.lines().enumerate() {
-        let v: serde_json::Value = serde_json::from_str(line)
-            .with_context(|| format!("{} line {}: not JSON", file.display(), n + 1))?;
-        let id = v["episode_id"].as_str().unwrap_or_default();
-        if episode.is_some_and(|e| e != id) {
-            continue;
-        }
-        let field = |k: &str| -> anyhow::Result<Vec<[f64; 3]>> {
-            serde_json::from_value(v[k].clone())
-                .with_context(|| format!("{} line {}: field `{k}`", file.display(), n + 1))
-        };
-        let goal: [f64; 3] = serde_json::from_value(v["goal"].clone())
-            .with_context(|| format!("{} line {}: field `goal`", file.display(), n + 1))?;
-        return Ok(RunLine {
-            scene: v["scene_id"].as_str().unwrap_or_default().to_string(),
-            id: id.to_string(),
-            positions: field("positions")?,
-            reference: field("reference")?,
-            goal,
-        });
-    }
-    match episode {
-        Some(e) => bail!("no episode `{e}` in {}", file.display()),
-        None => bail!("{} has no episodes", file.display()),
-    }
-}
-
-/// Run `aeris episodes`.
-pub fn episodes(args: EpisodesArgs) -> anyhow::Result<()> {
-    match args.command {
-        EpisodesCommand::Generate {
-            split,
-            episodes,
-            airspace,
-            out,
-        } => {
-            let split = Split::parse(&split).with_context(|| {
-                format!("unknown split `{split}`: use train, val_unseen or test_unseen")
-            })?;
-            let filter = AirspaceFilter::parse(&airspace).with_context(|| {
-                format!("unknown airspace `{airspace}`: use open, dense or full")
-            })?;
-            if episodes == 0 {
-                bail!("--episodes must be at least 1");
-            }
-            let mut stderr = std::io::stderr();
-            let list = generate_split(split, filter, episodes, &mut |done, total| {
-                let _ = write!(stderr, "\rgenerating episodes: {done}/{total}");
-                if done == total {
-                    let _ = writeln!(stderr);
-                }
-            })?;
-            save_episodes(&out, &list)?;
-            println!(
-                "wrote {} {} episodes ({airspace}) to {}",
-                list.len(),
-                split.as_str(),
-                out.display()
-            );
-            Ok(())
-        }
-        EpisodesCommand::Check { file, json } => {
-            let list = load_episodes(&file)?;
-            summarise(&file, &list, json);
-            Ok(())
-        }
-    }
-}
-
-fn summarise(file: &Path, list: &[Episode], json: bool) {
-    let steps: Vec<f64> = list.iter().map(|e| e.reference_path.len() as f64).collect();
-    let lengths: Vec<f64> = list
-        .iter()
-        .map(|e| aeris_eval::metrics::path_length(&e.reference_positions()))
-        .collect();
-    let annotated = list.iter().filter(|e| !e.subgoals.is_empty()).count();
-    let mean = |v: &[f64]| mean_std(v).map_or(0.0, |(m, _)| m);
-    let mean_steps = mean(&steps);
-    let scenes: std::collections::BTreeSet<&str> =
-        list.iter().map(|e| e.scene_id.as_str()).collect();
-    if json {
-        println!(
-            "{}",
-            serde_json::json!({
-                "file": file.display().to_string(),
-                "episodes": list.len(),
-                "scenes": scenes.len(),
-                "annotated": annotated,
-                "mean_reference_steps": mean_steps,
-                "mean_reference_length_m": mean(&lengths),
-            })
-        );
-    } else {
-        println!("{}: {} episodes, valid", file.display(), list.len());
-        println!("  scenes:                 {}", scenes.len());
-        println!("  with subgoal annotation: {annotated}");
-        println!("  reference steps (mean): {mean_steps:.1}");
-        println!("  reference length (mean): {:.1} m", mean(&lengths));
-    }
 }
 
 fn world(name: &str) -> anyhow::Result<World> {
@@ -376,24 +225,17 @@ pub fn run_map(
     scene: Option<&str>,
     out: &Path,
 ) -> anyhow::Result<()> {
-    let r = run_line(file, episode)?;
-    let w = world(scene.unwrap_or(&r.scene))?;
+    let r = ExecutedEpisode::read(file, episode)?;
+    let w = world(scene.unwrap_or(&r.scene_id))?;
     let layers = MapLayers {
         reference: &r.reference,
         executed: &r.positions,
         goal: Some(r.goal),
     };
     save_png(&top_down(&w, &layers)?, out)?;
-    println!("{}: executed (red) over reference (white)", r.id);
+    println!("{}: executed (red) over reference (white)", r.episode_id);
     println!("wrote {}", out.display());
     Ok(())
-}
-
-impl crate::command::Execute for EpisodesArgs {
-    fn execute(self) -> anyhow::Result<std::process::ExitCode> {
-        episodes(self)?;
-        Ok(std::process::ExitCode::SUCCESS)
-    }
 }
 
 impl crate::command::Execute for SceneArgs {

@@ -22,3 +22,4 @@ pub mod metrics;
 pub mod mission;
 pub mod plot;
 pub mod runner;
+pub mod table;
