@@ -42,7 +42,13 @@ pub fn onnx_accelerators() -> Option<(Vec<String>, Vec<AcceleratorInfo>)> {
 /// accelerators ONNX Runtime offers.
 pub fn planned_registry(workflow: &Workflow) -> Result<ExecutorRegistry, PlanError> {
     let online = CpuSet::of_task(0).unwrap_or_else(|_| CpuSet::available());
-    let plan = plan_launch(workflow, "validate", None, &online, || Ok(0))?;
+    // placeholder ports, distinct per vehicle (nothing is opened): a flight of several
+    // vehicles needs one link each
+    let mut placeholder = 0u16;
+    let plan = plan_launch(workflow, "validate", None, &online, || {
+        placeholder += 1;
+        Ok(placeholder)
+    })?;
     let mut registry = ExecutorRegistry::discover(&plan.executors, &online);
     if let Some((providers, accelerators)) = onnx_accelerators() {
         registry.set_accelerators(providers, accelerators);

@@ -65,6 +65,7 @@ pub mod status_report;
 mod supervise;
 mod telemetry;
 mod video_start;
+pub mod workflow_check;
 
 pub use autopilot_link::{AutopilotEvent, silent_diagnosis};
 pub use error::FlightError;

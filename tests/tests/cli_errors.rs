@@ -78,6 +78,43 @@ fn inspecting_a_flight_that_does_not_exist_is_a_clear_error() {
 }
 
 #[test]
+fn every_shipped_workflow_validates_and_its_json_is_the_same_check() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../workflows");
+    let mut checked = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|x| x != "toml") {
+            continue;
+        }
+        let validate = |json: bool| {
+            let mut cmd = Command::new(aeris_bin());
+            cmd.arg("validate").arg(&path);
+            if json {
+                cmd.arg("--json");
+            }
+            let out = cmd.output().expect("run aeris");
+            let text = String::from_utf8_lossy(&out.stdout).into_owned();
+            let err = String::from_utf8_lossy(&out.stderr).into_owned();
+            assert!(out.status.success(), "{}: {text}{err}", path.display());
+            text
+        };
+        let text = validate(false);
+        let json: serde_json::Value = serde_json::from_str(&validate(true)).unwrap();
+        let roles = json["roles"].as_array().expect("roles");
+        assert!(
+            text.contains(&format!("ok — {} roles", roles.len())),
+            "{text}"
+        );
+        for r in roles {
+            assert!(text.contains(r["name"].as_str().unwrap()), "{r} in {text}");
+        }
+        checked += 1;
+    }
+    // the default flight, the models', the FPV camera's and the formation's
+    assert!(checked >= 4, "{checked} workflows in {}", dir.display());
+}
+
+#[test]
 fn validate_lists_the_executor_registry_with_what_onnx_runtime_offers() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../workflows/models.toml");
     let out = Command::new(aeris_bin())
