@@ -5,17 +5,25 @@ use crate::flight_print::FlightPrinter;
 use aeris_eval::episode::Episode;
 use aeris_eval::generate::{AirspaceFilter, Split};
 use aeris_eval::runner::{
-    self, AgentOptions, AgentSetup, EpisodeLine, EpisodeSource, EvalConfig, EvalWatcher,
+    self, AgentOptions, AgentSetup, EpisodeLine, EpisodeSource, EvalConfig, EvalWatcher, Shard,
 };
 use aeris_eval::table::EvalTable;
 use aeris_flight::{FlightEvent, FlightWatcher};
 use anyhow::{Context, Result};
-use clap::Args;
+use clap::{Args, Subcommand};
 use std::path::PathBuf;
 
 /// Arguments of `aeris eval`.
 #[derive(Debug, Args)]
+#[command(args_conflicts_with_subcommands = true)]
 pub struct EvalArgs {
+    #[command(subcommand)]
+    command: Option<EvalCommand>,
+    /// Fly only shard K of N of the episodes (every N-th from the K-th, 1 <= K <= N), for
+    /// evaluations spread over machines; `aeris eval merge` makes the one table of the
+    /// shards' outputs.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<Shard>,
     /// Record every episode into its run folder (`runs/FLIGHT/flight.mcap`, named in
     /// episodes.jsonl as `recording`): open a failed one in Foxglove, or `aeris replay` it.
     #[arg(long)]
@@ -66,12 +74,28 @@ pub struct EvalArgs {
     #[arg(long)]
     pub no_ds: bool,
     /// Output folder for episodes.jsonl and the flights' logs (default:
-    /// runs/eval-SPLIT-AGENT, e.g. runs/eval-val_unseen-aeris-planner).
+    /// runs/eval-SPLIT-AGENT, e.g. runs/eval-val_unseen-aeris-planner; with --shard K/N,
+    /// runs/eval-SPLIT-AGENT-shard-K-of-N).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Print one JSON object with the summary on the last line of stdout.
     #[arg(long)]
     pub json: bool,
+}
+
+/// What else `aeris eval` does.
+#[derive(Debug, Subcommand)]
+enum EvalCommand {
+    /// Merge the outputs of `aeris eval --shard K/N` runs (their folders or episodes.jsonl
+    /// files) into the table one run of all their episodes prints.
+    Merge {
+        /// The shards' output folders or episodes.jsonl files.
+        #[arg(required = true)]
+        paths: Vec<PathBuf>,
+        /// Print one JSON object with the summary on the last line of stdout.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 /// Prints each episode's flight (without progress lines), start and score.
@@ -121,6 +145,14 @@ impl EvalWatcher for EpisodePrinter {
 
 /// Run `aeris eval`.
 pub fn run(args: EvalArgs) -> Result<()> {
+    if let Some(EvalCommand::Merge { paths, json }) = &args.command {
+        let table = aeris_eval::table::merge(paths)?;
+        print!("{table}");
+        if *json {
+            println!("{}", serde_json::to_string(&table)?);
+        }
+        return Ok(());
+    }
     let agent = AgentSetup::resolve(&AgentOptions {
         baseline: args.baseline.clone(),
         reasoning: args.reasoning.clone(),
@@ -148,7 +180,11 @@ pub fn run(args: EvalArgs) -> Result<()> {
         },
     };
     let out = args.out.clone().unwrap_or_else(|| {
-        PathBuf::from("runs").join(format!("eval-{}-{}", args.split, agent.label))
+        let shard = args
+            .shard
+            .map(|s| format!("-shard-{}-of-{}", s.index + 1, s.count))
+            .unwrap_or_default();
+        PathBuf::from("runs").join(format!("eval-{}-{}{shard}", args.split, agent.label))
     });
     let config = EvalConfig {
         agent,
@@ -157,6 +193,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         out,
         record: args.record,
         offload_check: Some(aeris_llm::offload_check),
+        shard: args.shard,
     };
     let mut printer = EpisodePrinter(FlightPrinter::new(false, "aeris: ")?);
     let report = runner::run(&config, &mut printer)?;

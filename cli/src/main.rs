@@ -5,6 +5,7 @@ mod bench;
 mod command;
 #[cfg(feature = "sim")]
 mod episodes_cmd;
+#[cfg(feature = "sim")]
 mod eval_cmd;
 mod flight_print;
 mod formation_cmd;

@@ -3,14 +3,15 @@
 
 use crate::episode::{Episode, EpisodeError, load_episodes};
 use crate::generate::{AirspaceFilter, GenerateError, Split, generate_split};
-use crate::metrics::{EpisodeMetrics, EpisodeRun, MetricsSummary};
+use crate::metrics::{EpisodeMetrics, EpisodeRun};
 use crate::mission::{Agent, MissionError, episode_mission};
+pub use crate::table::GroupSummary;
+use crate::table::{EpisodeTally, Summaries};
 use aeris_flight::{
     Flight, FlightError, FlightWatcher, HookError, Overrides, StepContext, StepHook, StopRule,
 };
 use aeris_orchestrator::workflow::{Workflow, WorkflowError};
 use aeris_runtime::MissionSpec;
-use aeris_runtime::stats::{mean_std, percentile};
 use aeris_schemas::RoleKind;
 use aeris_sim::world::World;
 use serde::Serialize;
@@ -184,6 +185,50 @@ pub struct EvalConfig {
     /// The language-model engine's offload check for the flights
     /// ([`aeris_flight::FlightBuilder::language_offload_check`]).
     pub offload_check: Option<aeris_flight::executors::OffloadCheck>,
+    /// Fly only this shard of the episodes (`aeris eval --shard K/N`); `None`: all.
+    pub shard: Option<Shard>,
+}
+
+/// Every `count`-th episode from the `index`-th (0-based): one of `count` disjoint shards
+/// that together are the whole list (`--shard K/N` is index K-1 of N).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    /// Which shard, 0-based.
+    pub index: usize,
+    /// How many shards.
+    pub count: usize,
+}
+
+/// Why `--shard` does not name a shard.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("not K/N with 1 <= K <= N (e.g. 1/4)")]
+pub struct ShardError(pub String);
+
+impl std::str::FromStr for Shard {
+    type Err = ShardError;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        let err = || ShardError(text.to_string());
+        let (k, n) = text.split_once('/').ok_or_else(err)?;
+        let (k, n): (usize, usize) = (
+            k.trim().parse().map_err(|_| err())?,
+            n.trim().parse().map_err(|_| err())?,
+        );
+        if k == 0 || k > n {
+            return Err(err());
+        }
+        Ok(Shard {
+            index: k - 1,
+            count: n,
+        })
+    }
+}
+
+impl Shard {
+    /// Whether episode `k` (0-based, of the whole list) is this shard's.
+    pub fn holds(&self, k: usize) -> bool {
+        k % self.count == self.index
+    }
 }
 
 /// An episode's recording, in its run folder (`aeris eval --record`).
@@ -192,6 +237,9 @@ pub const EPISODE_RECORDING: &str = "flight.mcap";
 /// One line of episodes.jsonl.
 #[derive(Debug, Serialize)]
 pub struct EpisodeLine<'a> {
+    /// The episode's place in the evaluated list (0-based; with `--shard`, in the whole
+    /// list, so that merged shards are summed in one run's order).
+    pub index: usize,
     /// Episode id.
     pub episode_id: &'a str,
     /// Scene id.
@@ -200,6 +248,12 @@ pub struct EpisodeLine<'a> {
     pub airspace: &'a str,
     /// The agent's label.
     pub agent: &'a str,
+    /// The episodes' origin: the split's name, or the file's path.
+    pub split: &'a str,
+    /// The baseline flown; `None` for AERIS.
+    pub baseline: Option<&'a str>,
+    /// The reasoning variant.
+    pub reasoning: &'a str,
     /// The instruction.
     pub instruction: &'a str,
     /// Positions kept (one per AerialVLN action step, and the final one).
@@ -229,6 +283,12 @@ pub struct EpisodeLine<'a> {
     pub ct_p95_s: f64,
     /// Execution error rate.
     pub eer: f64,
+    /// Committed cycles of the flight.
+    pub cycles: u64,
+    /// Cycles the hub reused the previous decision in (the EER's numerator).
+    pub decisions_reused: u64,
+    /// Every committed cycle's time (s): what the group's CT mean and P95 are taken over.
+    pub ct_samples_s: &'a [f64],
     /// Why the flight ended early, if it did.
     pub failure: Option<&'a str>,
     /// Automatic variant swaps (the role-adaptive stack's steps) during the flight.
@@ -238,43 +298,6 @@ pub struct EpisodeLine<'a> {
     /// The episode's recording (`aeris eval --record`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub recording: Option<&'a Path>,
-}
-
-/// The summary of a group of episodes.
-#[derive(Debug, Clone, Serialize)]
-pub struct GroupSummary {
-    /// The paper's metrics, averaged.
-    #[serde(flatten)]
-    pub metrics: MetricsSummary,
-    /// Mean cycle time over every committed cycle of the group (s).
-    pub ct_mean_s: f64,
-    /// Its 95th percentile (s).
-    pub ct_p95_s: f64,
-    /// Reused cycles over all cycles of the group.
-    pub eer: f64,
-}
-
-#[derive(Default)]
-struct Group {
-    metrics: Vec<EpisodeMetrics>,
-    ct: Vec<f64>,
-    cycles: u64,
-    reused: u64,
-}
-
-impl Group {
-    fn summary(&self) -> GroupSummary {
-        GroupSummary {
-            metrics: MetricsSummary::of(&self.metrics),
-            ct_mean_s: mean_std(&self.ct).map_or(0.0, |(mean, _)| mean),
-            ct_p95_s: percentile(&self.ct, 95.0).unwrap_or(0.0),
-            eer: if self.cycles == 0 {
-                0.0
-            } else {
-                self.reused as f64 / self.cycles as f64
-            },
-        }
-    }
 }
 
 /// What an evaluation found.
@@ -484,16 +507,23 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
         source,
     };
     let mut jsonl = std::fs::File::create(&jsonl_path).map_err(write_error)?;
-    let total = episodes.len();
-    let mut all = Group::default();
-    let mut open = Group::default();
-    let mut dense = Group::default();
-    for (k, episode) in episodes.iter().enumerate() {
+    let chosen: Vec<(usize, &Episode)> = episodes
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| config.shard.is_none_or(|s| s.holds(*k)))
+        .collect();
+    let total = chosen.len();
+    let baseline = match setup.agent {
+        Agent::Aeris => None,
+        a => Some(a.as_str()),
+    };
+    let mut tallies = Vec::with_capacity(total);
+    for (n, (k, episode)) in chosen.into_iter().enumerate() {
         let em = episode_mission(episode, setup.agent)?;
         let workflow = episode_workflow(setup, em.mission, k, &episode.episode_id)?;
         let flight = format!("eval-{}-{k}", std::process::id());
         let run_dir = out.join("runs").join(&flight);
-        watcher.episode_started(k, total, episode);
+        watcher.episode_started(n, total, episode);
         let watch = PathWatch {
             world: em.world,
             positions: vec![episode.start_position],
@@ -576,10 +606,14 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
         let m = EpisodeMetrics::compute(&run);
         let airspace = episode.airspace.as_deref().unwrap_or("unknown");
         let line = EpisodeLine {
+            index: k,
             episode_id: &episode.episode_id,
             scene_id: &episode.scene_id,
             airspace,
             agent: &setup.label,
+            split: &label,
+            baseline,
+            reasoning: &setup.reasoning,
             instruction: &episode.instruction.instruction_text,
             positions: &positions,
             reference: &reference,
@@ -594,6 +628,9 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
             ct_mean_s: summary.ct_mean_s,
             ct_p95_s: summary.ct_p95_s,
             eer: summary.eer,
+            cycles: summary.cycles,
+            decisions_reused: summary.hub.decisions_reused,
+            ct_samples_s: &outcome.ct_samples_s,
             failure: failure.as_deref(),
             variant_steps: summary.variant_steps,
             run_dir: &run_dir,
@@ -601,27 +638,16 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
         };
         let text = serde_json::to_string(&line).map_err(|e| write_error(e.into()))?;
         writeln!(jsonl, "{text}").map_err(write_error)?;
-        watcher.episode_scored(k, total, &line);
-        for group in [
-            Some(&mut all),
-            (airspace == "open").then_some(&mut open),
-            (airspace == "dense").then_some(&mut dense),
-        ]
-        .into_iter()
-        .flatten()
-        {
-            group.metrics.push(m);
-            group.ct.extend_from_slice(&outcome.ct_samples_s);
-            group.cycles += summary.cycles;
-            group.reused += summary.hub.decisions_reused;
-        }
+        watcher.episode_scored(n, total, &line);
+        tallies.push(EpisodeTally::of(&line));
     }
+    let Summaries { all, open, dense } = Summaries::of(&tallies);
     Ok(EvalReport {
         label,
         jsonl_path,
-        all: all.summary(),
-        open: open.summary(),
-        dense: dense.summary(),
+        all,
+        open,
+        dense,
     })
 }
 
@@ -665,10 +691,14 @@ mod tests {
     #[test]
     fn an_episode_line_keeps_its_keys_in_order_with_the_metrics_inline() {
         let line = EpisodeLine {
+            index: 3,
             episode_id: "e1",
             scene_id: "s",
             airspace: "open",
             agent: "oracle",
+            split: "val_unseen",
+            baseline: Some("oracle"),
+            reasoning: "planner",
             instruction: "fly",
             positions: &[[0.0, 0.0, 0.0]],
             reference: &[],
@@ -691,6 +721,9 @@ mod tests {
             ct_mean_s: 0.1,
             ct_p95_s: 0.2,
             eer: 0.0,
+            cycles: 2,
+            decisions_reused: 0,
+            ct_samples_s: &[0.1, 0.2],
             failure: None,
             variant_steps: 0,
             run_dir: Path::new("runs/x"),
@@ -698,7 +731,7 @@ mod tests {
         };
         assert_eq!(
             serde_json::to_string(&line).unwrap(),
-            r#"{"episode_id":"e1","scene_id":"s","airspace":"open","agent":"oracle","instruction":"fly","positions":[[0.0,0.0,0.0]],"reference":[],"goal":[1.0,2.0,3.0],"stopped":true,"collided":false,"subgoals_total":1,"subgoals_completed":1,"attention_steps":[1],"ne":null,"sr":1.0,"osr":1.0,"ndtw":0.5,"spl":0.25,"asr":1.0,"path_length_m":10.0,"duration_s":2.0,"ct_mean_s":0.1,"ct_p95_s":0.2,"eer":0.0,"failure":null,"variant_steps":0,"run_dir":"runs/x"}"#
+            r#"{"index":3,"episode_id":"e1","scene_id":"s","airspace":"open","agent":"oracle","split":"val_unseen","baseline":"oracle","reasoning":"planner","instruction":"fly","positions":[[0.0,0.0,0.0]],"reference":[],"goal":[1.0,2.0,3.0],"stopped":true,"collided":false,"subgoals_total":1,"subgoals_completed":1,"attention_steps":[1],"ne":null,"sr":1.0,"osr":1.0,"ndtw":0.5,"spl":0.25,"asr":1.0,"path_length_m":10.0,"duration_s":2.0,"ct_mean_s":0.1,"ct_p95_s":0.2,"eer":0.0,"cycles":2,"decisions_reused":0,"ct_samples_s":[0.1,0.2],"failure":null,"variant_steps":0,"run_dir":"runs/x"}"#
         );
     }
 

@@ -1,11 +1,16 @@
 //! What the evaluation commands report, as values: `aeris eval`'s table ([`EvalTable`]),
-//! `aeris episodes check`'s summary of an episode file ([`EpisodeFileSummary`]), and the part
-//! of an episodes.jsonl line that maps and plots read back ([`ExecutedEpisode`]). Each
-//! prints as the command's text (`Display`) and serialises as its `--json`.
+//! the per-airspace summaries it is made of ([`Summaries`], from one [`EpisodeTally`] per
+//! episode, which a line of episodes.jsonl carries, so that shards flown apart merge into
+//! the table one run would have printed: [`merge`]), `aeris episodes check`'s summary of an
+//! episode file ([`EpisodeFileSummary`]), and the part of an episodes.jsonl line that maps
+//! read back ([`ExecutedEpisode`]). Each prints as the command's text (`Display`) and
+//! serialises as its `--json`.
 
 use crate::episode::Episode;
+use crate::metrics::{EpisodeMetrics, MetricsSummary};
 use crate::mission::Agent;
-use crate::runner::{AgentSetup, EvalReport, GroupSummary};
+use crate::runner::{AgentSetup, EpisodeLine, EvalReport};
+use aeris_runtime::stats::{mean_std, percentile};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -28,9 +33,9 @@ pub struct EvalTable {
     pub open: GroupSummary,
     /// The dense-airspace episodes.
     pub dense: GroupSummary,
-    /// Where the episode lines are.
+    /// Where the episode lines are (one file, or the shards' files).
     #[serde(skip)]
-    pub episodes_jsonl: PathBuf,
+    pub details: String,
 }
 
 impl EvalTable {
@@ -47,7 +52,7 @@ impl EvalTable {
             all: report.all.clone(),
             open: report.open.clone(),
             dense: report.dense.clone(),
-            episodes_jsonl: report.jsonl_path.clone(),
+            details: report.jsonl_path.display().to_string(),
         }
     }
 }
@@ -57,10 +62,7 @@ impl fmt::Display for EvalTable {
         writeln!(
             f,
             "{}, agent {}: {} episodes (details in {})",
-            self.split,
-            self.agent,
-            self.all.metrics.episodes,
-            self.episodes_jsonl.display()
+            self.split, self.agent, self.all.metrics.episodes, self.details
         )?;
         writeln!(
             f,
@@ -106,6 +108,241 @@ impl fmt::Display for EvalTable {
         }
         Ok(())
     }
+}
+
+/// The summary of a group of episodes.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GroupSummary {
+    /// The paper's metrics, averaged.
+    #[serde(flatten)]
+    pub metrics: MetricsSummary,
+    /// Mean cycle time over every committed cycle of the group (s).
+    pub ct_mean_s: f64,
+    /// Its 95th percentile (s).
+    pub ct_p95_s: f64,
+    /// Reused cycles over all cycles of the group.
+    pub eer: f64,
+}
+
+/// What one flown episode adds to the summaries of its groups: read from its line of
+/// episodes.jsonl (the fields of [`EpisodeLine`] of the same names).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EpisodeTally {
+    /// The episode's place in the evaluated list.
+    pub index: usize,
+    /// Episode id.
+    pub episode_id: String,
+    /// `open`, `dense` or `unknown`.
+    pub airspace: String,
+    /// The agent's label.
+    pub agent: String,
+    /// The episodes' origin.
+    pub split: String,
+    /// The baseline flown; `None` for AERIS.
+    pub baseline: Option<String>,
+    /// The reasoning variant.
+    pub reasoning: String,
+    /// Its metrics.
+    #[serde(flatten)]
+    pub metrics: EpisodeMetrics,
+    /// Committed cycles.
+    pub cycles: u64,
+    /// Cycles that reused the previous decision.
+    pub decisions_reused: u64,
+    /// Every committed cycle's time (s).
+    pub ct_samples_s: Vec<f64>,
+}
+
+impl EpisodeTally {
+    /// The tally of the episode `line` reports.
+    pub fn of(line: &EpisodeLine<'_>) -> Self {
+        Self {
+            index: line.index,
+            episode_id: line.episode_id.to_string(),
+            airspace: line.airspace.to_string(),
+            agent: line.agent.to_string(),
+            split: line.split.to_string(),
+            baseline: line.baseline.map(str::to_string),
+            reasoning: line.reasoning.to_string(),
+            metrics: line.metrics,
+            cycles: line.cycles,
+            decisions_reused: line.decisions_reused,
+            ct_samples_s: line.ct_samples_s.to_vec(),
+        }
+    }
+}
+
+/// The summaries of an evaluation: every episode, the open-airspace ones, the dense ones.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Summaries {
+    /// Every episode.
+    pub all: GroupSummary,
+    /// The open-airspace episodes.
+    pub open: GroupSummary,
+    /// The dense-airspace episodes.
+    pub dense: GroupSummary,
+}
+
+impl Summaries {
+    /// The summaries of `tallies`, taken in their order.
+    pub fn of(tallies: &[EpisodeTally]) -> Self {
+        let group = |keep: &dyn Fn(&EpisodeTally) -> bool| {
+            let members: Vec<&EpisodeTally> = tallies.iter().filter(|t| keep(t)).collect();
+            let ct: Vec<f64> = members
+                .iter()
+                .flat_map(|t| t.ct_samples_s.iter().copied())
+                .collect();
+            let cycles: u64 = members.iter().map(|t| t.cycles).sum();
+            let reused: u64 = members.iter().map(|t| t.decisions_reused).sum();
+            GroupSummary {
+                metrics: MetricsSummary::of(members.iter().map(|t| &t.metrics)),
+                ct_mean_s: mean_std(&ct).map_or(0.0, |(mean, _)| mean),
+                ct_p95_s: percentile(&ct, 95.0).unwrap_or(0.0),
+                eer: if cycles == 0 {
+                    0.0
+                } else {
+                    reused as f64 / cycles as f64
+                },
+            }
+        };
+        Self {
+            all: group(&|_| true),
+            open: group(&|t| t.airspace == "open"),
+            dense: group(&|t| t.airspace == "dense"),
+        }
+    }
+}
+
+/// Why shards' episodes.jsonl files do not merge into one table.
+#[derive(Debug, thiserror::Error)]
+pub enum MergeError {
+    /// Nothing to merge.
+    #[error("give the episodes.jsonl files (or the shards' output folders) to merge")]
+    Nothing,
+    /// A file could not be read.
+    #[error("cannot read {path}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A line is not one of `aeris eval` (or one written before shards could be merged).
+    #[error(
+        "{path} line {line}: not an episodes.jsonl line of this `aeris eval` (lines written \
+         before `--shard` carry no cycle times: fly them again)"
+    )]
+    Line {
+        /// The file.
+        path: PathBuf,
+        /// 1-based.
+        line: usize,
+        /// Why.
+        source: serde_json::Error,
+    },
+    /// Two files come from different evaluations.
+    #[error(
+        "{path}: {field} `{found}`, but the first file's is `{expected}`: not shards of one evaluation"
+    )]
+    Mixed {
+        /// The file that differs.
+        path: PathBuf,
+        /// `agent`, `split`, `baseline` or `reasoning`.
+        field: &'static str,
+        /// The first file's.
+        expected: String,
+        /// This one's.
+        found: String,
+    },
+    /// An episode is in two shards.
+    #[error("{path}: episode {index} (`{episode}`) is in an earlier file too")]
+    Duplicate {
+        /// The file it came up again in.
+        path: PathBuf,
+        /// Its index in the evaluated list.
+        index: usize,
+        /// Its id.
+        episode: String,
+    },
+}
+
+/// The table of the evaluation whose shards wrote `paths` (each an episodes.jsonl, or the
+/// output folder holding one): their episodes in the whole list's order, summarised as one
+/// run of them all would have been.
+pub fn merge(paths: &[PathBuf]) -> Result<EvalTable, MergeError> {
+    let mut tallies: Vec<EpisodeTally> = Vec::new();
+    let mut files = Vec::new();
+    for path in paths {
+        let file = if path.is_dir() {
+            path.join("episodes.jsonl")
+        } else {
+            path.clone()
+        };
+        let text = std::fs::read_to_string(&file).map_err(|source| MergeError::Read {
+            path: file.clone(),
+            source,
+        })?;
+        for (n, line) in text.lines().enumerate() {
+            if line.trim().is_empty() {
+                continue;
+            }
+            let t: EpisodeTally =
+                serde_json::from_str(line).map_err(|source| MergeError::Line {
+                    path: file.clone(),
+                    line: n + 1,
+                    source,
+                })?;
+            if let Some(first) = tallies.first() {
+                let fields = [
+                    ("agent", &first.agent, &t.agent),
+                    ("split", &first.split, &t.split),
+                    ("reasoning", &first.reasoning, &t.reasoning),
+                ];
+                let baseline = |b: &Option<String>| b.clone().unwrap_or_else(|| "none".into());
+                let (b0, b1) = (baseline(&first.baseline), baseline(&t.baseline));
+                for (field, expected, found) in fields.into_iter().chain([("baseline", &b0, &b1)]) {
+                    if expected != found {
+                        return Err(MergeError::Mixed {
+                            path: file.clone(),
+                            field,
+                            expected: expected.clone(),
+                            found: found.clone(),
+                        });
+                    }
+                }
+            }
+            if tallies.iter().any(|o| o.index == t.index) {
+                return Err(MergeError::Duplicate {
+                    path: file.clone(),
+                    index: t.index,
+                    episode: t.episode_id,
+                });
+            }
+            tallies.push(t);
+        }
+        files.push(file.display().to_string());
+    }
+    let Some(first) = tallies.first() else {
+        return Err(MergeError::Nothing);
+    };
+    let (split, agent, baseline, reasoning) = (
+        first.split.clone(),
+        first.agent.clone(),
+        first.baseline.clone(),
+        first.reasoning.clone(),
+    );
+    tallies.sort_by_key(|t| t.index);
+    let Summaries { all, open, dense } = Summaries::of(&tallies);
+    Ok(EvalTable {
+        split,
+        agent,
+        baseline,
+        reasoning,
+        all,
+        open,
+        dense,
+        details: files.join(", "),
+    })
 }
 
 /// What an episode file holds, checked: `aeris episodes check`.
@@ -222,18 +459,24 @@ impl ExecutedEpisode {
             path: file.to_path_buf(),
             source,
         })?;
+        // only the episode asked for must have every field; the others need only be JSON
+        #[derive(Deserialize)]
+        struct Id {
+            #[serde(default)]
+            episode_id: String,
+        }
+        let line_error = |n: usize, source| ExecutedEpisodeError::Line {
+            path: file.to_path_buf(),
+            line: n + 1,
+            source,
+        };
         for (n, line) in text.lines().enumerate() {
             if line.trim().is_empty() {
                 continue;
             }
-            let e: ExecutedEpisode =
-                serde_json::from_str(line).map_err(|source| ExecutedEpisodeError::Line {
-                    path: file.to_path_buf(),
-                    line: n + 1,
-                    source,
-                })?;
-            if episode.is_none_or(|id| id == e.episode_id) {
-                return Ok(e);
+            let id: Id = serde_json::from_str(line).map_err(|e| line_error(n, e))?;
+            if episode.is_none_or(|e| e == id.episode_id) {
+                return serde_json::from_str(line).map_err(|e| line_error(n, e));
             }
         }
         Err(match episode {
@@ -277,5 +520,110 @@ mod tests {
             format!("no episode `z` in {}", file.display())
         );
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
+
+#[cfg(test)]
+mod merge_tests {
+    use super::*;
+
+    fn tally(index: usize) -> EpisodeTally {
+        let x = index as f64;
+        EpisodeTally {
+            index,
+            episode_id: format!("ep-{index}"),
+            airspace: if index.is_multiple_of(3) {
+                "open"
+            } else {
+                "dense"
+            }
+            .into(),
+            agent: "aeris-planner".into(),
+            split: "test_unseen".into(),
+            baseline: None,
+            reasoning: "planner".into(),
+            metrics: EpisodeMetrics {
+                ne: Some(3.1 * x + 0.7),
+                sr: f64::from(index.is_multiple_of(2)),
+                osr: 1.0,
+                ndtw: 0.1 + 0.13 * x,
+                spl: 0.3 / (x + 1.0),
+                asr: Some(0.25 * (index % 4) as f64),
+                path_length_m: 100.0 + x,
+            },
+            cycles: 40 + index as u64,
+            decisions_reused: index as u64 % 3,
+            ct_samples_s: (0..7)
+                .map(|c| 0.05 + 0.011 * (c as f64) * (x + 1.0))
+                .collect(),
+        }
+    }
+
+    fn write(dir: &Path, name: &str, tallies: &[EpisodeTally]) -> PathBuf {
+        let path = dir.join(name);
+        let text: String = tallies
+            .iter()
+            .map(|t| serde_json::to_string(t).unwrap() + "\n")
+            .collect();
+        std::fs::write(&path, text).unwrap();
+        path
+    }
+
+    #[test]
+    fn shards_merge_into_the_table_of_one_run_and_other_evaluations_do_not() {
+        let dir = std::env::temp_dir().join(format!("aeris-merge-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let all: Vec<EpisodeTally> = (0..7).map(tally).collect();
+        let one_run = Summaries::of(&all);
+        // two shards (`--shard 1/2`, `2/2`), given in either order
+        let shard = |k: usize| -> Vec<EpisodeTally> {
+            let s = crate::runner::Shard { index: k, count: 2 };
+            all.iter().filter(|t| s.holds(t.index)).cloned().collect()
+        };
+        let (a, b) = (
+            write(&dir, "a.jsonl", &shard(0)),
+            write(&dir, "b.jsonl", &shard(1)),
+        );
+        let merged = merge(&[b.clone(), a.clone()]).unwrap();
+        assert_eq!(merged.all.metrics.episodes, 7);
+        assert_eq!(
+            (merged.all, merged.open, merged.dense),
+            (one_run.all, one_run.open, one_run.dense),
+            "to the last bit"
+        );
+        assert_eq!(
+            (merged.agent.as_str(), merged.baseline),
+            ("aeris-planner", None)
+        );
+        // a shard twice, or a shard of another agent, is refused by name
+        let err = merge(&[a.clone(), a.clone()]).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("episode 0 (`ep-0`) is in an earlier file too"),
+            "{err}"
+        );
+        let mut other = shard(1);
+        other.iter_mut().for_each(|t| t.agent = "oracle".into());
+        let c = write(&dir, "c.jsonl", &other);
+        let err = merge(&[a, c]).unwrap_err();
+        assert!(
+            err.to_string()
+                .ends_with("agent `oracle`, but the first file's is `aeris-planner`: not shards of one evaluation"),
+            "{err}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_shard_is_k_of_n_and_the_shards_cover_the_list_once() {
+        use crate::runner::Shard;
+        assert_eq!("2/3".parse(), Ok(Shard { index: 1, count: 3 }));
+        for bad in ["0/3", "4/3", "3", "a/b", "1/0"] {
+            assert!(bad.parse::<Shard>().is_err(), "{bad}");
+        }
+        let shards: Vec<Shard> = (1..=3).map(|k| format!("{k}/3").parse().unwrap()).collect();
+        for k in 0..10 {
+            assert_eq!(shards.iter().filter(|s| s.holds(k)).count(), 1, "{k}");
+        }
     }
 }

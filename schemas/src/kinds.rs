@@ -1,15 +1,21 @@
 //! Every role kind as a type, declaring the topics it reads and writes: the one place a
 //! kind's ports are written down. A role names its kind (`type Kind = kinds::Hub` on its
 //! `Role` impl) and can open a port only on a topic its kind declares: `Publishes<T>` and
-//! `Subscribes<T>` are implemented here and nowhere else, so an undeclared port is a compile
-//! error. The flight's graph (the supervisor's wiring, the bridge's plan, the recorder's
+//! `Subscribes<T>` are implemented here for the topics of `schemas` (and the kinds are
+//! sealed: no other crate declares one), so an undeclared port is a compile error. The flight's graph (the supervisor's wiring, the bridge's plan, the recorder's
 //! topics, `aeris roles`) reads the same declarations through [`RoleKind::info`].
 
 use crate::role_kinds::{RoleKind, RoleKindInfo};
 use crate::topics::{self, Topic};
 
-/// A role kind as a type: its [`RoleKind`] and what it is.
-pub trait DeclaredKind: 'static {
+mod sealed {
+    /// Only this module's kinds are kinds: a crate cannot declare a kind of its own with
+    /// other ports.
+    pub trait Sealed {}
+}
+
+/// A role kind as a type: its [`RoleKind`] and what it is (implemented here only).
+pub trait DeclaredKind: sealed::Sealed + 'static {
     /// The kind's name in workflows.
     const KIND: RoleKind;
     /// Its variants, ports and swap policy.
@@ -50,6 +56,7 @@ macro_rules! declare_kinds {
         #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
         pub struct $kind;
 
+        impl sealed::Sealed for $kind {}
         impl DeclaredKind for $kind {
             const KIND: RoleKind = RoleKind::$kind;
             const INFO: RoleKindInfo = RoleKindInfo {
@@ -241,6 +248,7 @@ impl RawPorts for Bridge {}
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Recorder;
 
+impl sealed::Sealed for Recorder {}
 impl DeclaredKind for Recorder {
     const KIND: RoleKind = RoleKind::Recorder;
     const INFO: RoleKindInfo = RoleKindInfo {

@@ -14,8 +14,9 @@ use aeris_schemas::ControllerLease;
 
 /// Control periods without a lease heard after which a standby claims it: long enough that
 /// a holder delayed by a busy machine for a few ticks keeps it (a takeover moves the
-/// autopilot link to another process), short enough that the autopilot, which gives up on
-/// offboard setpoints after PX4's `COM_OF_LOSS_T` (1 s by default), never notices a dead one.
+/// autopilot link to another process), short enough that at the default 50 Hz (100 ms) the
+/// autopilot, which gives up on offboard setpoints after PX4's `COM_OF_LOSS_T` (1 s by
+/// default), does not notice a dead holder. (At a control rate under 5 Hz it would.)
 pub const LEASE_SILENCE_PERIODS: u64 = 5;
 
 /// Control periods a primary controller listens for a lease holder after it starts before

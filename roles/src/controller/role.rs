@@ -434,7 +434,7 @@ impl Role for ControllerRole {
         let change = self.arbiter.decide(t0);
         let active = self.arbiter.is_active();
         if change == LeaseChange::TookOver {
-            // fly from this poll on (the holder's last tick was a period or more ago), from
+            // fly from this poll on (the holder's last tick was the silence window or more ago), from
             // the reference the holder last published
             self.next_tick_ns = t0;
             self.term_start_ns = Some(t0);

@@ -2,7 +2,7 @@
 //! oracle baseline (the planner on the reference path) succeeds, the random baseline does
 //! not, the AERIS agent flies from the instruction alone, and every episode is written to
 //! episodes.jsonl with its trajectory, metrics and run folder (and with `--record` its
-//! recording), which `aeris plot` draws.
+//! recording), which `aeris plot` draws; `aeris eval merge` of a run's output is its table.
 
 use aeris_tests::*;
 use std::process::Command;
@@ -100,8 +100,24 @@ fn the_oracle_succeeds_in(airspace: &str) {
             "1",
             "--baseline",
             "oracle",
+            // the one shard of one: what `aeris eval merge` makes of its output is the
+            // table this run printed
+            "--shard",
+            "1/1",
         ],
     );
+    let merged = Command::new(aeris_bin())
+        .args(["eval", "merge", "--json"])
+        .arg(&oracle_dir)
+        .output()
+        .expect("run aeris eval merge");
+    let merged_out = String::from_utf8_lossy(&merged.stdout);
+    assert!(
+        merged.status.success(),
+        "{merged_out}{}",
+        String::from_utf8_lossy(&merged.stderr)
+    );
+    assert_eq!(last_json_line(&merged_out), summary, "{merged_out}");
     assert_eq!(summary["episodes"], 1, "{summary}");
     assert_eq!(summary["sr"], 1.0, "{summary}");
     assert_eq!(summary["osr"], 1.0, "{summary}");
@@ -308,6 +324,10 @@ fn bad_arguments_are_clear_errors() {
         (
             vec!["--baseline", "oracle", "--episodes", "0"],
             "--episodes must be at least 1",
+        ),
+        (
+            vec!["--baseline", "oracle", "--shard", "0/2"],
+            "not K/N with 1 <= K <= N",
         ),
         (
             vec!["--baseline", "random", "--single-slm"],
