@@ -7,7 +7,6 @@ use aeris_eval::generate::{AirspaceFilter, Split};
 use aeris_eval::runner::{
     self, AgentOptions, AgentSetup, EpisodeLine, EpisodeSource, EvalConfig, EvalWatcher, Shard,
 };
-use aeris_eval::table::EvalTable;
 use aeris_flight::{FlightEvent, FlightWatcher};
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
@@ -197,7 +196,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
     };
     let mut printer = EpisodePrinter(FlightPrinter::new(false, "aeris: ")?);
     let report = runner::run(&config, &mut printer)?;
-    let table = EvalTable::new(&report, &config.agent);
+    let table = report.table(&config.agent);
     print!("{table}");
     if args.json {
         println!("{}", serde_json::to_string(&table)?);

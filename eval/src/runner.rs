@@ -6,7 +6,7 @@ use crate::generate::{AirspaceFilter, GenerateError, Split, generate_split};
 use crate::metrics::{EpisodeMetrics, EpisodeRun};
 use crate::mission::{Agent, MissionError, episode_mission};
 pub use crate::table::GroupSummary;
-use crate::table::{EpisodeTally, Summaries};
+use crate::table::{EpisodeTally, EvalTable, Summaries};
 use aeris_flight::{
     Flight, FlightError, FlightWatcher, HookError, Overrides, StepContext, StepHook, StopRule,
 };
@@ -639,7 +639,7 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
         let text = serde_json::to_string(&line).map_err(|e| write_error(e.into()))?;
         writeln!(jsonl, "{text}").map_err(write_error)?;
         watcher.episode_scored(n, total, &line);
-        tallies.push(EpisodeTally::of(&line));
+        tallies.push(line.tally());
     }
     let Summaries { all, open, dense } = Summaries::of(&tallies);
     Ok(EvalReport {
@@ -649,6 +649,44 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
         open,
         dense,
     })
+}
+
+impl EpisodeLine<'_> {
+    /// What this episode adds to its groups' summaries.
+    pub fn tally(&self) -> EpisodeTally {
+        EpisodeTally {
+            index: self.index,
+            episode_id: self.episode_id.to_string(),
+            airspace: self.airspace.to_string(),
+            agent: self.agent.to_string(),
+            split: self.split.to_string(),
+            baseline: self.baseline.map(str::to_string),
+            reasoning: self.reasoning.to_string(),
+            metrics: self.metrics,
+            cycles: self.cycles,
+            decisions_reused: self.decisions_reused,
+            ct_samples_s: self.ct_samples_s.to_vec(),
+        }
+    }
+}
+
+impl EvalReport {
+    /// The table of this evaluation of `setup`.
+    pub fn table(&self, setup: &AgentSetup) -> EvalTable {
+        EvalTable {
+            split: self.label.clone(),
+            agent: setup.label.clone(),
+            baseline: match setup.agent {
+                Agent::Aeris => None,
+                a => Some(a.as_str().to_string()),
+            },
+            reasoning: setup.reasoning.clone(),
+            all: self.all.clone(),
+            open: self.open.clone(),
+            dense: self.dense.clone(),
+            details: self.jsonl_path.display().to_string(),
+        }
+    }
 }
 
 #[cfg(test)]

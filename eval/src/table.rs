@@ -8,8 +8,6 @@
 
 use crate::episode::Episode;
 use crate::metrics::{EpisodeMetrics, MetricsSummary};
-use crate::mission::Agent;
-use crate::runner::{AgentSetup, EpisodeLine, EvalReport};
 use aeris_runtime::stats::{mean_std, percentile};
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -36,25 +34,6 @@ pub struct EvalTable {
     /// Where the episode lines are (one file, or the shards' files).
     #[serde(skip)]
     pub details: String,
-}
-
-impl EvalTable {
-    /// The table of `report`, an evaluation of `setup`.
-    pub fn new(report: &EvalReport, setup: &AgentSetup) -> Self {
-        Self {
-            split: report.label.clone(),
-            agent: setup.label.clone(),
-            baseline: match setup.agent {
-                Agent::Aeris => None,
-                a => Some(a.as_str().to_string()),
-            },
-            reasoning: setup.reasoning.clone(),
-            all: report.all.clone(),
-            open: report.open.clone(),
-            dense: report.dense.clone(),
-            details: report.jsonl_path.display().to_string(),
-        }
-    }
 }
 
 impl fmt::Display for EvalTable {
@@ -125,7 +104,7 @@ pub struct GroupSummary {
 }
 
 /// What one flown episode adds to the summaries of its groups: read from its line of
-/// episodes.jsonl (the fields of [`EpisodeLine`] of the same names).
+/// episodes.jsonl (the fields of [`crate::runner::EpisodeLine`] of the same names).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EpisodeTally {
     /// The episode's place in the evaluated list.
@@ -151,25 +130,6 @@ pub struct EpisodeTally {
     pub decisions_reused: u64,
     /// Every committed cycle's time (s).
     pub ct_samples_s: Vec<f64>,
-}
-
-impl EpisodeTally {
-    /// The tally of the episode `line` reports.
-    pub fn of(line: &EpisodeLine<'_>) -> Self {
-        Self {
-            index: line.index,
-            episode_id: line.episode_id.to_string(),
-            airspace: line.airspace.to_string(),
-            agent: line.agent.to_string(),
-            split: line.split.to_string(),
-            baseline: line.baseline.map(str::to_string),
-            reasoning: line.reasoning.to_string(),
-            metrics: line.metrics,
-            cycles: line.cycles,
-            decisions_reused: line.decisions_reused,
-            ct_samples_s: line.ct_samples_s.to_vec(),
-        }
-    }
 }
 
 /// The summaries of an evaluation: every episode, the open-airspace ones, the dense ones.

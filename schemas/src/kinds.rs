@@ -264,6 +264,29 @@ impl DeclaredKind for Recorder {
 
 impl RawPorts for Recorder {}
 
+impl RoleKind {
+    /// What this kind is (its [`DeclaredKind::INFO`]).
+    pub const fn info(self) -> &'static RoleKindInfo {
+        match self {
+            RoleKind::Vehicle => &<Vehicle as DeclaredKind>::INFO,
+            RoleKind::Camera => &<Camera as DeclaredKind>::INFO,
+            RoleKind::Perception => &<Perception as DeclaredKind>::INFO,
+            RoleKind::TextReader => &<TextReader as DeclaredKind>::INFO,
+            RoleKind::Detector => &<Detector as DeclaredKind>::INFO,
+            RoleKind::Cues => &<Cues as DeclaredKind>::INFO,
+            RoleKind::Occupancy => &<Occupancy as DeclaredKind>::INFO,
+            RoleKind::ImageToText => &<ImageToText as DeclaredKind>::INFO,
+            RoleKind::Reasoning => &<Reasoning as DeclaredKind>::INFO,
+            RoleKind::Hub => &<Hub as DeclaredKind>::INFO,
+            RoleKind::Controller => &<Controller as DeclaredKind>::INFO,
+            RoleKind::Recorder => &<Recorder as DeclaredKind>::INFO,
+            RoleKind::Bridge => &<Bridge as DeclaredKind>::INFO,
+            RoleKind::Replay => &<Replay as DeclaredKind>::INFO,
+            RoleKind::Formation => &<Formation as DeclaredKind>::INFO,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

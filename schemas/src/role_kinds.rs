@@ -1,10 +1,9 @@
 //! The role kinds: what a workflow's `kind = "..."` names, and what each kind is: the
 //! variants this build can run, the topics it reads and writes, whether it can be
-//! hot-swapped (each declared once, by its type in [`crate::kinds`]). The supervisor
-//! validates workflows against it, hosts' agents admit roles by it, and `aeris role`
-//! dispatches on it (the runners are the binary's, one per variant).
-
-use crate::kinds::{self, DeclaredKind};
+//! hot-swapped (each declared once, by its type in [`crate::kinds`], which gives
+//! [`RoleKind::info`]). The supervisor validates workflows against it, hosts' agents admit
+//! roles by it, and `aeris role` dispatches on it (the runners are the binary's, one per
+//! variant).
 
 /// A role kind, as written in workflow files and role specs (`text-reader`, `hub`, ...).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -119,27 +118,6 @@ impl RoleKind {
     /// Every kind's name, comma-separated (for an error that lists them).
     pub fn known_names() -> String {
         Self::ALL.map(RoleKind::name).join(", ")
-    }
-
-    /// What this kind is (its [`DeclaredKind::INFO`]).
-    pub const fn info(self) -> &'static RoleKindInfo {
-        match self {
-            RoleKind::Vehicle => &<kinds::Vehicle as DeclaredKind>::INFO,
-            RoleKind::Camera => &<kinds::Camera as DeclaredKind>::INFO,
-            RoleKind::Perception => &<kinds::Perception as DeclaredKind>::INFO,
-            RoleKind::TextReader => &<kinds::TextReader as DeclaredKind>::INFO,
-            RoleKind::Detector => &<kinds::Detector as DeclaredKind>::INFO,
-            RoleKind::Cues => &<kinds::Cues as DeclaredKind>::INFO,
-            RoleKind::Occupancy => &<kinds::Occupancy as DeclaredKind>::INFO,
-            RoleKind::ImageToText => &<kinds::ImageToText as DeclaredKind>::INFO,
-            RoleKind::Reasoning => &<kinds::Reasoning as DeclaredKind>::INFO,
-            RoleKind::Hub => &<kinds::Hub as DeclaredKind>::INFO,
-            RoleKind::Controller => &<kinds::Controller as DeclaredKind>::INFO,
-            RoleKind::Recorder => &<kinds::Recorder as DeclaredKind>::INFO,
-            RoleKind::Bridge => &<kinds::Bridge as DeclaredKind>::INFO,
-            RoleKind::Replay => &<kinds::Replay as DeclaredKind>::INFO,
-            RoleKind::Formation => &<kinds::Formation as DeclaredKind>::INFO,
-        }
     }
 }
 
