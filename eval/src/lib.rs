@@ -22,4 +22,5 @@ pub mod metrics;
 pub mod mission;
 pub mod plot;
 pub mod runner;
+pub mod shard;
 pub mod table;
