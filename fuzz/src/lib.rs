@@ -23,6 +23,7 @@ pub fn default_controller_spec() -> RoleSpec {
         remote: None,
         heartbeat_pid: None,
         flight_clock_offset_ns: 0,
+        clock: Default::default(),
         accelerator: None,
         vehicle: None,
     }

@@ -50,6 +50,7 @@ fn spec(flight: &str) -> RoleSpec {
         remote: None,
         heartbeat_pid: None,
         flight_clock_offset_ns: 0,
+        clock: Default::default(),
         accelerator: None,
         vehicle: None,
     }

@@ -340,6 +340,7 @@ pub fn plan_launch(
                     remote,
                     heartbeat_pid: None,
                     flight_clock_offset_ns: 0,
+                    clock: Default::default(),
                     accelerator: executor.and_then(|e| e.accelerator).map(|a| a.to_string()),
                     vehicle: r.vehicle,
                 },

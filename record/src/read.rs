@@ -500,6 +500,7 @@ mod tests {
             remote: None,
             heartbeat_pid: None,
             flight_clock_offset_ns: 0,
+            clock: Default::default(),
             accelerator: None,
             vehicle: None,
         };

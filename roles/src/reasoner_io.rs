@@ -19,7 +19,7 @@
 use crate::heartbeat_clock::{Basis, HeartbeatClock};
 use crate::planner::Planner;
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
-use aeris_runtime::clock::monotonic_ns;
+use aeris_runtime::clock::{monotonic_ns, wall_ns};
 use aeris_runtime::{CycleReport, RoleContext, RoleError};
 use aeris_schemas::kinds;
 use aeris_schemas::{Decision, PerceptionState, VehicleTelemetry, topics};
@@ -44,17 +44,19 @@ pub fn hub_active_step(
     wait: Duration,
 ) -> Result<Option<u16>, RoleError> {
     let setpoints = ctx.bus.subscriber::<topics::HubSetpoint>()?;
-    let deadline = monotonic_ns().saturating_add(aeris_runtime::clock::duration_ns(wait));
+    // a wait for another process's history to arrive: wall-clock time (on simulated time
+    // the flight's time stands still while this role is built)
+    let deadline = wall_ns().saturating_add(aeris_runtime::clock::duration_ns(wait));
     loop {
         if let Some(sp) = setpoints.latest()?
             && sp.active_step >= 1
         {
             return Ok(Some(sp.active_step));
         }
-        if monotonic_ns() >= deadline {
+        if wall_ns() >= deadline {
             return Ok(None);
         }
-        aeris_runtime::role::sleep(Duration::from_millis(10));
+        std::thread::sleep(Duration::from_millis(10));
     }
 }
 

@@ -45,6 +45,7 @@ fn default_spec() -> RoleSpec {
         flight_clock_offset_ns: 0,
         accelerator: None,
         vehicle: None,
+        clock: Default::default(),
     }
 }
 

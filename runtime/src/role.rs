@@ -1,17 +1,20 @@
 //! The one role abstraction and the host that runs a role as its own process.
 //!
 //! A role is built once from its [`RoleContext`] ([`Role::new`]: open ports, load models),
-//! then the [`RoleHost`] calls [`Role::cycle`] on absolute deadlines of CLOCK_MONOTONIC
-//! (no drift), publishes a [`RoleHeartbeat`] after every cycle that did work (and a
+//! then the [`RoleHost`] calls [`Role::cycle`] on absolute deadlines of the flight's clock
+//! (no drift): CLOCK_MONOTONIC, or on a flight on simulated time the turns the flight's
+//! clock grants ([`crate::clock::sim`]; while waiting for one the host still says it is
+//! alive every idle-heartbeat period of the wall clock), publishes a [`RoleHeartbeat`] after every cycle that did work (and a
 //! liveness heartbeat when idle), and stops cleanly on SIGTERM/SIGINT. Heartbeats say
 //! `Starting` before the role is built and `Running` as soon as it is.
 //! `cycle` must not allocate: ports and buffers are created in `new`.
 
 use crate::affinity::write_task_affinity;
 use crate::bus::{FlightBus, RoleBus, TypedPublisher};
-use crate::clock::{duration_ns, monotonic_ns, sleep_until_ns};
+use crate::clock::sim::{SimClockReader, SimParticipant, Turn};
+use crate::clock::{duration_ns, monotonic_ns, sleep_until_ns, wall_ns};
 use crate::signals;
-use crate::spec::RoleSpec;
+use crate::spec::{ClockSpec, RoleSpec};
 use aeris_schemas::kinds::DeclaredKind;
 use aeris_schemas::{FixedText, MAX_STAGES, RoleHeartbeat, RoleStatus, StageTiming, topics};
 use core::time::Duration;
@@ -136,6 +139,9 @@ impl RoleHost {
         let _in_role = span.enter();
         signals::install_termination_handlers()
             .map_err(|e| RoleError::step("installing the signal handlers", e))?;
+        // joined before anything is stamped: from here on the flight's time waits for
+        // this process until its first cycle asks for a turn
+        let sim = join_sim_clock(&spec)?;
         let bus = FlightBus::builder(&spec.flight)
             .node_name(&spec.name)
             .vehicle(spec.vehicle)
@@ -172,8 +178,19 @@ impl RoleHost {
         let mut next = monotonic_ns();
         let mut last_hb = 0u64;
         let mut result = Ok(());
+        let idle_wall = Duration::from_nanos(idle_ns);
+        let live = |hb: &mut RoleHeartbeat| {
+            hb.seq += 1;
+            hb.stamp_ns = monotonic_ns();
+            hb.worked = 0;
+            heartbeats.publish(hb).map(drop)
+        };
+        if let Some(sim) = &sim {
+            wait_for_turn(sim, next, idle_wall, || live(&mut hb))?;
+        }
         while !signals::termination_requested() {
-            let start = monotonic_ns();
+            // how long the work took is wall-clock time, on simulated time too
+            let start_wall = wall_ns();
             report.clear_stages();
             let outcome = match role.cycle(&mut ctx, &mut report) {
                 Ok(o) => o,
@@ -183,6 +200,7 @@ impl RoleHost {
                 }
             };
             let end = monotonic_ns();
+            let end_wall = wall_ns();
             ctx.cycles += 1;
             if outcome == CycleOutcome::Worked || end.saturating_sub(last_hb) >= idle_ns {
                 hb.seq += 1;
@@ -193,7 +211,7 @@ impl RoleHost {
                 // a failed read keeps the last label
                 let _ = write_task_affinity(0, &mut hb.executor);
                 if outcome == CycleOutcome::Worked {
-                    hb.cycle_latency_ns = end - start;
+                    hb.cycle_latency_ns = end_wall.saturating_sub(start_wall);
                     for (slot, (name, ns)) in hb.stages.iter_mut().zip(report.stages.iter()) {
                         *slot = StageTiming {
                             name: FixedText::from_str_truncated(name),
@@ -211,6 +229,11 @@ impl RoleHost {
                 break;
             }
             next += period_ns;
+            if let Some(sim) = &sim {
+                // simulated time never runs ahead of a role: no deadline is missed
+                wait_for_turn(sim, next, idle_wall, || live(&mut hb))?;
+                continue;
+            }
             let now = monotonic_ns();
             if now > next {
                 // The deadline already passed: count it and re-anchor instead of bursting.
@@ -227,6 +250,38 @@ impl RoleHost {
         role.shutdown(&mut ctx);
         result
     }
+}
+
+/// Join the flight's simulated time when `spec` runs on it (and read the flight's clock
+/// from it from now on); `None` on the wall clock.
+fn join_sim_clock(spec: &RoleSpec) -> Result<Option<SimParticipant>, RoleError> {
+    let ClockSpec::Sim { segment, rank } = &spec.clock else {
+        return Ok(None);
+    };
+    let clock = SimClockReader::open(segment)
+        .map_err(|e| RoleError::step("opening the flight's simulated clock", e))?;
+    crate::clock::use_sim_clock(clock.clone());
+    let me = clock
+        .join(std::process::id(), *rank)
+        .map_err(|e| RoleError::step("joining the flight's simulated clock", e))?;
+    Ok(Some(me))
+}
+
+/// Ask the flight's simulated time for a turn at `wake_ns` and wait for it, saying the
+/// role is alive (`live`) every `idle` of wall-clock time meanwhile; returns when the turn
+/// came or termination was requested.
+fn wait_for_turn<E>(
+    sim: &SimParticipant,
+    wake_ns: u64,
+    idle: Duration,
+    mut live: impl FnMut() -> Result<(), E>,
+) -> Result<(), E> {
+    let mut turn = sim.wait_for(wake_ns, idle);
+    while turn == Turn::NotYet && !signals::termination_requested() {
+        live()?;
+        turn = sim.wait_again(idle);
+    }
+    Ok(())
 }
 
 /// Try to run the calling thread under SCHED_FIFO at `priority`; `false` when not permitted

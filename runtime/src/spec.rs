@@ -289,10 +289,36 @@ pub struct RoleSpec {
     /// and for a role of the whole flight (the formation role).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub vehicle: Option<u8>,
+    /// The clock the role runs on: the wall clock, or the flight's simulated time.
+    #[serde(default, skip_serializing_if = "ClockSpec::is_wall")]
+    pub clock: ClockSpec,
 }
 
 fn is_zero(v: &i64) -> bool {
     *v == 0
+}
+
+/// The clock a role's cycles, stamps and timeouts follow.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "source", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ClockSpec {
+    /// CLOCK_MONOTONIC of the flight's host ([`crate::clock`]).
+    #[default]
+    Wall,
+    /// The flight's simulated time ([`crate::clock::sim`]), stepped in lockstep.
+    Sim {
+        /// The clock's shared segment (in the flight's run directory).
+        segment: std::path::PathBuf,
+        /// The role's order among those due at one instant (lowest first).
+        rank: u32,
+    },
+}
+
+impl ClockSpec {
+    /// `true` for the wall clock.
+    pub fn is_wall(&self) -> bool {
+        matches!(self, ClockSpec::Wall)
+    }
 }
 
 /// Where a role runs when its executor is on another host.

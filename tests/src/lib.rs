@@ -342,6 +342,7 @@ pub fn role_spec(
         flight_clock_offset_ns: 0,
         accelerator: None,
         vehicle: None,
+        clock: Default::default(),
     }
 }
 

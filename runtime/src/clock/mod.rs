@@ -5,9 +5,31 @@
 //! machines' monotonic clocks start at their own boots, so without the shift a stamp
 //! taken there (a decision's cycle start, a heartbeat) would be hours off on the flight's
 //! host and every age the hub checks would be wrong.
+//!
+//! A flight on simulated time ([`sim`]) reads that instead: a process that was handed the
+//! flight's simulated clock ([`use_sim_clock`]) reads it in [`monotonic_ns`], so every
+//! stamp, period, deadline and timeout of a role follows it. What must stay on the wall
+//! clock (how long work took, liveness) reads [`wall_ns`].
 
 use core::sync::atomic::{AtomicI64, Ordering};
 use core::time::Duration;
+use std::sync::OnceLock;
+
+pub mod sim;
+
+/// The flight's simulated clock, when this process runs on one.
+static SIM_CLOCK: OnceLock<sim::SimClockReader> = OnceLock::new();
+
+/// Read the flight's time from `clock` from now on (a process of a flight on simulated
+/// time). Set once, when the process starts; `false` when a clock was already set.
+pub fn use_sim_clock(clock: sim::SimClockReader) -> bool {
+    SIM_CLOCK.set(clock).is_ok()
+}
+
+/// `true` when this process reads a simulated flight clock ([`use_sim_clock`]).
+pub fn simulated() -> bool {
+    SIM_CLOCK.get().is_some()
+}
 
 /// What this process adds to its host's CLOCK_MONOTONIC to read the flight's clock.
 static FLIGHT_CLOCK_OFFSET_NS: AtomicI64 = AtomicI64::new(0);
@@ -37,10 +59,21 @@ pub fn host_monotonic_ns() -> u64 {
     ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
 }
 
-/// Nanoseconds of the flight's clock: CLOCK_MONOTONIC, shifted on another host (see the
-/// module). Never allocates, never fails on Linux.
+/// Nanoseconds of the flight's clock: its simulated time on a flight on simulated time,
+/// else CLOCK_MONOTONIC, shifted on another host (see the module). Never allocates, never
+/// fails on Linux.
 #[inline]
 pub fn monotonic_ns() -> u64 {
+    match SIM_CLOCK.get() {
+        Some(clock) => clock.now_ns(),
+        None => wall_ns(),
+    }
+}
+
+/// Nanoseconds of the flight host's CLOCK_MONOTONIC (shifted on another host), whatever
+/// the flight's clock is: for how long work took on this machine, and for liveness.
+#[inline]
+pub fn wall_ns() -> u64 {
     to_flight_clock(
         host_monotonic_ns(),
         FLIGHT_CLOCK_OFFSET_NS.load(Ordering::Relaxed),
@@ -74,8 +107,19 @@ fn to_host_clock(flight_ns: u64, offset_ns: i64) -> u64 {
 
 /// Sleep until the absolute instant `deadline_ns` of the flight's clock (no drift
 /// accumulates). Returns early if a signal interrupts the sleep, so termination requests
-/// are seen.
+/// are seen. On simulated time (a process that is not stepped by it, such as a tool
+/// watching the flight) it sleeps what is left until `deadline_ns` on the wall clock.
 pub fn sleep_until_ns(deadline_ns: u64) {
+    if let Some(clock) = SIM_CLOCK.get() {
+        let left = deadline_ns.saturating_sub(clock.now_ns());
+        let deadline_ns = wall_ns().saturating_add(left);
+        return sleep_until_wall_ns(deadline_ns);
+    }
+    sleep_until_wall_ns(deadline_ns)
+}
+
+/// [`sleep_until_ns`] on the wall clock ([`wall_ns`]).
+fn sleep_until_wall_ns(deadline_ns: u64) {
     // back to this host's clock, which the kernel sleeps on
     let deadline_ns = to_host_clock(deadline_ns, FLIGHT_CLOCK_OFFSET_NS.load(Ordering::Relaxed));
     let ts = libc::timespec {
