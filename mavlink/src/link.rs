@@ -69,6 +69,11 @@ pub enum LinkError {
     /// The link signs, and MAVLink 1 has no signature.
     #[error("a signed link sends MAVLink 2 only")]
     SigningNeedsMavlink2,
+    /// A link received inline (on simulated time) must be ready at once: UDP or serial.
+    #[error(
+        "a link received without a thread (on simulated time) must be UDP or serial; a TCP link is not"
+    )]
+    InlineNeedsDatagrams,
     /// The message has no MAVLink 1 encoding (its id is above 255) and the link sends
     /// MAVLink 1.
     #[error("message {message_id} cannot be sent as MAVLink 1 (its id is above 255)")]
@@ -251,6 +256,17 @@ impl MavLink {
                 Ok(None)
             }
             Scanned::NeedMore => Ok(None),
+        }
+    }
+
+    /// Make receives return at once when nothing has arrived (`Ok(None)`) instead of
+    /// waiting for the read timeout: UDP (sends stay as they are: a datagram never waits
+    /// for its peer) and serial (already polled); a TCP link is refused.
+    pub fn set_nonblocking(&self) -> Result<(), LinkError> {
+        match &self.transport {
+            Transport::Serial(_) => Ok(()),
+            Transport::Udp(t) => t.set_nonblocking().map_err(LinkError::Receive),
+            Transport::Tcp(_) => Err(LinkError::InlineNeedsDatagrams),
         }
     }
 

@@ -2,6 +2,12 @@
 //! server), makes it available for sending, and hands every decoded message to its owner's
 //! handler until stopped. Both ends use it: the controller feeds the autopilot's state, the
 //! simulated vehicle its inbox.
+//!
+//! On simulated time a link is received *inline* instead ([`LinkReceiver::inline`]): no
+//! thread, the owner drains what has arrived at the start of each of its turns
+//! ([`LinkReceiver::pump`]), so what a turn sees does not depend on when a thread ran.
+//! Inline links are UDP (or serial): a datagram sent on the loopback is in the receiver's
+//! socket when the send returns.
 
 use crate::link::{LINK_POLL, LinkError, MavLink, PendingLink, Received};
 use std::ops::ControlFlow;
@@ -9,12 +15,27 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::thread::JoinHandle;
 
-/// A link and the thread that receives on it. Dropping it stops and joins the thread.
-#[derive(Debug)]
+/// The handler of an inline receiver.
+type Handler = Box<dyn FnMut(Received) -> ControlFlow<()> + Send>;
+
+/// A link and the thread that receives on it (or its owner, inline). Dropping it stops and
+/// joins the thread.
 pub struct LinkReceiver {
     link: Arc<OnceLock<MavLink>>,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
+    /// Inline: the handler [`LinkReceiver::pump`] calls; `None` once it broke.
+    inline: Option<Handler>,
+}
+
+impl core::fmt::Debug for LinkReceiver {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("LinkReceiver")
+            .field("established", &self.link.get().is_some())
+            .field("thread", &self.thread.is_some())
+            .field("inline", &self.inline.is_some())
+            .finish()
+    }
 }
 
 impl LinkReceiver {
@@ -57,7 +78,53 @@ impl LinkReceiver {
             link,
             stop,
             thread: Some(thread),
+            inline: None,
         })
+    }
+
+    /// A receiver without a thread: `pending` must be ready (UDP or serial: a `tcpin:`
+    /// server waits for its peer, which only a thread can); it is made non-blocking, and
+    /// [`LinkReceiver::pump`] hands what arrived to `on_message`.
+    pub fn inline<F>(pending: PendingLink, on_message: F) -> Result<Self, LinkError>
+    where
+        F: FnMut(Received) -> ControlFlow<()> + Send + 'static,
+    {
+        let PendingLink::Ready(link) = pending else {
+            return Err(LinkError::InlineNeedsDatagrams);
+        };
+        link.set_nonblocking()?;
+        let slot = OnceLock::new();
+        let _ = slot.set(*link);
+        Ok(Self {
+            link: Arc::new(slot),
+            stop: Arc::new(AtomicBool::new(false)),
+            thread: None,
+            inline: Some(Box::new(on_message)),
+        })
+    }
+
+    /// Inline: hand every message that has arrived to the handler, without waiting;
+    /// returns how many. A receiver with a thread does nothing here (0).
+    pub fn pump(&mut self) -> usize {
+        let (Some(link), Some(handler)) = (self.link.get(), self.inline.as_mut()) else {
+            return 0;
+        };
+        let mut handed = 0;
+        loop {
+            match link.recv() {
+                Ok(Some(received)) => {
+                    handed += 1;
+                    if handler(received).is_break() {
+                        self.inline = None;
+                        return handed;
+                    }
+                }
+                // a frame that did not decode: read on
+                Err(LinkError::Decode) => {}
+                // nothing more now (or a failing transport: the next turn tries again)
+                Ok(None) | Err(_) => return handed,
+            }
+        }
     }
 
     /// The established link (to send on); `None` until the receive thread established it
@@ -135,6 +202,53 @@ mod tests {
             system_status: MavState::MAV_STATE_ACTIVE,
             mavlink_version: 3,
         })
+    }
+
+    /// Inline (simulated time): no thread; what a peer sent over the loopback is handed over
+    /// by the next pump, in order, and a pump with nothing there returns at once; a `tcpin:`
+    /// server is refused.
+    #[test]
+    fn an_inline_receiver_hands_over_what_arrived_when_pumped() {
+        let server = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        let addr = server.local_addr().unwrap();
+        drop(server);
+        let pending = prepare_link(&format!("udpin:{addr}"), LINK_POLL).unwrap();
+        let seen = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let sink = seen.clone();
+        let mut receiver = LinkReceiver::inline(pending, move |r| {
+            if let MavMessage::HEARTBEAT(hb) = r.message {
+                sink.lock().unwrap().push(hb.custom_mode);
+            }
+            ControlFlow::Continue(())
+        })
+        .unwrap();
+        assert_eq!(receiver.pump(), 0);
+        let peer = open_link(&format!("udpout:{addr}"), LINK_POLL).unwrap();
+        let header = MavHeader {
+            system_id: 42,
+            component_id: 1,
+            sequence: 0,
+        };
+        for mode in 1..=3 {
+            peer.send(&header, &heartbeat(mode)).unwrap();
+        }
+        assert_eq!(receiver.pump(), 3);
+        assert_eq!(*seen.lock().unwrap(), vec![1, 2, 3]);
+        // it answers the peer it heard
+        let link = receiver.link().expect("an inline link is ready at once");
+        link.send(&header, &heartbeat(9)).unwrap();
+        let back = (0..200).find_map(|_| peer.recv().unwrap());
+        assert!(
+            matches!(back.map(|r| r.message), Some(MavMessage::HEARTBEAT(hb)) if hb.custom_mode == 9)
+        );
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let tcp = listener.local_addr().unwrap();
+        drop(listener);
+        let pending = prepare_link(&format!("tcpin:{tcp}"), LINK_POLL).unwrap();
+        assert!(matches!(
+            LinkReceiver::inline(pending, |_| ControlFlow::Continue(())),
+            Err(LinkError::InlineNeedsDatagrams)
+        ));
     }
 
     /// A `tcpin:` server: the thread accepts the peer, delivers what it sends in order with

@@ -213,6 +213,10 @@ impl UdpTransport {
         self.socket.set_read_timeout(Some(t))
     }
 
+    pub(crate) fn set_nonblocking(&self) -> std::io::Result<()> {
+        self.socket.set_nonblocking(true)
+    }
+
     /// Send one frame; `Ok(0)` when there is nobody to send to yet (`udpin` before anything
     /// arrived).
     pub(crate) fn send(&self, frame: &[u8]) -> std::io::Result<usize> {

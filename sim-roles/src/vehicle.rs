@@ -187,6 +187,8 @@ impl Role for VehicleRole {
             fence: Some((limits.geofence_min, fence_max)),
             setpoint_period_s: (spec.timing.control_rate_hz > 0.0)
                 .then(|| (1.0 / spec.timing.control_rate_hz) as f32),
+            // on simulated time the link is read on the vehicle's own turns
+            lockstep: aeris_runtime::clock::simulated(),
             ..SimVehicleConfig::default()
         };
         let state_file = match spec.params.get("state_file") {

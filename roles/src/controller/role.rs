@@ -332,26 +332,33 @@ impl Role for ControllerRole {
         // Spawned before switching to SCHED_FIFO so the receive thread keeps the normal policy.
         let receiver = {
             let shared = shared.clone();
-            LinkReceiver::spawn(
-                "controller-rx",
-                pending,
-                "aeris controller: autopilot link failed",
-                move |r: Received| {
-                    let now = monotonic_ns();
-                    if let Ok(mut heard) = shared.lock() {
-                        let Heard { state, ledger } = &mut *heard;
-                        // only the autopilot the ledger bound to is believed
-                        if let Some(autopilot) = ledger.accept(&r, v2_only) {
-                            state.apply(&r.message, now, autopilot);
-                            if matches!(r.message, MavMessage::HEARTBEAT(_)) {
-                                state.heartbeat_version = r.version;
-                            }
+            let on_message = move |r: Received| {
+                let now = monotonic_ns();
+                if let Ok(mut heard) = shared.lock() {
+                    let Heard { state, ledger } = &mut *heard;
+                    // only the autopilot the ledger bound to is believed
+                    if let Some(autopilot) = ledger.accept(&r, v2_only) {
+                        state.apply(&r.message, now, autopilot);
+                        if matches!(r.message, MavMessage::HEARTBEAT(_)) {
+                            state.heartbeat_version = r.version;
                         }
                     }
-                    ControlFlow::Continue(())
-                },
-            )
-            .map_err(|e| RoleError::step("spawning the receive thread", e))?
+                }
+                ControlFlow::Continue(())
+            };
+            if aeris_runtime::clock::simulated() {
+                // on simulated time the link is read on the controller's own turns
+                LinkReceiver::inline(pending, on_message)
+                    .map_err(|e| RoleError::step("opening the autopilot link", e))?
+            } else {
+                LinkReceiver::spawn(
+                    "controller-rx",
+                    pending,
+                    "aeris controller: autopilot link failed",
+                    on_message,
+                )
+                .map_err(|e| RoleError::step("spawning the receive thread", e))?
+            }
         };
         if realtime && !try_sched_fifo(50) {
             tracing::warn!(
@@ -420,6 +427,8 @@ impl Role for ControllerRole {
         ctx: &mut RoleContext<kinds::Controller>,
         report: &mut CycleReport,
     ) -> Result<CycleOutcome, RoleError> {
+        // inline (simulated time): what the autopilot sent since the last turn
+        self.receiver.pump();
         // lease: who may write to the autopilot
         let t0 = monotonic_ns();
         let arbiter = &mut self.arbiter;

@@ -11,7 +11,6 @@ use aeris_mavlink::dialect::{
 };
 use aeris_mavlink::ned_to_neu;
 use aeris_mavlink::px4::FORCE_ARM_DISARM_MAGIC;
-use std::time::Instant;
 
 impl SimVehicle {
     pub(super) fn handle_command(&mut self, c: &COMMAND_LONG_DATA) {
@@ -93,7 +92,8 @@ impl SimVehicle {
         }));
     }
 
-    pub(super) fn handle_setpoint(&mut self, s: &SET_POSITION_TARGET_LOCAL_NED_DATA, at: Instant) {
+    /// `at`: when it arrived (s, on the arrival timeline of [`SimVehicle`]).
+    pub(super) fn handle_setpoint(&mut self, s: &SET_POSITION_TARGET_LOCAL_NED_DATA, at: f64) {
         if s.coordinate_frame != MavFrame::MAV_FRAME_LOCAL_NED {
             self.stats.setpoints_rejected += 1;
             return;
@@ -158,7 +158,7 @@ impl SimVehicle {
         if let (Some(period), Some(last)) = (self.config.setpoint_period_s, self.last_arrival)
             && period > 0.0
         {
-            let ticks = at.saturating_duration_since(last).as_secs_f32() / period;
+            let ticks = (at - last).max(0.0) as f32 / period;
             if ticks > 2.0 {
                 self.stats.setpoint_ticks_missed += (ticks.round() as u64).saturating_sub(1);
             }

@@ -119,6 +119,10 @@ pub struct SimVehicleConfig {
     pub firmware: SimFirmware,
     /// MAVLink 2 signing: signs what it sends, refuses unsigned or badly signed frames.
     pub signing: Option<LinkSigning>,
+    /// Lockstep (simulated time): no receive thread; each [`SimVehicle::step`] first takes
+    /// what has arrived on the link (a UDP or serial link), and a setpoint's arrival is the
+    /// step's time, so a flight does not depend on when a thread ran.
+    pub lockstep: bool,
 }
 
 impl Default for SimVehicleConfig {
@@ -137,6 +141,7 @@ impl Default for SimVehicleConfig {
             mavlink_version: MavlinkVersion::V2,
             firmware: SimFirmware::Px4,
             signing: None,
+            lockstep: false,
         }
     }
 }
@@ -201,8 +206,8 @@ pub enum SimVehicleError {
 
 enum Inbound {
     Command(COMMAND_LONG_DATA),
-    /// With the time it arrived at the link.
-    Setpoint(SET_POSITION_TARGET_LOCAL_NED_DATA, Instant),
+    /// With the time it arrived at the link (`None` in lockstep: the step's time).
+    Setpoint(SET_POSITION_TARGET_LOCAL_NED_DATA, Option<Instant>),
 }
 
 const INBOX_CAPACITY: usize = 256;
@@ -220,8 +225,11 @@ pub struct SimVehicle {
     mode: FlightMode,
     time_s: f64,
     last_setpoint_s: Option<f64>,
-    /// Link arrival of the last usable setpoint.
-    last_arrival: Option<Instant>,
+    /// Link arrival of the last usable setpoint (s since `epoch`, or the step's time in
+    /// lockstep).
+    last_arrival: Option<f64>,
+    /// What arrival instants are measured from.
+    epoch: Instant,
     offboard_cmd: Option<Command>,
     hold_position: [f32; 3],
     hold_yaw: f32,
@@ -260,6 +268,7 @@ fn inbox_handler(
     dropped: Arc<AtomicU64>,
     sys: u8,
     comp: u8,
+    lockstep: bool,
 ) -> impl FnMut(Received) -> ControlFlow<()> + Send + 'static {
     move |r: Received| {
         let item = match r.message {
@@ -271,7 +280,7 @@ fn inbox_handler(
             MavMessage::SET_POSITION_TARGET_LOCAL_NED(s)
                 if targets_me(s.target_system, None, sys, comp) =>
             {
-                Inbound::Setpoint(s, Instant::now())
+                Inbound::Setpoint(s, (!lockstep).then(Instant::now))
             }
             _ => return ControlFlow::Continue(()),
         };
@@ -319,13 +328,24 @@ impl SimVehicle {
         let pending = prepare_link(url, LINK_POLL)?.with_signing(config.signing);
         let dropped = Arc::new(AtomicU64::new(0));
         let (tx, inbox) = sync_channel(INBOX_CAPACITY);
-        let receiver = LinkReceiver::spawn(
-            "sim-vehicle-rx",
-            pending,
-            "aeris-sim: vehicle link failed",
-            inbox_handler(tx, dropped.clone(), config.system_id, config.component_id),
-        )
-        .map_err(SimVehicleError::Thread)?;
+        let handler = inbox_handler(
+            tx,
+            dropped.clone(),
+            config.system_id,
+            config.component_id,
+            config.lockstep,
+        );
+        let receiver = if config.lockstep {
+            LinkReceiver::inline(pending, handler)?
+        } else {
+            LinkReceiver::spawn(
+                "sim-vehicle-rx",
+                pending,
+                "aeris-sim: vehicle link failed",
+                handler,
+            )
+            .map_err(SimVehicleError::Thread)?
+        };
         let mut model = MultirotorModel::new(config.params, config.start, config.start_yaw);
         let airborne = config.start[2] > 0.1;
         let mode = if airborne {
@@ -345,6 +365,7 @@ impl SimVehicle {
             time_s: 0.0,
             last_setpoint_s: None,
             last_arrival: None,
+            epoch: Instant::now(),
             offboard_cmd: None,
             hold_position: state.position,
             hold_yaw: state.yaw,
@@ -442,10 +463,19 @@ impl SimVehicle {
         }
         let dt = dt.min(MAX_STEP_S);
         self.time_s += f64::from(dt);
+        // lockstep: what arrived since the last step (a receiver with a thread has fed the
+        // inbox already)
+        self.receiver.pump();
         loop {
             match self.inbox.try_recv() {
                 Ok(Inbound::Command(c)) => self.handle_command(&c),
-                Ok(Inbound::Setpoint(s, at)) => self.handle_setpoint(&s, at),
+                Ok(Inbound::Setpoint(s, at)) => {
+                    let at_s = match at {
+                        Some(at) => at.saturating_duration_since(self.epoch).as_secs_f64(),
+                        None => self.time_s,
+                    };
+                    self.handle_setpoint(&s, at_s)
+                }
                 Err(TryRecvError::Empty) | Err(TryRecvError::Disconnected) => break,
             }
         }
