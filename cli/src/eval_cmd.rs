@@ -23,6 +23,12 @@ pub struct EvalArgs {
     /// shards' outputs.
     #[arg(long, value_name = "K/N")]
     pub shard: Option<Shard>,
+    /// The clock the episodes fly on: `wall` (real time), or `sim`: simulated time in
+    /// lockstep, as fast as the roles compute and the same on any machine (see `aeris run
+    /// --clock`); NE, SR, OSR, nDTW, SPL and ASR are measured on it alike, CT and EER are
+    /// on the flight's clock (0 on simulated time, where work takes no time).
+    #[arg(long, value_name = "CLOCK", default_value = "wall")]
+    pub clock: aeris_flight::FlightClock,
     /// Record every episode into its run folder (`runs/FLIGHT/flight.mcap`, named in
     /// episodes.jsonl as `recording`): open a failed one in Foxglove, or `aeris replay` it.
     #[arg(long)]
@@ -193,6 +199,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         record: args.record,
         offload_check: Some(aeris_llm::offload_check),
         shard: args.shard,
+        clock: args.clock,
     };
     let mut printer = EpisodePrinter(FlightPrinter::new(false, "aeris: ")?);
     let report = runner::run(&config, &mut printer)?;

@@ -18,6 +18,14 @@ pub struct RunArgs {
     /// tcpout:127.0.0.1:5760 or serial:/dev/ttyACM0:57600) instead of the built-in vehicle.
     #[arg(long, value_name = "URL")]
     pub autopilot: Option<String>,
+    /// The clock the flight runs on: `wall` (real time, the only clock of a real vehicle),
+    /// or `sim`: simulated time in lockstep: every role takes its turns in a fixed order,
+    /// time stands still while any role works, and the flight runs as fast as the roles
+    /// compute, with the same decisions on any machine. `sim` needs the built-in vehicle
+    /// (or a replay), no real camera and no roles on other hosts; its roles are not
+    /// hot-swapped. Compute times (CT, each role's latency) are still wall-clock times.
+    #[arg(long, value_name = "CLOCK", default_value = "wall")]
+    pub clock: aeris_flight::FlightClock,
     /// Print the summary as one JSON object on the last line of stdout.
     #[arg(long)]
     pub json: bool,
@@ -157,6 +165,7 @@ fn run(args: RunArgs) -> Result<ExitCode> {
         .autopilot(args.autopilot.clone())
         .overrides(overrides)
         .stop_when(StopRule::Goal)
+        .clock(args.clock)
         .language_offload_check(aeris_llm::offload_check);
     if let Some(name) = &args.flight {
         flight = flight.name(name);

@@ -188,6 +188,8 @@ pub struct EvalConfig {
     pub offload_check: Option<aeris_flight::executors::OffloadCheck>,
     /// Fly only this shard of the episodes (`aeris eval --shard K/N`); `None`: all.
     pub shard: Option<Shard>,
+    /// The clock the episodes fly on ([`aeris_flight::FlightClock`]).
+    pub clock: aeris_flight::FlightClock,
 }
 
 /// An episode's recording, in its run folder (`aeris eval --record`).
@@ -496,6 +498,7 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
             .name(flight)
             .run_dir(&run_dir)
             .stop_when(StopRule::Landed)
+            .clock(config.clock)
             .overrides(Overrides {
                 dynamic: setup.no_ds.then_some(false),
                 ..Overrides::default()

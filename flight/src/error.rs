@@ -18,6 +18,12 @@ pub enum FlightError {
     /// The flight's thread could not be started.
     #[error("starting the flight's thread")]
     Thread(#[source] std::io::Error),
+    /// The flight cannot run on simulated time.
+    #[error("cannot fly on simulated time")]
+    SimTime(#[source] crate::sim_time::SimTimeRefusal),
+    /// The flight's simulated clock could not be made.
+    #[error("making the flight's simulated clock")]
+    SimClock(#[source] aeris_runtime::clock::sim::SimClockError),
     /// An accelerator executor names an accelerator this host's ONNX Runtime cannot run.
     #[error(transparent)]
     Accelerator(Box<crate::executors::AcceleratorError>),

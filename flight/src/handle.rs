@@ -29,6 +29,7 @@ pub struct FlightBuilder<H: StepHook = NoHook> {
     role_executable: Option<PathBuf>,
     record: Option<crate::recording::RecordRequest>,
     offload_check: Option<crate::executors::OffloadCheck>,
+    clock: crate::sim_time::FlightClock,
     hook: H,
 }
 
@@ -54,6 +55,13 @@ impl<H: StepHook> FlightBuilder<H> {
     /// Change the workflow for this flight (applied and validated by `start`).
     pub fn overrides(mut self, overrides: Overrides) -> Self {
         self.overrides = overrides;
+        self
+    }
+
+    /// The clock the flight runs on (default [`crate::FlightClock::Wall`]; `Sim` is refused
+    /// by `start` for a flight that cannot follow it, [`crate::sim_time::check_sim_time`]).
+    pub fn clock(mut self, clock: crate::sim_time::FlightClock) -> Self {
+        self.clock = clock;
         self
     }
 
@@ -153,6 +161,7 @@ impl<H: StepHook> FlightBuilder<H> {
             role_executable: self.role_executable,
             record: self.record,
             offload_check: self.offload_check,
+            clock: self.clock,
             hook,
         }
     }
@@ -196,6 +205,7 @@ impl<H: StepHook> FlightBuilder<H> {
             role_executable,
             record,
             offload_check: self.offload_check,
+            clock: self.clock,
         };
         let hook = self.hook;
         let thread_shared = shared.clone();
@@ -249,6 +259,7 @@ impl Flight {
             role_executable: None,
             record: None,
             offload_check: None,
+            clock: Default::default(),
             hook: NoHook,
         }
     }

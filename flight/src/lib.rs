@@ -41,6 +41,8 @@
 //!   the recording, and variants compared on it;
 //! - [`executors`]: the executor registry a workflow would start with, and the
 //!   accelerators ONNX Runtime offers;
+//! - [`sim_time`]: the clock a flight runs on ([`FlightClock`]): the wall clock, or
+//!   simulated time in lockstep, as fast as the roles compute;
 //! - [`status_report`]: a running flight seen from another process (`aeris status`), as a
 //!   typed value whose `Serialize` is `--json` and whose `Display` is the table.
 
@@ -61,6 +63,7 @@ mod outcome_text;
 pub mod overrides;
 pub mod recording;
 pub mod replay;
+pub mod sim_time;
 pub mod status_report;
 mod supervise;
 mod telemetry;
@@ -85,3 +88,4 @@ pub use monitor::{
 };
 pub use overrides::{OverrideError, Overrides, VariantChoice};
 pub use recording::{RecordError, RecordingSummary};
+pub use sim_time::{FlightClock, SimTimeRefusal};

@@ -248,8 +248,8 @@ impl FlightMonitor {
         self.fleet.as_ref()
     }
 
-    /// Watch the flight on `bus` flying `mission`.
-    pub fn new(bus: &FlightBus, mission: &MissionSpec) -> Result<Self, BusError> {
+    /// Watch the flight on `bus` flying `mission` from `started_ns` of the flight's clock.
+    pub fn new(bus: &FlightBus, mission: &MissionSpec, started_ns: u64) -> Result<Self, BusError> {
         let land_goal = mission
             .subgoals
             .last()
@@ -261,7 +261,7 @@ impl FlightMonitor {
             setpoints: bus.subscriber::<topics::HubSetpoint>()?,
             link: bus.subscriber::<topics::ControllerLink>()?,
             link_follower: LinkFollower::default(),
-            video_start: FirstDecisionOnVideo::new(bus, aeris_runtime::clock::monotonic_ns())?,
+            video_start: FirstDecisionOnVideo::new(bus, started_ns)?,
             autopilot_events: Vec::new(),
             last_setpoint: None,
             last_bound: None,
@@ -283,7 +283,7 @@ impl FlightMonitor {
             no_occupancy_clamps: 0,
             fleet: None,
             trace: Vec::new(),
-            started_ns: aeris_runtime::clock::monotonic_ns(),
+            started_ns,
             invalid_reports: 0,
         })
     }

@@ -10,9 +10,11 @@ use crate::executors::{accelerator_line, onnx_accelerators};
 use crate::hook::{StepContext, StepHook};
 use crate::monitor::{CycleTrace, FlightMonitor, FlightOutcome, LinkSummary};
 use crate::recording::RecordingSummary;
+use crate::sim_time::{FlightClock, FlightTime, check_sim_time};
 use aeris_orchestrator::supervisor::{RoleState, Supervisor, SupervisorEvent, SupervisorOptions};
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::MissionSpec;
+use aeris_runtime::clock::sim::SimClockError;
 use aeris_schemas::HubBeatCounters;
 use aeris_schemas::RoleKind;
 use std::path::{Path, PathBuf};
@@ -43,6 +45,8 @@ pub(crate) struct FlightSetup {
     pub record: Option<(PathBuf, String)>,
     /// The language-model engine's offload check, when the caller has one.
     pub offload_check: Option<crate::executors::OffloadCheck>,
+    /// The clock the flight runs on.
+    pub clock: crate::sim_time::FlightClock,
 }
 
 /// Why the flight was asked to end.
@@ -120,7 +124,7 @@ pub(crate) fn supervise<H: StepHook>(
     started: SyncSender<()>,
 ) -> Result<(FlightOutcome, H), FlightError> {
     let FlightSetup {
-        workflow,
+        mut workflow,
         name,
         run_dir,
         autopilot,
@@ -129,6 +133,7 @@ pub(crate) fn supervise<H: StepHook>(
         role_executable,
         record,
         offload_check,
+        clock,
     } = setup;
     let span = tracing::info_span!("flight", flight = %name, run_dir = %run_dir.display());
     let _in_flight = span.enter();
@@ -143,14 +148,31 @@ pub(crate) fn supervise<H: StepHook>(
     let deadline_ms = workflow.timing.decision_deadline_ms;
     crate::executors::check_accelerators(&workflow, offload_check)
         .map_err(|e| FlightError::Accelerator(Box::new(e)))?;
+    let mut time = match clock {
+        FlightClock::Wall => FlightTime::Wall,
+        FlightClock::Sim => {
+            check_sim_time(&workflow, autopilot.as_deref()).map_err(FlightError::SimTime)?;
+            // a step down the ladder is a hot swap, which simulated time does not do yet
+            workflow.scheduling.adapt_variants = false;
+            std::fs::create_dir_all(&run_dir).map_err(|source| {
+                FlightError::SimClock(SimClockError::Map {
+                    path: run_dir.clone(),
+                    source,
+                })
+            })?;
+            FlightTime::simulated(&run_dir.join("flight.clock")).map_err(FlightError::SimClock)?
+        }
+    };
     let mut sup = Supervisor::start(SupervisorOptions {
         workflow,
         flight: name.clone(),
         aeris_exe: role_executable,
         run_dir: run_dir.clone(),
         autopilot,
+        sim_clock: time.segment().map(Path::to_path_buf),
     })
     .map_err(|e| FlightError::Start(Box::new(e)))?;
+    time.expect(sup.roles().len());
     if let Some(on) = dynamic {
         sup.set_dynamic(on);
     }
@@ -173,11 +195,14 @@ pub(crate) fn supervise<H: StepHook>(
         .map_err(|e| FlightError::NotReady(Box::new(e)))?;
     send(FlightEvent::Ready);
     shared.set_phase(FlightPhase::Flying);
-    let mut monitor = FlightMonitor::new(sup.bus(), &mission).map_err(FlightError::Subscribe)?;
+    let start_ns = time.now_ns();
+    let mut monitor =
+        FlightMonitor::new(sup.bus(), &mission, start_ns).map_err(FlightError::Subscribe)?;
     monitor
         .watch_fleet(sup.bus(), vehicles)
         .map_err(FlightError::Subscribe)?;
-    let start = Instant::now();
+    // the flight's time (simulated or wall) since it started flying
+    let elapsed = |time: &FlightTime| Duration::from_nanos(time.now_ns().saturating_sub(start_ns));
     let mut last_progress = Instant::now();
     let mut failure: Option<FlightFailure> = None;
     let (mut swaps_done, mut swaps_failed) = (0u64, 0u64);
@@ -215,7 +240,7 @@ pub(crate) fn supervise<H: StepHook>(
         if vehicles <= 1
             && monitor.cycles() == 0
             && let Some(overdue) = crate::first_decision::overdue(
-                start.elapsed(),
+                elapsed(&time),
                 monitor.cycles(),
                 hub_counters(&sup),
                 heartbeat,
@@ -232,7 +257,7 @@ pub(crate) fn supervise<H: StepHook>(
                 events_out: events,
             })
             .map_err(FlightError::Hook)?;
-        let progress = progress(&monitor, &mission, start, &sup);
+        let progress = progress(&monitor, &mission, elapsed(&time), &sup);
         sup.set_progress(
             progress.step,
             progress.steps,
@@ -248,7 +273,7 @@ pub(crate) fn supervise<H: StepHook>(
         if done || hook_done || failure.is_some() {
             break;
         }
-        if start.elapsed() > max_duration {
+        if elapsed(&time) > max_duration {
             failure = Some(FlightFailure::TimeLimit {
                 rule: stop,
                 limit_s: max_duration.as_secs_f64(),
@@ -271,9 +296,9 @@ pub(crate) fn supervise<H: StepHook>(
             shared.set_roles(&sup);
         }
         shared.update(|s| s.progress = Some(progress));
-        std::thread::sleep(STEP_PERIOD);
+        time.pass(STEP_PERIOD);
     }
-    let duration = start.elapsed().as_secs_f64();
+    let duration = elapsed(&time).as_secs_f64();
     let _ = monitor.poll();
     let mut summary = monitor.summary(&name, duration, u64::from(sup.total_restarts()));
     // before a first commit the hub reports no cycle: its counters are in its heartbeats
@@ -356,7 +381,7 @@ fn formation_tally(sup: &Supervisor) -> crate::fleet::FormationTally {
 fn progress(
     monitor: &FlightMonitor,
     mission: &MissionSpec,
-    start: Instant,
+    elapsed: Duration,
     sup: &Supervisor,
 ) -> FlightProgress {
     let restarts = sup.total_restarts();
@@ -367,7 +392,7 @@ fn progress(
         formation: formation_tally(sup),
     });
     FlightProgress {
-        elapsed_s: start.elapsed().as_secs_f64(),
+        elapsed_s: elapsed.as_secs_f64(),
         step,
         steps,
         step_text: usize::from(step)

@@ -38,6 +38,7 @@ fn the_default_flight_comes_up_reports_and_stops_cleanly() {
         aeris_exe: aeris_bin(),
         run_dir: run_dir.clone(),
         autopilot: None,
+        sim_clock: None,
     })
     .unwrap();
     // this test checks the declared binding (heartbeats name it): no automatic moves

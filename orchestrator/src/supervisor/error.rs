@@ -168,6 +168,15 @@ pub enum SwapError {
         /// Its state.
         state: String,
     },
+    /// The flight runs on simulated time, where a second process of a role would be one
+    /// more participant every instant waits for (not supported yet).
+    #[error(
+        "role `{role}` cannot be hot-swapped in a flight on simulated time (fly it with --clock wall)"
+    )]
+    SimulatedTime {
+        /// Role name.
+        role: String,
+    },
     /// The new process's spec or log could not be written.
     #[error("cannot prepare variant `{variant}` of role `{role}`: {reason}")]
     Prepare {

@@ -110,6 +110,9 @@ pub struct SupervisorOptions {
     /// External autopilot MAVLink URL: drop the vehicle role and give this URL to the
     /// controller. `None` flies the built-in vehicle.
     pub autopilot: Option<String>,
+    /// The flight's simulated clock ([`aeris_runtime::clock::sim`]), whose segment every
+    /// role joins; `None` flies on the wall clock.
+    pub sim_clock: Option<PathBuf>,
 }
 
 /// The supervisor of one flight: its roles, and one part per concern (launching processes,
@@ -170,6 +173,8 @@ pub struct Supervisor {
     links_lost: Vec<links::LostLink>,
     /// The links to the other hosts as their bridges measure them.
     host_links: HostLinks,
+    /// The flight runs on simulated time (its roles take turns; no hot swaps yet).
+    on_sim_clock: bool,
 }
 
 impl core::fmt::Debug for Supervisor {
@@ -192,6 +197,7 @@ impl Supervisor {
             aeris_exe,
             run_dir,
             autopilot,
+            sim_clock,
         } = options;
         let online = CpuSet::of_task(0).unwrap_or_else(|_| CpuSet::available());
         let scheduling = workflow.scheduling;
@@ -234,6 +240,16 @@ impl Supervisor {
                 r.spec
                     .params
                     .insert("tracks_file".into(), path.display().to_string().into());
+            }
+        }
+        // on simulated time every role takes its turn at an instant in the pipeline's order
+        // (its kind's), roles of one kind in the workflow's order
+        if let Some(segment) = &sim_clock {
+            for (index, r) in plan.roles.iter_mut().enumerate() {
+                r.spec.clock = aeris_runtime::ClockSpec::Sim {
+                    segment: segment.clone(),
+                    rank: sim_rank(r.spec.kind, index),
+                };
             }
         }
         // each role's ladder length and starting rung (its declared variant)
@@ -298,6 +314,7 @@ impl Supervisor {
             links_up_since: Vec::new(),
             links_lost: Vec::new(),
             host_links,
+            on_sim_clock: sim_clock.is_some(),
         };
         for planned in plan.roles {
             sup.add_role(planned, &roles_dir, &logs_dir)?;
@@ -565,4 +582,11 @@ impl Drop for Supervisor {
             }
         }
     }
+}
+
+/// Role `index`'s order among the roles due at one instant of simulated time: by its
+/// kind's place in the pipeline (vehicle, camera, perception, ..., reasoner, hub,
+/// controller, as [`RoleKind`] lists them), then by its place in the workflow.
+fn sim_rank(kind: RoleKind, index: usize) -> u32 {
+    ((kind as u32) << 16) | (index.min(0xffff) as u32)
 }

@@ -231,6 +231,11 @@ impl Supervisor {
                 known: self.role_names(),
             });
         };
+        if self.on_sim_clock {
+            return Err(SwapError::SimulatedTime {
+                role: role.to_string(),
+            });
+        }
         let instance = self.launcher.next_instance();
         let exe = self.launcher.exe().to_path_buf();
         let r = &mut self.roles[i];

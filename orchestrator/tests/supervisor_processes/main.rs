@@ -80,6 +80,7 @@ fn options(workflow: Workflow, tag: &str, run_dir: &RunDir) -> SupervisorOptions
         aeris_exe: fake_exe().to_path_buf(),
         run_dir: run_dir.0.clone(),
         autopilot: None,
+        sim_clock: None,
     }
 }
 
