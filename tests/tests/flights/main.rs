@@ -22,6 +22,7 @@ mod liveness;
 mod mavproxy;
 mod no_depth;
 mod record;
+mod sim_time;
 mod standby;
 mod video;
 mod vln_eval;

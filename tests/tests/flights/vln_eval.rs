@@ -3,6 +3,8 @@
 //! not, the AERIS agent flies from the instruction alone, and every episode is written to
 //! episodes.jsonl with its trajectory, metrics and run folder (and with `--record` its
 //! recording), which `aeris plot` draws; `aeris eval merge` of a run's output is its table.
+//! Their subject is the evaluation and the mission logic, so they fly on simulated time
+//! (`--clock sim`): as fast as the roles compute, and the same beside other flights.
 
 use aeris_tests::*;
 use std::process::Command;
@@ -10,6 +12,7 @@ use std::process::Command;
 fn eval(dir: &std::path::Path, args: &[&str]) -> (serde_json::Value, Vec<serde_json::Value>) {
     let out = Command::new(aeris_bin())
         .arg("eval")
+        .args(["--clock", "sim"])
         .args(args)
         .arg("--json")
         .arg("--out")
