@@ -141,20 +141,22 @@ impl Role for LanguageRole {
             plan: Some(&plan),
         };
         let (wall, cpu) = (
-            std::time::Instant::now(),
+            aeris_runtime::clock::wall_ns(),
             aeris_runtime::clock::process_cpu_ns(),
         );
         reasoner
             .decide(&warm)
             .map_err(|e| RoleError::step(format!("warming up reasoning/{variant}"), e))?;
+        let warm_up =
+            std::time::Duration::from_nanos(aeris_runtime::clock::wall_ns().saturating_sub(wall));
         let decision = warm_up_decision_time(
-            wall.elapsed(),
+            warm_up,
             aeris_runtime::clock::process_cpu_ns().saturating_sub(cpu),
             threads,
         );
         tracing::info!(
             "reasoning/{variant}: warmed up in {:.0} ms; a decision takes about {:.0} ms on its CPUs",
-            wall.elapsed().as_secs_f64() * 1e3,
+            warm_up.as_secs_f64() * 1e3,
             decision.as_secs_f64() * 1e3
         );
         // started during a flight (restart, hot swap): take the mission up where it is, on

@@ -1,6 +1,10 @@
 //! Closed loop in one process: the controller role and the vehicle role, driven through the
 //! `Role` trait, talk MAVLink over UDP loopback; the test plays the hub (bound setpoints on
 //! `hub/setpoint` over iceoryx2) and reads `vehicle/telemetry` back.
+#![allow(
+    clippy::disallowed_methods,
+    reason = "a test drives roles and measures them on the wall clock"
+)]
 
 use aeris_roles::controller::ControllerRole;
 use aeris_runtime::{CycleReport, FlightBus, Role, RoleContext, RoleSpec};

@@ -202,9 +202,10 @@ impl Role for FormationRole {
                 Writer::Model(Box::new(model))
             }
         };
-        let planning = std::time::Instant::now();
+        // how long the writing took: wall-clock time, on simulated time too
+        let planning = aeris_runtime::clock::wall_ns();
         let (program, trajectory) = plan(&mut writer, &instruction, &starts, &gate, max_repairs)?;
-        let program_ms = planning.elapsed().as_millis() as u64;
+        let program_ms = aeris_runtime::clock::wall_ns().saturating_sub(planning) / 1_000_000;
         let mut tracks = TrackRecorder::new(
             spec.param_str("tracks_file").map(std::path::PathBuf::from),
             &instruction,
