@@ -132,6 +132,8 @@ pub(crate) enum FlightTime {
         master: SimClockMaster,
         /// The instant the present step period ends.
         until_ns: u64,
+        /// The time reached `until_ns` and every role due by then has had its turn.
+        reached: bool,
     },
 }
 
@@ -154,6 +156,7 @@ impl FlightTime {
         Ok(FlightTime::Sim {
             master,
             until_ns: SIM_START_NS,
+            reached: false,
         })
     }
 
@@ -180,18 +183,32 @@ impl FlightTime {
         }
     }
 
+    /// `true` when the flight's time is at the end of a step period: always on the wall
+    /// clock; on simulated time once [`FlightTime::pass`] has reached it (every role done
+    /// with it), not while a role still works inside the period.
+    pub(crate) fn step_done(&self) -> bool {
+        match self {
+            FlightTime::Wall => true,
+            FlightTime::Sim { reached, .. } => *reached,
+        }
+    }
+
     /// Let `step` of the flight's time pass. On simulated time: move time on to the end of
     /// the present step period, for at most `step` of wall-clock time (a role still
     /// working then is waited for in the next call, after the supervisor has stepped).
     pub(crate) fn pass(&mut self, step: Duration) {
         match self {
             FlightTime::Wall => std::thread::sleep(step),
-            FlightTime::Sim { master, until_ns } => {
-                if master.now_ns() >= *until_ns {
+            FlightTime::Sim {
+                master,
+                until_ns,
+                reached,
+            } => {
+                if *reached {
                     *until_ns = until_ns.saturating_add(aeris_runtime::clock::duration_ns(step));
                 }
                 // a role still working is waited for in the next call
-                let _: Advance = master.advance(*until_ns, step);
+                *reached = master.advance(*until_ns, step) == Advance::Reached;
             }
         }
     }

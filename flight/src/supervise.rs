@@ -225,6 +225,19 @@ pub(crate) fn supervise<H: StepHook>(
             }
             send(FlightEvent::Supervisor(event.clone()));
         }
+        if !time.step_done() {
+            // simulated time still inside the step period (a role is working): the
+            // supervisor steps on, and the monitor, the stop rules and the hook wait for
+            // the period's end, so that they see the flight at the same instants every run
+            if let Some(request) = shared.stop_requested() {
+                failure = Some(request);
+            }
+            if failure.is_some() {
+                break;
+            }
+            time.pass(STEP_PERIOD);
+            continue;
+        }
         monitor.poll().map_err(FlightError::Telemetry)?;
         memory.sample(&sup);
         for event in monitor.take_autopilot_events() {
