@@ -7,7 +7,8 @@
 #   matplotlib, OpenCV, VTK —, which a headless router never imports), mcap, the
 #   independent MCAP reader the flight-recording tests read the recorder's files with, and
 #   eclipse-zenoh, the independent zenoh peers the agent's security tests get in with (or
-#   try to).
+#   try to), and ray, the cluster engine scripts/eval-ray.py runs evaluation shards on (a
+#   test runs it on a local cluster).
 # - GStreamer's plugins the video tests run real pipelines with (Debian packages, only if
 #   missing): H.264 encode (x264enc, plugins-ugly) and decode (avdec_h264, libav), MP4 and
 #   RTP (plugins-good), and gst-launch-1.0 (tools) for the second-process RTP sender.
@@ -21,6 +22,7 @@ MAVPROXY_VERSION=1.8.75
 PYSERIAL_VERSION=3.5
 MCAP_VERSION=1.6.0
 ZENOH_PY_VERSION=1.10.2
+RAY_VERSION=2.60.0
 
 gst_missing=()
 gst_has() { gst-inspect-1.0 --exists "$1" 2>/dev/null; }
@@ -55,6 +57,10 @@ fi
 if ! .venv/bin/python -c "import zenoh, sys; from importlib.metadata import version; sys.exit(0 if version('eclipse-zenoh') == '$ZENOH_PY_VERSION' else 1)" >/dev/null 2>&1; then
     echo "setup: installing eclipse-zenoh==$ZENOH_PY_VERSION into .venv" >&2
     .venv/bin/python -m pip install --quiet --disable-pip-version-check "eclipse-zenoh==$ZENOH_PY_VERSION"
+fi
+if ! .venv/bin/python -c "import ray, sys; sys.exit(0 if ray.__version__ == '$RAY_VERSION' else 1)" >/dev/null 2>&1; then
+    echo "setup: installing ray==$RAY_VERSION into .venv" >&2
+    .venv/bin/python -m pip install --quiet --disable-pip-version-check "ray==$RAY_VERSION"
 fi
 if ! .venv/bin/python -c "import MAVProxy, serial, sys; from importlib.metadata import version; sys.exit(0 if version('MAVProxy') == '$MAVPROXY_VERSION' else 1)" >/dev/null 2>&1; then
     echo "setup: installing MAVProxy==$MAVPROXY_VERSION into .venv" >&2

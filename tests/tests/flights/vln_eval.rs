@@ -4,7 +4,8 @@
 //! episodes.jsonl with its trajectory, metrics and run folder (and with `--record` its
 //! recording), which `aeris plot` draws; `aeris eval merge` of a run's output is its table.
 //! Their subject is the evaluation and the mission logic, so they fly on simulated time
-//! (`--clock sim`): as fast as the roles compute, and the same beside other flights.
+//! (`--clock sim`): as fast as the roles compute, and the same beside other flights; so the
+//! shards the Ray launcher flies merge into the very table of one run.
 
 use aeris_tests::*;
 use std::process::Command;
@@ -209,6 +210,79 @@ fn the_random_baseline_does_not_succeed_and_its_episode_is_recorded() {
     // with probability 1/8 per heartbeat does not get there
     assert_eq!(summary["sr"], 0.0, "{summary}");
     assert_eq!(episodes[0]["sr"], 0.0);
+}
+
+/// The launcher (`scripts/eval-ray.py`) flies two episodes as two shards on a local Ray
+/// cluster, and its merged table is the table of one run of the same two episodes: on
+/// simulated time the flights, hence every metric, are the same wherever they fly.
+#[test]
+fn shards_flown_by_ray_on_a_local_cluster_merge_into_the_table_of_one_run() {
+    let dir = TempDir::new("vln-eval-ray");
+    // the shortest episode of each airspace, in one file
+    let episodes: Vec<serde_json::Value> = ["open", "dense"]
+        .iter()
+        .map(|a| {
+            let file = shortest_val_unseen(&dir.0.join("episodes"), a);
+            let one: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(file).unwrap()).unwrap();
+            one["episodes"][0].clone()
+        })
+        .collect();
+    let file = dir.0.join("two.json");
+    std::fs::write(
+        &file,
+        serde_json::json!({ "episodes": episodes }).to_string(),
+    )
+    .unwrap();
+    let file = file.to_str().unwrap();
+    let eval_args = [
+        "--episodes-file",
+        file,
+        "--episodes",
+        "2",
+        "--baseline",
+        "oracle",
+    ];
+    let (one_run, _) = eval(&dir.0.join("one-run"), &eval_args);
+    assert_eq!(one_run["episodes"], 2, "{one_run}");
+    let launcher = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join("scripts")
+        .join("eval-ray.py");
+    let out = Command::new(python())
+        .arg(&launcher)
+        .args([
+            "--shards",
+            "2",
+            "--cpus-per-shard",
+            "1",
+            "--json",
+            "--aeris",
+        ])
+        .arg(aeris_bin())
+        .arg("--out")
+        .arg(dir.0.join("ray"))
+        .args(["--", "--clock", "sim"])
+        .args(eval_args)
+        .stdin(std::process::Stdio::null())
+        .output()
+        .expect("run scripts/eval-ray.py");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "eval-ray.py failed: {stderr}\n{stdout}"
+    );
+    // each shard flew on the cluster and said so
+    for k in 1..=2 {
+        assert!(stderr.contains(&format!("shard {k}/2 done")), "{stderr}");
+        assert!(
+            dir.0
+                .join(format!("ray/shard-{k}-of-2/episodes.jsonl"))
+                .is_file()
+        );
+    }
+    assert_eq!(last_json_line(&stdout), one_run, "{stdout}");
 }
 
 fn plot(args: &[&str]) -> String {

@@ -1,0 +1,144 @@
+#!/usr/bin/env python3
+"""Fly one `aeris eval` spread over a Ray cluster, and print the one table of it.
+
+Each of N Ray tasks runs `aeris eval EVAL_ARGS... --shard K/N --out OUT/shard-K-of-N` on
+whichever node has the CPUs it asks for; when all are done, `aeris eval merge` of their
+folders prints the table one run of those episodes would print (on simulated time,
+`--clock sim`, the very same table: the flights do not depend on the machine).
+
+    scripts/eval-ray.py --shards 8 --out runs/eval-test -- --split test_unseen --episodes 48 --clock sim
+    scripts/eval-ray.py --address HEAD:6379 --shards 32 --out /shared/eval -- --split test_unseen ...
+
+Without --address, Ray starts a local cluster on this machine for the run (`ray start --head`
+on one machine and `ray start --address HEAD:6379` on the others makes a real one). Every
+node must have the `aeris` executable at the path given (--aeris) and see OUT at the same
+path (a shared file system), as a Slurm array would need too.
+
+Why Ray: an evaluation is a bag of independent shards, which Ray's tasks (`num_cpus` per
+shard, retried on a lost node, scheduled where CPUs are free) express directly; it installs
+from PyPI (`pip install ray`, pinned by scripts/setup-test-deps.sh) and runs a local cluster
+on one machine, so the launcher is tested by the suite, where a Slurm array could not be.
+"""
+
+import argparse
+import os
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+
+def default_aeris() -> str:
+    root = Path(__file__).resolve().parent.parent
+    for build in ("release", "debug"):
+        exe = root / "target" / build / "aeris"
+        if exe.is_file():
+            return str(exe)
+    return "aeris"
+
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(
+        prog="eval-ray.py",
+        description="Fly `aeris eval EVAL_ARGS` as N shards on a Ray cluster and print the "
+        "merged table (`aeris eval merge`).",
+        epilog="Everything after -- goes to `aeris eval` on every shard "
+        "(not --shard, --out or --json: the launcher sets them).",
+    )
+    p.add_argument("--shards", type=int, required=True, metavar="N", help="how many shards (at least 1)")
+    p.add_argument("--out", required=True, metavar="DIR", help="the shards' folders go to DIR/shard-K-of-N")
+    p.add_argument(
+        "--address",
+        metavar="HOST:PORT",
+        help="a running Ray cluster's head; default: a local cluster started for this run",
+    )
+    p.add_argument(
+        "--cpus-per-shard",
+        type=float,
+        default=2.0,
+        metavar="C",
+        help="CPUs Ray reserves for each shard's flights (default 2: the roles of one flight)",
+    )
+    p.add_argument("--aeris", default=default_aeris(), metavar="PATH", help="the aeris executable on every node")
+    p.add_argument("--json", action="store_true", help="print the merged table as JSON on the last line too")
+    p.add_argument("eval_args", nargs=argparse.REMAINDER, metavar="-- EVAL_ARGS")
+    args = p.parse_args(argv)
+    if args.eval_args and args.eval_args[0] == "--":
+        args.eval_args = args.eval_args[1:]
+    if args.shards < 1:
+        p.error(f"--shards {args.shards}: at least 1")
+    if args.cpus_per_shard <= 0:
+        p.error(f"--cpus-per-shard {args.cpus_per_shard}: must be positive")
+    for own in ("--shard", "--out", "--json"):
+        if any(a == own or a.startswith(own + "=") for a in args.eval_args):
+            p.error(f"{own} is the launcher's to set; leave it out of EVAL_ARGS")
+    return args
+
+
+def fly_shard(aeris, eval_args, k, n, out):
+    """One shard: `aeris eval ... --shard K/N --out OUT`, on whichever node Ray chose."""
+    started = time.monotonic()
+    run = subprocess.run(
+        [aeris, "eval", *eval_args, "--shard", f"{k}/{n}", "--out", out],
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        text=True,
+    )
+    return {
+        "shard": k,
+        "returncode": run.returncode,
+        "out": out,
+        "node": socket.gethostname(),
+        "seconds": time.monotonic() - started,
+        "stderr_tail": run.stderr[-4000:],
+    }
+
+
+def main(argv):
+    args = parse_args(argv)
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    import ray  # after the arguments: --help works without Ray installed
+
+    out_root = Path(args.out).resolve()
+    out_root.mkdir(parents=True, exist_ok=True)
+    ray.init(address=args.address, include_dashboard=False, logging_level="warning", log_to_driver=False)
+    try:
+        task = ray.remote(fly_shard).options(num_cpus=args.cpus_per_shard, max_retries=1)
+        pending = {}
+        for k in range(1, args.shards + 1):
+            out = str(out_root / f"shard-{k}-of-{args.shards}")
+            pending[task.remote(args.aeris, args.eval_args, k, args.shards, out)] = k
+        print(
+            f"eval-ray: {args.shards} shard(s) of `aeris eval {' '.join(args.eval_args)}` "
+            f"on {ray.cluster_resources().get('CPU', 0):.0f} CPUs of the cluster",
+            file=sys.stderr,
+        )
+        done, failed = [], []
+        while pending:
+            ready, _ = ray.wait(list(pending), num_returns=1)
+            for ref in ready:
+                pending.pop(ref)
+                result = ray.get(ref)
+                (done if result["returncode"] == 0 else failed).append(result)
+                print(
+                    f"eval-ray: shard {result['shard']}/{args.shards} "
+                    f"{'done' if result['returncode'] == 0 else 'FAILED (exit %d)' % result['returncode']} "
+                    f"on {result['node']} in {result['seconds']:.0f} s "
+                    f"({len(done) + len(failed)}/{args.shards})",
+                    file=sys.stderr,
+                )
+    finally:
+        ray.shutdown()
+    if failed:
+        for result in sorted(failed, key=lambda r: r["shard"]):
+            print(f"eval-ray: shard {result['shard']} failed; its stderr ends:\n{result['stderr_tail']}", file=sys.stderr)
+        print(f"eval-ray: {len(failed)} of {args.shards} shard(s) failed; nothing merged", file=sys.stderr)
+        return 1
+    folders = [r["out"] for r in sorted(done, key=lambda r: r["shard"])]
+    merge = [args.aeris, "eval", "merge", *folders] + (["--json"] if args.json else [])
+    return subprocess.run(merge, stdin=subprocess.DEVNULL).returncode
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
