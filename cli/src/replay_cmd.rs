@@ -22,8 +22,10 @@ pub struct ReplayArgs {
     #[arg(long, value_name = "S")]
     pub to: Option<f64>,
     /// Time scale: 2 replays twice as fast; the heartbeat and the deadline scale with it.
-    #[arg(long, value_name = "X", default_value_t = 1.0)]
-    pub speed: f64,
+    /// `max`: on simulated time (`aeris run --clock sim`), the roles taking their turns at
+    /// the recorded instants, as fast as they compute.
+    #[arg(long, value_name = "X|max", default_value = "1")]
+    pub speed: ReplaySpeed,
     /// Run a role with another variant than the recorded one, e.g. --variant
     /// reasoning=garbage (repeatable).
     #[arg(long, value_name = "ROLE=VARIANT")]
@@ -45,13 +47,42 @@ pub struct ReplayArgs {
     pub json: bool,
 }
 
+/// `aeris replay --speed`: a time scale, or as fast as the roles compute.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ReplaySpeed {
+    /// The recorded time scaled (2: twice as fast), on the wall clock.
+    Scale(f64),
+    /// Simulated time: as fast as the roles compute.
+    Max,
+}
+
+impl std::str::FromStr for ReplaySpeed {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        if s == "max" {
+            return Ok(ReplaySpeed::Max);
+        }
+        s.parse::<f64>()
+            .map(ReplaySpeed::Scale)
+            .map_err(|_| format!("`{s}` is neither a number nor `max`"))
+    }
+}
+
 /// `aeris replay`.
 pub fn run(args: ReplayArgs) -> Result<()> {
     let request = ReplayRequest {
         path: args.file.clone(),
         from_s: args.from,
         to_s: args.to,
-        speed: args.speed,
+        speed: match args.speed {
+            ReplaySpeed::Scale(x) => x,
+            ReplaySpeed::Max => 1.0,
+        },
+        clock: match args.speed {
+            ReplaySpeed::Scale(_) => aeris_flight::FlightClock::Wall,
+            ReplaySpeed::Max => aeris_flight::FlightClock::Sim,
+        },
         variants: variant_choices(&args.variant)?,
         name: args.flight.clone(),
         run_dir: args.run_dir.clone(),
@@ -114,6 +145,14 @@ fn print_cycle(c: &ReplayCycle) {
     );
 }
 
+/// The replay's speed as the user gave it.
+fn speed_text(s: &aeris_flight::replay::ReplaySummary) -> String {
+    match s.clock {
+        aeris_flight::FlightClock::Sim => "max (simulated time)".into(),
+        aeris_flight::FlightClock::Wall => s.speed.to_string(),
+    }
+}
+
 fn print_report(report: &ReplayReport) {
     let s = &report.summary;
     println!(
@@ -121,7 +160,7 @@ fn print_report(report: &ReplayReport) {
         s.recording.display(),
         s.from_s,
         s.to_s,
-        s.speed,
+        speed_text(s),
         s.variants.join(" ")
     );
     println!(
@@ -166,7 +205,7 @@ fn print_comparison(rows: &[CompareRow]) {
         first.summary.recording.display(),
         first.summary.from_s,
         first.summary.to_s,
-        first.summary.speed,
+        speed_text(&first.summary),
         first.summary.recorded_cycles
     );
     let names: Vec<&str> = rows.iter().map(|r| r.variant.as_str()).collect();

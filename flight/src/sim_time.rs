@@ -19,7 +19,8 @@ use std::time::Duration;
 pub const SIM_START_NS: u64 = 1_000_000_000;
 
 /// The clock a flight runs on.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
 pub enum FlightClock {
     /// CLOCK_MONOTONIC: the only clock of a real vehicle.
     #[default]

@@ -75,6 +75,10 @@ pub struct ReplayRequest {
     /// The language-model engine's offload check for the replay's flights
     /// ([`crate::FlightBuilder::language_offload_check`]).
     pub offload_check: Option<crate::executors::OffloadCheck>,
+    /// The clock the replay runs on: on simulated time ([`crate::FlightClock::Sim`]) the
+    /// roles take their turns at the recorded instants and the replay runs as fast as they
+    /// compute (`aeris replay --speed max`; `speed` is then 1).
+    pub clock: crate::FlightClock,
 }
 
 impl ReplayRequest {
@@ -90,6 +94,7 @@ impl ReplayRequest {
             run_dir: None,
             role_executable: None,
             offload_check: None,
+            clock: crate::FlightClock::Wall,
         }
     }
 }
@@ -174,6 +179,8 @@ pub struct ReplaySummary {
     pub to_s: f64,
     /// Time scale.
     pub speed: f64,
+    /// The clock the replay ran on (`sim`: `aeris replay --speed max`).
+    pub clock: crate::FlightClock,
     /// Recorded cycles in the range.
     pub recorded_cycles: usize,
     /// Replayed cycles.
@@ -365,7 +372,11 @@ pub fn replay_workflow(
 struct ReplayHook {
     /// The replay's heartbeat plus its deadline (ns): how long the last decision may take.
     last_wait_ns: u64,
-    done_at: Option<std::time::Instant>,
+    /// When the source said it had replayed everything (its heartbeat's stamp: the
+    /// flight's clock, simulated or wall).
+    done_at: Option<u64>,
+    /// The source's latest heartbeat stamp.
+    source_now_ns: u64,
     offset: Option<(u64, i64)>,
     late_max_us: u64,
     /// The source could not read the recording to its end.
@@ -393,13 +404,14 @@ impl StepHook for ReplayHook {
         }
         if let Some(hb) = source.and_then(|r| r.last_heartbeat()) {
             let c = ReplayCounters::from_heartbeat(&hb.counters);
+            self.source_now_ns = self.source_now_ns.max(hb.stamp_ns);
             if c.started == 1 {
                 self.offset = Some((c.start, c.offset as i64));
             }
             self.late_max_us = self.late_max_us.max(c.late_max_us);
             self.source_failed |= hb.status == aeris_schemas::RoleStatus::Degraded as u8;
             if c.done == 1 && self.done_at.is_none() {
-                self.done_at = Some(std::time::Instant::now());
+                self.done_at = Some(hb.stamp_ns);
                 ctx.note("replay: the recording is replayed; waiting one heartbeat for the last decision");
             }
         }
@@ -419,7 +431,7 @@ impl StepHook for ReplayHook {
         }
         Ok(self
             .done_at
-            .is_some_and(|t| t.elapsed().as_nanos() as u64 >= self.last_wait_ns))
+            .is_some_and(|t| self.source_now_ns.saturating_sub(t) >= self.last_wait_ns))
     }
 }
 
@@ -514,6 +526,7 @@ pub fn replay(
         .name(name)
         .overrides(overrides)
         .stop_when(StopRule::Hook)
+        .clock(request.clock)
         .record(REPLAY_RECORDING)
         .record_frame_every(0)
         .record_exact_frames(false)
@@ -538,6 +551,7 @@ pub fn replay(
             + scaled_ms(flight.timing.decision_deadline_ms, speed).unwrap_or(1))
             * 1_000_000,
         done_at: None,
+        source_now_ns: 0,
         offset: None,
         late_max_us: 0,
         source_failed: false,
@@ -636,6 +650,7 @@ pub fn replay(
         from_s: first.saturating_sub(start) as f64 * 1e-9,
         to_s: to_ns.min(end).saturating_sub(start) as f64 * 1e-9,
         speed,
+        clock: request.clock,
         recorded_cycles: recorded_in.len(),
         replayed_cycles: replayed_in.len(),
         recorded_without_frame: without_frame,

@@ -586,7 +586,12 @@ impl Drop for Supervisor {
 
 /// Role `index`'s order among the roles due at one instant of simulated time: by its
 /// kind's place in the pipeline (vehicle, camera, perception, ..., reasoner, hub,
-/// controller, as [`RoleKind`] lists them), then by its place in the workflow.
+/// controller, as [`RoleKind`] lists them; a replay source first, as the vehicle and the
+/// camera it plays), then by its place in the workflow.
 fn sim_rank(kind: RoleKind, index: usize) -> u32 {
-    ((kind as u32) << 16) | (index.min(0xffff) as u32)
+    let place = match kind {
+        RoleKind::Replay => 0,
+        kind => kind as u32,
+    };
+    (place << 16) | (index.min(0xffff) as u32)
 }
