@@ -250,6 +250,17 @@ pub struct EpisodeLine<'a> {
     pub decisions_reused: u64,
     /// Every committed cycle's time (s): what the group's CT mean and P95 are taken over.
     pub ct_samples_s: &'a [f64],
+    /// Every committed cycle's compute time on this machine (s; the flight's
+    /// `ct_compute_mean_s`): what the group's compute CT is taken over.
+    pub ct_compute_samples_s: &'a [f64],
+    /// Cycles over the deadline on compute alone, or without a fresh decision (the
+    /// group's `eer_compute` numerator).
+    pub compute_misses: u64,
+    /// The clock the episode flew on (`wall` or `sim`).
+    pub clock: aeris_flight::FlightClock,
+    /// Wall-clock time the episode's flight took (s; its `duration_s` on simulated time
+    /// is simulated).
+    pub wall_s: f64,
     /// Why the flight ended early, if it did.
     pub failure: Option<&'a str>,
     /// Automatic variant swaps (the role-adaptive stack's steps) during the flight.
@@ -593,6 +604,10 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
             cycles: summary.cycles,
             decisions_reused: summary.hub.decisions_reused,
             ct_samples_s: &outcome.ct_samples_s,
+            ct_compute_samples_s: &outcome.ct_compute_samples_s,
+            compute_misses: outcome.compute_misses,
+            clock: summary.clock,
+            wall_s: summary.wall_s,
             failure: failure.as_deref(),
             variant_steps: summary.variant_steps,
             run_dir: &run_dir,
@@ -628,6 +643,9 @@ impl EpisodeLine<'_> {
             cycles: self.cycles,
             decisions_reused: self.decisions_reused,
             ct_samples_s: self.ct_samples_s.to_vec(),
+            ct_compute_samples_s: self.ct_compute_samples_s.to_vec(),
+            compute_misses: self.compute_misses,
+            clock: self.clock.name().to_string(),
         }
     }
 }
@@ -724,6 +742,10 @@ mod tests {
             cycles: 2,
             decisions_reused: 0,
             ct_samples_s: &[0.1, 0.2],
+            ct_compute_samples_s: &[0.05, 0.06],
+            compute_misses: 0,
+            clock: aeris_flight::FlightClock::Sim,
+            wall_s: 0.5,
             failure: None,
             variant_steps: 0,
             run_dir: Path::new("runs/x"),
@@ -731,7 +753,7 @@ mod tests {
         };
         assert_eq!(
             serde_json::to_string(&line).unwrap(),
-            r#"{"index":3,"episode_id":"e1","scene_id":"s","airspace":"open","agent":"oracle","split":"val_unseen","baseline":"oracle","reasoning":"planner","instruction":"fly","positions":[[0.0,0.0,0.0]],"reference":[],"goal":[1.0,2.0,3.0],"stopped":true,"collided":false,"subgoals_total":1,"subgoals_completed":1,"attention_steps":[1],"ne":null,"sr":1.0,"osr":1.0,"ndtw":0.5,"spl":0.25,"asr":1.0,"path_length_m":10.0,"duration_s":2.0,"ct_mean_s":0.1,"ct_p95_s":0.2,"eer":0.0,"cycles":2,"decisions_reused":0,"ct_samples_s":[0.1,0.2],"failure":null,"variant_steps":0,"run_dir":"runs/x"}"#
+            r#"{"index":3,"episode_id":"e1","scene_id":"s","airspace":"open","agent":"oracle","split":"val_unseen","baseline":"oracle","reasoning":"planner","instruction":"fly","positions":[[0.0,0.0,0.0]],"reference":[],"goal":[1.0,2.0,3.0],"stopped":true,"collided":false,"subgoals_total":1,"subgoals_completed":1,"attention_steps":[1],"ne":null,"sr":1.0,"osr":1.0,"ndtw":0.5,"spl":0.25,"asr":1.0,"path_length_m":10.0,"duration_s":2.0,"ct_mean_s":0.1,"ct_p95_s":0.2,"eer":0.0,"cycles":2,"decisions_reused":0,"ct_samples_s":[0.1,0.2],"ct_compute_samples_s":[0.05,0.06],"compute_misses":0,"clock":"sim","wall_s":0.5,"failure":null,"variant_steps":0,"run_dir":"runs/x"}"#
         );
     }
 

@@ -45,7 +45,7 @@ impl fmt::Display for EvalTable {
         )?;
         writeln!(
             f,
-            "  {:<8} {:>4} {:>8} {:>6} {:>6} {:>6} {:>6} {:>6} {:>8} {:>8} {:>6}",
+            "  {:<8} {:>4} {:>8} {:>6} {:>6} {:>6} {:>6} {:>6} {:>8} {:>8} {:>6} {:>8} {:>6}",
             "airspace",
             "n",
             "NE m",
@@ -56,7 +56,9 @@ impl fmt::Display for EvalTable {
             "ASR%",
             "CT s",
             "P95 s",
-            "EER%"
+            "EER%",
+            "CTc s",
+            "EERc%"
         )?;
         let pct = |v: f64| format!("{:.1}", v * 100.0);
         for (name, g) in [
@@ -70,7 +72,7 @@ impl fmt::Display for EvalTable {
             }
             writeln!(
                 f,
-                "  {:<8} {:>4} {:>8} {:>6} {:>6} {:>6} {:>6} {:>6} {:>8.3} {:>8.3} {:>6}",
+                "  {:<8} {:>4} {:>8} {:>6} {:>6} {:>6} {:>6} {:>6} {:>8.3} {:>8.3} {:>6} {:>8.3} {:>6}",
                 name,
                 s.episodes,
                 s.ne.map(|v| format!("{v:.1}"))
@@ -82,7 +84,9 @@ impl fmt::Display for EvalTable {
                 s.asr.map(pct).unwrap_or_else(|| "-".into()),
                 g.ct_mean_s,
                 g.ct_p95_s,
-                pct(g.eer)
+                pct(g.eer),
+                g.ct_compute_mean_s,
+                pct(g.eer_compute)
             )?;
         }
         Ok(())
@@ -101,6 +105,13 @@ pub struct GroupSummary {
     pub ct_p95_s: f64,
     /// Reused cycles over all cycles of the group.
     pub eer: f64,
+    /// Mean compute time of the group's committed cycles on the machines that flew them
+    /// (s): what CT would be without waiting (on simulated time, where CT is 0, the figure
+    /// that says whether the models keep up).
+    pub ct_compute_mean_s: f64,
+    /// Cycles over the deadline on compute alone, or without a fresh decision, over all
+    /// cycles of the group.
+    pub eer_compute: f64,
 }
 
 /// What one flown episode adds to the summaries of its groups: read from its line of
@@ -130,6 +141,20 @@ pub struct EpisodeTally {
     pub decisions_reused: u64,
     /// Every committed cycle's time (s).
     pub ct_samples_s: Vec<f64>,
+    /// Every committed cycle's compute time on this machine (s); none in lines written
+    /// before it was measured.
+    #[serde(default)]
+    pub ct_compute_samples_s: Vec<f64>,
+    /// Cycles over the deadline on compute alone, or without a fresh decision.
+    #[serde(default)]
+    pub compute_misses: u64,
+    /// The clock the episode flew on (`wall` in lines written before simulated time).
+    #[serde(default = "wall_clock")]
+    pub clock: String,
+}
+
+fn wall_clock() -> String {
+    "wall".into()
 }
 
 /// The summaries of an evaluation: every episode, the open-airspace ones, the dense ones.
@@ -154,15 +179,25 @@ impl Summaries {
                 .collect();
             let cycles: u64 = members.iter().map(|t| t.cycles).sum();
             let reused: u64 = members.iter().map(|t| t.decisions_reused).sum();
+            let compute: Vec<f64> = members
+                .iter()
+                .flat_map(|t| t.ct_compute_samples_s.iter().copied())
+                .collect();
+            let misses: u64 = members.iter().map(|t| t.compute_misses).sum();
+            let share = |n: u64| {
+                if cycles == 0 {
+                    0.0
+                } else {
+                    n as f64 / cycles as f64
+                }
+            };
             GroupSummary {
                 metrics: MetricsSummary::of(members.iter().map(|t| &t.metrics)),
                 ct_mean_s: mean_std(&ct).map_or(0.0, |(mean, _)| mean),
                 ct_p95_s: percentile(&ct, 95.0).unwrap_or(0.0),
-                eer: if cycles == 0 {
-                    0.0
-                } else {
-                    reused as f64 / cycles as f64
-                },
+                eer: share(reused),
+                ct_compute_mean_s: mean_std(&compute).map_or(0.0, |(mean, _)| mean),
+                eer_compute: share(misses),
             }
         };
         Self {
@@ -207,7 +242,7 @@ pub enum MergeError {
     Mixed {
         /// The file that differs.
         path: PathBuf,
-        /// `agent`, `split`, `baseline` or `reasoning`.
+        /// `agent`, `split`, `baseline`, `reasoning` or `clock`.
         field: &'static str,
         /// The first file's.
         expected: String,
@@ -257,6 +292,7 @@ pub fn merge(paths: &[PathBuf]) -> Result<EvalTable, MergeError> {
                     ("agent", &first.agent, &t.agent),
                     ("split", &first.split, &t.split),
                     ("reasoning", &first.reasoning, &t.reasoning),
+                    ("clock", &first.clock, &t.clock),
                 ];
                 let baseline = |b: &Option<String>| b.clone().unwrap_or_else(|| "none".into());
                 let (b0, b1) = (baseline(&first.baseline), baseline(&t.baseline));
@@ -516,6 +552,9 @@ mod merge_tests {
             ct_samples_s: (0..7)
                 .map(|c| 0.05 + 0.011 * (c as f64) * (x + 1.0))
                 .collect(),
+            ct_compute_samples_s: (0..7).map(|c| 0.01 * (c as f64) + x).collect(),
+            compute_misses: index as u64 % 2,
+            clock: "sim".into(),
         }
     }
 
@@ -565,10 +604,20 @@ mod merge_tests {
         let mut other = shard(1);
         other.iter_mut().for_each(|t| t.agent = "oracle".into());
         let c = write(&dir, "c.jsonl", &other);
-        let err = merge(&[a, c]).unwrap_err();
+        let err = merge(&[a.clone(), c]).unwrap_err();
         assert!(
             err.to_string()
                 .ends_with("agent `oracle`, but the first file's is `aeris-planner`: not shards of one evaluation"),
+            "{err}"
+        );
+        // nor one flown on the wall clock with one on simulated time
+        let mut wall = shard(1);
+        wall.iter_mut().for_each(|t| t.clock = "wall".into());
+        let w = write(&dir, "w.jsonl", &wall);
+        let err = merge(&[a, w]).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("clock `wall`, but the first file's is `sim`"),
             "{err}"
         );
         std::fs::remove_dir_all(&dir).unwrap();

@@ -49,6 +49,7 @@
 #![deny(missing_docs)]
 
 pub mod autopilot_link;
+mod compute_time;
 mod error;
 pub mod event;
 pub mod executors;

@@ -24,8 +24,14 @@ pub struct FlightSummary {
     pub final_distance_m: f64,
     /// Final position [N, E, U].
     pub final_position: [f64; 3],
-    /// Wall time of the flight (s).
+    /// Time of the flight (s), on the flight's clock: wall-clock, or simulated
+    /// ([`FlightSummary::clock`]).
     pub duration_s: f64,
+    /// The clock the flight ran on.
+    pub clock: crate::FlightClock,
+    /// Wall-clock time the flight took (s): `duration_s` on the wall clock; on simulated
+    /// time, how long its computation took.
+    pub wall_s: f64,
     /// Semantic cycles: committed decisions plus reuses of the last valid one (over every
     /// hub process of the flight).
     pub cycles: u64,
@@ -41,6 +47,15 @@ pub struct FlightSummary {
     pub stages_mean_s: StageMeans,
     /// Execution error rate: reuses (late, rejected or missing decisions) over cycles.
     pub eer: f64,
+    /// Mean compute time of the committed cycles on this machine (s): the wall-clock work
+    /// of the perception stages and the reasoner (`compute_time`), what the cycle would
+    /// take on the wall clock without waiting; on simulated time too, where `ct_mean_s` is 0.
+    pub ct_compute_mean_s: f64,
+    /// Its 95th percentile (s).
+    pub ct_compute_p95_s: f64,
+    /// Cycles whose compute time exceeded the decision deadline, or without a fresh
+    /// decision, over cycles: the EER this machine's compute alone would give.
+    pub eer_compute: f64,
     /// What the hub did with the decisions and states it received, totalled over every hub
     /// process of the flight (flat in the JSON: `decisions_received`, ...).
     #[serde(flatten)]
@@ -501,6 +516,8 @@ impl FlightMonitor {
             final_distance_m: self.distance_to_goal().map(f64::from).unwrap_or(f64::NAN),
             final_position: p.map(f64::from),
             duration_s,
+            clock: crate::FlightClock::Wall,
+            wall_s: duration_s,
             cycles: self.cycles(),
             cycles_committed: self.hub_totals().decisions_committed,
             ct_mean_s: ct_mean,
@@ -513,6 +530,9 @@ impl FlightMonitor {
                 binding: self.stage_sums[3] / n,
             },
             eer: self.eer(),
+            ct_compute_mean_s: 0.0,
+            ct_compute_p95_s: 0.0,
+            eer_compute: 0.0,
             hub: self.hub_totals(),
             controller_ticks: self.controller.total(TICKS),
             controller_missed_ticks: self.controller.total(MISSED),
@@ -558,6 +578,11 @@ pub struct FlightOutcome {
     pub failure: Option<FlightFailure>,
     /// Cycle times (s) of every committed cycle.
     pub ct_samples_s: Vec<f64>,
+    /// Compute times (s) of every committed cycle (`FlightSummary::ct_compute_mean_s`).
+    pub ct_compute_samples_s: Vec<f64>,
+    /// Cycles over the deadline on compute, or without a fresh decision
+    /// (`FlightSummary::eer_compute`).
+    pub compute_misses: u64,
     /// The per-cycle trace (what the run directory's `cycles.jsonl` holds).
     pub trace: Vec<CycleTrace>,
 }

@@ -19,10 +19,17 @@ impl fmt::Display for FlightOutcome {
         if let Some(why) = &self.failure {
             writeln!(f, "  reason: {why}")?;
         }
+        let time = match s.clock {
+            crate::FlightClock::Wall => format!("{:.1} s", s.duration_s),
+            crate::FlightClock::Sim => format!(
+                "{:.1} s of simulated time ({:.1} s of wall time)",
+                s.duration_s, s.wall_s
+            ),
+        };
         writeln!(
             f,
-            "  final distance to goal {:.2} m after {:.1} s; subgoals reached by ATT {}/{}",
-            s.final_distance_m, s.duration_s, s.max_active_step, s.subgoals_total
+            "  final distance to goal {:.2} m after {time}; subgoals reached by ATT {}/{}",
+            s.final_distance_m, s.max_active_step, s.subgoals_total
         )?;
         let st = &s.stages_mean_s;
         writeln!(
@@ -49,6 +56,18 @@ impl fmt::Display for FlightOutcome {
             h.decisions_reused,
             h.sequence_gaps,
             h.sequence_reorders
+        )?;
+        writeln!(
+            f,
+            "  compute on this machine: CT mean {:.3} s (p95 {:.3}), EER {:.2}% (cycles over the deadline on compute alone){}",
+            s.ct_compute_mean_s,
+            s.ct_compute_p95_s,
+            s.eer_compute * 100.0,
+            if s.clock == crate::FlightClock::Sim {
+                "; on simulated time CT and EER above are on the flight's clock, where work takes no time"
+            } else {
+                ""
+            }
         )?;
         writeln!(
             f,

@@ -1,6 +1,7 @@
 //! The flight's thread: start the supervisor, wait for every role, then step it until the
 //! stop rule, a failure, the time limit or a stop request; stop every role; write the trace.
 
+use crate::compute_time::ComputeWatch;
 use crate::error::FlightError;
 use crate::event::{
     FleetProgress, FlightEvent, FlightFailure, FlightPhase, FlightProgress, FlightStatus,
@@ -15,6 +16,7 @@ use aeris_orchestrator::supervisor::{RoleState, Supervisor, SupervisorEvent, Sup
 use aeris_orchestrator::workflow::Workflow;
 use aeris_runtime::MissionSpec;
 use aeris_runtime::clock::sim::SimClockError;
+use aeris_runtime::stats::{mean_std, percentile};
 use aeris_schemas::HubBeatCounters;
 use aeris_schemas::RoleKind;
 use std::path::{Path, PathBuf};
@@ -207,6 +209,8 @@ pub(crate) fn supervise<H: StepHook>(
     let mut failure: Option<FlightFailure> = None;
     let (mut swaps_done, mut swaps_failed) = (0u64, 0u64);
     let mut memory = crate::memory::MemoryWatch::default();
+    let mut compute = ComputeWatch::default();
+    let wall_start = Instant::now();
     loop {
         let step_events = sup
             .step()
@@ -239,6 +243,7 @@ pub(crate) fn supervise<H: StepHook>(
             continue;
         }
         monitor.poll().map_err(FlightError::Telemetry)?;
+        compute.observe(monitor.trace(), &sup, deadline_ms.saturating_mul(1_000_000));
         memory.sample(&sup);
         for event in monitor.take_autopilot_events() {
             send(FlightEvent::Autopilot(event));
@@ -313,7 +318,13 @@ pub(crate) fn supervise<H: StepHook>(
     }
     let duration = elapsed(&time).as_secs_f64();
     let _ = monitor.poll();
+    compute.observe(monitor.trace(), &sup, deadline_ms.saturating_mul(1_000_000));
     let mut summary = monitor.summary(&name, duration, u64::from(sup.total_restarts()));
+    summary.clock = clock;
+    summary.wall_s = wall_start.elapsed().as_secs_f64();
+    summary.ct_compute_mean_s = mean_std(compute.samples_s()).map_or(0.0, |(mean, _)| mean);
+    summary.ct_compute_p95_s = percentile(compute.samples_s(), 95.0).unwrap_or(0.0);
+    summary.eer_compute = compute.eer();
     // before a first commit the hub reports no cycle: its counters are in its heartbeats
     if monitor.cycles() == 0
         && let Some(hub) = hub_counters(&sup)
@@ -365,6 +376,8 @@ pub(crate) fn supervise<H: StepHook>(
         summary,
         failure,
         ct_samples_s: monitor.ct_samples_s().to_vec(),
+        ct_compute_samples_s: compute.samples_s().to_vec(),
+        compute_misses: compute.misses(),
         trace: monitor.trace().to_vec(),
     };
     Ok((outcome, hook))

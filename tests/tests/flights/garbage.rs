@@ -5,6 +5,7 @@
 //! The check is made where the MAVLink stream lands: the simulated vehicle decodes every
 //! SET_POSITION_TARGET_LOCAL_NED and counts those outside the mission's geofence and altitude
 //! band (heartbeat counters[1]); the pymavlink test checks the same stream independently.
+//! Its subject is the gate, not timing: it flies on simulated time (`--clock sim`).
 
 use aeris_runtime::bus::FlightBus;
 use aeris_schemas::{PlannerCounters, VehicleCounters, topics};
@@ -25,7 +26,7 @@ fn garbage_decisions_never_reach_the_autopilot() {
     short_hop(&mut workflow);
     set_variant(&mut workflow, "reasoning", "garbage");
     let path = write_workflow(&dir.0, "garbage", &workflow);
-    let mut run = spawn_run(&dir.0, &flight, &[path.to_str().unwrap()]);
+    let mut run = spawn_run(&dir.0, &flight, &[path.to_str().unwrap(), "--clock", "sim"]);
 
     let mut vehicle_counters = [0u64; 8];
     let mut garbage_counters = [0u64; 8];

@@ -69,6 +69,15 @@ fn the_default_mission_on_simulated_time_flies_the_same_alone_and_beside_busy_th
     }
     // simulated time never leaves the controller behind
     assert_eq!(summary_a["controller_missed_ticks"], 0, "{summary_a}");
+    // work takes no simulated time: the hub's cycle time is 0, and what the work took on
+    // this machine is measured apart (on the wall clock, so not compared between the runs)
+    assert_eq!(summary_a["clock"], "sim", "{summary_a}");
+    assert_eq!(summary_a["ct_mean_s"], 0.0, "{summary_a}");
+    assert!(
+        summary_a["ct_compute_mean_s"].as_f64().unwrap() > 0.0,
+        "{summary_a}"
+    );
+    assert!(summary_a["eer_compute"].is_number(), "{summary_a}");
 }
 
 #[test]
