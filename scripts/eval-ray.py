@@ -4,7 +4,8 @@
 Each of N Ray tasks runs `aeris eval EVAL_ARGS... --shard K/N --out OUT/shard-K-of-N` on
 whichever node has the CPUs it asks for; when all are done, `aeris eval merge` of their
 folders prints the table one run of those episodes would print (on simulated time,
-`--clock sim`, the very same table: the flights do not depend on the machine).
+`--clock sim`, the very same table but for the compute columns, which measure the machines:
+the flights do not depend on them).
 
     scripts/eval-ray.py --shards 8 --out runs/eval-test -- --split test_unseen --episodes 48 --clock sim
     scripts/eval-ray.py --address HEAD:6379 --shards 32 --out /shared/eval -- --split test_unseen ...
@@ -79,20 +80,20 @@ def parse_args(argv):
 def fly_shard(aeris, eval_args, k, n, out):
     """One shard: `aeris eval ... --shard K/N --out OUT`, on whichever node Ray chose."""
     started = time.monotonic()
-    run = subprocess.run(
-        [aeris, "eval", *eval_args, "--shard", f"{k}/{n}", "--out", out],
-        stdin=subprocess.DEVNULL,
-        capture_output=True,
-        text=True,
-    )
-    return {
-        "shard": k,
-        "returncode": run.returncode,
-        "out": out,
-        "node": socket.gethostname(),
-        "seconds": time.monotonic() - started,
-        "stderr_tail": run.stderr[-4000:],
-    }
+    result = {"shard": k, "out": out, "node": socket.gethostname()}
+    try:
+        run = subprocess.run(
+            [aeris, "eval", *eval_args, "--shard", f"{k}/{n}", "--out", out],
+            stdin=subprocess.DEVNULL,
+            capture_output=True,
+            text=True,
+        )
+        result.update(returncode=run.returncode, stderr_tail=run.stderr[-4000:])
+    except OSError as e:
+        # no such executable on this node, or it cannot run
+        result.update(returncode=127, stderr_tail=f"cannot run {aeris} on {result['node']}: {e}")
+    result["seconds"] = time.monotonic() - started
+    return result
 
 
 def main(argv):
@@ -102,13 +103,23 @@ def main(argv):
 
     out_root = Path(args.out).resolve()
     out_root.mkdir(parents=True, exist_ok=True)
+    # a path (not a bare name looked up on each node's PATH) means the same on every node
+    aeris = os.path.abspath(args.aeris) if os.sep in args.aeris else args.aeris
     ray.init(address=args.address, include_dashboard=False, logging_level="warning", log_to_driver=False)
     try:
+        largest = max((node["Resources"].get("CPU", 0) for node in ray.nodes() if node.get("Alive")), default=0)
+        if args.cpus_per_shard > largest:
+            print(
+                f"eval-ray: --cpus-per-shard {args.cpus_per_shard:g}: the cluster's largest node has "
+                f"{largest:g} CPUs, so no shard could ever start",
+                file=sys.stderr,
+            )
+            return 2
         task = ray.remote(fly_shard).options(num_cpus=args.cpus_per_shard, max_retries=1)
         pending = {}
         for k in range(1, args.shards + 1):
             out = str(out_root / f"shard-{k}-of-{args.shards}")
-            pending[task.remote(args.aeris, args.eval_args, k, args.shards, out)] = k
+            pending[task.remote(aeris, args.eval_args, k, args.shards, out)] = k
         print(
             f"eval-ray: {args.shards} shard(s) of `aeris eval {' '.join(args.eval_args)}` "
             f"on {ray.cluster_resources().get('CPU', 0):.0f} CPUs of the cluster",
@@ -118,8 +129,12 @@ def main(argv):
         while pending:
             ready, _ = ray.wait(list(pending), num_returns=1)
             for ref in ready:
-                pending.pop(ref)
-                result = ray.get(ref)
+                k = pending.pop(ref)
+                try:
+                    result = ray.get(ref)
+                except ray.exceptions.RayError as e:
+                    # the task itself failed (its node was lost, twice)
+                    result = {"shard": k, "returncode": 1, "node": "?", "seconds": 0.0, "stderr_tail": str(e)}
                 (done if result["returncode"] == 0 else failed).append(result)
                 print(
                     f"eval-ray: shard {result['shard']}/{args.shards} "
@@ -136,7 +151,7 @@ def main(argv):
         print(f"eval-ray: {len(failed)} of {args.shards} shard(s) failed; nothing merged", file=sys.stderr)
         return 1
     folders = [r["out"] for r in sorted(done, key=lambda r: r["shard"])]
-    merge = [args.aeris, "eval", "merge", *folders] + (["--json"] if args.json else [])
+    merge = [aeris, "eval", "merge", *folders] + (["--json"] if args.json else [])
     return subprocess.run(merge, stdin=subprocess.DEVNULL).returncode
 
 

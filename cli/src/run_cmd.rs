@@ -23,7 +23,9 @@ pub struct RunArgs {
     /// time stands still while any role works, and the flight runs as fast as the roles
     /// compute, with the same decisions on any machine. `sim` needs the built-in vehicle
     /// (or a replay), no real camera and no roles on other hosts; its roles are not
-    /// hot-swapped. Compute times (CT, each role's latency) are still wall-clock times.
+    /// hot-swapped. CT and EER are then on the flight's clock (0: work takes no simulated
+    /// time); what the work took on this machine is the summary's ct_compute and
+    /// eer_compute, and each role's latency, both wall-clock.
     #[arg(long, value_name = "CLOCK", default_value = "wall")]
     pub clock: aeris_flight::FlightClock,
     /// Print the summary as one JSON object on the last line of stdout.

@@ -16,6 +16,7 @@
 #![deny(missing_docs)]
 
 pub mod episode;
+pub mod episode_line;
 pub mod formation_plot;
 pub mod generate;
 pub mod metrics;

@@ -115,7 +115,7 @@ pub struct GroupSummary {
 }
 
 /// What one flown episode adds to the summaries of its groups: read from its line of
-/// episodes.jsonl (the fields of [`crate::runner::EpisodeLine`] of the same names).
+/// episodes.jsonl (the fields of [`crate::episode_line::EpisodeLine`] of the same names).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EpisodeTally {
     /// The episode's place in the evaluated list.
@@ -398,7 +398,7 @@ impl fmt::Display for EpisodeFileSummary {
     }
 }
 
-/// The part of an episodes.jsonl line ([`crate::runner::EpisodeLine`]) that a map of the
+/// The part of an episodes.jsonl line ([`crate::episode_line::EpisodeLine`]) that a map of the
 /// evaluated episode needs: where it flew, where it should have, in which scene.
 #[derive(Debug, Clone, Deserialize)]
 pub struct ExecutedEpisode {

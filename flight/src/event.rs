@@ -48,6 +48,14 @@ pub enum FlightFailure {
     /// The hub committed no decision in the flight's first
     /// [`crate::first_decision::FIRST_DECISION_HEARTBEATS`] heartbeats.
     NoFirstDecision(crate::first_decision::NoFirstDecision),
+    /// On simulated time, the flight's time stood still longer than any role may work or
+    /// start (the supervisor's stall limit, twice): a turn that never ends.
+    SimTimeStuck {
+        /// Wall-clock seconds the time stood still.
+        stood_s: f64,
+        /// The role process holding the turn (or starting), when one does.
+        pid: Option<u32>,
+    },
 }
 
 impl core::fmt::Display for FlightFailure {
@@ -70,6 +78,16 @@ impl core::fmt::Display for FlightFailure {
             FlightFailure::Interrupted => f.write_str("interrupted"),
             FlightFailure::AutopilotSilent { diagnosis } => f.write_str(diagnosis),
             FlightFailure::NoFirstDecision(why) => write!(f, "{why}"),
+            FlightFailure::SimTimeStuck { stood_s, pid } => {
+                write!(
+                    f,
+                    "the flight's simulated time stood still for {stood_s:.0} s of wall time"
+                )?;
+                match pid {
+                    Some(pid) => write!(f, " (role process {pid} held its turn)"),
+                    None => f.write_str(" (no role process held the turn)"),
+                }
+            }
             FlightFailure::Collision(c) => write!(
                 f,
                 "vehicles {} and {} collided: {:.2} m apart at [{:.1}, {:.1}, {:.1}] (under {} m)",

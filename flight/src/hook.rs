@@ -18,6 +18,9 @@ pub struct StepContext<'a> {
     pub monitor: &'a FlightMonitor,
     /// What the supervisor reported this step.
     pub events: &'a [SupervisorEvent],
+    /// The flight's time now (ns): simulated on simulated time, where a hook runs at the
+    /// end of each step period.
+    pub now_ns: u64,
     pub(crate) events_out: &'a Sender<FlightEvent>,
 }
 

@@ -86,6 +86,14 @@ pub enum SimTimeRefusal {
         /// Its host.
         host: String,
     },
+    /// More role processes than one simulated clock holds.
+    #[error("the flight has {roles} roles; simulated time holds at most {max}")]
+    TooManyRoles {
+        /// Roles of the workflow.
+        roles: usize,
+        /// [`aeris_runtime::clock::sim::MAX_PARTICIPANTS`].
+        max: usize,
+    },
     /// The workflow has no simulated vehicle or replay to fly.
     #[error("the workflow has no simulated vehicle and no replay: nothing to simulate")]
     NothingSimulated,
@@ -113,6 +121,13 @@ pub fn check_sim_time(workflow: &Workflow, autopilot: Option<&str>) -> Result<()
             });
         }
     }
+    let max = aeris_runtime::clock::sim::MAX_PARTICIPANTS;
+    if workflow.roles.len() > max {
+        return Err(SimTimeRefusal::TooManyRoles {
+            roles: workflow.roles.len(),
+            max,
+        });
+    }
     if !workflow
         .roles
         .iter()
@@ -135,6 +150,11 @@ pub(crate) enum FlightTime {
         until_ns: u64,
         /// The time reached `until_ns` and every role due by then has had its turn.
         reached: bool,
+        /// When the flight's time last moved or a period was done (wall clock), and the
+        /// time then: a watchdog for a turn that never ends.
+        moved: (std::time::Instant, u64),
+        /// The role process the last pass waited for, if any.
+        waiting_for: Option<u32>,
     },
 }
 
@@ -158,6 +178,8 @@ impl FlightTime {
             master,
             until_ns: SIM_START_NS,
             reached: false,
+            moved: (std::time::Instant::now(), SIM_START_NS),
+            waiting_for: None,
         })
     }
 
@@ -194,6 +216,17 @@ impl FlightTime {
         }
     }
 
+    /// On simulated time, how long (wall clock) the flight's time has stood still inside a
+    /// step period, and the role process it waits for; `None` on the wall clock.
+    pub(crate) fn standing_still(&self) -> Option<(Duration, Option<u32>)> {
+        match self {
+            FlightTime::Wall => None,
+            FlightTime::Sim {
+                moved, waiting_for, ..
+            } => Some((moved.0.elapsed(), *waiting_for)),
+        }
+    }
+
     /// Let `step` of the flight's time pass. On simulated time: move time on to the end of
     /// the present step period, for at most `step` of wall-clock time (a role still
     /// working then is waited for in the next call, after the supervisor has stepped).
@@ -204,12 +237,23 @@ impl FlightTime {
                 master,
                 until_ns,
                 reached,
+                moved,
+                waiting_for,
             } => {
                 if *reached {
                     *until_ns = until_ns.saturating_add(aeris_runtime::clock::duration_ns(step));
                 }
                 // a role still working is waited for in the next call
-                *reached = master.advance(*until_ns, step) == Advance::Reached;
+                let advance = master.advance(*until_ns, step);
+                *reached = advance == Advance::Reached;
+                *waiting_for = match advance {
+                    Advance::Working { pid } => pid,
+                    Advance::Reached => None,
+                };
+                let now = master.now_ns();
+                if *reached || now != moved.1 {
+                    *moved = (std::time::Instant::now(), now);
+                }
             }
         }
     }

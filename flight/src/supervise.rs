@@ -148,6 +148,11 @@ pub(crate) fn supervise<H: StepHook>(
     let max_duration = Duration::from_secs_f64(mission.max_duration_s);
     let heartbeat = Duration::from_millis(workflow.timing.heartbeat_period_ms);
     let deadline_ms = workflow.timing.decision_deadline_ms;
+    // how long simulated time may stand still (a role's work, or its start) before the
+    // flight fails: twice the supervisor's hard stall limit, at least the start-up limit
+    let sim_stuck_after =
+        Duration::from_millis(workflow.scheduling.stall_hard_timeout_ms.saturating_mul(2))
+            .max(READY_TIMEOUT);
     crate::executors::check_accelerators(&workflow, offload_check)
         .map_err(|e| FlightError::Accelerator(Box::new(e)))?;
     let mut time = match clock {
@@ -236,6 +241,16 @@ pub(crate) fn supervise<H: StepHook>(
             if let Some(request) = shared.stop_requested() {
                 failure = Some(request);
             }
+            // a role that hangs in its turn is killed by the supervisor's stall check, and
+            // time moves on; past twice that limit, nothing will move it
+            if let Some((stood, pid)) = time.standing_still()
+                && stood > sim_stuck_after
+            {
+                failure = Some(FlightFailure::SimTimeStuck {
+                    stood_s: stood.as_secs_f64(),
+                    pid,
+                });
+            }
             if failure.is_some() {
                 break;
             }
@@ -272,6 +287,7 @@ pub(crate) fn supervise<H: StepHook>(
                 supervisor: &mut sup,
                 monitor: &monitor,
                 events: &step_events,
+                now_ns: time.now_ns(),
                 events_out: events,
             })
             .map_err(FlightError::Hook)?;

@@ -283,7 +283,15 @@ impl Role for ReplaySource {
                     return Ok(CycleOutcome::Idle);
                 }
                 self.next_wait_poll = now + WAIT_POLL_NS;
-                match Self::not_running(ctx) {
+                // on simulated time the flight's time first moves once every role is built,
+                // so every role is up at this first turn: asking the supervisor's board, which
+                // it writes on the wall clock, would make the start depend on when it did
+                let up = if aeris_runtime::clock::simulated() {
+                    Some(Vec::new())
+                } else {
+                    Self::not_running(ctx)
+                };
+                match up {
                     Some(waiting) if waiting.is_empty() => {
                         let t = self.start_at(now);
                         self.t0_wall = Some(t);

@@ -372,11 +372,9 @@ pub fn replay_workflow(
 struct ReplayHook {
     /// The replay's heartbeat plus its deadline (ns): how long the last decision may take.
     last_wait_ns: u64,
-    /// When the source said it had replayed everything (its heartbeat's stamp: the
-    /// flight's clock, simulated or wall).
+    /// When the hook saw that the source had replayed everything (the flight's clock,
+    /// simulated or wall).
     done_at: Option<u64>,
-    /// The source's latest heartbeat stamp.
-    source_now_ns: u64,
     offset: Option<(u64, i64)>,
     late_max_us: u64,
     /// The source could not read the recording to its end.
@@ -404,14 +402,13 @@ impl StepHook for ReplayHook {
         }
         if let Some(hb) = source.and_then(|r| r.last_heartbeat()) {
             let c = ReplayCounters::from_heartbeat(&hb.counters);
-            self.source_now_ns = self.source_now_ns.max(hb.stamp_ns);
             if c.started == 1 {
                 self.offset = Some((c.start, c.offset as i64));
             }
             self.late_max_us = self.late_max_us.max(c.late_max_us);
             self.source_failed |= hb.status == aeris_schemas::RoleStatus::Degraded as u8;
             if c.done == 1 && self.done_at.is_none() {
-                self.done_at = Some(hb.stamp_ns);
+                self.done_at = Some(ctx.now_ns);
                 ctx.note("replay: the recording is replayed; waiting one heartbeat for the last decision");
             }
         }
@@ -431,7 +428,7 @@ impl StepHook for ReplayHook {
         }
         Ok(self
             .done_at
-            .is_some_and(|t| self.source_now_ns.saturating_sub(t) >= self.last_wait_ns))
+            .is_some_and(|t| ctx.now_ns.saturating_sub(t) >= self.last_wait_ns))
     }
 }
 
@@ -551,7 +548,6 @@ pub fn replay(
             + scaled_ms(flight.timing.decision_deadline_ms, speed).unwrap_or(1))
             * 1_000_000,
         done_at: None,
-        source_now_ns: 0,
         offset: None,
         late_max_us: 0,
         source_failed: false,

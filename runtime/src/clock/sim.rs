@@ -450,17 +450,24 @@ impl SimClockMaster {
                     generation,
                     left.min(Duration::from_millis(50)),
                 );
-                if let Some(index) = busy {
-                    self.free_if_gone(index);
+                if busy.is_some() {
+                    self.free_gone();
                 }
                 continue;
             }
             self.started = true;
             if let Some((_, index)) = due {
                 let slot = &segment.slots[index];
-                slot.turns.fetch_add(1, Ordering::Relaxed);
-                slot.state.store(GRANTED, Ordering::Release);
-                segment.bump();
+                // only a slot still waiting is granted: one that left (or was taken by a
+                // new process) since the scan is looked at again
+                if slot
+                    .state
+                    .compare_exchange(WAITING, GRANTED, Ordering::AcqRel, Ordering::Acquire)
+                    .is_ok()
+                {
+                    slot.turns.fetch_add(1, Ordering::Relaxed);
+                    segment.bump();
+                }
                 continue;
             }
             if now >= until_ns {
@@ -472,18 +479,25 @@ impl SimClockMaster {
         }
     }
 
-    /// Free slot `index` when its process is gone (killed without leaving).
-    fn free_if_gone(&self, index: usize) {
+    /// Free the slots of processes that are gone (killed without leaving).
+    fn free_gone(&self) {
         let segment = self.reader.map.segment();
-        let slot = &segment.slots[index];
-        let pid = slot.pid.load(Ordering::Acquire);
-        if pid != 0 && !process_exists(pid) {
-            slot.state.store(FREE, Ordering::Release);
-            let _ = slot
-                .pid
-                .compare_exchange(pid, 0, Ordering::AcqRel, Ordering::Relaxed);
-            segment.bump();
+        for slot in &segment.slots {
+            let pid = slot.pid.load(Ordering::Acquire);
+            if pid != 0 && !process_exists(pid) {
+                slot.state.store(FREE, Ordering::Release);
+                let _ = slot
+                    .pid
+                    .compare_exchange(pid, 0, Ordering::AcqRel, Ordering::Relaxed);
+                segment.bump();
+            }
         }
+    }
+
+    /// The time of the last change the master made or saw (for a watchdog: how long the
+    /// flight's time has stood still is the caller's to judge on the wall clock).
+    pub fn generation(&self) -> u32 {
+        self.reader.map.segment().generation.load(Ordering::Acquire)
     }
 }
 
