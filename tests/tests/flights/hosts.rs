@@ -306,17 +306,27 @@ fn a_flight_with_roles_on_another_host_and_its_reasoner_moved_there_and_back_rea
         "{summary}"
     );
     // the roles ran on the ground host, started by its agent, and ended cleanly (the
-    // reasoner when it moved back, the others with the flight)
-    for role in ["reasoning", "perception", "bridge-on-ground"] {
+    // reasoner when it moved back, the others with the flight); the agent notes a role's
+    // end when it reaps it, which may come after the flight's own end: read its log until
+    // every end is there (bounded)
+    let ended = |log: &str, role: &str| {
+        log.lines().any(|l| {
+            l.starts_with(&format!("{flight}/{role}#")) && l.contains("ended: exit code 0")
+        })
+    };
+    let roles = ["reasoning", "perception", "bridge-on-ground"];
+    let agent_log = poll_until(Duration::from_secs(30), || {
+        let log = std::fs::read_to_string(dir.0.join("agent.log")).unwrap_or_default();
+        roles.iter().all(|r| ended(&log, r)).then_some(log)
+    })
+    .unwrap_or_else(|| std::fs::read_to_string(dir.0.join("agent.log")).unwrap_or_default());
+    for role in roles {
         assert!(
             agent_log.contains(&format!("started {flight}/{role}#")),
             "{role} was not started by the agent:\n{agent_log}"
         );
         assert!(
-            agent_log
-                .lines()
-                .any(|l| l.starts_with(&format!("{flight}/{role}#"))
-                    && l.contains("ended: exit code 0")),
+            ended(&agent_log, role),
             "{role} did not end cleanly on the ground host:\n{agent_log}"
         );
     }
