@@ -493,12 +493,6 @@ impl SimClockMaster {
             }
         }
     }
-
-    /// The time of the last change the master made or saw (for a watchdog: how long the
-    /// flight's time has stood still is the caller's to judge on the wall clock).
-    pub fn generation(&self) -> u32 {
-        self.reader.map.segment().generation.load(Ordering::Acquire)
-    }
 }
 
 #[cfg(test)]
