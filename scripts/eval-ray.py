@@ -19,10 +19,19 @@ Why Ray: an evaluation is a bag of independent shards, which Ray's tasks (`num_c
 shard, retried on a lost node, scheduled where CPUs are free) express directly; it installs
 from PyPI (`pip install ray`, pinned by scripts/setup-test-deps.sh) and runs a local cluster
 on one machine, so the launcher is tested by the suite, where a Slurm array could not be.
+
+Security: a Ray cluster runs whatever code its clients send, so it must never be open. The
+local cluster this script starts requires Ray's token authentication (RAY_AUTH_MODE=token)
+with a fresh random token that lives only in this process's environment and its children's
+(no token file is written), and its node is addressed on 127.0.0.1; a RAY_AUTH_MODE other
+than `token` is refused. A real cluster (--address) must run with token authentication
+itself and sit on a private network (Ray's own guidance); the launcher then uses the
+operator's token (RAY_AUTH_TOKEN or ~/.ray/auth_token) and refuses RAY_AUTH_MODE=disabled.
 """
 
 import argparse
 import os
+import secrets
 import socket
 import subprocess
 import sys
@@ -96,16 +105,40 @@ def fly_shard(aeris, eval_args, k, n, out):
     return result
 
 
+def require_token_auth(address, env):
+    """Make Ray's token authentication the only way into the cluster; say why not, or None.
+
+    A local cluster gets a fresh token in `env` (inherited by the Ray processes this run
+    starts, written to no file); a remote one must already use tokens."""
+    mode = env.get("RAY_AUTH_MODE")
+    if mode is not None and mode.lower() != "token":
+        return (
+            f"RAY_AUTH_MODE={mode}: refused; a Ray cluster runs any code a client sends, "
+            "so the launcher only uses one with token authentication (unset it, or set `token`)"
+        )
+    env["RAY_AUTH_MODE"] = "token"
+    if address is None:
+        env["RAY_AUTH_TOKEN"] = secrets.token_hex(32)
+    return None
+
+
 def main(argv):
     args = parse_args(argv)
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    refusal = require_token_auth(args.address, os.environ)
+    if refusal:
+        print(f"eval-ray: {refusal}", file=sys.stderr)
+        return 2
     import ray  # after the arguments: --help works without Ray installed
 
     out_root = Path(args.out).resolve()
     out_root.mkdir(parents=True, exist_ok=True)
     # a path (not a bare name looked up on each node's PATH) means the same on every node
     aeris = os.path.abspath(args.aeris) if os.sep in args.aeris else args.aeris
-    ray.init(address=args.address, include_dashboard=False, logging_level="warning", log_to_driver=False)
+    local = {} if args.address else {"_node_ip_address": "127.0.0.1"}
+    ray.init(
+        address=args.address, include_dashboard=False, logging_level="warning", log_to_driver=False, **local
+    )
     try:
         largest = max((node["Resources"].get("CPU", 0) for node in ray.nodes() if node.get("Alive")), default=0)
         if args.cpus_per_shard > largest:

@@ -212,6 +212,38 @@ fn the_random_baseline_does_not_succeed_and_its_episode_is_recorded() {
     assert_eq!(episodes[0]["sr"], 0.0);
 }
 
+/// The launcher never uses a Ray cluster without token authentication: a Ray cluster runs
+/// whatever code its clients send.
+#[test]
+fn the_ray_launcher_refuses_a_cluster_without_token_authentication() {
+    let dir = TempDir::new("vln-eval-ray-auth");
+    let launcher = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join("scripts")
+        .join("eval-ray.py");
+    for address in [None, Some("10.0.0.1:6379")] {
+        let mut cmd = Command::new(python());
+        cmd.arg(&launcher)
+            .env("RAY_AUTH_MODE", "disabled")
+            .args(["--shards", "1", "--out"])
+            .arg(dir.0.join("out"));
+        if let Some(a) = address {
+            cmd.args(["--address", a]);
+        }
+        let out = cmd
+            .args(["--", "--episodes", "1"])
+            .stdin(std::process::Stdio::null())
+            .output()
+            .expect("run scripts/eval-ray.py");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{address:?}: {stderr}");
+        assert!(
+            stderr.contains("RAY_AUTH_MODE=disabled: refused"),
+            "{address:?}: {stderr}"
+        );
+    }
+}
+
 /// The launcher (`scripts/eval-ray.py`) flies two episodes as two shards on a local Ray
 /// cluster, and its merged table is the table of one run of the same two episodes: on
 /// simulated time the flights, hence every metric, are the same wherever they fly (all but
@@ -250,8 +282,14 @@ fn shards_flown_by_ray_on_a_local_cluster_merge_into_the_table_of_one_run() {
         .join("..")
         .join("scripts")
         .join("eval-ray.py");
+    // the local cluster's token lives in the processes' environment, never in a file
+    let home = dir.0.join("home");
+    std::fs::create_dir_all(&home).unwrap();
     let out = Command::new(python())
         .arg(&launcher)
+        .env("HOME", &home)
+        .env_remove("RAY_AUTH_MODE")
+        .env_remove("RAY_AUTH_TOKEN")
         .args([
             "--shards",
             "2",
@@ -273,6 +311,10 @@ fn shards_flown_by_ray_on_a_local_cluster_merge_into_the_table_of_one_run() {
     assert!(
         out.status.success(),
         "eval-ray.py failed: {stderr}\n{stdout}"
+    );
+    assert!(
+        !home.join(".ray").join("auth_token").exists(),
+        "the launcher wrote Ray's token to a file"
     );
     // each shard flew on the cluster and said so
     for k in 1..=2 {
