@@ -285,6 +285,7 @@ impl Probe for LlmProbe {
             state: Some(&self.states[i % self.states.len()]),
             previous: self.previous.as_ref(),
             plan: Some(&plan),
+            sighted: &[],
         };
         let t = self.reasoner.decide(&obs)?;
         self.last = Some((

@@ -61,6 +61,11 @@ pub struct EvalArgs {
     /// reading). Baselines fly with `geometric`.
     #[arg(long)]
     pub perception: Option<String>,
+    /// The language model reads the task-aligned prompt (short, no plan, what perception
+    /// saw placed on the ground): the prompt the aligned reasoner is trained on (`aeris
+    /// distill`). Needs a language-model variant.
+    #[arg(long)]
+    pub aligned: bool,
     /// Ablation: the hub's ATT off (the active step is the reasoner's declared step).
     #[arg(long)]
     pub no_att: bool,
@@ -104,7 +109,7 @@ enum EvalCommand {
 }
 
 /// Prints each episode's flight (without progress lines), start and score.
-struct EpisodePrinter(FlightPrinter);
+pub(crate) struct EpisodePrinter(pub(crate) FlightPrinter);
 
 impl FlightWatcher for EpisodePrinter {
     fn event(&mut self, event: &FlightEvent) {
@@ -166,6 +171,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         zero_shot: args.zero_shot,
         single_slm: args.single_slm,
         no_ds: args.no_ds,
+        aligned: args.aligned,
     })?;
     let source = match &args.episodes_file {
         Some(file) => EpisodeSource::File(file.clone()),
@@ -200,6 +206,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         offload_check: Some(aeris_llm::offload_check),
         shard: args.shard,
         clock: args.clock,
+        distill: false,
     };
     let mut printer = EpisodePrinter(FlightPrinter::new(false, "aeris: ")?);
     let report = runner::run(&config, &mut printer)?;

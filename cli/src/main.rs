@@ -4,6 +4,8 @@ mod agent_cmd;
 mod bench;
 mod command;
 #[cfg(feature = "sim")]
+mod distill_cmd;
+#[cfg(feature = "sim")]
 mod episodes_cmd;
 #[cfg(feature = "sim")]
 mod eval_cmd;
@@ -91,6 +93,12 @@ enum Command {
     /// ASR, CT, EER), per airspace; writes OUT/episodes.jsonl.
     Eval(eval_cmd::EvalArgs),
     #[cfg(feature = "sim")]
+    /// Write training pairs for the aligned reasoner: fly `train` episodes with a teacher
+    /// (the planner, or a language-model student the planner labels: DAgger) and write,
+    /// for every decision, what the aligned model reads and the teacher's decision;
+    /// writes OUT/pairs.jsonl.
+    Distill(distill_cmd::DistillArgs),
+    #[cfg(feature = "sim")]
     /// Generate and check VLN episodes (AerialVLN JSON format, train/val_unseen/test_unseen).
     Episodes(episodes_cmd::EpisodesArgs),
     #[cfg(feature = "sim")]
@@ -155,6 +163,8 @@ fn main() -> ExitCode {
         Command::Bench(args) => args.execute(),
         #[cfg(feature = "sim")]
         Command::Eval(args) => args.execute(),
+        #[cfg(feature = "sim")]
+        Command::Distill(args) => args.execute(),
         #[cfg(feature = "sim")]
         Command::Episodes(args) => args.execute(),
         #[cfg(feature = "sim")]

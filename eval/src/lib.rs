@@ -15,6 +15,8 @@
 
 #![deny(missing_docs)]
 
+pub mod agent_setup;
+pub mod distill;
 pub mod episode;
 pub mod episode_line;
 pub mod formation_plot;

@@ -1,6 +1,7 @@
 //! Flying VLN episodes through the full multi-process pipeline (one supervised flight of
 //! [`aeris_flight`] per episode) and scoring them: `aeris eval`.
 
+pub use crate::agent_setup::{AgentError, AgentOptions, AgentSetup};
 use crate::episode::{Episode, EpisodeError, load_episodes};
 pub use crate::episode_line::EpisodeLine;
 use crate::generate::{AirspaceFilter, GenerateError, Split, generate_split};
@@ -18,142 +19,6 @@ use aeris_schemas::RoleKind;
 use aeris_sim::world::World;
 use std::io::Write;
 use std::path::PathBuf;
-
-/// Who flies and how, as asked (`aeris eval --baseline --reasoning --perception ...`).
-#[derive(Debug, Clone, Default)]
-pub struct AgentOptions {
-    /// A baseline instead of AERIS: `oracle` or `random`.
-    pub baseline: Option<String>,
-    /// Reasoning variant of the AERIS agent: `planner` (default), `smollm2` or `gemma3`.
-    pub reasoning: Option<String>,
-    /// Perception of the AERIS agent: `models` (default) or `geometric`.
-    pub perception: Option<String>,
-    /// Ablation: the hub's ATT off.
-    pub no_att: bool,
-    /// Ablation: the language model without the planner's plan in its prompt.
-    pub zero_shot: bool,
-    /// Ablation: the variant ladder off (one fixed model).
-    pub single_slm: bool,
-    /// Ablation: dynamic scheduling off.
-    pub no_ds: bool,
-}
-
-/// Who flies and how, resolved.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct AgentSetup {
-    /// The agent.
-    pub agent: Agent,
-    /// Reasoning variant of the flights.
-    pub reasoning: String,
-    /// The hub's ATT off.
-    pub no_att: bool,
-    /// The language model without the planner's plan.
-    pub zero_shot: bool,
-    /// Dynamic scheduling off in every flight.
-    pub no_ds: bool,
-    /// The variant ladder off in every flight (Single-SLM).
-    pub single_slm: bool,
-    /// Fly with the model perception roles (else the geometric one).
-    pub models: bool,
-    /// `aeris-planner`, `aeris-smollm2-zero-shot`, `oracle`, ...: the `agent` of
-    /// episodes.jsonl and the default output folder's suffix.
-    pub label: String,
-}
-
-/// Why the agent options do not make an agent.
-#[derive(Debug, thiserror::Error)]
-pub enum AgentError {
-    /// The baseline is not one this evaluation has.
-    #[error("unknown baseline `{0}`: use oracle or random")]
-    UnknownBaseline(String),
-    /// AERIS-only options given with a baseline.
-    #[error(
-        "--reasoning, --perception, --no-att, --no-ds, --single-slm and --zero-shot apply to the AERIS agent, not to a --baseline"
-    )]
-    BaselineWithAerisOptions,
-    /// The perception is not one this evaluation has.
-    #[error("unknown perception `{0}`: use models or geometric")]
-    UnknownPerception(String),
-    /// The reasoning variant is not one this evaluation has.
-    #[error("unknown reasoning variant `{0}`: use planner, smollm2 or gemma3")]
-    UnknownReasoning(String),
-    /// Zero-shot asked of a reasoner that is not a language model.
-    #[error("--zero-shot ablates the language model's plan: use --reasoning smollm2 or gemma3")]
-    ZeroShotWithoutLanguageModel,
-}
-
-impl AgentSetup {
-    /// Resolve `options` into an agent (defaults filled in, combinations checked).
-    pub fn resolve(options: &AgentOptions) -> Result<Self, AgentError> {
-        let agent = match &options.baseline {
-            None => Agent::Aeris,
-            Some(name) => match Agent::parse(name) {
-                Some(a @ (Agent::Oracle | Agent::Random)) => a,
-                _ => return Err(AgentError::UnknownBaseline(name.clone())),
-            },
-        };
-        if agent != Agent::Aeris
-            && (options.reasoning.is_some()
-                || options.no_att
-                || options.zero_shot
-                || options.no_ds
-                || options.single_slm
-                || options.perception.is_some())
-        {
-            return Err(AgentError::BaselineWithAerisOptions);
-        }
-        let models = match options.perception.as_deref() {
-            None => agent == Agent::Aeris,
-            Some("models") => true,
-            Some("geometric") => false,
-            Some(other) => return Err(AgentError::UnknownPerception(other.to_string())),
-        };
-        let reasoning = match (&options.reasoning, options.zero_shot) {
-            (Some(r), _) => r.clone(),
-            (None, true) => "smollm2".to_string(),
-            (None, false) => agent.reasoning_variant().to_string(),
-        };
-        let language = matches!(reasoning.as_str(), "smollm2" | "gemma3");
-        if agent == Agent::Aeris && !(language || reasoning == "planner") {
-            return Err(AgentError::UnknownReasoning(reasoning));
-        }
-        if options.zero_shot && !language {
-            return Err(AgentError::ZeroShotWithoutLanguageModel);
-        }
-        let label = match agent {
-            Agent::Aeris => {
-                let mut l = format!("aeris-{reasoning}");
-                if !models {
-                    l.push_str("-geometric");
-                }
-                if options.no_att {
-                    l.push_str("-no-att");
-                }
-                if options.zero_shot {
-                    l.push_str("-zero-shot");
-                }
-                if options.no_ds {
-                    l.push_str("-no-ds");
-                }
-                if options.single_slm {
-                    l.push_str("-single-slm");
-                }
-                l
-            }
-            a => a.as_str().to_string(),
-        };
-        Ok(Self {
-            agent,
-            reasoning,
-            no_att: options.no_att,
-            zero_shot: options.zero_shot,
-            no_ds: options.no_ds,
-            single_slm: options.single_slm,
-            models,
-            label,
-        })
-    }
-}
 
 /// Where the episodes come from.
 #[derive(Debug, Clone)]
@@ -190,6 +55,10 @@ pub struct EvalConfig {
     pub shard: Option<Shard>,
     /// The clock the episodes fly on ([`aeris_flight::FlightClock`]).
     pub clock: aeris_flight::FlightClock,
+    /// Write training pairs (`aeris distill`): each episode's reasoning role writes its
+    /// run folder's [`crate::distill::PAIRS_FILE`], gathered into OUT's after the episode
+    /// (check the setup with [`crate::distill::check`] first).
+    pub distill: bool,
 }
 
 /// An episode's recording, in its run folder (`aeris eval --record`).
@@ -208,6 +77,8 @@ pub struct EvalReport {
     pub open: GroupSummary,
     /// The dense-airspace episodes.
     pub dense: GroupSummary,
+    /// With [`EvalConfig::distill`]: the training pairs gathered, and where.
+    pub pairs: Option<(usize, PathBuf)>,
 }
 
 /// Who watches an evaluation: every flight's events, and each episode's start and score.
@@ -258,6 +129,9 @@ pub enum EvalError {
         #[source]
         source: WorkflowError,
     },
+    /// An episode's training pairs could not be gathered.
+    #[error(transparent)]
+    Distill(#[from] crate::distill::DistillError),
     /// An episode's flight could not start or ended with an error.
     #[error("episode {episode}")]
     Flight {
@@ -353,6 +227,13 @@ fn episode_workflow(
             .params
             .insert("plan".into(), serde_json::Value::from(false));
     }
+    if setup.aligned {
+        // one aligned model: the ladder's other rungs read other prompts
+        reasoning.ladder.clear();
+        reasoning
+            .params
+            .insert("prompt".into(), serde_json::Value::from("aligned"));
+    }
     if setup.single_slm {
         workflow.scheduling.adapt_variants = false;
     }
@@ -413,11 +294,40 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
         a => Some(a.as_str()),
     };
     let mut tallies = Vec::with_capacity(total);
+    let mut pairs_written = 0;
+    let pairs_path = out.join(crate::distill::PAIRS_FILE);
+    let mut pairs = config
+        .distill
+        .then(|| std::fs::File::create(&pairs_path).map(std::io::BufWriter::new))
+        .transpose()
+        .map_err(|source| EvalError::Output {
+            path: pairs_path.clone(),
+            source,
+        })?;
     for (n, (k, episode)) in chosen.into_iter().enumerate() {
         let em = episode_mission(episode, setup.agent)?;
-        let workflow = episode_workflow(setup, em.mission, k, &episode.episode_id)?;
+        let mut workflow = episode_workflow(setup, em.mission, k, &episode.episode_id)?;
         let flight = format!("eval-{}-{k}", std::process::id());
         let run_dir = out.join("runs").join(&flight);
+        let episode_pairs =
+            std::path::absolute(run_dir.join(crate::distill::PAIRS_FILE)).map_err(|source| {
+                EvalError::Output {
+                    path: run_dir.clone(),
+                    source,
+                }
+            })?;
+        if pairs.is_some() {
+            workflow
+                .roles
+                .iter_mut()
+                .find(|r| r.kind == RoleKind::Reasoning)
+                .ok_or(EvalError::MissingRole("reasoning"))?
+                .params
+                .insert(
+                    aeris_runtime::DISTILL_PARAM.into(),
+                    serde_json::Value::from(episode_pairs.to_string_lossy().into_owned()),
+                );
+        }
         watcher.episode_started(n, total, episode);
         let watch = PathWatch {
             world: em.world,
@@ -536,6 +446,18 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
             run_dir: &run_dir,
             recording: recording.as_deref(),
         };
+        if let Some(out) = &mut pairs {
+            let origin = crate::distill::PairOrigin {
+                episode_id: &episode.episode_id,
+                scene_id: &episode.scene_id,
+                agent: &setup.label,
+            };
+            pairs_written += crate::distill::gather(&episode_pairs, &origin, out)?;
+            out.flush().map_err(|source| EvalError::Output {
+                path: pairs_path.clone(),
+                source,
+            })?;
+        }
         let text = serde_json::to_string(&line).map_err(|e| write_error(e.into()))?;
         writeln!(jsonl, "{text}").map_err(write_error)?;
         watcher.episode_scored(n, total, &line);
@@ -548,6 +470,7 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
         all,
         open,
         dense,
+        pairs: config.distill.then_some((pairs_written, pairs_path)),
     })
 }
 
@@ -573,39 +496,6 @@ impl EvalReport {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn resolve(options: AgentOptions) -> Result<AgentSetup, AgentError> {
-        AgentSetup::resolve(&options)
-    }
-
-    #[test]
-    fn the_agent_label_names_the_reasoner_perception_and_ablations() {
-        let aeris = resolve(AgentOptions::default()).unwrap();
-        assert_eq!(
-            (aeris.agent, aeris.label.as_str(), aeris.models),
-            (Agent::Aeris, "aeris-planner", true)
-        );
-        let ablated = resolve(AgentOptions {
-            perception: Some("geometric".into()),
-            zero_shot: true,
-            no_att: true,
-            no_ds: true,
-            single_slm: true,
-            ..AgentOptions::default()
-        })
-        .unwrap();
-        assert_eq!(ablated.reasoning, "smollm2");
-        assert_eq!(
-            ablated.label,
-            "aeris-smollm2-geometric-no-att-zero-shot-no-ds-single-slm"
-        );
-        let oracle = resolve(AgentOptions {
-            baseline: Some("oracle".into()),
-            ..AgentOptions::default()
-        })
-        .unwrap();
-        assert_eq!((oracle.label.as_str(), oracle.models), ("oracle", false));
-    }
 
     #[test]
     fn an_episode_line_keeps_its_keys_in_order_with_the_metrics_inline() {
@@ -656,47 +546,5 @@ mod tests {
             serde_json::to_string(&line).unwrap(),
             r#"{"index":3,"episode_id":"e1","scene_id":"s","airspace":"open","agent":"oracle","split":"val_unseen","baseline":"oracle","reasoning":"planner","instruction":"fly","positions":[[0.0,0.0,0.0]],"reference":[],"goal":[1.0,2.0,3.0],"stopped":true,"collided":false,"subgoals_total":1,"subgoals_completed":1,"attention_steps":[1],"ne":null,"sr":1.0,"osr":1.0,"ndtw":0.5,"spl":0.25,"asr":1.0,"path_length_m":10.0,"duration_s":2.0,"ct_mean_s":0.1,"ct_p95_s":0.2,"eer":0.0,"cycles":2,"decisions_reused":0,"ct_samples_s":[0.1,0.2],"ct_compute_samples_s":[0.05,0.06],"compute_misses":0,"clock":"sim","wall_s":0.5,"failure":null,"variant_steps":0,"run_dir":"runs/x"}"#
         );
-    }
-
-    #[test]
-    fn agent_options_that_do_not_fit_are_refused() {
-        let with = |o: AgentOptions| resolve(o).unwrap_err();
-        assert!(matches!(
-            with(AgentOptions {
-                baseline: Some("psychic".into()),
-                ..AgentOptions::default()
-            }),
-            AgentError::UnknownBaseline(b) if b == "psychic"
-        ));
-        assert!(matches!(
-            with(AgentOptions {
-                baseline: Some("random".into()),
-                no_att: true,
-                ..AgentOptions::default()
-            }),
-            AgentError::BaselineWithAerisOptions
-        ));
-        assert!(matches!(
-            with(AgentOptions {
-                reasoning: Some("oracle".into()),
-                ..AgentOptions::default()
-            }),
-            AgentError::UnknownReasoning(r) if r == "oracle"
-        ));
-        assert!(matches!(
-            with(AgentOptions {
-                perception: Some("telepathy".into()),
-                ..AgentOptions::default()
-            }),
-            AgentError::UnknownPerception(_)
-        ));
-        assert!(matches!(
-            with(AgentOptions {
-                reasoning: Some("planner".into()),
-                zero_shot: true,
-                ..AgentOptions::default()
-            }),
-            AgentError::ZeroShotWithoutLanguageModel
-        ));
     }
 }

@@ -7,19 +7,23 @@
 //! validates again. The prompt puts the mission first so its KV-cache entries are reused from
 //! one heartbeat to the next ([`LanguageReasoner`]).
 
+pub mod aligned_prompt;
 mod decode;
 mod error;
 pub mod formation;
 pub mod grammar;
 pub mod prompt;
+pub mod prompt_style;
 pub mod reasoner;
 pub mod view;
 
+pub use aligned_prompt::{aligned_system_message, aligned_user_message};
 pub use formation::{
     FormationWriter, WriteStats, program_from_json, program_grammar, program_to_json,
 };
 pub use grammar::{GrammarError, decision_grammar};
-pub use prompt::{MissionBrief, Observation, StepBrief, sanitize};
+pub use prompt::{MissionBrief, Observation, Sighted, StepBrief, sanitize};
+pub use prompt_style::PromptStyle;
 pub use reasoner::{
     GEMMA3_270M, GPU_OFFLOAD_BUILT, LanguageReasoner, LlmError, QWEN25_CODER_05B, ReasonerConfig,
     SMOLLM2_135M, SMOLLM2_135M_Q4_1, Thought, check_offload, offload_check, variant_model,

@@ -42,6 +42,17 @@ pub struct MissionBrief {
     pub acceptance_radius: f32,
 }
 
+/// A detection placed on the ground: its label and the ground point `[N, E]` perception's
+/// range puts it at, seen from S_t's pose at capture (the reasoning role computes it with
+/// the planner's own geometry); `None` when the range is unknown.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sighted {
+    /// The detection's label, as perception wrote it (sanitised when written).
+    pub label: String,
+    /// Ground point `[N, E]` (m), if the range is known.
+    pub point: Option<[f32; 2]>,
+}
+
 /// What the reasoner knows at one heartbeat, besides the mission.
 #[derive(Debug, Clone, Copy)]
 pub struct Observation<'a> {
@@ -59,6 +70,9 @@ pub struct Observation<'a> {
     /// the vehicle's state, proposes for this heartbeat. The model follows it or departs
     /// from it; decoding also uses it as the draft it verifies in one batch.
     pub plan: Option<&'a DecisionView>,
+    /// S_t's detections placed on the ground (the aligned prompt lists them; the planned prompt
+    /// does not).
+    pub sighted: &'a [Sighted],
 }
 
 /// Keep perception text inert and bounded: printable characters only, no markup that could
@@ -233,11 +247,12 @@ pub fn user_message(mission: &MissionBrief, obs: &Observation<'_>) -> String {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use aeris_schemas::FixedText;
 
-    fn mission() -> MissionBrief {
+    /// A two-step mission (take off, fly north to a waypoint), for the prompts' tests.
+    pub(crate) fn mission() -> MissionBrief {
         MissionBrief {
             instruction: "take off and fly north".into(),
             steps: vec![
@@ -297,6 +312,7 @@ mod tests {
             state: Some(&state),
             previous: None,
             plan: None,
+            sighted: &[],
         };
         let text = user_message(&m, &obs);
         let early = user_message(&m, &Observation { state: None, ..obs });
@@ -332,6 +348,7 @@ mod tests {
             &m,
             &Observation {
                 plan: Some(&plan),
+                sighted: &[],
                 ..obs
             },
         );

@@ -6,7 +6,8 @@ use crate::decode::{
 };
 pub use crate::error::LlmError;
 use crate::grammar::{FieldGrammar, decision_grammar, field_grammars};
-use crate::prompt::{MissionBrief, Observation, system_message, user_message};
+use crate::prompt::{MissionBrief, Observation};
+use crate::prompt_style::PromptStyle;
 use crate::view::{DecisionView, ViewError};
 use aeris_models::ModelStore;
 use aeris_schemas::Decision;
@@ -66,6 +67,8 @@ pub struct ReasonerConfig {
     pub draft: bool,
     /// Offload every layer to this CUDA device (`None`: the CPU only).
     pub accelerator: Option<Accelerator>,
+    /// The prompt the model reads.
+    pub prompt: PromptStyle,
 }
 
 impl Default for ReasonerConfig {
@@ -76,6 +79,7 @@ impl Default for ReasonerConfig {
             max_output_tokens: 120,
             draft: true,
             accelerator: None,
+            prompt: PromptStyle::Planned,
         }
     }
 }
@@ -311,11 +315,8 @@ impl LanguageReasoner {
 
     /// The full prompt text for an observation (chat template applied).
     pub fn prompt(&self, obs: &Observation<'_>) -> Result<String, LlmError> {
-        chat_prompt(
-            self.model,
-            system_message(),
-            user_message(&self.mission, obs),
-        )
+        let (system, user) = self.config.prompt.messages(&self.mission, obs);
+        chat_prompt(self.model, system, user)
     }
 
     /// Make one decision.

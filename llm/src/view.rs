@@ -62,9 +62,11 @@ impl DecisionView {
         })
     }
 
-    /// The view of a decision (for the memory line of the next prompt).
+    /// The view of a decision (for the memory line of the next prompt, and a training
+    /// pair's target): whole numbers, never a negative zero (the grammar writes `0`).
     pub fn from_decision(d: &Decision) -> Self {
-        let round = |x: f32| x.round();
+        // adding +0.0 turns -0.0 into 0.0 and leaves every other value as it is
+        let round = |x: f32| x.round() + 0.0;
         Self {
             step: d.step,
             action: ActionMode::from_u8(d.action)
@@ -74,10 +76,10 @@ impl DecisionView {
             north: round(d.target[0]),
             east: round(d.target[1]),
             altitude: round(d.altitude),
-            yaw_deg: d.yaw.to_degrees().round(),
+            yaw_deg: round(d.yaw.to_degrees()),
             speed: round(d.speed),
             radius: round(d.acceptance_radius),
-            confidence: (d.confidence * 10.0).round() / 10.0,
+            confidence: (d.confidence * 10.0).round() / 10.0 + 0.0,
         }
     }
 
@@ -146,6 +148,23 @@ mod tests {
         assert_eq!(d.target, [62.0, -4.0, 12.0]);
         assert!((d.yaw - core::f32::consts::FRAC_PI_2).abs() < 1e-6);
         assert_eq!(DecisionView::from_decision(&d), v);
+    }
+
+    #[test]
+    fn a_view_writes_no_negative_zero() {
+        let d = Decision {
+            target: [-0.3, -0.0, 10.0],
+            yaw: -0.001,
+            altitude: 10.0,
+            speed: 5.0,
+            acceptance_radius: 3.0,
+            confidence: -0.01,
+            step: 1,
+            action: ActionMode::Goto as u8,
+            ..Decision::default()
+        };
+        let json = DecisionView::from_decision(&d).to_json();
+        assert!(!json.contains("-0"), "{json}");
     }
 
     #[test]

@@ -129,6 +129,7 @@ fn valid_decisions(file: &str, count: usize) {
             state: (i % 7 != 0).then_some(&s),
             previous: previous.as_ref(),
             plan: p.as_ref(),
+            sighted: &[],
         };
         let thought = reasoner
             .decide(&obs)
@@ -186,6 +187,7 @@ fn draft_verification_writes_exactly_what_greedy_decoding_writes() {
             state: Some(&s),
             previous: previous.as_ref(),
             plan: p.as_ref(),
+            sighted: &[],
         };
         let a = fast.decide(&obs).unwrap();
         let b = plain.decide(&obs).unwrap();

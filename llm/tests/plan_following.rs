@@ -156,6 +156,7 @@ fn departures(file: &str) -> Vec<String> {
             state: Some(&state),
             previous: previous.as_ref(),
             plan: Some(&beat.plan),
+            sighted: &[],
         };
         let thought = reasoner
             .decide(&obs)

@@ -17,7 +17,11 @@
 //! Parameters: `model` (cache-relative GGUF, default per variant), `threads` (default 2, at most the CPUs of its executor),
 //! `context_tokens` (default 2048), `models_dir`, `plan` (bool, default true; false leaves
 //! the planner's plan out of the prompt: the generic model on its own, the evaluation's
-//! zero-shot ablation).
+//! zero-shot ablation), `prompt` (`planned`, the default, or `aligned`: the task-aligned
+//! models' short prompt, [`aeris_llm::aligned_prompt`], which never shows the plan),
+//! `distill` (a file path, with `prompt = aligned` only: every heartbeat the student's
+//! observation is written there as a training pair labelled with the planner's decision for
+//! it, a DAgger round; [`crate::distill`]).
 //! Heartbeat stages: `read`, `prompt` (evaluating the new prompt tokens), `generate`,
 //! `publish`; the cycle latency is the decision latency. Counters:
 //! [`aeris_schemas::LanguageCounters`].
@@ -31,49 +35,19 @@ pub mod heartbeat {
     pub const GENERATE_STAGE: &str = "generate";
 }
 
+use crate::distill::{DISTILL_PARAM, DistillWriter, StudentView};
 use crate::planner::{Planner, mission_planner};
 use crate::reasoner_io::ReasonerIo;
 use crate::vision::open_store;
-use aeris_llm::{
-    DecisionView, LanguageReasoner, MissionBrief, Observation, ReasonerConfig, StepBrief,
-};
+use aeris_llm::{DecisionView, LanguageReasoner, Observation, PromptStyle, ReasonerConfig};
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::error_chain::chain;
-use aeris_runtime::{
-    ConfigError, CycleOutcome, CycleReport, MissionSpec, Role, RoleContext, RoleError,
-};
+use aeris_runtime::{ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError};
 use aeris_schemas::kinds;
 use aeris_schemas::{Decision, LanguageCounters};
 use core::time::Duration;
 
-pub use crate::reasoner_io::POLL;
-
-/// The mission as the language model reads it.
-pub fn mission_brief(mission: &MissionSpec) -> Result<MissionBrief, RoleError> {
-    let steps = mission
-        .subgoals
-        .iter()
-        .map(|s| {
-            Ok(StepBrief {
-                text: s.text.clone(),
-                action: s.action_mode().ok_or_else(|| {
-                    RoleError::from(ConfigError::Mission(format!(
-                        "names unknown action `{}`",
-                        s.action
-                    )))
-                })?,
-                waypoint: s.waypoint,
-            })
-        })
-        .collect::<Result<Vec<_>, RoleError>>()?;
-    Ok(MissionBrief {
-        instruction: mission.instruction.clone(),
-        steps,
-        limits: mission.decision_limits(),
-        cruise_speed: mission.cruise_speed,
-        acceptance_radius: mission.acceptance_radius_m,
-    })
-}
+pub use crate::reasoner_io::{POLL, mission_brief};
 
 /// The language-model reasoning role.
 pub struct LanguageRole {
@@ -84,6 +58,10 @@ pub struct LanguageRole {
     failures: u64,
     /// Whether the prompt shows the planner's plan.
     show_plan: bool,
+    /// With the aligned prompt: what the student sees (its memory included).
+    student: Option<StudentView>,
+    /// Training pairs of the student's observations, labelled by the planner.
+    distill: Option<DistillWriter>,
 }
 
 impl Role for LanguageRole {
@@ -119,9 +97,25 @@ impl Role for LanguageRole {
             // bound to a `cuda:N` executor: every layer on that GPU (a build without offload,
             // or a machine without the device, stops the role with the reason)
             accelerator: crate::vision::accelerator(ctx)?,
+            prompt: match ctx.spec.param_str("prompt") {
+                None => PromptStyle::Planned,
+                Some(name) => PromptStyle::from_name(name).ok_or_else(|| {
+                    RoleError::param("prompt", format!("must be planned or aligned, got {name}"))
+                })?,
+            },
             ..ReasonerConfig::default()
         };
-        let show_plan = ctx.spec.param_bool("plan", true)?;
+        let aligned = config.prompt == PromptStyle::Aligned;
+        // the aligned prompt never shows the plan
+        let show_plan = ctx.spec.param_bool("plan", true)? && !aligned;
+        let student = aligned.then(|| StudentView::new(&ctx.spec)).transpose()?;
+        let distill = DistillWriter::from_spec(&ctx.spec)?;
+        if distill.is_some() && !aligned {
+            return Err(RoleError::param(
+                DISTILL_PARAM,
+                "needs prompt = aligned (training pairs are written in the aligned prompt)",
+            ));
+        }
         let store = open_store(ctx)?;
         let brief = mission_brief(&ctx.spec.mission)?;
         let mut planner = mission_planner(&ctx.spec)?;
@@ -138,7 +132,8 @@ impl Role for LanguageRole {
             landed: true,
             state: None,
             previous: None,
-            plan: Some(&plan),
+            plan: show_plan.then_some(&plan),
+            sighted: &[],
         };
         let (wall, cpu) = (
             aeris_runtime::clock::wall_ns(),
@@ -169,6 +164,8 @@ impl Role for LanguageRole {
             previous: None,
             failures: 0,
             show_plan,
+            student,
+            distill,
         })
     }
 
@@ -187,15 +184,29 @@ impl Role for LanguageRole {
         // a decision on telemetry alone does not show the model an old view
         let state = self.io.state(&due);
         let (position, yaw, landed) = (due.position, due.yaw, due.landed);
-        let plan = DecisionView::from_decision(&self.planner.decide(position, yaw, landed, state));
-        let obs = Observation {
-            position,
-            yaw,
-            landed,
-            state,
-            previous: self.previous.as_ref(),
-            plan: self.show_plan.then_some(&plan),
+        let planned = self.planner.decide(position, yaw, landed, state);
+        let plan = DecisionView::from_decision(&planned);
+        let sighted = self
+            .student
+            .as_ref()
+            .map(|v| v.sighted(state))
+            .unwrap_or_default();
+        let obs = match &self.student {
+            Some(view) => view.observation(&due, state, &sighted),
+            None => Observation {
+                position,
+                yaw,
+                landed,
+                state,
+                previous: self.previous.as_ref(),
+                plan: self.show_plan.then_some(&plan),
+                sighted: &[],
+            },
         };
+        if let (Some(writer), Some(view)) = (&mut self.distill, &self.student) {
+            // the planner labels the state the student reached
+            writer.write(view.brief(), &obs, &planned)?;
+        }
         let reasoning_start = monotonic_ns();
         report.stage("read", reasoning_start - due.poll_ns);
         let thought = match self.reasoner.decide(&obs) {
@@ -230,7 +241,10 @@ impl Role for LanguageRole {
             departed_from_plan: u64::from(thought.view.step != plan.step),
         }
         .to_heartbeat();
-        self.previous = Some(thought.view);
+        match &mut self.student {
+            Some(view) => view.decided(thought.view),
+            None => self.previous = Some(thought.view),
+        }
         Ok(CycleOutcome::Worked)
     }
 }

@@ -8,6 +8,8 @@
 //!   [`depth_occupancy`] the back-projection of depth frames);
 //! - [`planner`]: the deterministic reasoning variant (and a garbage-emitting fault injector);
 //! - [`language`]: the language-model reasoning variants (llama.cpp, grammar-constrained);
+//! - [`distill`]: what an aligned reasoner reads (no plan) and the training pairs written
+//!   from it;
 //! - [`reasoner_io`]: what every reasoning variant does around its decision (inputs, when to
 //!   decide, stamping and publishing);
 //! - [`controller`]: tracks bound setpoints at the control rate over MAVLink;
@@ -24,6 +26,7 @@ pub mod controller;
 pub mod cues;
 pub mod depth_occupancy;
 pub mod detector;
+pub mod distill;
 pub mod formation_role;
 pub mod grounding;
 pub mod gstreamer_camera;

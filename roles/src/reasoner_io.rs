@@ -18,9 +18,10 @@
 
 use crate::heartbeat_clock::{Basis, HeartbeatClock};
 use crate::planner::Planner;
+use aeris_llm::{MissionBrief, StepBrief};
 use aeris_runtime::bus::{TypedPublisher, TypedSubscriber};
 use aeris_runtime::clock::{monotonic_ns, wall_ns};
-use aeris_runtime::{CycleReport, RoleContext, RoleError};
+use aeris_runtime::{ConfigError, CycleReport, MissionSpec, RoleContext, RoleError};
 use aeris_schemas::kinds;
 use aeris_schemas::{Decision, PerceptionState, VehicleTelemetry, topics};
 use core::time::Duration;
@@ -80,6 +81,33 @@ fn first_state_max_age(ctx: &RoleContext<kinds::Reasoning>, decision: Duration) 
 /// Time kept free between a decision's publication and its deadline at the hub (the hub
 /// reads decisions every 20 ms).
 pub const ROUTING_MARGIN: Duration = Duration::from_millis(100);
+
+/// The mission as the language model reads it.
+pub fn mission_brief(mission: &MissionSpec) -> Result<MissionBrief, RoleError> {
+    let steps = mission
+        .subgoals
+        .iter()
+        .map(|s| {
+            Ok(StepBrief {
+                text: s.text.clone(),
+                action: s.action_mode().ok_or_else(|| {
+                    RoleError::from(ConfigError::Mission(format!(
+                        "names unknown action `{}`",
+                        s.action
+                    )))
+                })?,
+                waypoint: s.waypoint,
+            })
+        })
+        .collect::<Result<Vec<_>, RoleError>>()?;
+    Ok(MissionBrief {
+        instruction: mission.instruction.clone(),
+        steps,
+        limits: mission.decision_limits(),
+        cruise_speed: mission.cruise_speed,
+        acceptance_radius: mission.acceptance_radius_m,
+    })
+}
 
 /// A decision due now, and the vehicle's state it is made for (from [`ReasonerIo::poll`]).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -31,4 +31,4 @@ pub mod users;
 
 pub use bus::{BusError, FlightBus, RoleBus};
 pub use role::{ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleHost};
-pub use spec::{ClockSpec, MissionSpec, RemoteSpec, RoleSpec};
+pub use spec::{ClockSpec, DISTILL_PARAM, MissionSpec, RemoteSpec, RoleSpec};

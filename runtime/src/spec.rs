@@ -415,6 +415,10 @@ impl RoleSpec {
     }
 }
 
+/// The reasoning role's parameter naming the file its training pairs are appended to
+/// (`aeris_roles::distill`; set by `aeris distill`, never by a remote host).
+pub const DISTILL_PARAM: &str = "distill";
+
 #[cfg(test)]
 mod tests {
     use super::*;

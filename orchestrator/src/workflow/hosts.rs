@@ -23,6 +23,7 @@ pub const REMOTE_PARAMS: &[&str] = &[
     "threads",
     "context_tokens",
     "plan",
+    "prompt",
     // perception models
     "min_score",
     "interval_ms",

@@ -5,12 +5,17 @@
 //! decides once per heartbeat on the first fresh S_t, or on the telemetry alone when no S_t
 //! came for a heartbeat and a half, polling every 50 ms ([`ReasonerIo`]).
 //!
+//! Parameter `distill` (a file path): every decision is also written there as a training
+//! pair for the aligned reasoner ([`crate::distill`]).
+//!
 //! Heartbeat stages: `read`, `plan`, `publish`. Heartbeat counters:
 //! [`aeris_schemas::PlannerCounters`]. The role's log says when the planner loses occupancy (and
 //! keeps to the geofence and the conservative altitude) and when it gets it back.
 
 use super::Planner;
+use crate::distill::{DistillWriter, StudentView};
 use crate::reasoner_io::{POLL, ReasonerIo};
+use aeris_llm::DecisionView;
 use aeris_runtime::clock::monotonic_ns;
 use aeris_runtime::{
     ConfigError, CycleOutcome, CycleReport, Role, RoleContext, RoleError, RoleSpec,
@@ -35,6 +40,9 @@ pub(crate) struct PlannerReasoner {
     /// What the log last said: blind or not, and the occupancy status (`None`: nothing
     /// said yet).
     blind_announced: Option<(bool, Option<OccupancyStatus>)>,
+    /// Training pairs of the planner's decisions, in the aligned prompt (parameter
+    /// `distill`, the planner variant only).
+    distill: Option<(StudentView, DistillWriter)>,
 }
 
 impl PlannerReasoner {
@@ -47,6 +55,7 @@ impl PlannerReasoner {
             planner,
             io,
             blind_announced: None,
+            distill: None,
         })
     }
 
@@ -65,6 +74,11 @@ impl PlannerReasoner {
         let mut d = self
             .planner
             .decide(due.position, due.yaw, due.landed, state);
+        if let Some((view, writer)) = &mut self.distill {
+            let sighted = view.sighted(state);
+            writer.write(view.brief(), &view.observation(&due, state, &sighted), &d)?;
+            view.decided(DecisionView::from_decision(&d));
+        }
         let now = (self.planner.blind(), self.planner.occupancy());
         if Some(now) != was_blind {
             self.blind_announced = Some(now);
@@ -127,9 +141,11 @@ impl Role for PlannerRole {
     type Kind = kinds::Reasoning;
 
     fn new(ctx: &mut RoleContext<kinds::Reasoning>) -> Result<Self, RoleError> {
-        Ok(Self {
-            reasoner: PlannerReasoner::new(ctx)?,
-        })
+        let mut reasoner = PlannerReasoner::new(ctx)?;
+        if let Some(writer) = DistillWriter::from_spec(&ctx.spec)? {
+            reasoner.distill = Some((StudentView::new(&ctx.spec)?, writer));
+        }
+        Ok(Self { reasoner })
     }
 
     fn period(&self) -> Duration {
