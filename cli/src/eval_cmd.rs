@@ -52,7 +52,8 @@ pub struct EvalArgs {
     pub baseline: Option<String>,
     /// Reasoning variant of the AERIS agent: `planner` (deterministic, grounded in S_t;
     /// the default), `smollm2` or `gemma3` (language models from the provisioned cache,
-    /// shown the planner's plan).
+    /// shown the planner's plan), `smollm2-aligned` (SmolLM2 with its task-aligned adapter,
+    /// never shown the plan).
     #[arg(long)]
     pub reasoning: Option<String>,
     /// Perception of the AERIS agent: `models` (the model roles of workflows/models.toml:

@@ -71,7 +71,7 @@ pub fn runner(kind: RoleKind, variant: &str) -> Option<RoleRunner> {
             "planner" => RoleRunner::of::<planner::PlannerRole>(),
             "garbage" => RoleRunner::of::<planner::GarbageRole>(),
             "random" => RoleRunner::of::<planner::RandomRole>(),
-            "smollm2" | "gemma3" => RoleRunner::of::<language::LanguageRole>(),
+            "smollm2" | "gemma3" | "smollm2-aligned" => RoleRunner::of::<language::LanguageRole>(),
             _ => return None,
         },
         RoleKind::Hub => match variant {

@@ -64,7 +64,7 @@ pub enum AgentError {
     #[error("unknown perception `{0}`: use models or geometric")]
     UnknownPerception(String),
     /// The reasoning variant is not one this evaluation has.
-    #[error("unknown reasoning variant `{0}`: use planner, smollm2 or gemma3")]
+    #[error("unknown reasoning variant `{0}`: use planner, smollm2, gemma3 or smollm2-aligned")]
     UnknownReasoning(String),
     /// The aligned prompt asked of a reasoner that is not a language model.
     #[error("--aligned is a language model's prompt: use --reasoning smollm2 or gemma3")]
@@ -109,7 +109,10 @@ impl AgentSetup {
             (None, true) => "smollm2".to_string(),
             (None, false) => agent.reasoning_variant().to_string(),
         };
-        let language = matches!(reasoning.as_str(), "smollm2" | "gemma3");
+        let language = aeris_orchestrator::workflow::LANGUAGE_MODEL_VARIANTS
+            .contains(&(aeris_schemas::RoleKind::Reasoning, reasoning.as_str()));
+        // a variant with its adapter reads the aligned prompt whatever is asked
+        let aligned_variant = reasoning.ends_with("-aligned");
         if agent == Agent::Aeris && !(language || reasoning == "planner") {
             return Err(AgentError::UnknownReasoning(reasoning));
         }
@@ -119,13 +122,13 @@ impl AgentSetup {
         if options.aligned && !language {
             return Err(AgentError::AlignedWithoutLanguageModel);
         }
-        if options.aligned && options.zero_shot {
+        if (options.aligned || aligned_variant) && options.zero_shot {
             return Err(AgentError::AlignedZeroShot);
         }
         let label = match agent {
             Agent::Aeris => {
                 let mut l = format!("aeris-{reasoning}");
-                if options.aligned {
+                if options.aligned && !aligned_variant {
                     l.push_str("-aligned");
                 }
                 if !models {
@@ -155,7 +158,7 @@ impl AgentSetup {
             no_ds: options.no_ds,
             single_slm: options.single_slm,
             models,
-            aligned: options.aligned,
+            aligned: options.aligned || aligned_variant,
             label,
         })
     }

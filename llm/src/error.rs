@@ -23,6 +23,14 @@ pub enum LlmError {
         /// llama.cpp's error.
         reason: String,
     },
+    /// llama.cpp could not load or apply a LoRA adapter to its base.
+    #[error("llama.cpp could not apply the adapter {file}: {reason}")]
+    Adapter {
+        /// Cache-relative adapter file.
+        file: String,
+        /// llama.cpp's error.
+        reason: String,
+    },
     /// No grammar exists for the mission's limits.
     #[error("cannot build the decision grammar")]
     Grammar(#[from] GrammarError),

@@ -26,6 +26,7 @@ pub use prompt::{MissionBrief, Observation, Sighted, StepBrief, sanitize};
 pub use prompt_style::PromptStyle;
 pub use reasoner::{
     GEMMA3_270M, GPU_OFFLOAD_BUILT, LanguageReasoner, LlmError, QWEN25_CODER_05B, ReasonerConfig,
-    SMOLLM2_135M, SMOLLM2_135M_Q4_1, Thought, check_offload, offload_check, variant_model,
+    SMOLLM2_135M, SMOLLM2_135M_Q4_1, SMOLLM2_ALIGNED_ADAPTER, Thought, check_offload,
+    offload_check, variant_adapter, variant_model,
 };
 pub use view::{DecisionView, ViewError};

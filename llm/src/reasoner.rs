@@ -16,8 +16,8 @@ use llama_cpp_2::context::LlamaContext;
 use llama_cpp_2::context::params::LlamaContextParams;
 use llama_cpp_2::llama_backend::LlamaBackend;
 use llama_cpp_2::llama_batch::LlamaBatch;
-use llama_cpp_2::model::LlamaModel;
 use llama_cpp_2::model::params::{LlamaModelParams, LlamaSplitMode};
+use llama_cpp_2::model::{LlamaLoraAdapter, LlamaModel};
 use llama_cpp_2::sampling::LlamaSampler;
 use llama_cpp_2::token::LlamaToken;
 use llama_cpp_2::token::data::LlamaTokenData;
@@ -43,6 +43,20 @@ pub fn variant_model(variant: &str) -> Option<&'static str> {
         "smollm2" => Some(SMOLLM2_135M),
         "gemma3" => Some(GEMMA3_270M),
         "qwen-coder" => Some(QWEN25_CODER_05B),
+        "smollm2-aligned" => Some(SMOLLM2_135M),
+        _ => None,
+    }
+}
+
+/// SmolLM2-135M's task-aligned LoRA adapter (`adapters/smollm2-aligned/`, trained by
+/// `scripts/train-reasoner.sh` on `aeris distill` pairs; provisioned into the cache).
+pub const SMOLLM2_ALIGNED_ADAPTER: &str = "adapters/smollm2-aligned.gguf";
+
+/// The adapter an aligned variant loads on its base, and the prompt it reads: `None` for
+/// the generic models (the planned prompt).
+pub fn variant_adapter(variant: &str) -> Option<&'static str> {
+    match variant {
+        "smollm2-aligned" => Some(SMOLLM2_ALIGNED_ADAPTER),
         _ => None,
     }
 }
@@ -207,8 +221,11 @@ struct FieldDecoder {
 /// A language model that turns (S_t, G, M_{t-1}) into decisions that always parse and lie
 /// inside the limits of the mission it was built for.
 pub struct LanguageReasoner {
-    // Field order matters: the context borrows the model and must drop first.
+    // Field order matters: the context borrows the model and uses the adapter, so it drops
+    // first.
     ctx: LlamaContext<'static>,
+    /// The LoRA adapter the context applies, if any (kept alive as long as the context).
+    _adapter: Option<LlamaLoraAdapter>,
     model: &'static LlamaModel,
     fields: Vec<FieldDecoder>,
     whole: LlamaSampler,
@@ -232,8 +249,21 @@ impl LanguageReasoner {
         mission: MissionBrief,
         config: ReasonerConfig,
     ) -> Result<Self, LlmError> {
+        Self::load_adapted(store, file, None, mission, config)
+    }
+
+    /// Load `file` with the LoRA adapter `adapter` (both cache-relative, hash-checked)
+    /// applied at full strength: a task-aligned model (`scripts/train-reasoner.sh`).
+    pub fn load_adapted(
+        store: &ModelStore,
+        file: &str,
+        adapter: Option<&str>,
+        mission: MissionBrief,
+        config: ReasonerConfig,
+    ) -> Result<Self, LlmError> {
         let started = Instant::now();
         let path = store.verified(file)?;
+        let adapter_path = adapter.map(|a| store.verified(a)).transpose()?;
         let backend = backend()?;
         let grammar_text = decision_grammar(&mission.limits)?;
         let model_params = model_params(backend, config.accelerator)?;
@@ -243,6 +273,20 @@ impl LanguageReasoner {
                 reason: e.to_string(),
             }
         })?;
+        let mut model = model;
+        let mut lora = match (adapter, adapter_path) {
+            (Some(name), Some(path)) => {
+                Some(
+                    model
+                        .lora_adapter_init(&path)
+                        .map_err(|e| LlmError::Adapter {
+                            file: name.to_string(),
+                            reason: e.to_string(),
+                        })?,
+                )
+            }
+            _ => None,
+        };
         let model: &'static LlamaModel = Box::leak(Box::new(model));
         let ctx_tokens = config.context_tokens.max(256);
         let params = LlamaContextParams::default()
@@ -260,6 +304,14 @@ impl LanguageReasoner {
                 file: file.to_string(),
                 reason: e.to_string(),
             })?;
+        let mut ctx = ctx;
+        if let (Some(lora), Some(name)) = (lora.as_mut(), adapter) {
+            ctx.lora_adapter_set(lora, 1.0)
+                .map_err(|e| LlmError::Adapter {
+                    file: name.to_string(),
+                    reason: e.to_string(),
+                })?;
+        }
         let whole = LlamaSampler::grammar(model, &grammar_text, "root")
             .map_err(|e| LlmError::GrammarRejected(e.to_string()))?;
         let fields = field_grammars(&mission.limits)?
@@ -277,6 +329,7 @@ impl LanguageReasoner {
             .collect::<Result<Vec<_>, LlmError>>()?;
         Ok(Self {
             ctx,
+            _adapter: lora,
             model,
             fields,
             whole,
@@ -317,6 +370,37 @@ impl LanguageReasoner {
     pub fn prompt(&self, obs: &Observation<'_>) -> Result<String, LlmError> {
         let (system, user) = self.config.prompt.messages(&self.mission, obs);
         chat_prompt(self.model, system, user)
+    }
+
+    /// The chat template applied to `system` and `user`, as a decision's prompt is: what a
+    /// training script must render the same way (`scripts/train_reasoner.py`).
+    pub fn chat(&self, system: &str, user: &str) -> Result<String, LlmError> {
+        chat_prompt(self.model, system, user.to_string())
+    }
+
+    /// `text`'s token ids, special tokens parsed (as a prompt is tokenized).
+    pub fn tokenize(&self, text: &str) -> Vec<i32> {
+        self.model
+            .vocab()
+            .tokenize(text.as_bytes(), false, true)
+            .into_iter()
+            .map(|t| t.0)
+            .collect()
+    }
+
+    /// The next-token logits after the tokens `tokens`, evaluated from an empty cache: what
+    /// a check of an adapter against another implementation compares. The next decision
+    /// evaluates its prompt anew.
+    pub fn logits_after(&mut self, tokens: &[i32]) -> Result<Vec<f32>, LlmError> {
+        if tokens.is_empty() {
+            return Err(LlmError::Decode("no tokens to evaluate".into()));
+        }
+        let tokens: Vec<LlamaToken> = tokens.iter().map(|&t| LlamaToken(t)).collect();
+        self.ctx.clear_kv_cache();
+        self.cached.clear();
+        self.eval(&tokens, 0)?;
+        let last = ((tokens.len() - 1) % BATCH) as i32;
+        Ok(self.ctx.get_logits_ith(last).to_vec())
     }
 
     /// Make one decision.

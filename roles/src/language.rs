@@ -1,4 +1,5 @@
-//! Reasoning role, language-model variants (kind `reasoning`, variants `smollm2`, `gemma3`):
+//! Reasoning role, language-model variants (kind `reasoning`, variants `smollm2`, `gemma3`,
+//! and `smollm2-aligned`: SmolLM2 with its task-aligned adapter, reading the aligned prompt):
 //! a GGUF model in llama.cpp turns (S_t, G, M_{t-1}) into D_t under the decision grammar
 //! ([`aeris_llm`]).
 //!
@@ -19,6 +20,8 @@
 //! the planner's plan out of the prompt: the generic model on its own, the evaluation's
 //! zero-shot ablation), `prompt` (`planned`, the default, or `aligned`: the task-aligned
 //! models' short prompt, [`aeris_llm::aligned_prompt`], which never shows the plan),
+//! `adapter` (a cache-relative LoRA GGUF, with `prompt = aligned` only: the task-aligned model
+//! `scripts/train-reasoner.sh` made for this base, hash-checked like every model),
 //! `distill` (a file path, with `prompt = aligned` only: every heartbeat the student's
 //! observation is written there as a training pair labelled with the planner's decision for
 //! it, a DAgger round; [`crate::distill`]).
@@ -98,6 +101,8 @@ impl Role for LanguageRole {
             // or a machine without the device, stops the role with the reason)
             accelerator: crate::vision::accelerator(ctx)?,
             prompt: match ctx.spec.param_str("prompt") {
+                // an aligned variant reads the prompt its adapter was trained on
+                None if aeris_llm::variant_adapter(&variant).is_some() => PromptStyle::Aligned,
                 None => PromptStyle::Planned,
                 Some(name) => PromptStyle::from_name(name).ok_or_else(|| {
                     RoleError::param("prompt", format!("must be planned or aligned, got {name}"))
@@ -109,6 +114,17 @@ impl Role for LanguageRole {
         // the aligned prompt never shows the plan
         let show_plan = ctx.spec.param_bool("plan", true)? && !aligned;
         let student = aligned.then(|| StudentView::new(&ctx.spec)).transpose()?;
+        let adapter = ctx
+            .spec
+            .param_str("adapter")
+            .or(aeris_llm::variant_adapter(&variant))
+            .map(str::to_string);
+        if adapter.is_some() && !aligned {
+            return Err(RoleError::param(
+                "adapter",
+                "needs prompt = aligned (an adapter is trained on the aligned prompt)",
+            ));
+        }
         let distill = DistillWriter::from_spec(&ctx.spec)?;
         if distill.is_some() && !aligned {
             return Err(RoleError::param(
@@ -121,8 +137,11 @@ impl Role for LanguageRole {
         let mut planner = mission_planner(&ctx.spec)?;
         let start = ctx.spec.mission.start;
         let threads = config.threads;
-        let mut reasoner = LanguageReasoner::load(&store, &file, brief, config)
-            .map_err(|e| RoleError::step(format!("loading reasoning/{variant} from {file}"), e))?;
+        let mut reasoner =
+            LanguageReasoner::load_adapted(&store, &file, adapter.as_deref(), brief, config)
+                .map_err(|e| {
+                    RoleError::step(format!("loading reasoning/{variant} from {file}"), e)
+                })?;
         // warm-up: the first decision pays for page faults and graph allocation
         // (on a copy of the planner: the flight's own starts at the first subgoal)
         let plan = DecisionView::from_decision(&planner.clone().decide(start, 0.0, true, None));

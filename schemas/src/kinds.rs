@@ -169,13 +169,13 @@ declare_kinds! {
     /// `reasoning`: D_t every heartbeat. It reads the hub's last setpoint when it starts (to
     /// resume at the hub's active step) without waiting for one: no cycle in the graph.
     Reasoning {
-        variants: &["planner", "garbage", "random", "smollm2", "gemma3"],
+        variants: &["planner", "garbage", "random", "smollm2", "gemma3", "smollm2-aligned"],
         subscribes: [PerceptionState, VehicleTelemetry],
         publishes: [ReasoningDecision],
         reads_latest: [HubSetpoint],
         from_tools: [],
         to_tools: [],
-        summary: "(S_t, G, M) -> D_t every heartbeat: planner, GGUF language models under the D_t grammar, `garbage` fault injector, `random` VLN baseline",
+        summary: "(S_t, G, M) -> D_t every heartbeat: planner, GGUF language models under the D_t grammar (`smollm2-aligned`: SmolLM2 with its task-aligned LoRA adapter, no plan), `garbage` fault injector, `random` VLN baseline",
         swap_refusal: None,
     }
     /// `hub`: the decision gate.

@@ -416,7 +416,10 @@ impl StepHook for ReplayHook {
             .reasoner
             .as_deref()
             .and_then(|name| ctx.supervisor.role(name))
-            .filter(|r| matches!(r.variant(), "smollm2" | "gemma3"))
+            .filter(|r| {
+                aeris_orchestrator::workflow::LANGUAGE_MODEL_VARIANTS
+                    .contains(&(RoleKind::Reasoning, r.variant()))
+            })
             .and_then(|r| r.last_heartbeat())
             .map(|hb| LanguageCounters::from_heartbeat(&hb.counters))
             && c.decisions != self.last_decisions

@@ -49,6 +49,7 @@ pub const ONNX_MODEL_VARIANTS: &[(RoleKind, &str)] = &[
 pub const LANGUAGE_MODEL_VARIANTS: &[(RoleKind, &str)] = &[
     (RoleKind::Reasoning, "smollm2"),
     (RoleKind::Reasoning, "gemma3"),
+    (RoleKind::Reasoning, "smollm2-aligned"),
 ];
 
 /// Whether `kind`/`variant` can run on `accelerator`: ONNX models on any, language models on
