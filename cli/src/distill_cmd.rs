@@ -15,6 +15,10 @@ pub struct DistillArgs {
     /// Split to generate and fly: only `train` (the held-out splits measure the models).
     #[arg(long, default_value = "train")]
     pub split: String,
+    /// Fly these episodes instead of generating the split (our JSON or AerialVLN's): every
+    /// one must be on a `train` scene.
+    #[arg(long, value_name = "FILE")]
+    pub episodes_file: Option<PathBuf>,
     /// Episodes to fly.
     #[arg(long, default_value_t = 10)]
     pub episodes: usize,
@@ -70,7 +74,10 @@ impl crate::command::Execute for DistillArgs {
         });
         let config = EvalConfig {
             agent,
-            source: EpisodeSource::Generate { split, airspace },
+            source: match &self.episodes_file {
+                Some(file) => EpisodeSource::File(file.clone()),
+                None => EpisodeSource::Generate { split, airspace },
+            },
             episodes: self.episodes,
             out,
             record: false,

@@ -24,6 +24,16 @@ pub enum DistillError {
         "split `{0}` is held out for measuring: training pairs come from `train` episodes only"
     )]
     HeldOutSplit(&'static str),
+    /// An episode of a file is not on a `train` scene.
+    #[error(
+        "episode {episode} is on scene {scene}, not a train scene: training pairs come from `train` episodes only"
+    )]
+    HeldOutEpisode {
+        /// The episode.
+        episode: String,
+        /// Its scene.
+        scene: String,
+    },
     /// The agent is no teacher: a baseline, or a language model without the aligned prompt.
     #[error(
         "agent `{0}` writes no training pairs: the teacher is the planner, or an aligned language-model student (--student)"
@@ -62,6 +72,20 @@ pub fn check(setup: &AgentSetup, split: Split) -> Result<(), DistillError> {
         return Err(DistillError::NotATeacher(setup.label.clone()));
     }
     Ok(())
+}
+
+/// Check that every episode of a file is on a `train` scene.
+pub fn check_episodes(episodes: &[crate::episode::Episode]) -> Result<(), DistillError> {
+    match episodes
+        .iter()
+        .find(|e| Split::of_scene(&e.scene_id) != Some(Split::Train))
+    {
+        Some(e) => Err(DistillError::HeldOutEpisode {
+            episode: e.episode_id.clone(),
+            scene: e.scene_id.clone(),
+        }),
+        None => Ok(()),
+    }
 }
 
 /// Where an episode's pairs came from, added to each of its lines.
@@ -155,6 +179,9 @@ mod tests {
         })
         .unwrap();
         assert!(check(&oracle, Split::Train).is_err());
+        assert_eq!(Split::of_scene("dense-1011"), Some(Split::Train));
+        assert_eq!(Split::of_scene("open-3002"), Some(Split::TestUnseen));
+        assert_eq!(Split::of_scene("village"), None);
     }
 
     #[test]

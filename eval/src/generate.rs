@@ -68,6 +68,15 @@ impl Split {
         Split::ALL.into_iter().find(|s| s.as_str() == name)
     }
 
+    /// The split whose scenes include `scene_id` (`open-1003`, `dense-2001`: an airspace and
+    /// a seed), if any.
+    pub fn of_scene(scene_id: &str) -> Option<Split> {
+        let seed: u64 = scene_id.rsplit('-').next()?.parse().ok()?;
+        Split::ALL
+            .into_iter()
+            .find(|s| s.scene_seeds().contains(&seed))
+    }
+
     /// Seeds of this split's scenes (each seed is a scene of both airspaces): train
     /// 1000..1012, val_unseen 2000..2004, test_unseen 3000..3004 — disjoint.
     pub fn scene_seeds(self) -> core::ops::Range<u64> {

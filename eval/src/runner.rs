@@ -265,6 +265,9 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
         EpisodeSource::File(file) => {
             let mut list = load_episodes(file)?;
             list.truncate(config.episodes);
+            if config.distill {
+                crate::distill::check_episodes(&list)?;
+            }
             (file.display().to_string(), list)
         }
         EpisodeSource::Generate { split, airspace } => {

@@ -1,7 +1,7 @@
 //! `aeris distill` flies `train` episodes with the planner as teacher (on simulated time)
 //! and writes the aligned reasoner's training pairs: every decision the planner made, with
 //! what an aligned model reads at that heartbeat (never the plan) and the decision as the
-//! grammar writes it; held-out splits are refused before anything flies.
+//! grammar writes it; held-out splits and episodes are refused before anything flies.
 
 use aeris_tests::*;
 use std::process::Command;
@@ -121,4 +121,35 @@ fn a_held_out_split_is_refused_before_anything_flies() {
         );
         assert!(!dir.0.join("episodes.jsonl").exists());
     }
+    // nor can a file of held-out episodes bring them in
+    let file = dir.0.join("test_unseen.json");
+    let out = Command::new(aeris_bin())
+        .args([
+            "episodes",
+            "generate",
+            "--split",
+            "test_unseen",
+            "--episodes",
+            "1",
+        ])
+        .arg("--out")
+        .arg(&file)
+        .output()
+        .expect("run aeris episodes generate");
+    assert!(out.status.success());
+    let out = Command::new(aeris_bin())
+        .args(["distill", "--episodes-file"])
+        .arg(&file)
+        .arg("--out")
+        .arg(&dir.0)
+        .stdin(std::process::Stdio::null())
+        .output()
+        .expect("run aeris distill");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("is on scene open-3000, not a train scene"),
+        "{stderr}"
+    );
+    assert!(!dir.0.join("episodes.jsonl").exists());
 }
