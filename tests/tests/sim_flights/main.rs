@@ -3,7 +3,6 @@
 //! beside a wall-clock flight, whose timing it would starve (cargo runs test binaries one
 //! after another). Two fly at a time here; their results do not depend on it.
 
-mod aligned;
 mod distill;
 mod garbage;
 mod replay_max;
