@@ -70,6 +70,15 @@ def parse_args(argv):
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: all CPUs)")
     p.add_argument("--time-steps", type=int, default=20, help="steps timed before the run (default 20; 0: none)")
     p.add_argument("--time-only", action="store_true", help="stop after timing the first steps")
+    p.add_argument("--init", default=None, metavar="DIR", help="start from this run's peft adapter (DIR/peft) instead of a new one")
+    p.add_argument(
+        "--step-changes",
+        type=int,
+        default=1,
+        metavar="K",
+        help="train on each pair whose decision moves to another step K times (default 1): they "
+        "are a few percent of the pairs, and a model that never sees them copies its last decision",
+    )
     args = p.parse_args(argv)
     if args.batch < 1 or args.rank < 1 or args.epochs <= 0:
         p.error("--batch, --rank and --epochs must be positive")
@@ -117,6 +126,15 @@ def render(tokenizer, pair):
     prompt = tokenizer(text, add_special_tokens=False)["input_ids"]
     target = tokenizer(pair["target"], add_special_tokens=False)["input_ids"]
     return text, prompt, target
+
+
+def changes_step(pair):
+    """Whether the pair's decision moves to another step than its memory line's."""
+    target = json.loads(pair["target"])
+    for line in pair["user"].split("\n"):
+        if line.startswith("Last: ") and line != "Last: none.":
+            return int(line.split()[1]) != target["step"]
+    return False
 
 
 def batches(examples, batch, rng):
@@ -258,11 +276,16 @@ def main(argv):
     pad_id = tokenizer.pad_token_id if tokenizer.pad_token_id is not None else tokenizer.eos_token_id
     pairs = load_pairs(args.pairs)
     train_pairs, val_pairs, held = split_by_scene(pairs, args.val_scenes, args.seed)
+    changes = [p for p in train_pairs if changes_step(p)]
     if args.max_pairs is not None:
         random.Random(args.seed).shuffle(train_pairs)
         train_pairs = train_pairs[: args.max_pairs]
     if not train_pairs:
         sys.exit("train_reasoner: no training pairs left (more scenes than --val-scenes are needed)")
+    if args.step_changes > 1:
+        # every step change of the training scenes (also those --max-pairs left out), K times
+        train_pairs = [p for p in train_pairs if not changes_step(p)] + changes * args.step_changes
+        print(f"train_reasoner: {len(changes)} pairs change step, each {args.step_changes} times", file=sys.stderr)
     train = [render(tokenizer, p)[1:] for p in train_pairs]
     val = [render(tokenizer, p)[1:] for p in val_pairs]
     tokens = sum(len(a) + len(b) for a, b in train)
@@ -279,7 +302,12 @@ def main(argv):
         bias="none",
         task_type="CAUSAL_LM",
     )
-    model = get_peft_model(model, lora)
+    if args.init:
+        from peft import PeftModel
+
+        model = PeftModel.from_pretrained(model, str(Path(args.init) / "peft"), is_trainable=True)
+    else:
+        model = get_peft_model(model, lora)
     trainable = sum(p.numel() for p in model.parameters() if p.requires_grad)
     device = "cuda" if torch.cuda.is_available() else "cpu"
     model.to(device)
@@ -364,6 +392,8 @@ def main(argv):
         "val_pairs": len(val),
         "val_scenes": held,
         "seed": args.seed,
+        "init": args.init,
+        "step_changes": args.step_changes,
         "rank": args.rank,
         "alpha": args.alpha,
         "lr": args.lr,
