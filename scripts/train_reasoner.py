@@ -433,12 +433,16 @@ def cpu_name():
 
 
 def versions():
+    """The installed versions of the training packages (gguf has no `__version__`: the
+    distribution's metadata says it)."""
+    from importlib import metadata
+
     out = {}
     for name in ("transformers", "peft", "gguf"):
         try:
-            out[name] = __import__(name).__version__
-        except Exception:  # noqa: BLE001 - a version is informative only
-            out[name] = "unknown"
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
     return out
 
 
