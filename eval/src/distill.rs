@@ -117,27 +117,22 @@ pub fn gather(
         Err(e) => return Err(gather_error(e)),
     };
     let mut n = 0;
+    let bad_pair = |line: usize, source| DistillError::BadPair {
+        path: episode_pairs.to_path_buf(),
+        line,
+        source,
+    };
+    // the same fields for every line of the episode
+    let origin = match serde_json::to_value(origin).map_err(|e| bad_pair(0, e))? {
+        serde_json::Value::Object(o) => o,
+        _ => serde_json::Map::new(),
+    };
     for (i, line) in std::io::BufReader::new(file).lines().enumerate() {
         let line = line.map_err(gather_error)?;
-        let mut pair: serde_json::Map<String, serde_json::Value> = serde_json::from_str(&line)
-            .map_err(|source| DistillError::BadPair {
-                path: episode_pairs.to_path_buf(),
-                line: i + 1,
-                source,
-            })?;
-        let origin = serde_json::to_value(origin).map_err(|source| DistillError::BadPair {
-            path: episode_pairs.to_path_buf(),
-            line: i + 1,
-            source,
-        })?;
-        if let serde_json::Value::Object(o) = origin {
-            pair.extend(o);
-        }
-        let text = serde_json::to_string(&pair).map_err(|source| DistillError::BadPair {
-            path: episode_pairs.to_path_buf(),
-            line: i + 1,
-            source,
-        })?;
+        let mut pair: serde_json::Map<String, serde_json::Value> =
+            serde_json::from_str(&line).map_err(|e| bad_pair(i + 1, e))?;
+        pair.extend(origin.clone());
+        let text = serde_json::to_string(&pair).map_err(|e| bad_pair(i + 1, e))?;
         writeln!(out, "{text}").map_err(gather_error)?;
         n += 1;
     }

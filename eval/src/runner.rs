@@ -312,14 +312,16 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
         let mut workflow = episode_workflow(setup, em.mission, k, &episode.episode_id)?;
         let flight = format!("eval-{}-{k}", std::process::id());
         let run_dir = out.join("runs").join(&flight);
-        let episode_pairs =
-            std::path::absolute(run_dir.join(crate::distill::PAIRS_FILE)).map_err(|source| {
-                EvalError::Output {
-                    path: run_dir.clone(),
-                    source,
-                }
+        // with --distill: where the reasoning role writes this episode's pairs
+        let episode_pairs = pairs
+            .is_some()
+            .then(|| std::path::absolute(run_dir.join(crate::distill::PAIRS_FILE)))
+            .transpose()
+            .map_err(|source| EvalError::Output {
+                path: run_dir.clone(),
+                source,
             })?;
-        if pairs.is_some() {
+        if let Some(episode_pairs) = &episode_pairs {
             workflow
                 .roles
                 .iter_mut()
@@ -449,13 +451,13 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
             run_dir: &run_dir,
             recording: recording.as_deref(),
         };
-        if let Some(out) = &mut pairs {
+        if let (Some(out), Some(episode_pairs)) = (&mut pairs, &episode_pairs) {
             let origin = crate::distill::PairOrigin {
                 episode_id: &episode.episode_id,
                 scene_id: &episode.scene_id,
                 agent: &setup.label,
             };
-            pairs_written += crate::distill::gather(&episode_pairs, &origin, out)?;
+            pairs_written += crate::distill::gather(episode_pairs, &origin, out)?;
             out.flush().map_err(|source| EvalError::Output {
                 path: pairs_path.clone(),
                 source,

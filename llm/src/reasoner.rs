@@ -263,30 +263,32 @@ impl LanguageReasoner {
     ) -> Result<Self, LlmError> {
         let started = Instant::now();
         let path = store.verified(file)?;
-        let adapter_path = adapter.map(|a| store.verified(a)).transpose()?;
+        let adapter = adapter
+            .map(|name| store.verified(name).map(|path| (name, path)))
+            .transpose()?;
+        let adapter_error = |name: &str, reason: String| LlmError::Adapter {
+            file: name.to_string(),
+            reason,
+        };
         let backend = backend()?;
         let grammar_text = decision_grammar(&mission.limits)?;
         let model_params = model_params(backend, config.accelerator)?;
-        let model = LlamaModel::load_from_file(backend, &path, &model_params).map_err(|e| {
+        let mut model = LlamaModel::load_from_file(backend, &path, &model_params).map_err(|e| {
             LlmError::Load {
                 file: file.to_string(),
                 reason: e.to_string(),
             }
         })?;
-        let mut model = model;
-        let mut lora = match (adapter, adapter_path) {
-            (Some(name), Some(path)) => {
-                Some(
-                    model
-                        .lora_adapter_init(&path)
-                        .map_err(|e| LlmError::Adapter {
-                            file: name.to_string(),
-                            reason: e.to_string(),
-                        })?,
-                )
-            }
-            _ => None,
-        };
+        // the adapter is made from the model before the model is leaked (it needs `&mut`)
+        let mut lora = adapter
+            .as_ref()
+            .map(|(name, path)| {
+                let lora = model
+                    .lora_adapter_init(path)
+                    .map_err(|e| adapter_error(name, e.to_string()))?;
+                Ok::<_, LlmError>((*name, lora))
+            })
+            .transpose()?;
         let model: &'static LlamaModel = Box::leak(Box::new(model));
         let ctx_tokens = config.context_tokens.max(256);
         let params = LlamaContextParams::default()
@@ -298,19 +300,15 @@ impl LanguageReasoner {
             // there for a role on a CPU set too)
             .with_offload_kqv(config.accelerator.is_some())
             .with_flash_attention_policy(flash_attention(config.accelerator.is_some()));
-        let ctx = model
+        let mut ctx = model
             .new_context(backend, params)
             .map_err(|e| LlmError::Load {
                 file: file.to_string(),
                 reason: e.to_string(),
             })?;
-        let mut ctx = ctx;
-        if let (Some(lora), Some(name)) = (lora.as_mut(), adapter) {
+        if let Some((name, lora)) = lora.as_mut() {
             ctx.lora_adapter_set(lora, 1.0)
-                .map_err(|e| LlmError::Adapter {
-                    file: name.to_string(),
-                    reason: e.to_string(),
-                })?;
+                .map_err(|e| adapter_error(name, e.to_string()))?;
         }
         let whole = LlamaSampler::grammar(model, &grammar_text, "root")
             .map_err(|e| LlmError::GrammarRejected(e.to_string()))?;
@@ -329,7 +327,7 @@ impl LanguageReasoner {
             .collect::<Result<Vec<_>, LlmError>>()?;
         Ok(Self {
             ctx,
-            _adapter: lora,
+            _adapter: lora.map(|(_, lora)| lora),
             model,
             fields,
             whole,

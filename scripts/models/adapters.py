@@ -10,18 +10,11 @@ an adapter before loading it like every model. Runs on every provisioning (cheap
 copied only when it differs), so a new adapter reaches a cache provisioned before it.
 Standard library only.
 """
-import hashlib
 import os
 import shutil
 import sys
 
-
-def sha256(path):
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+from provision import sha256  # scripts/models/provision.py: the cache's one file hash
 
 
 def main(repo, cache):
