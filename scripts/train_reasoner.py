@@ -70,6 +70,11 @@ def parse_args(argv):
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: all CPUs)")
     p.add_argument("--time-steps", type=int, default=20, help="steps timed before the run (default 20; 0: none)")
     p.add_argument("--time-only", action="store_true", help="stop after timing the first steps")
+    p.add_argument(
+        "--keep-failed",
+        action="store_true",
+        help="also train on pairs of episodes the teacher failed (default: only pairs marked success)",
+    )
     p.add_argument("--init", default=None, metavar="DIR", help="start from this run's peft adapter (DIR/peft) instead of a new one")
     p.add_argument(
         "--step-changes",
@@ -92,7 +97,9 @@ def models_dir(args) -> Path:
     return Path(env) if env else Path.home() / ".cache" / "aeris" / "models"
 
 
-def load_pairs(files):
+def load_pairs(files, keep_failed):
+    """The distinct pairs of `files`; without `keep_failed` only those of episodes the
+    teacher succeeded in (`success`, written by `aeris distill`; a pair without it is kept)."""
     pairs, seen = [], set()
     for f in files:
         with open(f, encoding="utf-8") as fh:
@@ -102,7 +109,7 @@ def load_pairs(files):
                     key = (p["system"], p["user"], p["target"])
                 except (json.JSONDecodeError, KeyError, TypeError) as e:
                     sys.exit(f"train_reasoner: {f}, line {n}: not a training pair ({e})")
-                if key in seen:
+                if key in seen or (not keep_failed and p.get("success") is False):
                     continue
                 seen.add(key)
                 pairs.append(p)
@@ -274,7 +281,7 @@ def main(argv):
     tokenizer = AutoTokenizer.from_pretrained(str(gguf_path.parent), gguf_file=gguf_path.name)
     model = AutoModelForCausalLM.from_pretrained(str(gguf_path.parent), gguf_file=gguf_path.name, torch_dtype=torch.float32)
     pad_id = tokenizer.pad_token_id if tokenizer.pad_token_id is not None else tokenizer.eos_token_id
-    pairs = load_pairs(args.pairs)
+    pairs = load_pairs(args.pairs, args.keep_failed)
     train_pairs, val_pairs, held = split_by_scene(pairs, args.val_scenes, args.seed)
     changes = [p for p in train_pairs if changes_step(p)]
     if args.max_pairs is not None:
@@ -394,6 +401,7 @@ def main(argv):
         "seed": args.seed,
         "init": args.init,
         "step_changes": args.step_changes,
+        "keep_failed": args.keep_failed,
         "rank": args.rank,
         "alpha": args.alpha,
         "lr": args.lr,

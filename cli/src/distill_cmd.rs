@@ -85,6 +85,7 @@ impl crate::command::Execute for DistillArgs {
             shard: self.shard,
             clock: self.clock,
             distill: true,
+            read_steps: Default::default(),
         };
         let mut printer = EpisodePrinter(FlightPrinter::new(false, "aeris: ")?);
         let report = runner::run(&config, &mut printer)?;

@@ -97,6 +97,9 @@ pub struct PairOrigin<'a> {
     pub scene_id: &'a str,
     /// Who flew (`aeris-planner`, `aeris-smollm2-aligned`).
     pub agent: &'a str,
+    /// Whether the episode succeeded (stopped within the success radius): a trainer may
+    /// keep only successful teachers' pairs (a failed planner episode teaches its mistakes).
+    pub success: bool,
 }
 
 /// Append every pair of `episode_pairs` (a role's file) to `out`, each with its origin;
@@ -193,6 +196,7 @@ mod tests {
             episode_id: "open-1-0",
             scene_id: "open-1",
             agent: "aeris-planner",
+            success: true,
         };
         let mut out = Vec::new();
         assert_eq!(gather(&file, &origin, &mut out).unwrap(), 2);
@@ -202,6 +206,7 @@ mod tests {
             .map(|l| serde_json::from_str(l).unwrap())
             .collect();
         assert_eq!(lines[1]["user"], "u2");
+        assert_eq!(lines[1]["success"], true);
         assert_eq!(lines[1]["episode_id"], "open-1-0");
         assert_eq!(
             gather(&dir.join("absent.jsonl"), &origin, &mut Vec::new()).unwrap(),

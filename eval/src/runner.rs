@@ -415,6 +415,7 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
             },
         };
         let m = EpisodeMetrics::compute(&run);
+        let success = m.sr > 0.5;
         let airspace = episode.airspace.as_deref().unwrap_or("unknown");
         let line = EpisodeLine {
             index: k,
@@ -456,6 +457,7 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
                 episode_id: &episode.episode_id,
                 scene_id: &episode.scene_id,
                 agent: &setup.label,
+                success,
             };
             pairs_written += crate::distill::gather(episode_pairs, &origin, out)?;
             out.flush().map_err(|source| EvalError::Output {
