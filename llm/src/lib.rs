@@ -15,6 +15,7 @@ pub mod grammar;
 pub mod prompt;
 pub mod prompt_style;
 pub mod reasoner;
+pub mod segment;
 pub mod view;
 
 pub use aligned_prompt::{aligned_system_message, aligned_user_message};
@@ -29,4 +30,5 @@ pub use reasoner::{
     SMOLLM2_135M, SMOLLM2_135M_Q4_1, SMOLLM2_ALIGNED_ADAPTER, Thought, check_offload,
     offload_check, variant_adapter, variant_model,
 };
+pub use segment::{Segment, SegmentError, Segmenter};
 pub use view::{DecisionView, ViewError};

@@ -1,0 +1,330 @@
+//! Segmenting an instruction into steps with a language model (issue 37, item 4): an
+//! instruction that comes without subgoal annotation (AerialVLN's own files carry none) is
+//! split into steps, each with its action, by greedy decoding under a grammar made **for
+//! that instruction** ([`segment_grammar`]).
+//!
+//! The grammar writes the instruction's words, in order, each exactly once; the model
+//! chooses only where one step ends and the next begins, and each step's action
+//! (`takeoff`, `goto`, `land`). So the model cannot drop, invent or reorder a word: its
+//! output is always a segmentation of the instruction, and the planner reads each step as
+//! it reads an annotated one. The phrase rules (the hub's `segment_instruction`, which
+//! splits on sentence ends and "then") stay the fallback where no model is loaded.
+
+use crate::decode::{BATCH, backend, chat_prompt, eval_tokens, greedy_allowed};
+use crate::error::LlmError;
+use crate::reasoner::model_params;
+use aeris_models::ModelStore;
+use aeris_schemas::MAX_SUBGOALS;
+use core::fmt::Write;
+use llama_cpp_2::context::LlamaContext;
+use llama_cpp_2::context::params::LlamaContextParams;
+use llama_cpp_2::llama_batch::LlamaBatch;
+use llama_cpp_2::model::LlamaModel;
+use llama_cpp_2::sampling::LlamaSampler;
+use serde::Deserialize;
+use std::num::NonZeroU32;
+use std::time::Instant;
+
+/// Most words of an instruction the segmenter takes (AerialVLN's longest are ~200).
+pub const MAX_INSTRUCTION_WORDS: usize = 256;
+
+/// Context length: the examples, the instruction, and its segmentation (every word again).
+const CONTEXT_TOKENS: u32 = 4096;
+
+/// Most tokens one segmentation may take: its words (a few tokens each at most) and the
+/// JSON around each step.
+const MAX_SEGMENTATION_TOKENS: usize = 3 * MAX_INSTRUCTION_WORDS + 24 * MAX_SUBGOALS;
+
+/// A step's action, as the decision grammar names them.
+const ACTIONS: [&str; 3] = ["takeoff", "goto", "land"];
+
+/// Why an instruction was not segmented.
+#[derive(Debug, thiserror::Error)]
+pub enum SegmentError {
+    /// The instruction has no words.
+    #[error("the instruction has no words to segment")]
+    Empty,
+    /// The instruction is longer than the segmenter takes.
+    #[error("the instruction has {0} words; the segmenter takes at most {MAX_INSTRUCTION_WORDS}")]
+    TooLong(usize),
+    /// The model could not be loaded or run.
+    #[error("segmenting with the language model")]
+    Model(#[from] LlmError),
+    /// The model wrote more steps than a mission holds.
+    #[error("the model wrote {0} steps; a mission holds at most {MAX_SUBGOALS}")]
+    TooManySteps(usize),
+    /// The output is not a segmentation (cannot happen under the grammar; checked anyway).
+    #[error("output {text:?} is not a segmentation")]
+    Output {
+        /// What the model wrote.
+        text: String,
+        /// Why it does not parse.
+        source: serde_json::Error,
+    },
+}
+
+/// One step of a segmented instruction.
+#[derive(Debug, Clone, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Segment {
+    /// The step's words, as the instruction writes them.
+    pub text: String,
+    /// `takeoff`, `goto` or `land`.
+    pub action: String,
+}
+
+/// The instruction's words as the grammar and the output write them: split on white space,
+/// control characters dropped, `"` and `\` left out (they cannot be written inside the
+/// output's JSON strings as the words themselves); words left empty are skipped.
+pub fn instruction_words(instruction: &str) -> Vec<String> {
+    instruction
+        .split_whitespace()
+        .map(|w| {
+            w.chars()
+                .filter(|c| !c.is_control() && *c != '"' && *c != '\\')
+                .collect::<String>()
+        })
+        .filter(|w| !w.is_empty())
+        .collect()
+}
+
+/// The GBNF grammar (root rule `root`) of every segmentation of `words`: a JSON list of
+/// steps `{"text":"...","action":"..."}` whose texts, joined by spaces, are `words` in
+/// order. Between two words the model either writes a space or closes the step, names its
+/// action and opens the next; after the last word it names the last step's action.
+pub fn segment_grammar(words: &[String]) -> Result<String, SegmentError> {
+    if words.is_empty() {
+        return Err(SegmentError::Empty);
+    }
+    if words.len() > MAX_INSTRUCTION_WORDS {
+        return Err(SegmentError::TooLong(words.len()));
+    }
+    let mut g = String::with_capacity(64 * words.len());
+    g.push_str("root ::= \"[{\\\"text\\\":\\\"\" w0\n");
+    g.push_str("action ::= ");
+    for (i, a) in ACTIONS.iter().enumerate() {
+        let _ = write!(g, "{}\"\\\"{a}\\\"\"", if i > 0 { " | " } else { "" });
+    }
+    g.push('\n');
+    g.push_str("next ::= \"\\\",\\\"action\\\":\" action \"},{\\\"text\\\":\\\"\"\n");
+    for (i, w) in words.iter().enumerate() {
+        let literal = gbnf_literal(w);
+        if i + 1 == words.len() {
+            let _ = writeln!(
+                g,
+                "w{i} ::= {literal} \"\\\",\\\"action\\\":\" action \"}}]\""
+            );
+        } else {
+            let _ = writeln!(g, "w{i} ::= {literal} ( \" \" | next ) w{}", i + 1);
+        }
+    }
+    Ok(g)
+}
+
+/// `word` as a GBNF string literal (it holds no `"`, `\` or control characters).
+fn gbnf_literal(word: &str) -> String {
+    format!("\"{word}\"")
+}
+
+/// The segmentation the JSON text `text` writes, checked against `words`.
+pub fn segments_from_json(text: &str, words: &[String]) -> Result<Vec<Segment>, SegmentError> {
+    let output = |source| SegmentError::Output {
+        text: text.to_string(),
+        source,
+    };
+    let segments: Vec<Segment> = serde_json::from_str(text).map_err(output)?;
+    let written: Vec<&str> = segments.iter().flat_map(|s| s.text.split(' ')).collect();
+    if written != words
+        || segments
+            .iter()
+            .any(|s| !ACTIONS.contains(&s.action.as_str()))
+    {
+        return Err(output(serde::de::Error::custom(
+            "not the instruction's words in order, or an unknown action",
+        )));
+    }
+    if segments.len() > MAX_SUBGOALS {
+        return Err(SegmentError::TooManySteps(segments.len()));
+    }
+    Ok(segments)
+}
+
+/// What the segmenter is asked: the task and two instructions written the way people write
+/// them (neither in the episode generator's phrasing).
+const SYSTEM: &str = r#"You split a drone pilot's instruction into its steps, in order, copying its words. A step is one thing the drone does: take off (action "takeoff"), go somewhere or turn towards something (action "goto"), or land (action "land"). Reply with a JSON list of steps, each {"text":"the step's words","action":"takeoff|goto|land"}.
+Instruction: Lift off and climb to about 15 m. Head over to the lake on your left, after that go past the red building and put it down by the white tower.
+[{"text":"Lift off and climb to about 15 m.","action":"takeoff"},{"text":"Head over to the lake on your left,","action":"goto"},{"text":"after that go past the red building","action":"goto"},{"text":"and put it down by the white tower.","action":"land"}]
+Instruction: go up a little and swing right, follow the road until the bridge then come down next to the sign that reads PARK
+[{"text":"go up a little","action":"takeoff"},{"text":"and swing right, follow the road until the bridge","action":"goto"},{"text":"then come down next to the sign that reads PARK","action":"land"}]"#;
+
+/// What one segmentation cost.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SegmentStats {
+    /// Tokens in the prompt.
+    pub prompt_tokens: usize,
+    /// Tokens generated.
+    pub generated_tokens: usize,
+    /// Seconds the whole segmentation took (prompt and generation).
+    pub seconds: f64,
+}
+
+/// A GGUF model in llama.cpp that segments instructions under [`segment_grammar`].
+pub struct Segmenter {
+    // Field order matters: the context borrows the model and must drop first.
+    ctx: LlamaContext<'static>,
+    model: &'static LlamaModel,
+    batch: LlamaBatch<'static>,
+    last: SegmentStats,
+}
+
+impl Segmenter {
+    /// Load `file` (cache-relative, hash-checked), evaluating on `threads` CPU threads.
+    pub fn load(store: &ModelStore, file: &str, threads: i32) -> Result<Self, SegmentError> {
+        let path = store.verified(file).map_err(LlmError::from)?;
+        let backend = backend()?;
+        let params = model_params(backend, None)?;
+        let load_error = |e: &dyn std::fmt::Display| LlmError::Load {
+            file: file.to_string(),
+            reason: e.to_string(),
+        };
+        let model =
+            LlamaModel::load_from_file(backend, &path, &params).map_err(|e| load_error(&e))?;
+        // one model for the process's lifetime, as the other decoders hold theirs
+        let model: &'static LlamaModel = Box::leak(Box::new(model));
+        let ctx_params = LlamaContextParams::default()
+            .with_n_ctx(NonZeroU32::new(CONTEXT_TOKENS))
+            .with_n_batch(BATCH as u32)
+            .with_n_threads(threads.max(1))
+            .with_n_threads_batch(threads.max(1))
+            .with_flash_attention_policy(crate::decode::flash_attention(false));
+        let ctx = model
+            .new_context(backend, ctx_params)
+            .map_err(|e| load_error(&e))?;
+        Ok(Self {
+            ctx,
+            model,
+            batch: LlamaBatch::new(BATCH, 1),
+            last: SegmentStats::default(),
+        })
+    }
+
+    /// What the last segmentation cost.
+    pub fn last_stats(&self) -> SegmentStats {
+        self.last
+    }
+
+    /// The steps of `instruction`, by greedy decoding under its grammar.
+    pub fn segment(&mut self, instruction: &str) -> Result<Vec<Segment>, SegmentError> {
+        let started = Instant::now();
+        let words = instruction_words(instruction);
+        let grammar_text = segment_grammar(&words)?;
+        let mut grammar = LlamaSampler::grammar(self.model, &grammar_text, "root")
+            .map_err(|e| LlmError::GrammarRejected(e.to_string()))?;
+        let prompt = chat_prompt(
+            self.model,
+            SYSTEM,
+            format!("Instruction: {}", words.join(" ")),
+        )?;
+        let tokens = self.model.vocab().tokenize(prompt.as_bytes(), false, true);
+        let context = self.ctx.n_ctx() as usize;
+        if tokens.len() + MAX_SEGMENTATION_TOKENS >= context {
+            return Err(LlmError::PromptTooLong {
+                tokens: tokens.len(),
+                context,
+            }
+            .into());
+        }
+        self.ctx.clear_kv_cache();
+        eval_tokens(&mut self.ctx, &mut self.batch, &tokens, 0)?;
+        let mut bytes = Vec::with_capacity(8 * words.len() + 64);
+        let mut pos = tokens.len();
+        let mut generated = 0;
+        let outcome = loop {
+            if generated >= MAX_SEGMENTATION_TOKENS {
+                break Err(SegmentError::Model(LlmError::Truncated(generated)));
+            }
+            let logits = self.ctx.get_logits_ith(self.batch.n_tokens() - 1);
+            let Some((token, _)) = greedy_allowed(logits, &mut grammar) else {
+                break Err(LlmError::NoAllowedToken { field: "segment" }.into());
+            };
+            if self.model.vocab().is_eog(token) {
+                break Ok(());
+            }
+            grammar.accept(token);
+            generated += 1;
+            self.model
+                .vocab()
+                .token_to_piece_into(token, &mut bytes, false, None);
+            // "}]" ends the list and appears nowhere else in it (words hold no quote)
+            if bytes.ends_with(b"\"}]") {
+                break Ok(());
+            }
+            if let Err(e) = eval_tokens(&mut self.ctx, &mut self.batch, &[token], pos) {
+                break Err(e.into());
+            }
+            pos += 1;
+        };
+        self.last = SegmentStats {
+            prompt_tokens: tokens.len(),
+            generated_tokens: generated,
+            seconds: started.elapsed().as_secs_f64(),
+        };
+        outcome?;
+        segments_from_json(&String::from_utf8_lossy(&bytes), &words)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn words(s: &str) -> Vec<String> {
+        instruction_words(s)
+    }
+
+    #[test]
+    fn words_keep_punctuation_and_lose_what_json_cannot_hold() {
+        assert_eq!(
+            words("  go to the \"red\" roof,\tthen\nland\\ "),
+            ["go", "to", "the", "red", "roof,", "then", "land"]
+        );
+        assert!(words(" \" ").is_empty());
+    }
+
+    #[test]
+    fn the_grammar_chains_the_words_and_refuses_what_it_cannot_hold() {
+        let g = segment_grammar(&words("take off, land")).unwrap();
+        assert!(g.contains("w0 ::= \"take\" ( \" \" | next ) w1\n"), "{g}");
+        assert!(g.contains("w2 ::= \"land\" \"\\\",\\\"action\\\":\" action \"}]\"\n"));
+        assert!(matches!(segment_grammar(&[]), Err(SegmentError::Empty)));
+        let long = vec!["w".to_string(); MAX_INSTRUCTION_WORDS + 1];
+        assert!(matches!(
+            segment_grammar(&long),
+            Err(SegmentError::TooLong(n)) if n == MAX_INSTRUCTION_WORDS + 1
+        ));
+    }
+
+    #[test]
+    fn an_output_must_be_the_instructions_words_in_order() {
+        let w = words("take off, then land");
+        let ok =
+            r#"[{"text":"take off,","action":"takeoff"},{"text":"then land","action":"land"}]"#;
+        let s = segments_from_json(ok, &w).unwrap();
+        assert_eq!(s.len(), 2);
+        assert_eq!(s[1].action, "land");
+        for bad in [
+            r#"[{"text":"take off, land","action":"takeoff"}]"#,
+            r#"[{"text":"take off, then land","action":"hover"}]"#,
+            r#"[{"text":"take off, then land"}]"#,
+            "not json",
+        ] {
+            assert!(
+                matches!(
+                    segments_from_json(bad, &w),
+                    Err(SegmentError::Output { .. })
+                ),
+                "{bad}"
+            );
+        }
+    }
+}
