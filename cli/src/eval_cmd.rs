@@ -8,8 +8,10 @@ use aeris_eval::runner::{
     self, AgentOptions, AgentSetup, EpisodeLine, EpisodeSource, EvalConfig, EvalWatcher, Shard,
 };
 use aeris_flight::{FlightEvent, FlightWatcher};
+use aeris_runtime::spec::SubgoalSpec;
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 /// Arguments of `aeris eval`.
@@ -67,6 +69,13 @@ pub struct EvalArgs {
     /// distill`). Needs a language-model variant.
     #[arg(long)]
     pub aligned: bool,
+    /// Segment the instructions of `--episodes-file` episodes that come without step
+    /// annotation (AerialVLN's own files) with this language model (`qwen-coder`,
+    /// `gemma3`, `smollm2`) before they fly: it splits each instruction, word for word,
+    /// into steps with their actions (`aeris_llm::segment`). Without it such an episode
+    /// flies two steps: take off, then the whole instruction.
+    #[arg(long, value_name = "VARIANT")]
+    pub segment_with: Option<String>,
     /// Ablation: the hub's ATT off (the active step is the reasoner's declared step).
     #[arg(long)]
     pub no_att: bool,
@@ -198,6 +207,10 @@ pub fn run(args: EvalArgs) -> Result<()> {
             .unwrap_or_default();
         PathBuf::from("runs").join(format!("eval-{}-{}{shard}", args.split, agent.label))
     });
+    let read_steps = match &args.segment_with {
+        Some(variant) => segment_episodes(&source, args.episodes, variant)?,
+        None => Default::default(),
+    };
     let config = EvalConfig {
         agent,
         source,
@@ -208,6 +221,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         shard: args.shard,
         clock: args.clock,
         distill: false,
+        read_steps,
     };
     let mut printer = EpisodePrinter(FlightPrinter::new(false, "aeris: ")?);
     let report = runner::run(&config, &mut printer)?;
@@ -217,6 +231,69 @@ pub fn run(args: EvalArgs) -> Result<()> {
         println!("{}", serde_json::to_string(&table)?);
     }
     Ok(())
+}
+
+/// The steps `variant` reads from the instruction of every episode of the first `episodes`
+/// of `source` that has no step annotation, by episode id. A segmentation that fails is
+/// said and that episode flies the two-step fallback.
+fn segment_episodes(
+    source: &EpisodeSource,
+    episodes: usize,
+    variant: &str,
+) -> Result<BTreeMap<String, Vec<SubgoalSpec>>> {
+    let EpisodeSource::File(file) = source else {
+        anyhow::bail!("--segment-with needs --episodes-file: generated episodes carry their steps");
+    };
+    let model = aeris_llm::variant_model(variant).with_context(|| {
+        format!(
+            "--segment-with {variant}: not a language model (use qwen-coder, gemma3 or smollm2)"
+        )
+    })?;
+    let list = aeris_eval::episode::load_episodes(file)?;
+    let bare: Vec<&Episode> = list
+        .iter()
+        .take(episodes)
+        .filter(|e| e.subgoals.is_empty())
+        .collect();
+    let mut read = BTreeMap::new();
+    if bare.is_empty() {
+        return Ok(read);
+    }
+    let store = aeris_models::ModelStore::open(None)?;
+    let threads = std::thread::available_parallelism().map_or(2, |n| n.get() as i32);
+    let mut segmenter = aeris_llm::Segmenter::load(&store, model, threads)
+        .with_context(|| format!("loading the segmenter {variant}"))?;
+    for (i, e) in bare.iter().enumerate() {
+        match segmenter.segment(&e.instruction.instruction_text) {
+            Ok(steps) => {
+                let stats = segmenter.last_stats();
+                eprintln!(
+                    "aeris: segmented episode {} ({}/{}) into {} steps in {:.1} s",
+                    e.episode_id,
+                    i + 1,
+                    bare.len(),
+                    steps.len(),
+                    stats.seconds
+                );
+                let steps = steps
+                    .into_iter()
+                    .map(|s| SubgoalSpec {
+                        text: s.text,
+                        action: s.action,
+                        waypoint: None,
+                    })
+                    .collect();
+                read.insert(e.episode_id.clone(), steps);
+            }
+            Err(err) => eprintln!(
+                "aeris: episode {} not segmented ({:#}); it flies take-off, then the whole \
+                 instruction",
+                e.episode_id,
+                anyhow::Error::from(err)
+            ),
+        }
+    }
+    Ok(read)
 }
 
 impl crate::command::Execute for EvalArgs {

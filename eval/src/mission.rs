@@ -6,8 +6,9 @@
 //! - **aeris** (the system under evaluation): the instruction and its steps as annotated —
 //!   text and action, never a waypoint; the planner grounds every step's landmark in S_t
 //!   (`aeris_roles::grounding`). An episode without step annotation (an AerialVLN file)
-//!   becomes two steps: take off, then the whole instruction, landing at the last place it
-//!   names.
+//!   flies the steps a language model read from its instruction when it was segmented
+//!   (`aeris eval --segment-with`, `aeris_llm::segment`), and otherwise becomes two steps:
+//!   take off, then the whole instruction, landing at the last place it names.
 //! - **random**: the same steps (the random reasoner only flies the first, take-off, and
 //!   otherwise draws AerialVLN's actions uniformly).
 //!
@@ -132,8 +133,14 @@ pub fn corners(points: &[[f64; 3]]) -> Vec<usize> {
     out
 }
 
-/// The mission for `episode` flown by `agent`.
-pub fn episode_mission(episode: &Episode, agent: Agent) -> Result<EpisodeMission, MissionError> {
+/// The mission for `episode` flown by `agent`; `read_steps`: the steps a segmenter read
+/// from the instruction of an episode without annotation (ignored for an annotated one and
+/// by the oracle, which flies the reference).
+pub fn episode_mission(
+    episode: &Episode,
+    agent: Agent,
+    read_steps: Option<&[SubgoalSpec]>,
+) -> Result<EpisodeMission, MissionError> {
     let world = World::builtin(&episode.scene_id).ok_or_else(|| MissionError::UnknownScene {
         episode: episode.episode_id.clone(),
         scene: episode.scene_id.clone(),
@@ -173,6 +180,11 @@ pub fn episode_mission(episode: &Episode, agent: Agent) -> Result<EpisodeMission
                 .collect(),
             (0..episode.subgoals.len()).collect(),
         ),
+        Agent::Aeris | Agent::Random if read_steps.is_some_and(|r| !r.is_empty()) => {
+            let read = read_steps.unwrap_or_default();
+            // every read step belongs to the episode's one (unannotated) subgoal
+            (read.to_vec(), vec![0; read.len()])
+        }
         Agent::Aeris | Agent::Random => (
             vec![
                 SubgoalSpec {

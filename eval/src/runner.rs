@@ -59,6 +59,10 @@ pub struct EvalConfig {
     /// run folder's [`crate::distill::PAIRS_FILE`], gathered into OUT's after the episode
     /// (check the setup with [`crate::distill::check`] first).
     pub distill: bool,
+    /// Steps a segmenter (a language model, `aeris eval --segment-with`) read from the
+    /// instructions of episodes without step annotation, by episode id: the AERIS agent
+    /// flies these instead of the two-step fallback ([`crate::mission::episode_mission`]).
+    pub read_steps: std::collections::BTreeMap<String, Vec<aeris_runtime::spec::SubgoalSpec>>,
 }
 
 /// An episode's recording, in its run folder (`aeris eval --record`).
@@ -308,7 +312,14 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
             source,
         })?;
     for (n, (k, episode)) in chosen.into_iter().enumerate() {
-        let em = episode_mission(episode, setup.agent)?;
+        let em = episode_mission(
+            episode,
+            setup.agent,
+            config
+                .read_steps
+                .get(&episode.episode_id)
+                .map(Vec::as_slice),
+        )?;
         let mut workflow = episode_workflow(setup, em.mission, k, &episode.episode_id)?;
         let flight = format!("eval-{}-{k}", std::process::id());
         let run_dir = out.join("runs").join(&flight);

@@ -4,13 +4,14 @@
 
 use aeris_eval::generate::{AirspaceFilter, Split, generate_split};
 use aeris_eval::mission::{Agent, corners, episode_mission};
+use aeris_runtime::spec::SubgoalSpec;
 
 #[test]
 fn oracle_missions_fly_the_reference_corners_clear_of_obstacles() {
     for split in Split::ALL {
         let eps = generate_split(split, AirspaceFilter::Full, 16, &mut |_, _| {}).unwrap();
         for e in &eps {
-            let m = episode_mission(e, Agent::Oracle).unwrap();
+            let m = episode_mission(e, Agent::Oracle, None).unwrap();
             let steps = &m.mission.subgoals;
             assert!(steps.len() <= 16, "{}", e.episode_id);
             assert_eq!(steps[0].action, "takeoff", "{}", e.episode_id);
@@ -63,7 +64,7 @@ fn the_aeris_mission_names_places_and_gives_no_coordinates() {
     let eps = generate_split(Split::ValUnseen, AirspaceFilter::Full, 4, &mut |_, _| {}).unwrap();
     for e in &eps {
         for agent in [Agent::Aeris, Agent::Random] {
-            let m = episode_mission(e, agent).unwrap();
+            let m = episode_mission(e, agent, None).unwrap();
             let texts: Vec<&str> = m.mission.subgoals.iter().map(|s| s.text.as_str()).collect();
             let annotated: Vec<&str> = e.subgoals.iter().map(|s| s.text.as_str()).collect();
             assert_eq!(texts, annotated, "{}", e.episode_id);
@@ -75,7 +76,7 @@ fn the_aeris_mission_names_places_and_gives_no_coordinates() {
     // an AerialVLN file without step annotation: take off, then the whole instruction
     let mut bare = eps[0].clone();
     bare.subgoals.clear();
-    let m = episode_mission(&bare, Agent::Aeris).unwrap();
+    let m = episode_mission(&bare, Agent::Aeris, None).unwrap();
     let actions: Vec<&str> = m
         .mission
         .subgoals
@@ -87,6 +88,26 @@ fn the_aeris_mission_names_places_and_gives_no_coordinates() {
         m.mission.subgoals[1].text,
         bare.instruction.instruction_text
     );
+    // the steps a segmenter read fly instead, all within the episode's one subgoal; an
+    // annotated episode keeps its annotation
+    let read: Vec<SubgoalSpec> = [
+        ("rise up", "takeoff"),
+        ("head north", "goto"),
+        ("set down", "land"),
+    ]
+    .into_iter()
+    .map(|(text, action)| SubgoalSpec {
+        text: text.into(),
+        action: action.into(),
+        waypoint: None,
+    })
+    .collect();
+    let m = episode_mission(&bare, Agent::Aeris, Some(&read)).unwrap();
+    assert_eq!(m.mission.subgoals, read);
+    assert_eq!(m.step_subgoal, [0, 0, 0]);
+    m.mission.validate().unwrap();
+    let annotated = episode_mission(&eps[0], Agent::Aeris, Some(&read)).unwrap();
+    assert_eq!(annotated.mission.subgoals.len(), eps[0].subgoals.len());
 }
 
 #[test]

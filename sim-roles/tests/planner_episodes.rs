@@ -48,7 +48,7 @@ fn episode(split: Split, episode_id: &str) -> Episode {
 }
 
 fn fly(episode: &Episode) -> (Flight, [f32; 3]) {
-    let m = episode_mission(episode, Agent::Aeris).unwrap();
+    let m = episode_mission(episode, Agent::Aeris, None).unwrap();
     let g = episode.goal();
     let goal = [g[0] as f32, g[1] as f32, g[2] as f32];
     let camera = CameraSpec::default();
