@@ -73,7 +73,7 @@ def parse_args(argv):
     p.add_argument(
         "--keep-failed",
         action="store_true",
-        help="also train on pairs of episodes the teacher failed (default: only pairs marked success)",
+        help="also train on pairs of episodes the teacher flew and failed (default: dropped; a DAgger round's pairs are kept)",
     )
     p.add_argument("--init", default=None, metavar="DIR", help="start from this run's peft adapter (DIR/peft) instead of a new one")
     p.add_argument(
@@ -98,8 +98,10 @@ def models_dir(args) -> Path:
 
 
 def load_pairs(files, keep_failed):
-    """The distinct pairs of `files`; without `keep_failed` only those of episodes the
-    teacher succeeded in (`success`, written by `aeris distill`; a pair without it is kept)."""
+    """The distinct pairs of `files`; without `keep_failed` not those of episodes the teacher
+    flew and failed (`success` false, written by `aeris distill`; a DAgger round's pairs,
+    `dagger` true, are the teacher's labels of a student's states whatever the student did,
+    and a pair without `success` is kept)."""
     pairs, seen = [], set()
     for f in files:
         with open(f, encoding="utf-8") as fh:
@@ -109,7 +111,7 @@ def load_pairs(files, keep_failed):
                     key = (p["system"], p["user"], p["target"])
                 except (json.JSONDecodeError, KeyError, TypeError) as e:
                     sys.exit(f"train_reasoner: {f}, line {n}: not a training pair ({e})")
-                if key in seen or (not keep_failed and p.get("success") is False):
+                if key in seen or (not keep_failed and p.get("success") is False and not p.get("dagger")):
                     continue
                 seen.add(key)
                 pairs.append(p)

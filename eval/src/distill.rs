@@ -100,6 +100,9 @@ pub struct PairOrigin<'a> {
     /// Whether the episode succeeded (stopped within the success radius): a trainer may
     /// keep only successful teachers' pairs (a failed planner episode teaches its mistakes).
     pub success: bool,
+    /// A student flew and the planner labelled its states (a DAgger round): the labels are
+    /// the teacher's whatever the student's episode did, so `success` does not rate them.
+    pub dagger: bool,
 }
 
 /// Append every pair of `episode_pairs` (a role's file) to `out`, each with its origin;
@@ -197,6 +200,7 @@ mod tests {
             scene_id: "open-1",
             agent: "aeris-planner",
             success: true,
+            dagger: false,
         };
         let mut out = Vec::new();
         assert_eq!(gather(&file, &origin, &mut out).unwrap(), 2);
@@ -207,6 +211,7 @@ mod tests {
             .collect();
         assert_eq!(lines[1]["user"], "u2");
         assert_eq!(lines[1]["success"], true);
+        assert_eq!(lines[1]["dagger"], false);
         assert_eq!(lines[1]["episode_id"], "open-1-0");
         assert_eq!(
             gather(&dir.join("absent.jsonl"), &origin, &mut Vec::new()).unwrap(),

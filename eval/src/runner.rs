@@ -469,6 +469,7 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
                 scene_id: &episode.scene_id,
                 agent: &setup.label,
                 success,
+                dagger: setup.reasoning != "planner",
             };
             pairs_written += crate::distill::gather(episode_pairs, &origin, out)?;
             out.flush().map_err(|source| EvalError::Output {

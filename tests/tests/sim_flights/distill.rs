@@ -59,6 +59,7 @@ fn the_planner_teaches_one_train_episode_into_training_pairs() {
             pair["success"], success,
             "the episode's outcome on each pair"
         );
+        assert_eq!(pair["dagger"], false, "the planner flew");
         let user = pair["user"].as_str().expect("user");
         // a segmented mission is read from its steps, its whole text not repeated
         assert!(user.starts_with("1. "), "{user}");
