@@ -4,6 +4,7 @@
 
 use crate::error::LlmError;
 use llama_cpp_2::context::LlamaContext;
+use llama_cpp_2::context::params::LlamaContextParams;
 use llama_cpp_2::llama_backend::LlamaBackend;
 use llama_cpp_2::llama_batch::LlamaBatch;
 use llama_cpp_2::model::{LlamaChatMessage, LlamaChatTemplate, LlamaModel};
@@ -11,6 +12,7 @@ use llama_cpp_2::sampling::LlamaSampler;
 use llama_cpp_2::token::LlamaToken;
 use llama_cpp_2::token::data::LlamaTokenData;
 use llama_cpp_2::token::data_array::LlamaTokenDataArray;
+use std::num::NonZeroU32;
 use std::sync::OnceLock;
 
 /// Tokens one llama.cpp batch holds (prompt chunks, draft verification).
@@ -50,6 +52,36 @@ pub(crate) fn backend() -> Result<&'static LlamaBackend, LlmError> {
         })
         .as_ref()
         .map_err(|e| LlmError::Backend(e.clone()))
+}
+
+/// Load `file` (cache-relative, hash-checked) into llama.cpp on the CPU with a context of
+/// `context_tokens` evaluated on `threads` threads: what the formation writer and the
+/// segmenter run on. The model lives as long as the process (the context borrows it).
+pub(crate) fn load_cpu_model(
+    store: &aeris_models::ModelStore,
+    file: &str,
+    threads: i32,
+    context_tokens: u32,
+) -> Result<(&'static LlamaModel, LlamaContext<'static>), LlmError> {
+    let path = store.verified(file)?;
+    let backend = backend()?;
+    let params = crate::reasoner::model_params(backend, None)?;
+    let load_error = |e: &dyn std::fmt::Display| LlmError::Load {
+        file: file.to_string(),
+        reason: e.to_string(),
+    };
+    let model = LlamaModel::load_from_file(backend, &path, &params).map_err(|e| load_error(&e))?;
+    let model: &'static LlamaModel = Box::leak(Box::new(model));
+    let ctx_params = LlamaContextParams::default()
+        .with_n_ctx(NonZeroU32::new(context_tokens))
+        .with_n_batch(BATCH as u32)
+        .with_n_threads(threads.max(1))
+        .with_n_threads_batch(threads.max(1))
+        .with_flash_attention_policy(flash_attention(false));
+    let ctx = model
+        .new_context(backend, ctx_params)
+        .map_err(|e| load_error(&e))?;
+    Ok((model, ctx))
 }
 
 /// The chat prompt of `system` and `user` for `model`: its own template, or llama.cpp's

@@ -9,10 +9,11 @@
 //! at the 2 m minimum would make it write 10.0-19.9 from its first digit on. The output
 //! goes through [`FormationProgram::validate`] and the simulation like the parser's.
 
-use crate::decode::{BATCH, backend, chat_prompt, eval_tokens, greedy_allowed, reuse_prefix};
+use crate::decode::{
+    BATCH, chat_prompt, eval_tokens, greedy_allowed, load_cpu_model, reuse_prefix,
+};
 use crate::error::LlmError;
 use crate::grammar::{GrammarError, NumberField, number_rule};
-use crate::reasoner::model_params;
 use aeris_formation::{Problem, ProgramWriter, clauses};
 use aeris_models::ModelStore;
 use aeris_schemas::{
@@ -21,13 +22,11 @@ use aeris_schemas::{
 };
 use core::fmt::Write;
 use llama_cpp_2::context::LlamaContext;
-use llama_cpp_2::context::params::LlamaContextParams;
 use llama_cpp_2::llama_batch::LlamaBatch;
 use llama_cpp_2::model::LlamaModel;
 use llama_cpp_2::sampling::LlamaSampler;
 use llama_cpp_2::token::LlamaToken;
 use serde::Deserialize;
-use std::num::NonZeroU32;
 use std::time::Instant;
 
 /// Most tokens one program may take (16 phases of about 30 tokens fit).
@@ -327,26 +326,8 @@ impl FormationWriter {
         threads: i32,
     ) -> Result<Self, LlmError> {
         let started = Instant::now();
-        let path = store.verified(file)?;
-        let backend = backend()?;
         let grammar_text = program_grammar()?;
-        let params = model_params(backend, None)?;
-        let load_error = |e: &dyn std::fmt::Display| LlmError::Load {
-            file: file.to_string(),
-            reason: e.to_string(),
-        };
-        let model =
-            LlamaModel::load_from_file(backend, &path, &params).map_err(|e| load_error(&e))?;
-        let model: &'static LlamaModel = Box::leak(Box::new(model));
-        let ctx_params = LlamaContextParams::default()
-            .with_n_ctx(NonZeroU32::new(CONTEXT_TOKENS))
-            .with_n_batch(BATCH as u32)
-            .with_n_threads(threads.max(1))
-            .with_n_threads_batch(threads.max(1))
-            .with_flash_attention_policy(crate::decode::flash_attention(false));
-        let ctx = model
-            .new_context(backend, ctx_params)
-            .map_err(|e| load_error(&e))?;
+        let (model, ctx) = load_cpu_model(store, file, threads, CONTEXT_TOKENS)?;
         let grammar = LlamaSampler::grammar(model, &grammar_text, "root")
             .map_err(|e| LlmError::GrammarRejected(e.to_string()))?;
         Ok(Self {

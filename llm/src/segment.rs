@@ -10,19 +10,16 @@
 //! it reads an annotated one. The phrase rules (the hub's `segment_instruction`, which
 //! splits on sentence ends and "then") stay the fallback where no model is loaded.
 
-use crate::decode::{BATCH, backend, chat_prompt, eval_tokens, greedy_allowed};
+use crate::decode::{BATCH, chat_prompt, eval_tokens, greedy_allowed, load_cpu_model};
 use crate::error::LlmError;
-use crate::reasoner::model_params;
 use aeris_models::ModelStore;
 use aeris_schemas::MAX_SUBGOALS;
 use core::fmt::Write;
 use llama_cpp_2::context::LlamaContext;
-use llama_cpp_2::context::params::LlamaContextParams;
 use llama_cpp_2::llama_batch::LlamaBatch;
 use llama_cpp_2::model::LlamaModel;
 use llama_cpp_2::sampling::LlamaSampler;
 use serde::Deserialize;
-use std::num::NonZeroU32;
 use std::time::Instant;
 
 /// Most words of an instruction the segmenter takes (AerialVLN's longest are ~200).
@@ -180,26 +177,7 @@ pub struct Segmenter {
 impl Segmenter {
     /// Load `file` (cache-relative, hash-checked), evaluating on `threads` CPU threads.
     pub fn load(store: &ModelStore, file: &str, threads: i32) -> Result<Self, SegmentError> {
-        let path = store.verified(file).map_err(LlmError::from)?;
-        let backend = backend()?;
-        let params = model_params(backend, None)?;
-        let load_error = |e: &dyn std::fmt::Display| LlmError::Load {
-            file: file.to_string(),
-            reason: e.to_string(),
-        };
-        let model =
-            LlamaModel::load_from_file(backend, &path, &params).map_err(|e| load_error(&e))?;
-        // one model for the process's lifetime, as the other decoders hold theirs
-        let model: &'static LlamaModel = Box::leak(Box::new(model));
-        let ctx_params = LlamaContextParams::default()
-            .with_n_ctx(NonZeroU32::new(CONTEXT_TOKENS))
-            .with_n_batch(BATCH as u32)
-            .with_n_threads(threads.max(1))
-            .with_n_threads_batch(threads.max(1))
-            .with_flash_attention_policy(crate::decode::flash_attention(false));
-        let ctx = model
-            .new_context(backend, ctx_params)
-            .map_err(|e| load_error(&e))?;
+        let (model, ctx) = load_cpu_model(store, file, threads, CONTEXT_TOKENS)?;
         Ok(Self {
             ctx,
             model,
