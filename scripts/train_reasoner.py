@@ -75,6 +75,12 @@ def parse_args(argv):
         action="store_true",
         help="also train on pairs of episodes the teacher flew and failed (default: dropped; a DAgger round's pairs are kept)",
     )
+    p.add_argument(
+        "--dagger-repeats",
+        type=int,
+        default=3,
+        help="at most this many DAgger pairs for one episode, memory line and label (default 3)",
+    )
     p.add_argument("--init", default=None, metavar="DIR", help="start from this run's peft adapter (DIR/peft) instead of a new one")
     p.add_argument(
         "--step-changes",
@@ -97,12 +103,19 @@ def models_dir(args) -> Path:
     return Path(env) if env else Path.home() / ".cache" / "aeris" / "models"
 
 
-def load_pairs(files, keep_failed):
+def memory_line(pair):
+    """The prompt's memory line (the last decision), or ""."""
+    return next((l for l in pair["user"].split("\n") if l.startswith("Last: ")), "")
+
+
+def load_pairs(files, keep_failed, dagger_repeats):
     """The distinct pairs of `files`; without `keep_failed` not those of episodes the teacher
     flew and failed (`success` false, written by `aeris distill`; a DAgger round's pairs,
     `dagger` true, are the teacher's labels of a student's states whatever the student did,
-    and a pair without `success` is kept)."""
-    pairs, seen = [], set()
+    and a pair without `success` is kept). Of a DAgger round's pairs at most
+    `dagger_repeats` (as read, before duplicates are dropped) for one episode, memory line and
+    label: a student stuck in one state asks the same question for minutes."""
+    pairs, seen, repeats = [], set(), {}
     for f in files:
         with open(f, encoding="utf-8") as fh:
             for n, line in enumerate(fh, 1):
@@ -111,6 +124,11 @@ def load_pairs(files, keep_failed):
                     key = (p["system"], p["user"], p["target"])
                 except (json.JSONDecodeError, KeyError, TypeError) as e:
                     sys.exit(f"train_reasoner: {f}, line {n}: not a training pair ({e})")
+                if p.get("dagger"):
+                    state = (p.get("episode_id", ""), memory_line(p), p["target"])
+                    repeats[state] = repeats.get(state, 0) + 1
+                    if repeats[state] > dagger_repeats:
+                        continue
                 if key in seen or (not keep_failed and p.get("success") is False and not p.get("dagger")):
                     continue
                 seen.add(key)
@@ -139,11 +157,10 @@ def render(tokenizer, pair):
 
 def changes_step(pair):
     """Whether the pair's decision moves to another step than its memory line's."""
-    target = json.loads(pair["target"])
-    for line in pair["user"].split("\n"):
-        if line.startswith("Last: ") and line != "Last: none.":
-            return int(line.split()[1]) != target["step"]
-    return False
+    line = memory_line(pair)
+    if not line or line == "Last: none.":
+        return False
+    return int(line.split()[1]) != json.loads(pair["target"])["step"]
 
 
 def batches(examples, batch, rng):
@@ -283,7 +300,7 @@ def main(argv):
     tokenizer = AutoTokenizer.from_pretrained(str(gguf_path.parent), gguf_file=gguf_path.name)
     model = AutoModelForCausalLM.from_pretrained(str(gguf_path.parent), gguf_file=gguf_path.name, torch_dtype=torch.float32)
     pad_id = tokenizer.pad_token_id if tokenizer.pad_token_id is not None else tokenizer.eos_token_id
-    pairs = load_pairs(args.pairs, args.keep_failed)
+    pairs = load_pairs(args.pairs, args.keep_failed, args.dagger_repeats)
     train_pairs, val_pairs, held = split_by_scene(pairs, args.val_scenes, args.seed)
     changes = [p for p in train_pairs if changes_step(p)]
     if args.max_pairs is not None:
@@ -404,6 +421,7 @@ def main(argv):
         "init": args.init,
         "step_changes": args.step_changes,
         "keep_failed": args.keep_failed,
+        "dagger_repeats": args.dagger_repeats,
         "rank": args.rank,
         "alpha": args.alpha,
         "lr": args.lr,
