@@ -93,15 +93,24 @@ fn the_planner_teaches_one_train_episode_into_training_pairs() {
         } else {
             let before: serde_json::Value =
                 serde_json::from_str(pairs[i - 1]["target"].as_str().unwrap()).unwrap();
+            // ... and how far the drone is from its waypoint
             let memory = format!(
-                "\nLast: {} {} at {} {} {}.\n",
+                "\nLast: {} {} at {} {} {}, ",
                 before["step"],
                 before["action"].as_str().unwrap(),
                 before["north"],
                 before["east"],
                 before["altitude"]
             );
-            assert!(user.contains(&memory), "pair {i}: {memory:?} not in {user}");
+            let at = user
+                .find(&memory)
+                .unwrap_or_else(|| panic!("pair {i}: {memory:?} not in {user}"));
+            let rest = &user[at + memory.len()..];
+            let away = rest.split_once(" m away.\n").map(|(d, _)| d);
+            assert!(
+                away.is_some_and(|d| d.parse::<u32>().is_ok()),
+                "pair {i}: no distance in {user}"
+            );
         }
     }
     assert!(last_step >= 2, "the planner never left the first step");
