@@ -7,6 +7,7 @@ use llama_cpp_2::context::LlamaContext;
 use llama_cpp_2::context::params::LlamaContextParams;
 use llama_cpp_2::llama_backend::LlamaBackend;
 use llama_cpp_2::llama_batch::LlamaBatch;
+use llama_cpp_2::model::params::LlamaModelParams;
 use llama_cpp_2::model::{LlamaChatMessage, LlamaChatTemplate, LlamaModel};
 use llama_cpp_2::sampling::LlamaSampler;
 use llama_cpp_2::token::LlamaToken;
@@ -54,6 +55,12 @@ pub(crate) fn backend() -> Result<&'static LlamaBackend, LlmError> {
         .map_err(|e| LlmError::Backend(e.clone()))
 }
 
+/// A model's load parameters on the CPU: no layer offloaded (a CUDA build would otherwise
+/// offload by default, also for a role bound to a CPU set).
+pub(crate) fn cpu_model_params() -> LlamaModelParams {
+    LlamaModelParams::default().with_n_gpu_layers(0)
+}
+
 /// Load `file` (cache-relative, hash-checked) into llama.cpp on the CPU with a context of
 /// `context_tokens` evaluated on `threads` threads: what the formation writer and the
 /// segmenter run on. The model lives as long as the process (the context borrows it).
@@ -65,7 +72,7 @@ pub(crate) fn load_cpu_model(
 ) -> Result<(&'static LlamaModel, LlamaContext<'static>), LlmError> {
     let path = store.verified(file)?;
     let backend = backend()?;
-    let params = crate::reasoner::model_params(backend, None)?;
+    let params = cpu_model_params();
     let load_error = |e: &dyn std::fmt::Display| LlmError::Load {
         file: file.to_string(),
         reason: e.to_string(),

@@ -123,16 +123,16 @@ pub fn offload_check(
     Ok(check_offload(accelerator)?)
 }
 
-/// The model's load parameters: every layer on the accelerator's device, or none (a CUDA
-/// build would otherwise offload by default, also for a role bound to a CPU set).
+/// The model's load parameters: every layer on the accelerator's device, or none
+/// ([`crate::decode::cpu_model_params`]).
 pub(crate) fn model_params(
     backend: &LlamaBackend,
     accelerator: Option<Accelerator>,
 ) -> Result<LlamaModelParams, LlmError> {
-    let params = LlamaModelParams::default();
     let Some(accelerator) = accelerator else {
-        return Ok(params.with_n_gpu_layers(0));
+        return Ok(crate::decode::cpu_model_params());
     };
+    let params = LlamaModelParams::default();
     check_offload(accelerator)?;
     if !backend.supports_gpu_offload() {
         return Err(LlmError::OffloadUnavailable(accelerator));

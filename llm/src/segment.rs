@@ -47,6 +47,9 @@ pub enum SegmentError {
     /// The model could not be loaded or run.
     #[error("segmenting with the language model")]
     Model(#[from] LlmError),
+    /// The segmentation did not close within the token budget.
+    #[error("no complete segmentation within {0} tokens")]
+    Truncated(usize),
     /// The model wrote more steps than a mission holds.
     #[error("the model wrote {0} steps; a mission holds at most {MAX_SUBGOALS}")]
     TooManySteps(usize),
@@ -219,7 +222,7 @@ impl Segmenter {
         let mut generated = 0;
         let outcome = loop {
             if generated >= MAX_SEGMENTATION_TOKENS {
-                break Err(SegmentError::Model(LlmError::Truncated(generated)));
+                break Err(SegmentError::Truncated(generated));
             }
             let logits = self.ctx.get_logits_ith(self.batch.n_tokens() - 1);
             let Some((token, _)) = greedy_allowed(logits, &mut grammar) else {
