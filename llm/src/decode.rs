@@ -216,3 +216,56 @@ pub(crate) fn greedy_allowed(
         .max_by(|a, b| a.logit().total_cmp(&b.logit()))
         .map(|d| (d.id(), true))
 }
+
+/// Why [`generate_under_grammar`] stopped before its end marker or end-of-generation.
+#[derive(Debug)]
+pub(crate) enum GenerateStop {
+    /// `max_tokens` were generated.
+    Truncated(usize),
+    /// The grammar allowed no token.
+    NoAllowedToken,
+    /// llama.cpp failed to evaluate a token.
+    Decode(LlmError),
+}
+
+/// Greedy generation under `grammar` from the logits of `batch`'s last token (the prompt
+/// evaluated at positions `..start`), until end-of-generation, `end` at the end of the
+/// output, or `max_tokens`: the output's bytes, the tokens generated and how it ended.
+pub(crate) fn generate_under_grammar(
+    ctx: &mut LlamaContext<'static>,
+    batch: &mut LlamaBatch<'static>,
+    model: &LlamaModel,
+    grammar: &mut LlamaSampler,
+    start: usize,
+    max_tokens: usize,
+    end: &[u8],
+) -> (Vec<u8>, usize, Result<(), GenerateStop>) {
+    let mut bytes = Vec::with_capacity(512);
+    let mut pos = start;
+    let mut generated = 0;
+    let outcome = loop {
+        if generated >= max_tokens {
+            break Err(GenerateStop::Truncated(generated));
+        }
+        let logits = ctx.get_logits_ith(batch.n_tokens() - 1);
+        let Some((token, _)) = greedy_allowed(logits, grammar) else {
+            break Err(GenerateStop::NoAllowedToken);
+        };
+        if model.vocab().is_eog(token) {
+            break Ok(());
+        }
+        grammar.accept(token);
+        generated += 1;
+        model
+            .vocab()
+            .token_to_piece_into(token, &mut bytes, false, None);
+        if bytes.ends_with(end) {
+            break Ok(());
+        }
+        if let Err(e) = eval_tokens(ctx, batch, &[token], pos) {
+            break Err(GenerateStop::Decode(e));
+        }
+        pos += 1;
+    };
+    (bytes, generated, outcome)
+}

@@ -10,7 +10,8 @@
 //! goes through [`FormationProgram::validate`] and the simulation like the parser's.
 
 use crate::decode::{
-    BATCH, chat_prompt, eval_tokens, greedy_allowed, load_cpu_model, reuse_prefix,
+    BATCH, GenerateStop, chat_prompt, eval_tokens, generate_under_grammar, load_cpu_model,
+    reuse_prefix,
 };
 use crate::error::LlmError;
 use crate::grammar::{GrammarError, NumberField, number_rule};
@@ -387,34 +388,21 @@ impl FormationWriter {
         let prompt_s = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         self.grammar.reset();
-        let mut bytes = Vec::with_capacity(512);
-        let mut pos = tokens.len();
-        let mut generated = 0;
-        let outcome = loop {
-            if generated >= MAX_PROGRAM_TOKENS {
-                break Err(LlmError::ProgramTruncated(generated));
-            }
-            let logits = self.ctx.get_logits_ith(self.batch.n_tokens() - 1);
-            let Some((token, _)) = greedy_allowed(logits, &mut self.grammar) else {
-                break Err(LlmError::NoAllowedToken { field: "program" });
-            };
-            if self.model.vocab().is_eog(token) {
-                break Ok(());
-            }
-            self.grammar.accept(token);
-            generated += 1;
-            self.model
-                .vocab()
-                .token_to_piece_into(token, &mut bytes, false, None);
-            // "]}" ends the program and appears nowhere else in it
-            if bytes.ends_with(b"]}") {
-                break Ok(());
-            }
-            if let Err(e) = eval_tokens(&mut self.ctx, &mut self.batch, &[token], pos) {
-                break Err(e);
-            }
-            pos += 1;
-        };
+        // "]}" ends the program and appears nowhere else in it
+        let (bytes, generated, outcome) = generate_under_grammar(
+            &mut self.ctx,
+            &mut self.batch,
+            self.model,
+            &mut self.grammar,
+            tokens.len(),
+            MAX_PROGRAM_TOKENS,
+            b"]}",
+        );
+        let outcome = outcome.map_err(|stop| match stop {
+            GenerateStop::Truncated(n) => LlmError::ProgramTruncated(n),
+            GenerateStop::NoAllowedToken => LlmError::NoAllowedToken { field: "program" },
+            GenerateStop::Decode(e) => e,
+        });
         // the next prompt shares only the prompt's tokens
         let _ = self
             .ctx

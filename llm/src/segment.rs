@@ -10,7 +10,9 @@
 //! it reads an annotated one. The phrase rules (the hub's `segment_instruction`, which
 //! splits on sentence ends and "then") stay the fallback where no model is loaded.
 
-use crate::decode::{BATCH, chat_prompt, eval_tokens, greedy_allowed, load_cpu_model};
+use crate::decode::{
+    BATCH, GenerateStop, chat_prompt, eval_tokens, generate_under_grammar, load_cpu_model,
+};
 use crate::error::LlmError;
 use aeris_models::ModelStore;
 use aeris_schemas::MAX_SUBGOALS;
@@ -217,34 +219,21 @@ impl Segmenter {
         }
         self.ctx.clear_kv_cache();
         eval_tokens(&mut self.ctx, &mut self.batch, &tokens, 0)?;
-        let mut bytes = Vec::with_capacity(8 * words.len() + 64);
-        let mut pos = tokens.len();
-        let mut generated = 0;
-        let outcome = loop {
-            if generated >= MAX_SEGMENTATION_TOKENS {
-                break Err(SegmentError::Truncated(generated));
-            }
-            let logits = self.ctx.get_logits_ith(self.batch.n_tokens() - 1);
-            let Some((token, _)) = greedy_allowed(logits, &mut grammar) else {
-                break Err(LlmError::NoAllowedToken { field: "segment" }.into());
-            };
-            if self.model.vocab().is_eog(token) {
-                break Ok(());
-            }
-            grammar.accept(token);
-            generated += 1;
-            self.model
-                .vocab()
-                .token_to_piece_into(token, &mut bytes, false, None);
-            // "}]" ends the list and appears nowhere else in it (words hold no quote)
-            if bytes.ends_with(b"\"}]") {
-                break Ok(());
-            }
-            if let Err(e) = eval_tokens(&mut self.ctx, &mut self.batch, &[token], pos) {
-                break Err(e.into());
-            }
-            pos += 1;
-        };
+        // `"}]` ends the list and appears nowhere else in it (words hold no quote)
+        let (bytes, generated, outcome) = generate_under_grammar(
+            &mut self.ctx,
+            &mut self.batch,
+            self.model,
+            &mut grammar,
+            tokens.len(),
+            MAX_SEGMENTATION_TOKENS,
+            b"\"}]",
+        );
+        let outcome = outcome.map_err(|stop| match stop {
+            GenerateStop::Truncated(n) => SegmentError::Truncated(n),
+            GenerateStop::NoAllowedToken => LlmError::NoAllowedToken { field: "segment" }.into(),
+            GenerateStop::Decode(e) => e.into(),
+        });
         self.last = SegmentStats {
             prompt_tokens: tokens.len(),
             generated_tokens: generated,
