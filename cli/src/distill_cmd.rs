@@ -85,10 +85,9 @@ impl crate::command::Execute for DistillArgs {
             shard: self.shard,
             clock: self.clock,
             distill: true,
-            read_steps: Default::default(),
         };
         let mut printer = EpisodePrinter(FlightPrinter::new(false, "aeris: ")?);
-        let report = runner::run(&config, &mut printer)?;
+        let report = runner::run(&config, &mut printer, None)?;
         let table = report.table(&config.agent);
         print!("{table}");
         let (pairs, path) = report

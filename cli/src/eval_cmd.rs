@@ -4,14 +4,15 @@
 use crate::flight_print::FlightPrinter;
 use aeris_eval::episode::Episode;
 use aeris_eval::generate::{AirspaceFilter, Split};
+use aeris_eval::mission::StepReader;
 use aeris_eval::runner::{
     self, AgentOptions, AgentSetup, EpisodeLine, EpisodeSource, EvalConfig, EvalWatcher, Shard,
 };
 use aeris_flight::{FlightEvent, FlightWatcher};
 use aeris_runtime::spec::SubgoalSpec;
+use aeris_sim_roles::perception::LABELS;
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 /// Arguments of `aeris eval`.
@@ -69,13 +70,16 @@ pub struct EvalArgs {
     /// distill`). Needs a language-model variant.
     #[arg(long)]
     pub aligned: bool,
-    /// Segment the instructions of `--episodes-file` episodes that come without step
-    /// annotation (AerialVLN's own files) with this language model (`qwen-coder`,
-    /// `gemma3`, `smollm2`) before they fly: it splits each instruction, word for word,
-    /// into steps with their actions (`aeris_llm::segment`). Without it such an episode
-    /// flies two steps: take off, then the whole instruction.
+    /// A language model (`qwen-coder`, `gemma3`, `smollm2`) reads each episode's
+    /// instruction before it flies, each part under a grammar made for it: an instruction
+    /// without step annotation (AerialVLN's own files) is split, word for word, into steps
+    /// with their actions, and every step's turn, relation, landmark (one of perception's
+    /// labels), sign text and height are read (`aeris_llm::InstructionReader`). The planner
+    /// flies what was read and reads what a reading leaves out by its phrase rules, as it
+    /// does every step without this option. Without it an unannotated episode flies two
+    /// steps: take off, then the whole instruction.
     #[arg(long, value_name = "VARIANT")]
-    pub segment_with: Option<String>,
+    pub read_with: Option<String>,
     /// Ablation: the hub's ATT off (the active step is the reasoner's declared step).
     #[arg(long)]
     pub no_att: bool,
@@ -207,9 +211,9 @@ pub fn run(args: EvalArgs) -> Result<()> {
             .unwrap_or_default();
         PathBuf::from("runs").join(format!("eval-{}-{}{shard}", args.split, agent.label))
     });
-    let read_steps = match &args.segment_with {
-        Some(variant) => segment_episodes(&source, args.episodes, variant)?,
-        None => Default::default(),
+    let mut reader = match &args.read_with {
+        Some(variant) => Some(ModelStepReader::load(variant)?),
+        None => None,
     };
     let config = EvalConfig {
         agent,
@@ -221,10 +225,13 @@ pub fn run(args: EvalArgs) -> Result<()> {
         shard: args.shard,
         clock: args.clock,
         distill: false,
-        read_steps,
     };
     let mut printer = EpisodePrinter(FlightPrinter::new(false, "aeris: ")?);
-    let report = runner::run(&config, &mut printer)?;
+    let report = runner::run(
+        &config,
+        &mut printer,
+        reader.as_mut().map(|r| r as &mut dyn StepReader),
+    )?;
     let table = report.table(&config.agent);
     print!("{table}");
     if args.json {
@@ -233,67 +240,93 @@ pub fn run(args: EvalArgs) -> Result<()> {
     Ok(())
 }
 
-/// The steps `variant` reads from the instruction of every episode of the first `episodes`
-/// of `source` that has no step annotation, by episode id. A segmentation that fails is
-/// said and that episode flies the two-step fallback.
-fn segment_episodes(
-    source: &EpisodeSource,
-    episodes: usize,
-    variant: &str,
-) -> Result<BTreeMap<String, Vec<SubgoalSpec>>> {
-    let EpisodeSource::File(file) = source else {
-        anyhow::bail!("--segment-with needs --episodes-file: generated episodes carry their steps");
-    };
-    let model = aeris_llm::variant_model(variant).with_context(|| {
-        format!(
-            "--segment-with {variant}: not a language model (use qwen-coder, gemma3 or smollm2)"
-        )
-    })?;
-    let list = aeris_eval::episode::load_episodes(file)?;
-    let bare: Vec<&Episode> = list
-        .iter()
-        .take(episodes)
-        .filter(|e| e.subgoals.is_empty())
-        .collect();
-    let mut read = BTreeMap::new();
-    if bare.is_empty() {
-        return Ok(read);
+/// A language model that reads each episode's instruction before it flies
+/// (`--read-with`): segments it when it has no steps, reads every step. What fails is said
+/// and left to the phrase rules.
+struct ModelStepReader {
+    reader: aeris_llm::InstructionReader,
+    variant: String,
+}
+
+impl ModelStepReader {
+    fn load(variant: &str) -> Result<Self> {
+        let model = aeris_llm::variant_model(variant).with_context(|| {
+            format!(
+                "--read-with {variant}: not a language model (use qwen-coder, gemma3 or smollm2)"
+            )
+        })?;
+        let store = aeris_models::ModelStore::open(None)?;
+        let threads = std::thread::available_parallelism().map_or(2, |n| n.get() as i32);
+        let reader = aeris_llm::InstructionReader::load(&store, model, threads)
+            .with_context(|| format!("loading the instruction reader {variant}"))?;
+        Ok(Self {
+            reader,
+            variant: variant.to_string(),
+        })
     }
-    let store = aeris_models::ModelStore::open(None)?;
-    let threads = std::thread::available_parallelism().map_or(2, |n| n.get() as i32);
-    let mut segmenter = aeris_llm::Segmenter::load(&store, model, threads)
-        .with_context(|| format!("loading the segmenter {variant}"))?;
-    for (i, e) in bare.iter().enumerate() {
-        match segmenter.segment(&e.instruction.instruction_text) {
-            Ok(steps) => {
-                let stats = segmenter.last_stats();
-                eprintln!(
-                    "aeris: segmented episode {} ({}/{}) into {} steps in {:.1} s",
-                    e.episode_id,
-                    i + 1,
-                    bare.len(),
-                    steps.len(),
-                    stats.seconds
-                );
-                let steps = steps
-                    .into_iter()
-                    .map(|s| SubgoalSpec {
-                        text: s.text,
-                        action: s.action,
-                        waypoint: None,
-                    })
-                    .collect();
-                read.insert(e.episode_id.clone(), steps);
+}
+
+impl StepReader for ModelStepReader {
+    fn read_steps(&mut self, episode: &Episode) -> Option<Vec<SubgoalSpec>> {
+        let started = std::time::Instant::now();
+        let id = &episode.episode_id;
+        let steps: Vec<(String, String)> = if episode.subgoals.is_empty() {
+            match self.reader.segment(&episode.instruction.instruction_text) {
+                Ok(steps) => steps.into_iter().map(|s| (s.text, s.action)).collect(),
+                Err(err) => {
+                    eprintln!(
+                        "aeris: {}: episode {id} not segmented ({:#}); it flies take-off, then \
+                         the whole instruction",
+                        self.variant,
+                        anyhow::Error::from(err)
+                    );
+                    return None;
+                }
             }
-            Err(err) => eprintln!(
-                "aeris: episode {} not segmented ({:#}); it flies take-off, then the whole \
-                 instruction",
-                e.episode_id,
-                anyhow::Error::from(err)
-            ),
-        }
+        } else {
+            episode
+                .subgoals
+                .iter()
+                .map(|s| (s.text.clone(), s.action.clone()))
+                .collect()
+        };
+        let mut read = 0;
+        let subgoals = steps
+            .into_iter()
+            .enumerate()
+            .map(|(i, (text, action))| {
+                let reading = match self.reader.read_step(&text, &LABELS) {
+                    Ok(r) => {
+                        read += 1;
+                        Some(r)
+                    }
+                    Err(err) => {
+                        eprintln!(
+                            "aeris: {}: episode {id}, step {} not read ({:#}); the phrase rules \
+                             read it",
+                            self.variant,
+                            i + 1,
+                            anyhow::Error::from(err)
+                        );
+                        None
+                    }
+                };
+                SubgoalSpec {
+                    text,
+                    action,
+                    waypoint: None,
+                    reading,
+                }
+            })
+            .collect::<Vec<_>>();
+        eprintln!(
+            "aeris: {} read episode {id}: {} steps, {read} with a reading, in {:.1} s",
+            self.variant,
+            subgoals.len(),
+            started.elapsed().as_secs_f64()
+        );
+        Some(subgoals)
     }
-    Ok(read)
 }
 
 impl crate::command::Execute for EvalArgs {

@@ -5,10 +5,12 @@
 //!   belongs to; it ends with a landing at the goal.
 //! - **aeris** (the system under evaluation): the instruction and its steps as annotated —
 //!   text and action, never a waypoint; the planner grounds every step's landmark in S_t
-//!   (`aeris_roles::grounding`). An episode without step annotation (an AerialVLN file)
-//!   flies the steps a language model read from its instruction when it was segmented
-//!   (`aeris eval --segment-with`, `aeris_llm::segment`), and otherwise becomes two steps:
-//!   take off, then the whole instruction, landing at the last place it names.
+//!   (`aeris_roles::grounding`). With a [`StepReader`] (`aeris eval --read-with`, a language
+//!   model: `aeris_llm::InstructionReader`) it flies the steps the model read: an
+//!   unannotated instruction (an AerialVLN file) segmented, every step with its reading
+//!   (turn, landmark, relation, sign, height). Otherwise an episode without step annotation
+//!   becomes two steps: take off, then the whole instruction, landing at the last place it
+//!   names.
 //! - **random**: the same steps (the random reasoner only flies the first, take-off, and
 //!   otherwise draws AerialVLN's actions uniformly).
 //!
@@ -133,9 +135,17 @@ pub fn corners(points: &[[f64; 3]]) -> Vec<usize> {
     out
 }
 
-/// The mission for `episode` flown by `agent`; `read_steps`: the steps a segmenter read
-/// from the instruction of an episode without annotation (ignored for an annotated one and
-/// by the oracle, which flies the reference).
+/// Reads an episode's instruction before it flies (`aeris eval --read-with`: a language
+/// model segments an unannotated instruction and reads every step).
+pub trait StepReader {
+    /// The steps the AERIS agent flies for `episode`, each with what was read in it; `None`
+    /// to fly its annotation (or the two-step fallback) as the phrase rules read it.
+    fn read_steps(&mut self, episode: &Episode) -> Option<Vec<SubgoalSpec>>;
+}
+
+/// The mission for `episode` flown by `agent`; `read_steps`: the steps a language model read
+/// (an annotated episode's own steps, each with its reading, or the steps it cut from an
+/// unannotated instruction); ignored by the oracle, which flies the reference.
 pub fn episode_mission(
     episode: &Episode,
     agent: Agent,
@@ -168,21 +178,26 @@ pub fn episode_mission(
             .unwrap_or(texts.len() - 1)
     };
     let (subgoals, step_subgoal) = match agent {
+        // an annotated episode's steps, each with its reading when they were read one by one
         Agent::Aeris | Agent::Random if !episode.subgoals.is_empty() => (
-            episode
-                .subgoals
-                .iter()
-                .map(|s| SubgoalSpec {
-                    text: s.text.clone(),
-                    action: s.action.clone(),
-                    waypoint: None,
-                })
-                .collect(),
+            match read_steps {
+                Some(read) if read.len() == episode.subgoals.len() => read.to_vec(),
+                _ => episode
+                    .subgoals
+                    .iter()
+                    .map(|s| SubgoalSpec {
+                        text: s.text.clone(),
+                        action: s.action.clone(),
+                        waypoint: None,
+                        reading: None,
+                    })
+                    .collect(),
+            },
             (0..episode.subgoals.len()).collect(),
         ),
+        // the steps a model cut from the episode's one (unannotated) subgoal
         Agent::Aeris | Agent::Random if read_steps.is_some_and(|r| !r.is_empty()) => {
             let read = read_steps.unwrap_or_default();
-            // every read step belongs to the episode's one (unannotated) subgoal
             (read.to_vec(), vec![0; read.len()])
         }
         Agent::Aeris | Agent::Random => (
@@ -191,11 +206,13 @@ pub fn episode_mission(
                     text: "take off".into(),
                     action: "takeoff".into(),
                     waypoint: None,
+                    reading: None,
                 },
                 SubgoalSpec {
                     text: episode.instruction.instruction_text.clone(),
                     action: "land".into(),
                     waypoint: None,
+                    reading: None,
                 },
             ],
             vec![0, 0],
@@ -221,6 +238,7 @@ pub fn episode_mission(
                         text: texts[subgoal_of(i)].0.clone(),
                         action: "goto".into(),
                         waypoint: Some(p),
+                        reading: None,
                     });
                     steps.push(subgoal_of(i));
                 }
@@ -228,6 +246,7 @@ pub fn episode_mission(
                     text: texts[subgoal_of(i)].0.clone(),
                     action: action.into(),
                     waypoint: Some(if last { goal } else { p }),
+                    reading: None,
                 });
                 steps.push(subgoal_of(i));
             }

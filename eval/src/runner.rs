@@ -6,7 +6,7 @@ use crate::episode::{Episode, EpisodeError, load_episodes};
 pub use crate::episode_line::EpisodeLine;
 use crate::generate::{AirspaceFilter, GenerateError, Split, generate_split};
 use crate::metrics::{EpisodeMetrics, EpisodeRun};
-use crate::mission::{Agent, MissionError, episode_mission};
+use crate::mission::{Agent, MissionError, StepReader, episode_mission};
 pub use crate::shard::{Shard, ShardError};
 pub use crate::table::GroupSummary;
 use crate::table::{EvalTable, Summaries};
@@ -59,10 +59,6 @@ pub struct EvalConfig {
     /// run folder's [`crate::distill::PAIRS_FILE`], gathered into OUT's after the episode
     /// (check the setup with [`crate::distill::check`] first).
     pub distill: bool,
-    /// Steps a segmenter (a language model, `aeris eval --segment-with`) read from the
-    /// instructions of episodes without step annotation, by episode id: the AERIS agent
-    /// flies these instead of the two-step fallback ([`crate::mission::episode_mission`]).
-    pub read_steps: std::collections::BTreeMap<String, Vec<aeris_runtime::spec::SubgoalSpec>>,
 }
 
 /// An episode's recording, in its run folder (`aeris eval --record`).
@@ -259,8 +255,13 @@ fn episode_workflow(
     Ok(workflow)
 }
 
-/// Fly every episode, write OUT/episodes.jsonl, and summarise per airspace.
-pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalReport, EvalError> {
+/// Fly every episode, write OUT/episodes.jsonl, and summarise per airspace; `reader`, when
+/// given, reads each episode's instruction before it flies (the AERIS agent's steps).
+pub fn run(
+    config: &EvalConfig,
+    watcher: &mut dyn EvalWatcher,
+    mut reader: Option<&mut dyn StepReader>,
+) -> Result<EvalReport, EvalError> {
     let setup = &config.agent;
     if config.episodes == 0 {
         return Err(EvalError::NoEpisodes);
@@ -312,14 +313,11 @@ pub fn run(config: &EvalConfig, watcher: &mut dyn EvalWatcher) -> Result<EvalRep
             source,
         })?;
     for (n, (k, episode)) in chosen.into_iter().enumerate() {
-        let em = episode_mission(
-            episode,
-            setup.agent,
-            config
-                .read_steps
-                .get(&episode.episode_id)
-                .map(Vec::as_slice),
-        )?;
+        let read = match (&mut reader, setup.agent) {
+            (Some(r), Agent::Aeris) => r.read_steps(episode),
+            _ => None,
+        };
+        let em = episode_mission(episode, setup.agent, read.as_deref())?;
         let mut workflow = episode_workflow(setup, em.mission, k, &episode.episode_id)?;
         let flight = format!("eval-{}-{k}", std::process::id());
         let run_dir = out.join("runs").join(&flight);

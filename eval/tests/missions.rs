@@ -88,8 +88,8 @@ fn the_aeris_mission_names_places_and_gives_no_coordinates() {
         m.mission.subgoals[1].text,
         bare.instruction.instruction_text
     );
-    // the steps a segmenter read fly instead, all within the episode's one subgoal; an
-    // annotated episode keeps its annotation
+    // the steps a model cut from the instruction fly instead, all within the episode's one
+    // subgoal
     let read: Vec<SubgoalSpec> = [
         ("rise up", "takeoff"),
         ("head north", "goto"),
@@ -100,14 +100,43 @@ fn the_aeris_mission_names_places_and_gives_no_coordinates() {
         text: text.into(),
         action: action.into(),
         waypoint: None,
+        reading: None,
     })
     .collect();
     let m = episode_mission(&bare, Agent::Aeris, Some(&read)).unwrap();
     assert_eq!(m.mission.subgoals, read);
     assert_eq!(m.step_subgoal, [0, 0, 0]);
     m.mission.validate().unwrap();
-    let annotated = episode_mission(&eps[0], Agent::Aeris, Some(&read)).unwrap();
+    // an annotated episode flies its steps with what was read in each, one by one; read
+    // steps that are not its steps are not flown
+    let steps_read: Vec<SubgoalSpec> = eps[0]
+        .subgoals
+        .iter()
+        .map(|s| SubgoalSpec {
+            text: s.text.clone(),
+            action: s.action.clone(),
+            waypoint: None,
+            reading: Some(aeris_schemas::StepReading {
+                turn: aeris_schemas::Turn::Left,
+                ..Default::default()
+            }),
+        })
+        .collect();
+    let annotated = episode_mission(&eps[0], Agent::Aeris, Some(&steps_read)).unwrap();
+    assert_eq!(annotated.mission.subgoals, steps_read);
+    assert_eq!(
+        annotated.step_subgoal,
+        (0..steps_read.len()).collect::<Vec<_>>()
+    );
+    let annotated = episode_mission(&eps[0], Agent::Aeris, Some(&read[..1])).unwrap();
     assert_eq!(annotated.mission.subgoals.len(), eps[0].subgoals.len());
+    assert!(
+        annotated
+            .mission
+            .subgoals
+            .iter()
+            .all(|s| s.reading.is_none())
+    );
 }
 
 #[test]

@@ -17,6 +17,7 @@ fn spec(flight: &str) -> RoleSpec {
         text: text.into(),
         action: action.into(),
         waypoint: Some(waypoint),
+        reading: None,
     };
     RoleSpec {
         flight: flight.into(),

@@ -12,8 +12,10 @@ mod decode;
 mod error;
 pub mod formation;
 pub mod grammar;
+pub mod instruction_reader;
 pub mod prompt;
 pub mod prompt_style;
+pub mod read_step;
 pub mod reasoner;
 pub mod segment;
 pub mod view;
@@ -23,12 +25,14 @@ pub use formation::{
     FormationWriter, WriteStats, program_from_json, program_grammar, program_to_json,
 };
 pub use grammar::{GrammarError, decision_grammar};
+pub use instruction_reader::{InstructionReader, ReadStats};
 pub use prompt::{MissionBrief, Observation, Sighted, StepBrief, sanitize};
 pub use prompt_style::PromptStyle;
+pub use read_step::ReadStepError;
 pub use reasoner::{
     GEMMA3_270M, GPU_OFFLOAD_BUILT, LanguageReasoner, LlmError, QWEN25_CODER_05B, ReasonerConfig,
     SMOLLM2_135M, SMOLLM2_135M_Q4_1, SMOLLM2_ALIGNED_ADAPTER, Thought, check_offload,
     offload_check, variant_adapter, variant_model,
 };
-pub use segment::{Segment, SegmentError, Segmenter};
+pub use segment::{Segment, SegmentError};
 pub use view::{DecisionView, ViewError};

@@ -10,29 +10,17 @@
 //! it reads an annotated one. The phrase rules (the hub's `segment_instruction`, which
 //! splits on sentence ends and "then") stay the fallback where no model is loaded.
 
-use crate::decode::{
-    BATCH, GenerateStop, chat_prompt, eval_tokens, generate_under_grammar, load_cpu_model,
-};
 use crate::error::LlmError;
-use aeris_models::ModelStore;
 use aeris_schemas::MAX_SUBGOALS;
 use core::fmt::Write;
-use llama_cpp_2::context::LlamaContext;
-use llama_cpp_2::llama_batch::LlamaBatch;
-use llama_cpp_2::model::LlamaModel;
-use llama_cpp_2::sampling::LlamaSampler;
 use serde::Deserialize;
-use std::time::Instant;
 
 /// Most words of an instruction the segmenter takes (AerialVLN's longest are ~200).
 pub const MAX_INSTRUCTION_WORDS: usize = 256;
 
-/// Context length: the examples, the instruction, and its segmentation (every word again).
-const CONTEXT_TOKENS: u32 = 4096;
-
 /// Most tokens one segmentation may take: its words (a few tokens each at most) and the
 /// JSON around each step.
-const MAX_SEGMENTATION_TOKENS: usize = 3 * MAX_INSTRUCTION_WORDS + 24 * MAX_SUBGOALS;
+pub(crate) const MAX_SEGMENTATION_TOKENS: usize = 3 * MAX_INSTRUCTION_WORDS + 24 * MAX_SUBGOALS;
 
 /// A step's action, as the decision grammar names them.
 const ACTIONS: [&str; 3] = ["takeoff", "goto", "land"];
@@ -153,96 +141,11 @@ pub fn segments_from_json(text: &str, words: &[String]) -> Result<Vec<Segment>, 
 
 /// What the segmenter is asked: the task and two instructions written the way people write
 /// them (neither in the episode generator's phrasing).
-const SYSTEM: &str = r#"You split a drone pilot's instruction into its steps, in order, copying its words. A step is one thing the drone does: take off (action "takeoff"), go somewhere or turn towards something (action "goto"), or land (action "land"). Reply with a JSON list of steps, each {"text":"the step's words","action":"takeoff|goto|land"}.
+pub(crate) const SYSTEM: &str = r#"You split a drone pilot's instruction into its steps, in order, copying its words. A step is one thing the drone does: take off (action "takeoff"), go somewhere or turn towards something (action "goto"), or land (action "land"). Reply with a JSON list of steps, each {"text":"the step's words","action":"takeoff|goto|land"}.
 Instruction: Lift off and climb to about 15 m. Head over to the lake on your left, after that go past the red building and put it down by the white tower.
 [{"text":"Lift off and climb to about 15 m.","action":"takeoff"},{"text":"Head over to the lake on your left,","action":"goto"},{"text":"after that go past the red building","action":"goto"},{"text":"and put it down by the white tower.","action":"land"}]
 Instruction: go up a little and swing right, follow the road until the bridge then come down next to the sign that reads PARK
 [{"text":"go up a little","action":"takeoff"},{"text":"and swing right, follow the road until the bridge","action":"goto"},{"text":"then come down next to the sign that reads PARK","action":"land"}]"#;
-
-/// What one segmentation cost.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct SegmentStats {
-    /// Tokens in the prompt.
-    pub prompt_tokens: usize,
-    /// Tokens generated.
-    pub generated_tokens: usize,
-    /// Seconds the whole segmentation took (prompt and generation).
-    pub seconds: f64,
-}
-
-/// A GGUF model in llama.cpp that segments instructions under [`segment_grammar`].
-pub struct Segmenter {
-    // Field order matters: the context borrows the model and must drop first.
-    ctx: LlamaContext<'static>,
-    model: &'static LlamaModel,
-    batch: LlamaBatch<'static>,
-    last: SegmentStats,
-}
-
-impl Segmenter {
-    /// Load `file` (cache-relative, hash-checked), evaluating on `threads` CPU threads.
-    pub fn load(store: &ModelStore, file: &str, threads: i32) -> Result<Self, SegmentError> {
-        let (model, ctx) = load_cpu_model(store, file, threads, CONTEXT_TOKENS)?;
-        Ok(Self {
-            ctx,
-            model,
-            batch: LlamaBatch::new(BATCH, 1),
-            last: SegmentStats::default(),
-        })
-    }
-
-    /// What the last segmentation cost.
-    pub fn last_stats(&self) -> SegmentStats {
-        self.last
-    }
-
-    /// The steps of `instruction`, by greedy decoding under its grammar.
-    pub fn segment(&mut self, instruction: &str) -> Result<Vec<Segment>, SegmentError> {
-        let started = Instant::now();
-        let words = instruction_words(instruction);
-        let grammar_text = segment_grammar(&words)?;
-        let mut grammar = LlamaSampler::grammar(self.model, &grammar_text, "root")
-            .map_err(|e| LlmError::GrammarRejected(e.to_string()))?;
-        let prompt = chat_prompt(
-            self.model,
-            SYSTEM,
-            format!("Instruction: {}", words.join(" ")),
-        )?;
-        let tokens = self.model.vocab().tokenize(prompt.as_bytes(), false, true);
-        let context = self.ctx.n_ctx() as usize;
-        if tokens.len() + MAX_SEGMENTATION_TOKENS >= context {
-            return Err(LlmError::PromptTooLong {
-                tokens: tokens.len(),
-                context,
-            }
-            .into());
-        }
-        self.ctx.clear_kv_cache();
-        eval_tokens(&mut self.ctx, &mut self.batch, &tokens, 0)?;
-        // `"}]` ends the list and appears nowhere else in it (words hold no quote)
-        let (bytes, generated, outcome) = generate_under_grammar(
-            &mut self.ctx,
-            &mut self.batch,
-            self.model,
-            &mut grammar,
-            tokens.len(),
-            MAX_SEGMENTATION_TOKENS,
-            b"\"}]",
-        );
-        let outcome = outcome.map_err(|stop| match stop {
-            GenerateStop::Truncated(n) => SegmentError::Truncated(n),
-            GenerateStop::NoAllowedToken => LlmError::NoAllowedToken { field: "segment" }.into(),
-            GenerateStop::Decode(e) => e.into(),
-        });
-        self.last = SegmentStats {
-            prompt_tokens: tokens.len(),
-            generated_tokens: generated,
-            seconds: started.elapsed().as_secs_f64(),
-        };
-        outcome?;
-        segments_from_json(&String::from_utf8_lossy(&bytes), &words)
-    }
-}
 
 #[cfg(test)]
 mod tests {

@@ -18,18 +18,9 @@
 
 use aeris_geometry::CameraModel;
 use aeris_schemas::state::CUE_MAX;
-use aeris_schemas::{Detection, FixedText, PerceptionState};
+use aeris_schemas::{ActionMode, Detection, FixedText, PerceptionState, StepReading};
 
-/// How a step relates the vehicle to its landmark.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Relation {
-    /// "fly to X": stop short of it.
-    To,
-    /// "fly over X": pass above it.
-    Over,
-    /// "land next to X": land short of it.
-    NextTo,
-}
+pub use aeris_schemas::Relation;
 
 /// Words that name colours: a description's colours must all be in a matching label.
 const COLOURS: [&str; 10] = [
@@ -131,6 +122,26 @@ impl LandmarkPhrase {
         Some(Self {
             relation,
             description: FixedText::from_str_truncated(description),
+            sign_text: FixedText::from_str_truncated(sign),
+        })
+    }
+
+    /// The landmark a model read in a step ([`StepReading`]) whose action is `action`: its
+    /// landmark label as the description, its sign text, its relation (`To` when it read a
+    /// landmark and no relation); `None` when it read no landmark. A quoted sign is read
+    /// from in front of it, so a step to one is never flown `Over` it: it goes `To` it, or
+    /// lands `NextTo` it.
+    pub fn from_reading(reading: &StepReading, action: ActionMode) -> Option<Self> {
+        let landmark = reading.landmark.as_deref()?.trim();
+        let sign = reading.sign.as_deref().unwrap_or("").trim();
+        let relation = match (reading.relation.unwrap_or(Relation::To), action) {
+            (Relation::Over, ActionMode::Land) if !sign.is_empty() => Relation::NextTo,
+            (Relation::Over, _) if !sign.is_empty() => Relation::To,
+            (r, _) => r,
+        };
+        (!landmark.is_empty()).then(|| Self {
+            relation,
+            description: FixedText::from_str_truncated(landmark),
             sign_text: FixedText::from_str_truncated(sign),
         })
     }

@@ -4,7 +4,7 @@
 //! JSON; the role process reads it with [`RoleSpec::load`]. Roles never parse the workflow
 //! themselves, so there is one validator.
 
-use aeris_schemas::{ActionMode, DecisionLimits, MAX_SUBGOALS};
+use aeris_schemas::{ActionMode, DecisionLimits, MAX_SUBGOALS, StepReading, StepReadingError};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -74,6 +74,10 @@ pub struct SubgoalSpec {
     /// instruction names places, not coordinates).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub waypoint: Option<[f32; 3]>,
+    /// What a language model read in `text` (turn, landmark, relation, sign, height), when
+    /// one read it; the planner reads what it leaves out from `text` by its phrase rules.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reading: Option<StepReading>,
 }
 
 impl SubgoalSpec {
@@ -160,6 +164,16 @@ pub enum MissionError {
         /// The waypoint.
         waypoint: [f32; 3],
     },
+    /// A step's reading is unusable.
+    #[error("subgoal {index} (`{text}`): its reading is unusable")]
+    BadReading {
+        /// 1-based subgoal index.
+        index: usize,
+        /// Its text.
+        text: String,
+        /// What is wrong with the reading.
+        source: StepReadingError,
+    },
     /// The limits are incoherent (e.g. h_min > h_max, NaN).
     #[error(
         "mission limits are incoherent (check v_max > 0, h_min <= h_max, geofence_min <= geofence_max, the altitude band [h_min, h_max] meets the geofence's [min U, max U], all finite)"
@@ -218,6 +232,13 @@ impl MissionSpec {
                     index: i + 1,
                     text: s.text.clone(),
                     action: s.action.clone(),
+                });
+            }
+            if let Some(Err(source)) = s.reading.as_ref().map(StepReading::validate) {
+                return Err(MissionError::BadReading {
+                    index: i + 1,
+                    text: s.text.clone(),
+                    source,
                 });
             }
             let Some(w) = s.waypoint else {
@@ -430,6 +451,43 @@ mod tests {
                              {{"text": "land", "action": "land"}}],
                 "limits": {limits}}}"#
         ))
+    }
+
+    /// A step's reading is read from the mission as the reader writes it, and checked with
+    /// the mission.
+    #[test]
+    fn a_steps_reading_is_read_and_checked_with_the_mission() {
+        let read = |reading: &str| -> MissionSpec {
+            serde_json::from_str(&format!(
+                r#"{{"instruction": "up, then down by the CAFE board",
+                    "subgoals": [{{"text": "up", "action": "takeoff"}},
+                                 {{"text": "down by the CAFE board", "action": "land",
+                                   "reading": {reading}}}],
+                    "limits": {{}}}}"#
+            ))
+            .unwrap()
+        };
+        let m = read(
+            r#"{"turn": "left", "relation": "beside", "landmark": "yellow sign",
+                "sign": "CAFE", "height_m": null}"#,
+        );
+        assert_eq!(m.validate(), Ok(()));
+        let r = m.subgoals[1].reading.as_ref().unwrap();
+        assert_eq!(
+            (r.turn, r.relation),
+            (
+                aeris_schemas::Turn::Left,
+                Some(aeris_schemas::Relation::NextTo)
+            )
+        );
+        let m = read(
+            r#"{"turn": "none", "relation": null, "landmark": "", "sign": null, "height_m": null}"#,
+        );
+        let err = m.validate().unwrap_err();
+        assert!(
+            matches!(err, MissionError::BadReading { index: 2, .. }),
+            "{err}"
+        );
     }
 
     /// The workflow's limits are the gate's: fields left out take the defaults, the

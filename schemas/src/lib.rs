@@ -11,7 +11,8 @@
 //! controller converts to MAVLink's NED at the autopilot boundary, nowhere else.
 //!
 //! This crate is a leaf: it depends on nothing of ours. Its `serde` feature derives the
-//! (de)serialisation of [`DecisionLimits`], which the workflow's mission limits are.
+//! (de)serialisation of [`DecisionLimits`], which the workflow's mission limits are, and of
+//! [`StepReading`], what was read in one of the mission's steps.
 
 #![deny(missing_docs)]
 
@@ -33,6 +34,7 @@ pub mod role_counters;
 pub mod role_kinds;
 pub mod setpoint;
 pub mod state;
+pub mod step_reading;
 pub mod supervisor;
 pub mod telemetry;
 pub mod text;
@@ -69,6 +71,7 @@ pub use state::{
     Cue, Detection, MAX_CUES, MAX_DETECTIONS, OCCUPANCY_CELLS, OCCUPANCY_SIDE, OCCUPANCY_UNKNOWN,
     OccupancyGrid, OccupancyStatus, PerceptionState, SUMMARY_MAX, StateError, block,
 };
+pub use step_reading::{Relation, StepReading, StepReadingError, Turn};
 pub use supervisor::{BINDING_TEXT_MAX, MAX_ROLES, RoleStatusEntry, SupervisorStatus};
 pub use telemetry::{TelemetryError, VehicleTelemetry};
 pub use text::FixedText;

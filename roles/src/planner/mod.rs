@@ -42,7 +42,7 @@ use aeris_geometry::wrap_pi;
 use aeris_runtime::spec::CameraSpec;
 use aeris_schemas::state::CUE_MAX;
 use aeris_schemas::{
-    ActionMode, Decision, FixedText, MAX_SUBGOALS, OccupancyStatus, PerceptionState,
+    ActionMode, Decision, FixedText, MAX_SUBGOALS, OccupancyStatus, PerceptionState, Turn,
 };
 use geometry::{distance, ground_distance, heading, horizontal};
 use search::Search;
@@ -65,6 +65,10 @@ const SETTLE_MARGIN_M: f32 = 0.01;
 /// Yaw offsets (rad) from the search heading, one heartbeat each, while the landmark of a
 /// step is not in view: ahead, then ever wider left/right, then behind.
 const SCAN_OFFSETS: [f32; 6] = [0.0, -1.05, 1.05, -2.09, 2.09, core::f32::consts::PI];
+/// How close (rad) to its heading a step that only turns must face to be done.
+const TURNED_RAD: f32 = 0.26;
+/// Heartbeats after which a step that only turns is done however the vehicle faces.
+const TURN_WAIT: u32 = 5;
 /// Length (m) of a search leg along the search heading after a scan found nothing.
 pub const SEARCH_LEG_M: f32 = 40.0;
 /// Search legs flown before the planner gives up on a landmark and lands where it is.
@@ -187,15 +191,26 @@ impl Planner {
         let mut cruise_height = None;
         for (slot, s) in steps.iter_mut().zip(mission.subgoals.iter()) {
             let action = s.action_mode()?;
+            // what a model read in the step first, the phrase rules for what it left out
+            let reading = s.reading.as_ref();
             let target = match (s.waypoint, action) {
                 (Some(w), _) => StepTarget::At(w),
                 (None, ActionMode::Takeoff | ActionMode::Ascend) => {
-                    let h = height_of(&s.text).unwrap_or(DEFAULT_CRUISE_HEIGHT_M);
+                    let h = reading
+                        .and_then(|r| r.height_m)
+                        .or_else(|| height_of(&s.text))
+                        .unwrap_or(DEFAULT_CRUISE_HEIGHT_M);
                     StepTarget::At([mission.start[0], mission.start[1], mission.start[2] + h])
                 }
-                (None, _) => LandmarkPhrase::parse(&s.text)
+                (None, _) => reading
+                    .and_then(|r| LandmarkPhrase::from_reading(r, action))
+                    .or_else(|| LandmarkPhrase::parse(&s.text))
                     .map(StepTarget::Find)
                     .unwrap_or(StepTarget::Here),
+            };
+            let turn = match reading.map(|r| r.turn) {
+                Some(t) if t != Turn::None => t.radians(),
+                _ => turn_of(&s.text),
             };
             if let (StepTarget::At(w), ActionMode::Takeoff) = (target, action) {
                 cruise_height.get_or_insert(w[2]);
@@ -203,7 +218,7 @@ impl Planner {
             *slot = Some(Step {
                 action,
                 target,
-                turn: turn_of(&s.text),
+                turn,
             });
         }
         let l = &mission.limits;
@@ -292,6 +307,16 @@ impl Planner {
                 return match step.action {
                     ActionMode::Land => landed,
                     ActionMode::Stop => false,
+                    // a step that only turns ("hang a right") is done facing its heading
+                    // (or after TURN_WAIT heartbeats: the vehicle may not yaw)
+                    _ if step.turn != 0.0 => {
+                        issued >= TURN_WAIT
+                            || (issued >= 1
+                                && self
+                                    .search
+                                    .heading
+                                    .is_some_and(|h| wrap_pi(yaw - h).abs() <= TURNED_RAD))
+                    }
                     _ => issued >= 1,
                 };
             }
@@ -397,6 +422,17 @@ impl Planner {
                     position[2].max(self.h_min),
                     None,
                 ),
+                // turn in place to the heading the step asks for, taken when it starts
+                _ if step.turn != 0.0 => {
+                    let h = *self.search.heading.get_or_insert(wrap_pi(yaw + step.turn));
+                    let altitude = position[2].max(self.h_min);
+                    (
+                        ActionMode::Goto,
+                        [position[0], position[1], altitude],
+                        altitude,
+                        Some(h),
+                    )
+                }
                 _ => (
                     ActionMode::Hover,
                     position,

@@ -1,0 +1,99 @@
+//! The instruction reader on a provisioned model: an instruction without subgoal annotation,
+//! written the way AerialVLN's annotators write (lower case, one run-on sentence, no step
+//! numbers), segmented under its per-instruction grammar (the steps are the instruction's
+//! words in order, and their actions read as the instruction does: a take-off first, a
+//! landing last, movement between); steps in people's wording read as turns, places, signs
+//! and heights.
+
+use aeris_llm::segment::instruction_words;
+use aeris_llm::{InstructionReader, QWEN25_CODER_05B};
+use aeris_models::ModelStore;
+use aeris_schemas::{Relation, Turn};
+
+/// In AerialVLN's style; not a sentence our episode generator can write.
+const UNANNOTATED: &str = "go up to roughly the height of the trees and move ahead till you \
+reach the grey building, now swing left and keep going along the road past the small lake and \
+when you see a blue tower descend and touch down right beside it";
+
+#[test]
+fn an_unannotated_instruction_is_segmented_by_the_model_into_its_steps() {
+    let store = ModelStore::open(None).expect("model cache (run scripts/provision-models.sh)");
+    let mut reader = InstructionReader::load(&store, QWEN25_CODER_05B, 2).expect("the reader");
+    let steps = reader.segment(UNANNOTATED).expect("a segmentation");
+    eprintln!("{steps:#?}\n{:?}", reader.last_stats());
+    let words: Vec<String> = steps
+        .iter()
+        .flat_map(|s| s.text.split(' ').map(str::to_string))
+        .collect();
+    assert_eq!(
+        words,
+        instruction_words(UNANNOTATED),
+        "every word, in order"
+    );
+    assert!(steps.len() >= 3, "{steps:?}");
+    assert_eq!(steps[0].action, "takeoff", "{steps:?}");
+    assert_eq!(steps[steps.len() - 1].action, "land", "{steps:?}");
+    assert!(
+        steps[1..steps.len() - 1].iter().all(|s| s.action == "goto"),
+        "{steps:?}"
+    );
+}
+
+/// The labels the simulator's perception gives its detections (`aeris-sim-roles`).
+const LABELS: [&str; 12] = [
+    "helipad",
+    "road",
+    "building",
+    "red roof",
+    "beige building",
+    "blue water tower",
+    "lake",
+    "yellow sign",
+    "tree",
+    "blue roof",
+    "green roof",
+    "bridge",
+];
+
+/// Steps in the way people write them (neither the episode generator's wording, nor the
+/// reader's examples, nor the paraphrase set's): each is read as its words say.
+#[test]
+fn steps_written_the_way_people_write_are_read_as_turns_places_signs_and_heights() {
+    let store = ModelStore::open(None).expect("model cache (run scripts/provision-models.sh)");
+    let mut reader = InstructionReader::load(&store, QWEN25_CODER_05B, 2).expect("the reader");
+    let mut read = |step: &str| {
+        let r = reader
+            .read_step(step, &LABELS)
+            .unwrap_or_else(|e| panic!("{step:?}: {e:?}"));
+        eprintln!("{step:?}\n  {r:?}\n  {:?}", reader.last_stats());
+        r
+    };
+    let r = read("rise to about 18 metres off the pad");
+    assert_eq!((r.height_m, r.turn), (Some(18.0), Turn::None), "{r:?}");
+    let r = read("then swing around");
+    assert_eq!(
+        (r.turn, r.landmark.as_deref()),
+        (Turn::Around, None),
+        "{r:?}"
+    );
+    let r = read("now swing left and keep going along the road past the small lake");
+    assert_eq!(r.turn, Turn::Left, "{r:?}");
+    let r = read("then veer right towards the building with the green roof");
+    assert_eq!(
+        (r.turn, r.landmark.as_deref(), r.sign.as_deref()),
+        (Turn::Right, Some("green roof"), None),
+        "{r:?}"
+    );
+    let r = read("when you see the blue tower drop down right beside it");
+    assert_eq!(
+        (r.relation, r.landmark.as_deref()),
+        (Some(Relation::NextTo), Some("blue water tower")),
+        "{r:?}"
+    );
+    let r = read("and touch down close to the yellow board reading TOWN HALL");
+    assert_eq!(
+        (r.landmark.as_deref(), r.sign.as_deref(), r.height_m),
+        (Some("yellow sign"), Some("TOWN HALL"), None),
+        "{r:?}"
+    );
+}
