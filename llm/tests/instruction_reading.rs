@@ -39,19 +39,18 @@ fn an_unannotated_instruction_is_segmented_by_the_model_into_its_steps() {
     );
 }
 
-/// The labels the simulator's perception gives its detections (`aeris-sim-roles`).
-const LABELS: [&str; 12] = [
-    "helipad",
+/// A detector's labels (the kinds of the simulator's perception, and some it does not give).
+const LABELS: [&str; 11] = [
+    "car",
+    "blue water tower",
     "road",
+    "green roof",
+    "yellow sign",
+    "helipad",
     "building",
     "red roof",
-    "beige building",
-    "blue water tower",
     "lake",
-    "yellow sign",
     "tree",
-    "blue roof",
-    "green roof",
     "bridge",
 ];
 
