@@ -120,6 +120,21 @@ enum EvalCommand {
         #[arg(long)]
         json: bool,
     },
+    /// The ablation table: evaluations of the same episodes side by side (e.g. `aeris
+    /// eval compare planner=runs/a aligned=runs/b`), each metric with its 95 % interval
+    /// bootstrapped over scenes, and each row's paired difference to the first row.
+    Compare {
+        /// The rows, in order: NAME=DIR, DIR an `aeris eval` output folder (or its
+        /// episodes.jsonl). Every row must have flown the first row's episodes.
+        #[arg(required = true, value_name = "NAME=DIR")]
+        rows: Vec<String>,
+        /// Bootstrap draws.
+        #[arg(long, default_value_t = aeris_eval::compare::DEFAULT_RESAMPLES)]
+        resamples: usize,
+        /// Print one JSON object with the table on the last line of stdout.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 /// Prints each episode's flight (without progress lines), start and score.
@@ -171,6 +186,31 @@ impl EvalWatcher for EpisodePrinter {
 pub fn run(args: EvalArgs) -> Result<()> {
     if let Some(EvalCommand::Merge { paths, json }) = &args.command {
         let table = aeris_eval::table::merge(paths)?;
+        print!("{table}");
+        if *json {
+            println!("{}", serde_json::to_string(&table)?);
+        }
+        return Ok(());
+    }
+    if let Some(EvalCommand::Compare {
+        rows,
+        resamples,
+        json,
+    }) = &args.command
+    {
+        let rows = rows
+            .iter()
+            .map(|r| match r.split_once('=') {
+                Some((name, dir)) if !name.is_empty() && !dir.is_empty() => {
+                    Ok((name.to_string(), PathBuf::from(dir)))
+                }
+                _ => anyhow::bail!("row `{r}`: expected NAME=DIR"),
+            })
+            .collect::<Result<Vec<_>>>()?;
+        if *resamples == 0 {
+            anyhow::bail!("--resamples must be at least 1");
+        }
+        let table = aeris_eval::compare::compare_outputs(&rows, *resamples)?;
         print!("{table}");
         if *json {
             println!("{}", serde_json::to_string(&table)?);

@@ -89,6 +89,7 @@ impl EpisodeLine<'_> {
         EpisodeTally {
             index: self.index,
             episode_id: self.episode_id.to_string(),
+            scene_id: self.scene_id.to_string(),
             airspace: self.airspace.to_string(),
             agent: self.agent.to_string(),
             split: self.split.to_string(),

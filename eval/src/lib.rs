@@ -16,6 +16,7 @@
 #![deny(missing_docs)]
 
 pub mod agent_setup;
+pub mod compare;
 pub mod distill;
 pub mod episode;
 pub mod episode_line;

@@ -122,6 +122,9 @@ pub struct EpisodeTally {
     pub index: usize,
     /// Episode id.
     pub episode_id: String,
+    /// Its scene (empty in lines written before it was read back).
+    #[serde(default)]
+    pub scene_id: String,
     /// `open`, `dense` or `unknown`.
     pub airspace: String,
     /// The agent's label.
@@ -261,6 +264,34 @@ pub enum MergeError {
     },
 }
 
+/// The episodes an `aeris eval` wrote at `path` (its episodes.jsonl, or the output folder
+/// holding one), in the file's order, and the file read.
+pub fn read_tallies(path: &Path) -> Result<(PathBuf, Vec<EpisodeTally>), MergeError> {
+    let file = if path.is_dir() {
+        path.join("episodes.jsonl")
+    } else {
+        path.to_path_buf()
+    };
+    let text = std::fs::read_to_string(&file).map_err(|source| MergeError::Read {
+        path: file.clone(),
+        source,
+    })?;
+    let mut tallies = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        tallies.push(
+            serde_json::from_str(line).map_err(|source| MergeError::Line {
+                path: file.clone(),
+                line: n + 1,
+                source,
+            })?,
+        );
+    }
+    Ok((file, tallies))
+}
+
 /// The table of the evaluation whose shards wrote `paths` (each an episodes.jsonl, or the
 /// output folder holding one): their episodes in the whole list's order, summarised as one
 /// run of them all would have been.
@@ -268,25 +299,8 @@ pub fn merge(paths: &[PathBuf]) -> Result<EvalTable, MergeError> {
     let mut tallies: Vec<EpisodeTally> = Vec::new();
     let mut files = Vec::new();
     for path in paths {
-        let file = if path.is_dir() {
-            path.join("episodes.jsonl")
-        } else {
-            path.clone()
-        };
-        let text = std::fs::read_to_string(&file).map_err(|source| MergeError::Read {
-            path: file.clone(),
-            source,
-        })?;
-        for (n, line) in text.lines().enumerate() {
-            if line.trim().is_empty() {
-                continue;
-            }
-            let t: EpisodeTally =
-                serde_json::from_str(line).map_err(|source| MergeError::Line {
-                    path: file.clone(),
-                    line: n + 1,
-                    source,
-                })?;
+        let (file, read) = read_tallies(path)?;
+        for t in read {
             if let Some(first) = tallies.first() {
                 let fields = [
                     ("agent", &first.agent, &t.agent),
@@ -520,14 +534,16 @@ mod tests {
 }
 
 #[cfg(test)]
-mod merge_tests {
+pub(crate) mod merge_tests {
     use super::*;
 
-    fn tally(index: usize) -> EpisodeTally {
+    /// A made-up episode line: episodes 2k and 2k+1 share a scene.
+    pub(crate) fn tally(index: usize) -> EpisodeTally {
         let x = index as f64;
         EpisodeTally {
             index,
             episode_id: format!("ep-{index}"),
+            scene_id: format!("scene-{}", index / 2),
             airspace: if index.is_multiple_of(3) {
                 "open"
             } else {
