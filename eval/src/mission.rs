@@ -177,6 +177,8 @@ pub fn episode_mission(
             .position(|(_, r)| i >= r[0] && i <= r[1])
             .unwrap_or(texts.len() - 1)
     };
+    // an empty list of read steps is no reading
+    let read_steps = read_steps.filter(|r| !r.is_empty());
     let (subgoals, step_subgoal) = match agent {
         // an annotated episode's steps, each with its reading when they were read one by one
         Agent::Aeris | Agent::Random if !episode.subgoals.is_empty() => (
@@ -196,8 +198,7 @@ pub fn episode_mission(
             (0..episode.subgoals.len()).collect(),
         ),
         // the steps a model cut from the episode's one (unannotated) subgoal
-        Agent::Aeris | Agent::Random if read_steps.is_some_and(|r| !r.is_empty()) => {
-            let read = read_steps.unwrap_or_default();
+        Agent::Aeris | Agent::Random if let Some(read) = read_steps => {
             (read.to_vec(), vec![0; read.len()])
         }
         Agent::Aeris | Agent::Random => (

@@ -10,7 +10,7 @@
 //! the height as one of the numbers the step writes. The model cannot invent a place, a
 //! sign or a number; the planner's phrase rules read only what the reading leaves out.
 
-use crate::segment::{MAX_INSTRUCTION_WORDS, instruction_words};
+use crate::segment::{MAX_INSTRUCTION_WORDS, gbnf_literal, instruction_words};
 use aeris_schemas::StepReading;
 use core::fmt::Write;
 
@@ -98,9 +98,14 @@ fn plain_words(step: &str) -> Vec<String> {
 fn span_rules(g: &mut String, prefix: &str, words: &[String]) -> Vec<String> {
     for (i, w) in words.iter().enumerate() {
         if i + 1 == words.len() {
-            let _ = writeln!(g, "{prefix}-{i} ::= \"{w}\"");
+            let _ = writeln!(g, "{prefix}-{i} ::= {}", gbnf_literal(w));
         } else {
-            let _ = writeln!(g, "{prefix}-{i} ::= \"{w}\" ( \" \" {prefix}-{} )?", i + 1);
+            let _ = writeln!(
+                g,
+                "{prefix}-{i} ::= {} ( \" \" {prefix}-{} )?",
+                gbnf_literal(w),
+                i + 1
+            );
         }
     }
     (0..words.len()).map(|i| format!("{prefix}-{i}")).collect()
@@ -132,7 +137,7 @@ pub fn step_numbers(step: &str) -> Vec<u32> {
 /// A JSON string literal of `text` as a GBNF literal (`text` holds no `"`, `\` or control
 /// characters).
 fn json_string_literal(text: &str) -> String {
-    format!("\"\\\"{text}\\\"\"")
+    gbnf_literal(&format!("\\\"{text}\\\""))
 }
 
 /// The GBNF grammar (root rule `root`) of every reading of `step` with a landmark among

@@ -112,7 +112,7 @@ pub fn segment_grammar(words: &[String]) -> Result<String, SegmentError> {
 }
 
 /// `word` as a GBNF string literal (it holds no `"`, `\` or control characters).
-fn gbnf_literal(word: &str) -> String {
+pub(crate) fn gbnf_literal(word: &str) -> String {
     format!("\"{word}\"")
 }
 
