@@ -196,7 +196,8 @@ fn main() -> ExitCode {
                     Some(aeris_hosts::handle::HandleError::Schema { .. })
                 )
             });
-            // a handle that could not reach its host, or lost it while the role ran: the
+            // a handle that could not reach its host, lost it while the role ran, or whose role
+            // its host stopped for not hearing the handle: the
             // supervisor counts the link as lost either way (not a crash to restart)
             let unreachable = e.chain().any(|c| {
                 matches!(
@@ -204,6 +205,7 @@ fn main() -> ExitCode {
                     Some(
                         aeris_hosts::handle::HandleError::Unreachable { .. }
                             | aeris_hosts::handle::HandleError::LinkLost { .. }
+                            | aeris_hosts::handle::HandleError::StoppedThere { .. }
                     )
                 )
             });

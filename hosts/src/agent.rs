@@ -9,7 +9,11 @@
 //! - stops one on request (`stop`: SIGTERM, SIGKILL after [`STOP_GRACE`]);
 //! - reports every exit (code or signal, log tail) to the role's handle;
 //! - stops a role whose handle is gone (the flight's host died or the link was cut: the
-//!   handle's liveliness token vanished), so no role outlives its flight here either.
+//!   handle's liveliness token vanished and stayed away for a lease), so no role outlives its
+//!   flight here either; its exit report says the agent stopped it, and a handle that still
+//!   hears that counts its link lost, not its role ended.
+
+mod handle_watch;
 
 use crate::access::agent_access_control;
 use crate::admission::{AgentPolicy, AllowList, LocalLink, OwnParam, Refusal, admit, read_request};
@@ -25,6 +29,7 @@ use aeris_orchestrator::executors::{CpuTicks, busy_cores, read_proc_stat};
 use aeris_orchestrator::role_process::{LoadPolicy, spawn_role};
 use aeris_runtime::affinity::CpuSet;
 use aeris_runtime::clock::host_monotonic_ns;
+use handle_watch::HandleWatch;
 use std::collections::{BTreeMap, HashSet};
 use std::io::{Read, Seek, SeekFrom, Write};
 use std::os::unix::process::ExitStatusExt;
@@ -147,6 +152,8 @@ pub enum AgentEvent {
     HandleGone {
         /// `FLIGHT/ROLE#INSTANCE`.
         role: String,
+        /// Why, as the role's exit report says it.
+        why: String,
     },
 }
 
@@ -159,11 +166,8 @@ impl core::fmt::Display for AgentEvent {
             }
             AgentEvent::Refused { request, reason } => write!(f, "refused {request}: {reason}"),
             AgentEvent::Exited { role, how } => write!(f, "{role} ended: {how}"),
-            AgentEvent::HandleGone { role } => {
-                write!(
-                    f,
-                    "{role}: its handle is gone (host or link lost): stopping it"
-                )
+            AgentEvent::HandleGone { role, why } => {
+                write!(f, "{role}: {why} (host or link lost): stopping it")
             }
         }
     }
@@ -180,6 +184,10 @@ struct RoleProcess {
     stopping: Option<Instant>,
     /// Its handle's token was seen alive.
     handle_seen: bool,
+    /// Since when its handle's token, seen before, is gone.
+    handle_gone_since: Option<Instant>,
+    /// Why the agent stopped it on its own, for its exit report.
+    stopped_by_agent: Option<String>,
     started: Instant,
 }
 
@@ -546,6 +554,8 @@ impl Agent {
                     log: log_path.clone(),
                     stopping: None,
                     handle_seen: false,
+                    handle_gone_since: None,
+                    stopped_by_agent: None,
                     started: Instant::now(),
                 });
                 AgentReply::Ok(Spawned {
@@ -561,7 +571,8 @@ impl Agent {
         }
     }
 
-    /// Stop the roles whose handle's token went away (or never came within two leases).
+    /// Stop the roles whose handle's token has been gone for a lease (or never came within
+    /// two leases).
     fn follow_handles(&mut self, events: &mut Vec<AgentEvent>) {
         while let Ok(Some(s)) = self.handles.try_recv() {
             let key = s.key_expr().as_str().to_string();
@@ -575,12 +586,29 @@ impl Agent {
             }
         }
         let host = self.config.host.clone();
-        let never_by = self.config.lease * 2;
+        let lease = self.config.lease;
+        let now = Instant::now();
         for p in self.roles.iter_mut().filter(|p| p.stopping.is_none()) {
             let alive = self.alive_handles.contains(&p.handle_key(&host));
             p.handle_seen |= alive;
-            if (p.handle_seen && !alive) || (!p.handle_seen && p.started.elapsed() > never_by) {
-                events.push(AgentEvent::HandleGone { role: p.label() });
+            p.handle_gone_since = if alive || !p.handle_seen {
+                None
+            } else {
+                Some(p.handle_gone_since.unwrap_or(now))
+            };
+            let watch = HandleWatch {
+                seen: p.handle_seen,
+                gone_for: p
+                    .handle_gone_since
+                    .map(|t| now.saturating_duration_since(t)),
+                running_for: now.saturating_duration_since(p.started),
+            };
+            if let Some(why) = watch.verdict(lease) {
+                events.push(AgentEvent::HandleGone {
+                    role: p.label(),
+                    why: why.clone(),
+                });
+                p.stopped_by_agent = Some(why);
                 p.terminate();
             }
         }
@@ -598,6 +626,7 @@ impl Agent {
                         code: status.code(),
                         signal: status.signal(),
                         log_tail: log_tail(&p.log),
+                        stopped_by_agent: p.stopped_by_agent.clone(),
                     };
                     let how = match (report.code, report.signal) {
                         (Some(c), _) => format!("exit code {c}"),

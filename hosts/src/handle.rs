@@ -102,6 +102,17 @@ pub enum HandleError {
         /// The link timeout.
         timeout_ms: u64,
     },
+    /// The agent stopped the role because it had not heard this handle for a lease (the
+    /// link faded while both ends ran): the link's loss, not the role's end.
+    #[error("host `{host}` stopped role `{role}`: {reason}")]
+    StoppedThere {
+        /// The host.
+        host: String,
+        /// The role.
+        role: String,
+        /// The agent's reason.
+        reason: String,
+    },
     /// A zenoh declaration failed.
     #[error("cannot declare {what} on zenoh: {reason}")]
     Declare {
@@ -304,6 +315,13 @@ pub fn run_remote(spec: RoleSpec) -> Result<RemoteExit, HandleError> {
                         _ => "unknown".into(),
                     }
                 );
+                if let Some(reason) = report.stopped_by_agent {
+                    return Err(HandleError::StoppedThere {
+                        host,
+                        role: spec.name.clone(),
+                        reason,
+                    });
+                }
                 return Ok(RemoteExit {
                     code: report.code,
                     signal: report.signal,

@@ -174,6 +174,10 @@ pub struct ExitReport {
     pub signal: Option<i32>,
     /// The last lines of its log.
     pub log_tail: String,
+    /// Why the agent stopped it on its own (its handle's token was gone for a lease), if it
+    /// did: a handle that still hears this lost its link, not its role.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stopped_by_agent: Option<String>,
 }
 
 /// An agent's answer: the result, or why it refused.
