@@ -26,8 +26,14 @@
 //!   free; `h` is h_t, and for land the lower of h_t and the vehicle's altitude, since the
 //!   vehicle crosses at its height before descending). The target is pulled back along the
 //!   segment to `clearance` metres before the point where the segment enters that cell
-//!   (`clamped`); if that leaves less than one cell of motion the decision is rejected
-//!   ([`GateError::Blocked`]). A land whose touchdown cell holds an obstacle is rejected.
+//!   (`clamped`). If that leaves less than one cell of motion (the vehicle stands at the
+//!   obstacle), a goto, hover or stop is raised over it instead: h_t becomes the top plus
+//!   the clearance plus [`OVER_MARGIN_M`] and the way is walked again at that height
+//!   (`clamped`); while the vehicle is more than half the clearance below that height it is
+//!   held where it is, climbing there, and the way is flown once up there. Only an obstacle
+//!   whose raised height is above the band rejects ([`GateError::Blocked`]), as does a land
+//!   blocked that close (it crosses at the vehicle's height). A land whose touchdown cell
+//!   holds an obstacle is rejected.
 //! - In place (takeoff, ascend, descend, turn): when the cell under the vehicle holds an
 //!   obstacle with top `>= h_t - clearance`, h_t is raised to `top + clearance` (`clamped`),
 //!   or the decision is rejected when that is above the band.
@@ -54,6 +60,10 @@ use aeris_schemas::{
     DecisionLimits, OCCUPANCY_SIDE, OCCUPANCY_UNKNOWN, OccupancyGrid, OccupancyStatus,
     SetpointError, all_finite, clamp,
 };
+
+/// How far above the clearance a way raised over an obstacle passes its top (m): a way at
+/// exactly top + clearance would still count that cell as blocking.
+pub const OVER_MARGIN_M: f32 = 0.5;
 
 /// Why a decision was not admitted.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
@@ -264,11 +274,7 @@ impl DecisionGate {
                 [here[0], here[1], h]
             }
             (ActionMode::Goto | ActionMode::Hover | ActionMode::Stop, Some(g)) => {
-                let (p, pulled) = self.walk(here, target, h, g)?;
-                if pulled {
-                    reasons |= clamp::OBSTACLE;
-                }
-                [p[0], p[1], h]
+                self.way_over(here, target, h, position[2], hi, g, &mut reasons)?
             }
             (ActionMode::Land, Some(g)) => {
                 let cross = h.min(position[2]);
@@ -340,6 +346,46 @@ impl DecisionGate {
             return Ok((to, floor));
         }
         Ok((to, h))
+    }
+
+    /// A goto's (hover's, stop's) way from `here` to `target` at `h`, raised over an obstacle
+    /// that blocks it outright (module documentation): the (possibly pulled back) target at
+    /// the (possibly raised) altitude, or the vehicle's place at the raised altitude while the
+    /// vehicle at `altitude` is still below it. `hi` is the band's top.
+    #[allow(clippy::too_many_arguments)]
+    fn way_over(
+        &self,
+        here: [f32; 2],
+        target: [f32; 2],
+        mut h: f32,
+        altitude: f32,
+        hi: f32,
+        g: &OccupancyGrid,
+        reasons: &mut u32,
+    ) -> Result<[f32; 3], GateError> {
+        let c = self.clearance_m();
+        // bounded: a blocking top is >= h - c, so every raise lifts h by at least
+        // OVER_MARGIN_M, and never above hi
+        loop {
+            match self.walk(here, target, h, g) {
+                Ok((p, pulled)) => {
+                    if pulled {
+                        *reasons |= clamp::OBSTACLE;
+                    }
+                    return Ok([p[0], p[1], h]);
+                }
+                Err(GateError::Blocked { top_m, .. }) if top_m + c + OVER_MARGIN_M <= hi => {
+                    let over = top_m + c + OVER_MARGIN_M;
+                    *reasons |= clamp::OBSTACLE;
+                    if altitude < over - c / 2.0 {
+                        // climb where the vehicle is first; the way is flown once up there
+                        return Ok([here[0], here[1], over]);
+                    }
+                    h = over;
+                }
+                Err(e) => return Err(e),
+            }
+        }
     }
 
     /// Walk the segment `from -> to` at altitude `h`; the (possibly pulled back) target and

@@ -36,7 +36,7 @@ pub use att::{
     Attention, AttentionError, AttentionPrior, AttentionResult, AttentionScorer, EMBEDDING_GAIN,
     EmbeddingScorer, LexicalScorer, segment_instruction,
 };
-pub use gate::{DecisionGate, Feasible, GateConfigError, GateError};
+pub use gate::{DecisionGate, Feasible, GateConfigError, GateError, OVER_MARGIN_M};
 pub use ordering::{SeqVerdict, SequenceTracker, SourceSelector, SourceVerdict};
 #[cfg(feature = "role")]
 pub use role::HubRole;

@@ -1,6 +1,6 @@
 //! Property tests of the decision gate: whatever comes in, what comes out is flyable.
 
-use aeris_hub::{DecisionGate, GateError};
+use aeris_hub::{DecisionGate, GateError, OVER_MARGIN_M};
 use aeris_schemas::{
     ActionMode, Decision, DecisionLimits, OCCUPANCY_CELLS, OCCUPANCY_SIDE, OCCUPANCY_UNKNOWN,
     OccupancyGrid,
@@ -260,8 +260,9 @@ proptest! {
         }
     }
 
-    /// A waypoint behind a wall that is too tall is clamped before it (by the clearance) or
-    /// rejected, never passed through.
+    /// A waypoint behind a wall that is too tall is clamped before it (by the clearance),
+    /// or, where the vehicle stands at the wall, climbed over where the vehicle is, or
+    /// rejected when the wall is too tall for the band; never passed through.
     #[test]
     fn a_waypoint_behind_a_wall_is_clamped_or_rejected(
         resolution in 0.5f32..4.0,
@@ -314,9 +315,15 @@ proptest! {
             action: ActionMode::Goto as u8,
             ..Decision::default()
         };
+        let over = wall_top as f32 + clearance + OVER_MARGIN_M;
         match gate.admit(&d, vehicle, Some(&g)) {
-            Err(GateError::Blocked { .. }) => {}
+            Err(GateError::Blocked { .. }) => prop_assert!(over > 120.0, "{over} fits the band"),
             Err(e) => prop_assert!(false, "unexpected rejection {e}"),
+            Ok(sp) if sp.position[2] > altitude + 1e-3 => {
+                // at the wall: it climbs where it is (far below the wall's top) to clear it
+                prop_assert_eq!(sp.clamped, 1);
+                prop_assert_eq!(sp.position, [vehicle[0], vehicle[1], over]);
+            }
             Ok(sp) => {
                 prop_assert_eq!(sp.clamped, 1);
                 let (dn, de) = (target[0] - vehicle[0], target[1] - vehicle[1]);
@@ -334,7 +341,6 @@ proptest! {
             }
         }
         // flying high enough over the wall is never clamped
-        let over = wall_top as f32 + clearance + 0.5;
         if over <= 120.0 {
             let high = Decision { altitude: over, target: [target[0], target[1], over], ..d };
             let sp = gate.admit(&high, vehicle, Some(&g)).unwrap();

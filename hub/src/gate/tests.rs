@@ -111,11 +111,32 @@ fn clamps_before_a_wall_with_clearance() {
     let d = decision(ActionMode::Goto, [25.0, 0.0, 24.0], 24.0);
     let sp = g.admit(&d, [0.0, 0.0, 10.0], Some(&grid)).unwrap();
     assert_eq!((sp.position, sp.clamped), ([25.0, 0.0, 24.0], 0));
-    // too close to pull back: rejected
+    // too close to pull back: it climbs where it is to 20 + 3 + 0.5 m first...
     let d = decision(ActionMode::Goto, [25.0, 0.0, 10.0], 10.0);
+    let sp = g.admit(&d, [6.5, 0.0, 10.0], Some(&grid)).unwrap();
+    assert_eq!((sp.position, sp.clamped), ([6.5, 0.0, 23.5], 1));
+    // ...and once up there (within half the clearance of it) flies over at that height
+    let sp = g.admit(&d, [6.5, 0.0, 22.0], Some(&grid)).unwrap();
+    assert_eq!((sp.position, sp.clamped), ([25.0, 0.0, 23.5], 1));
+    assert_eq!(g.check_way(&sp, [6.5, 0.0, 22.0], Some(&grid)), Ok(()));
+    // a vehicle hovering higher than the decision asks is not sent down into the wall: the
+    // way is raised, not refused (a flight hovered beside an 18 m top refusing 74 decisions)
+    let sp = g.admit(&d, [6.5, 0.0, 30.0], Some(&grid)).unwrap();
+    assert_eq!((sp.position, sp.clamped), ([25.0, 0.0, 23.5], 1));
+    // a second, taller wall beyond raises the way again, or pulls it back before it
+    for e in -32..32 {
+        set(&mut grid, 20.5, e as f32 + 0.5, 22);
+    }
+    let sp = g.admit(&d, [6.5, 0.0, 30.0], Some(&grid)).unwrap();
+    assert_eq!(sp.position[2], 23.5);
+    assert!((sp.position[0] - 17.0).abs() < 1e-4, "{:?}", sp.position);
+    // a wall whose raised height is above the band is refused
+    for e in -32..32 {
+        set(&mut grid, 10.5, e as f32 + 0.5, 57);
+    }
     assert!(matches!(
         g.admit(&d, [6.5, 0.0, 10.0], Some(&grid)),
-        Err(GateError::Blocked { top_m: 20.0, .. })
+        Err(GateError::Blocked { top_m: 57.0, .. })
     ));
 }
 
