@@ -296,7 +296,7 @@ impl ModelStepReader {
             )
         })?;
         let store = aeris_models::ModelStore::open(None)?;
-        let threads = std::thread::available_parallelism().map_or(2, |n| n.get() as i32);
+        let threads = reader_threads();
         let reader = aeris_llm::InstructionReader::load(&store, model, threads)
             .with_context(|| format!("loading the instruction reader {variant}"))?;
         Ok(Self {
@@ -304,6 +304,37 @@ impl ModelStepReader {
             variant: variant.to_string(),
         })
     }
+}
+
+/// Threads for the instruction reader: the CPUs this process may run on, less the ones
+/// other work keeps busy (measured over [`LOAD_SAMPLE`]), at least one. llama.cpp's workers
+/// meet at every layer, so one that shares its core with a busy thread holds the others up:
+/// on 2 cores beside two busy threads, reading with two threads took 5-25 times as long as
+/// idle. Said on stderr.
+fn reader_threads() -> i32 {
+    use aeris_orchestrator::executors::{busy_cores, read_proc_stat};
+    let cpus = aeris_runtime::affinity::CpuSet::available();
+    let before = read_proc_stat();
+    std::thread::sleep(LOAD_SAMPLE);
+    let busy = busy_cores(&before, &read_proc_stat(), cpus.cpus());
+    let threads = threads_beside(cpus.cpus().len(), busy);
+    eprintln!(
+        "aeris: the instruction reader computes on {threads} thread(s) ({:.1} of {} CPUs busy \
+         with other work)",
+        busy,
+        cpus.cpus().len()
+    );
+    threads
+}
+
+/// How long [`reader_threads`] watches the CPUs.
+const LOAD_SAMPLE: std::time::Duration = std::time::Duration::from_millis(300);
+
+/// Threads on `cpus` CPUs of which `busy` are kept busy by other work: the idle ones,
+/// rounded to the nearest whole, at least one.
+fn threads_beside(cpus: usize, busy: f64) -> i32 {
+    let idle = cpus as f64 - busy.max(0.0);
+    (idle.round() as i32).clamp(1, cpus.max(1) as i32)
 }
 
 impl StepReader for ModelStepReader {
@@ -373,5 +404,20 @@ impl crate::command::Execute for EvalArgs {
     fn execute(self) -> anyhow::Result<std::process::ExitCode> {
         run(self)?;
         Ok(std::process::ExitCode::SUCCESS)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::threads_beside;
+
+    #[test]
+    fn the_reader_computes_on_the_cpus_other_work_leaves_idle_and_never_on_none() {
+        assert_eq!(threads_beside(2, 0.05), 2);
+        assert_eq!(threads_beside(2, 1.0), 1);
+        assert_eq!(threads_beside(2, 1.97), 1);
+        assert_eq!(threads_beside(8, 2.4), 6);
+        assert_eq!(threads_beside(1, 0.0), 1);
+        assert_eq!(threads_beside(4, -1.0), 4);
     }
 }

@@ -131,6 +131,41 @@ fn migrate(
     answer
 }
 
+/// Wait until the hub of `flight` takes its decisions from the reasoner the supervisor
+/// last moved to `place` (its instance, read from the run's stderr, is the hub report's
+/// `decision_source`).
+fn wait_for_decisions_of(
+    hosts: &TwoHosts,
+    run: &ChildGuard,
+    dir: &Path,
+    flight: &str,
+    place: &str,
+) {
+    let log = std::fs::read_to_string(dir.join("run.stderr")).unwrap_or_default();
+    let moving = format!("moving `planner` to {place} (pid ");
+    let instance = log
+        .lines()
+        .rev()
+        .find_map(|l| {
+            let rest = &l[l.find(&moving)? + moving.len()..];
+            let n = &rest[rest.find("instance ")? + "instance ".len()..];
+            n.split(')').next()?.parse::<u32>().ok()
+        })
+        .unwrap_or_else(|| panic!("no `{moving}... instance N)` line:\n{log}"));
+    let source = format!("decision_source: {instance},");
+    let mut last = String::new();
+    poll_until(Duration::from_secs(60), || {
+        let out = hosts
+            .command_beside(run.0.id(), &aeris_bin())
+            .args(["topic", "echo", "hub/report", "--flight", flight, "-n", "1"])
+            .output()
+            .ok()?;
+        last = String::from_utf8_lossy(&out.stdout).into_owned();
+        last.contains(&source).then_some(())
+    })
+    .unwrap_or_else(|| panic!("the hub never took a decision of instance {instance}: {last}"));
+}
+
 #[test]
 fn a_flight_with_roles_on_another_host_and_its_reasoner_moved_there_and_back_reaches_its_goal() {
     let dir = TempDir::new("hosts-goal");
@@ -231,6 +266,9 @@ fn a_flight_with_roles_on_another_host_and_its_reasoner_moved_there_and_back_rea
         (offset_s - GROUND_CLOCK_AHEAD_S as f64).abs() < 1.0,
         "{status}"
     );
+    // the hub takes a decision of the reasoner on the ground before it moves back (else
+    // the move back can come within one heartbeat, before the hub ever switched to it)
+    wait_for_decisions_of(&hosts, &run, &dir.0, &flight, "host `ground` (executor gs)");
     let back = migrate(&hosts, &run, &flight, "reasoning", "perception");
     let status = wait_bounded(&mut run.0, FLIGHT_BOUND);
     let (out, err) = run_output(&dir.0);
