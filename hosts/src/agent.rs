@@ -9,9 +9,9 @@
 //! - stops one on request (`stop`: SIGTERM, SIGKILL after [`STOP_GRACE`]);
 //! - reports every exit (code or signal, log tail) to the role's handle;
 //! - stops a role whose handle is gone (the flight's host died or the link was cut: the
-//!   handle's liveliness token vanished and stayed away for a lease), so no role outlives its
-//!   flight here either; its exit report says the agent stopped it, and a handle that still
-//!   hears that counts its link lost, not its role ended.
+//!   handle's liveliness token vanished), so no role outlives its flight here either; its exit
+//!   report says the agent stopped it, and a handle that still hears that (its session only
+//!   lapsed) counts its link lost, not its role ended.
 
 mod handle_watch;
 
@@ -182,10 +182,11 @@ struct RoleProcess {
     log: PathBuf,
     /// SIGTERM sent at (SIGKILL after [`STOP_GRACE`]).
     stopping: Option<Instant>,
+    /// The key of its handle's liveliness token (made once: the agent looks it up every
+    /// step).
+    handle_key: String,
     /// Its handle's token was seen alive.
     handle_seen: bool,
-    /// Since when its handle's token, seen before, is gone.
-    handle_gone_since: Option<Instant>,
     /// Why the agent stopped it on its own, for its exit report.
     stopped_by_agent: Option<String>,
     started: Instant,
@@ -194,9 +195,6 @@ struct RoleProcess {
 impl RoleProcess {
     fn label(&self) -> String {
         format!("{}/{}#{}", self.flight, self.role, self.instance)
-    }
-    fn handle_key(&self, host: &str) -> String {
-        handle_token_key(host, &self.flight, &self.role, self.instance)
     }
     fn terminate(&mut self) {
         if self.stopping.is_none() {
@@ -553,8 +551,13 @@ impl Agent {
                     child,
                     log: log_path.clone(),
                     stopping: None,
+                    handle_key: handle_token_key(
+                        &self.config.host,
+                        &spec.flight,
+                        &spec.name,
+                        spec.instance,
+                    ),
                     handle_seen: false,
-                    handle_gone_since: None,
                     stopped_by_agent: None,
                     started: Instant::now(),
                 });
@@ -571,8 +574,7 @@ impl Agent {
         }
     }
 
-    /// Stop the roles whose handle's token has been gone for a lease (or never came within
-    /// two leases).
+    /// Stop the roles whose handle's token went away (or never came within two leases).
     fn follow_handles(&mut self, events: &mut Vec<AgentEvent>) {
         while let Ok(Some(s)) = self.handles.try_recv() {
             let key = s.key_expr().as_str().to_string();
@@ -585,22 +587,14 @@ impl Agent {
                 }
             }
         }
-        let host = self.config.host.clone();
         let lease = self.config.lease;
         let now = Instant::now();
         for p in self.roles.iter_mut().filter(|p| p.stopping.is_none()) {
-            let alive = self.alive_handles.contains(&p.handle_key(&host));
+            let alive = self.alive_handles.contains(&p.handle_key);
             p.handle_seen |= alive;
-            p.handle_gone_since = if alive || !p.handle_seen {
-                None
-            } else {
-                Some(p.handle_gone_since.unwrap_or(now))
-            };
             let watch = HandleWatch {
                 seen: p.handle_seen,
-                gone_for: p
-                    .handle_gone_since
-                    .map(|t| now.saturating_duration_since(t)),
+                alive,
                 running_for: now.saturating_duration_since(p.started),
             };
             if let Some(why) = watch.verdict(lease) {
