@@ -30,6 +30,8 @@ pub mod garbage_and_random;
 pub mod role;
 
 #[cfg(test)]
+mod landing_tests;
+#[cfg(test)]
 mod reading_tests;
 #[cfg(test)]
 mod tests;

@@ -8,6 +8,7 @@ use super::{
     Planner, READ_RANGE_M, SAME_PLACE_M, TOUCHDOWN_CLEAR_M, TOUCHDOWN_KEEP_M,
 };
 use crate::grounding::{LandmarkPhrase, Relation, SignReading, sight, sign_reading};
+use crate::height_map::CELL_M;
 use aeris_schemas::{Detection, FixedText, PerceptionState};
 
 /// The memory of a grounded step: where its landmark was seen and how the search goes.
@@ -158,12 +159,16 @@ impl Planner {
             } else {
                 TOUCHDOWN_KEEP_M
             };
-            // over it, the touchdown stays while its own cell is free ground: the landmark's
-            // sighting can drift onto a neighbour (another footprint) and a wall cell seen
-            // close by in the descent can spoil its clear square, and either made the dense
-            // landing climb away to another point and come back for the rest of the episode
+            // over it, the touchdown stays while the cells around it are free ground: the
+            // landmark's sighting can drift onto a neighbour (another footprint) and a wall
+            // seen in the descent can spoil its wider clear square, and either made the dense
+            // landing climb away to another point and come back for the rest of the episode.
+            // One cell around it, not only its own: the hub's grid is centred on the vehicle,
+            // so its cells straddle this map's, and a roof in a neighbouring cell of this map
+            // can share the hub's cell of the touchdown, whose descent the gate then refuses
+            // every heartbeat (the landing beside a building held at 10-20 m till time ran out)
             self.search.touchdown = match previous {
-                Some(t) if over && self.map.is_clear(t, 0.0) => Some(t),
+                Some(t) if over && self.map.is_clear(t, CELL_M) => Some(t),
                 _ => self
                     .map
                     .next_to(p, from, TOUCHDOWN_CLEAR_M, previous, keep_m),
