@@ -11,6 +11,7 @@ use super::{
     SEARCH_LEG_M, STANDOFF_M, Step, TOUCHDOWN_CLEAR_M, TOUCHDOWN_WAIT,
 };
 use crate::grounding::{LandmarkPhrase, Relation};
+use crate::height_map::CELL_M;
 use aeris_geometry::wrap_pi;
 use aeris_schemas::ActionMode;
 
@@ -84,6 +85,17 @@ impl Planner {
             } else {
                 ActionMode::Goto
             };
+            // a landing comes down on ground the map shows free one cell all round: the
+            // gate refuses a touchdown on an obstacle (a landing "over" a sign's board) or
+            // in the hub's cell of a roof beside it, every heartbeat, and the planner hears
+            // no refusal
+            let goal = if action == ActionMode::Land && !self.map.is_clear(goal, CELL_M) {
+                self.map
+                    .nearest_clear(goal, FALLBACK_CLEAR_M, TOUCHDOWN_CLEAR_M)
+                    .unwrap_or(goal)
+            } else {
+                goal
+            };
             // a landing approaches at the transit height too: the gate binds the descent
             // once over the touchdown point
             let (u, alt) = if action == ActionMode::Land {
@@ -131,10 +143,28 @@ impl Planner {
             self.search.toward = Some(t);
             return (ActionMode::Goto, [t[0], t[1], altitude], altitude, None);
         }
-        // not found: give up and land here (the episode ends where the search did)
+        // not found: give up and land (the episode ends where the search did), here when
+        // the map shows one cell all round free ground, else on the nearest ground it shows
+        // clear: straight down beside a building, the hub's grid (centred on the vehicle,
+        // its cells straddling the map's) can hold the roof in the touchdown's cell, and
+        // the gate refused that descent every heartbeat until the time limit
+        let kept = self
+            .search
+            .touchdown
+            .filter(|&t| self.map.is_clear(t, CELL_M));
+        let t = kept.unwrap_or_else(|| {
+            if self.map.is_clear(here, CELL_M) {
+                here
+            } else {
+                self.map
+                    .nearest_clear(here, FALLBACK_CLEAR_M, TOUCHDOWN_CLEAR_M)
+                    .unwrap_or(here)
+            }
+        });
+        self.search.touchdown = Some(t);
         (
             ActionMode::Land,
-            [position[0], position[1], 0.0],
+            [t[0], t[1], 0.0],
             position[2].max(self.h_min),
             None,
         )

@@ -138,3 +138,63 @@ fn a_landing_next_to_a_building_comes_down_beside_it_never_on_its_roof() {
     }
     assert_eq!(q.search.touchdown, None);
 }
+
+#[test]
+fn a_landing_given_up_beside_a_building_comes_down_on_clear_ground() {
+    let m = vln_mission();
+    let mut p = Planner::new(&m, &CameraSpec::default()).unwrap();
+    // nothing of the landmark in sight; a 10 m building whose west wall stands 1 m east of
+    // where the search legs end ([0, 160]: four 40 m legs east), every other cell free
+    let roof = |n: f32, e: f32| (0.0..20.0).contains(&n) && (161.0..181.0).contains(&e);
+    let state = |at: [f32; 3]| {
+        let mut s = PerceptionState {
+            position: at,
+            ..PerceptionState::default()
+        };
+        s.occupancy = aeris_schemas::OccupancyGrid::observed([at[0], at[1]], 2.0);
+        let half = (aeris_schemas::OCCUPANCY_SIDE / 2) as f32;
+        for (i, cell) in s.occupancy.cells.iter_mut().enumerate() {
+            let n = at[0] + ((i / aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
+            let e = at[1] + ((i % aeris_schemas::OCCUPANCY_SIDE) as f32 - half + 0.5) * 2.0;
+            *cell = if roof(n, e) { 10 } else { 0 };
+        }
+        s
+    };
+    let (mut at, mut yaw) = ([0.0, 0.0, 15.0], 0.0);
+    let mut land = None;
+    for _ in 0..200 {
+        let d = p.decide(at, yaw, false, Some(&state(at)));
+        if ActionMode::from_u8(d.action) == Some(ActionMode::Land) {
+            land = Some(d);
+            break;
+        }
+        // the vehicle goes where it is told at once
+        at = d.target;
+        yaw = d.yaw;
+    }
+    let d = land.expect("a landing after the search legs");
+    let ended = [at[0], at[1]];
+    assert!(
+        (ended[1] - MAX_SEARCH_LEGS as f32 * SEARCH_LEG_M).abs() < 1.0,
+        "{ended:?}"
+    );
+    // not straight down beside the wall, where the hub's cell of the touchdown can hold
+    // the roof: on ground clear all round, within reach
+    let t = [d.target[0], d.target[1]];
+    assert!(p.map.is_clear(t, TOUCHDOWN_CLEAR_M), "{t:?}");
+    assert!(
+        ground_distance(t, ended) <= FALLBACK_CLEAR_M,
+        "{t:?} from {ended:?}"
+    );
+    // and it stays there, heartbeat after heartbeat, on the way down
+    let above = [t[0], t[1], 8.0];
+    let again = p.decide(above, yaw, false, Some(&state(above)));
+    assert_eq!(
+        (
+            ActionMode::from_u8(again.action),
+            again.target[0],
+            again.target[1]
+        ),
+        (Some(ActionMode::Land), t[0], t[1])
+    );
+}
