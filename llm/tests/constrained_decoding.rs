@@ -151,12 +151,15 @@ fn valid_decisions(file: &str, count: usize) {
     );
 }
 
-/// One test for both models, so the two never compete for the CPU: 60 decisions from the
-/// default variant, 10 from the larger one (the grammar is the same; its cost is not).
+/// One test for both models, so the two never compete for the CPU: 30 decisions from the
+/// default variant, 10 from the larger one (the grammar is the same; its cost is not). 30
+/// meet every hostile state with every count of detections and with every position, and
+/// every pair of state and plan that 60 met (both cycle with 20); a decision without a
+/// state meets no hostile text, whichever number it has.
 #[test]
 fn language_model_decisions_from_hostile_states_are_all_valid() {
     let _cpu = MODEL_CPU.lock().unwrap_or_else(|e| e.into_inner());
-    valid_decisions(SMOLLM2_135M, 60);
+    valid_decisions(SMOLLM2_135M, 30);
     valid_decisions(GEMMA3_270M, 10);
 }
 

@@ -15,10 +15,19 @@ const UNANNOTATED: &str = "go up to roughly the height of the trees and move ahe
 reach the grey building, now swing left and keep going along the road past the small lake and \
 when you see a blue tower descend and touch down right beside it";
 
+/// One test, one model load: as two tests, two readers' llama.cpp thread pools spun against
+/// each other on the same two cores (60 s in the suite on a 2-core Xeon; 17 s as one).
 #[test]
-fn an_unannotated_instruction_is_segmented_by_the_model_into_its_steps() {
+fn the_reader_segments_an_unannotated_instruction_and_reads_steps_written_the_way_people_write() {
     let store = ModelStore::open(None).expect("model cache (run scripts/provision-models.sh)");
     let mut reader = InstructionReader::load(&store, QWEN25_CODER_05B, 2).expect("the reader");
+    segments_an_unannotated_instruction_into_its_steps(&mut reader);
+    reads_steps_written_the_way_people_write(&mut reader);
+}
+
+/// The segmentation keeps every word in order, takes off first, lands last and moves
+/// between.
+fn segments_an_unannotated_instruction_into_its_steps(reader: &mut InstructionReader) {
     let steps = reader.segment(UNANNOTATED).expect("a segmentation");
     eprintln!("{steps:#?}\n{:?}", reader.last_stats());
     let words: Vec<String> = steps
@@ -55,11 +64,9 @@ const LABELS: [&str; 11] = [
 ];
 
 /// Steps in the way people write them (neither the episode generator's wording, nor the
-/// reader's examples, nor the paraphrase set's): each is read as its words say.
-#[test]
-fn steps_written_the_way_people_write_are_read_as_turns_places_signs_and_heights() {
-    let store = ModelStore::open(None).expect("model cache (run scripts/provision-models.sh)");
-    let mut reader = InstructionReader::load(&store, QWEN25_CODER_05B, 2).expect("the reader");
+/// reader's examples, nor the paraphrase set's): each is read as a turn, a place, a sign or a
+/// height, as its words say.
+fn reads_steps_written_the_way_people_write(reader: &mut InstructionReader) {
     let mut read = |step: &str| {
         let r = reader
             .read_step(step, &LABELS)
