@@ -60,13 +60,15 @@ fn assert_all_gone(pids: &[u32]) {
 
 #[test]
 fn the_default_workflow_flies_to_its_goal_through_the_library() {
-    // the subject is the library (events, status, summary), not the mission: the default
-    // workflow flies the short hop
+    // the subject is the library (events, status, summary), not the mission or its timing:
+    // the short hop, on simulated time (as fast as the roles compute); the wall clock's
+    // flights through the same library are the tests below and every `aeris run`
     let hop = Workflow::from_toml_str(&aeris_tests::short_hop_text()).unwrap();
     let flight = Flight::builder(hop)
         .name(format!("lib-goal-{}", std::process::id()))
         .run_dir(run_dir("goal"))
         .role_executable(aeris_bin())
+        .clock(aeris_flight::FlightClock::Sim)
         .stop_when(StopRule::Goal)
         .start()
         .unwrap();
