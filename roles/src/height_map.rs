@@ -147,6 +147,18 @@ impl HeightMap {
         })
     }
 
+    /// Whether no cell within `half_side` (m) of `p` was observed holding an obstacle:
+    /// unknown cells count as free, as the hub's gate counts them.
+    pub fn no_obstacle_near(&self, p: [f32; 2], half_side: f32) -> bool {
+        let steps = (half_side / CELL_M).ceil() as i32;
+        (-steps..=steps).all(|i| {
+            (-steps..=steps).all(|j| {
+                let q = [p[0] + i as f32 * CELL_M, p[1] + j as f32 * CELL_M];
+                self.height_at(q).is_none_or(|h| h < 0.5)
+            })
+        })
+    }
+
     fn is_obstacle(&self, r: usize, c: usize) -> bool {
         let v = self.cells[r * self.side + c];
         v != OCCUPANCY_UNKNOWN && v as f32 >= OBSTACLE_TOP_M
@@ -532,6 +544,19 @@ mod tests {
             (92.0..=98.0).contains(&q[0]) && (q[1] - 110.0).abs() <= 2.0,
             "{q:?}"
         );
+    }
+
+    #[test]
+    fn no_obstacle_near_counts_unknown_ground_free_and_a_wall_a_cell_away_not() {
+        let m = map_with_building();
+        // under the vehicle of the approach: never observed, free as the gate counts it
+        assert_eq!(m.height_at([80.0, 80.0]), None);
+        assert!(m.no_obstacle_near([80.0, 80.0], CELL_M));
+        assert!(!m.is_clear([80.0, 80.0], CELL_M));
+        // observed ground a cell off the wall at N = 100, and the wall's own cell
+        assert!(!m.no_obstacle_near([99.0, 110.0], CELL_M));
+        assert!(m.no_obstacle_near([95.0, 110.0], CELL_M));
+        assert!(!m.no_obstacle_near([104.0, 110.0], 0.0));
     }
 
     #[test]

@@ -85,11 +85,11 @@ impl Planner {
             } else {
                 ActionMode::Goto
             };
-            // a landing comes down on ground the map shows free one cell all round: the
-            // gate refuses a touchdown on an obstacle (a landing "over" a sign's board) or
-            // in the hub's cell of a roof beside it, every heartbeat, and the planner hears
-            // no refusal
-            let goal = if action == ActionMode::Land && !self.map.is_clear(goal, CELL_M) {
+            // a landing comes down where the map shows no obstacle within a cell: the gate
+            // refuses a touchdown on an obstacle (a landing "over" a sign's board) or in the
+            // hub's cell of a roof beside it, every heartbeat, and the planner hears no
+            // refusal
+            let goal = if action == ActionMode::Land && !self.map.no_obstacle_near(goal, CELL_M) {
                 self.map
                     .nearest_clear(goal, FALLBACK_CLEAR_M, TOUCHDOWN_CLEAR_M)
                     .unwrap_or(goal)
@@ -143,17 +143,17 @@ impl Planner {
             self.search.toward = Some(t);
             return (ActionMode::Goto, [t[0], t[1], altitude], altitude, None);
         }
-        // not found: give up and land (the episode ends where the search did), here when
-        // the map shows one cell all round free ground, else on the nearest ground it shows
+        // not found: give up and land (the episode ends where the search did), here unless
+        // the map shows an obstacle within a cell of it, else on the nearest ground it shows
         // clear: straight down beside a building, the hub's grid (centred on the vehicle,
         // its cells straddling the map's) can hold the roof in the touchdown's cell, and
         // the gate refused that descent every heartbeat until the time limit
         let kept = self
             .search
-            .touchdown
-            .filter(|&t| self.map.is_clear(t, CELL_M));
+            .given_up
+            .filter(|&t| self.map.no_obstacle_near(t, CELL_M));
         let t = kept.unwrap_or_else(|| {
-            if self.map.is_clear(here, CELL_M) {
+            if self.map.no_obstacle_near(here, CELL_M) {
                 here
             } else {
                 self.map
@@ -161,7 +161,7 @@ impl Planner {
                     .unwrap_or(here)
             }
         });
-        self.search.touchdown = Some(t);
+        self.search.given_up = Some(t);
         (
             ActionMode::Land,
             [t[0], t[1], 0.0],

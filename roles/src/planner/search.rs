@@ -45,6 +45,9 @@ pub(super) struct Search {
     /// Where the vehicle was when the step began: "land next to X" comes down on the side
     /// of X facing it, as the instruction's author would picture it.
     pub(super) origin: Option<[f32; 2]>,
+    /// Where a landing given up after the search legs comes down (kept while the map shows
+    /// no obstacle within a cell of it).
+    pub(super) given_up: Option<[f32; 2]>,
     /// Heartbeats waited over the stand-off point for a clear touchdown.
     pub(super) waited: u32,
     /// An occupancy grid came with S_t during this step (else there is no clear ground
