@@ -22,10 +22,8 @@ export CCACHE_DIR="${CCACHE_DIR:-$HOME/.cache/aeris/ccache}" CCACHE_NOHASHDIR=1 
 # Lints and build in one compilation: clippy-driver is rustc with clippy's lints added (what
 # `cargo clippy` runs, in check mode), so it compiles our crates as it lints them, and the
 # dependencies are compiled once instead of checked for clippy and compiled again for the
-# build (on a fresh 2-core Xeon: lints and build 681 s, against 575 s of clippy and 284 s of
-# build when apart; their build scripts, proc macros and C libraries were shared already).
-# CLIPPY_ARGS carries `-D warnings` to it, as `cargo clippy -- -D warnings` does; dependencies
-# are not linted (cargo caps their lints).
+# build (9.5 of the suite's 34 minutes on 2 cores). CLIPPY_ARGS carries `-D warnings` to it,
+# as `cargo clippy -- -D warnings` does; dependencies are not linted (cargo caps their lints).
 # Every cargo command below shares these settings, so `cargo test` builds nothing again.
 CLIPPY_DRIVER="$(dirname "$(rustup which cargo-clippy 2>/dev/null || command -v cargo-clippy)")/clippy-driver"
 if [ ! -x "$CLIPPY_DRIVER" ]; then
