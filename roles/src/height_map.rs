@@ -138,24 +138,27 @@ impl HeightMap {
 
     /// Whether every cell within `half_side` (m) of `p` was observed as free ground.
     pub fn is_clear(&self, p: [f32; 2], half_side: f32) -> bool {
-        let steps = (half_side / CELL_M).ceil() as i32;
-        (-steps..=steps).all(|i| {
-            (-steps..=steps).all(|j| {
-                let q = [p[0] + i as f32 * CELL_M, p[1] + j as f32 * CELL_M];
-                self.height_at(q).is_some_and(|h| h < 0.5)
-            })
-        })
+        self.every_cell_within(p, half_side, |h| h.is_some_and(|h| h < 0.5))
     }
 
     /// Whether no cell within `half_side` (m) of `p` was observed holding an obstacle:
     /// unknown cells count as free, as the hub's gate counts them.
     pub fn no_obstacle_near(&self, p: [f32; 2], half_side: f32) -> bool {
+        self.every_cell_within(p, half_side, |h| h.is_none_or(|h| h < 0.5))
+    }
+
+    /// Whether `ok` holds for the height ([`HeightMap::height_at`]) of every cell of the
+    /// square of half side `half_side` (m) around `p`.
+    fn every_cell_within(
+        &self,
+        p: [f32; 2],
+        half_side: f32,
+        ok: impl Fn(Option<f32>) -> bool,
+    ) -> bool {
         let steps = (half_side / CELL_M).ceil() as i32;
         (-steps..=steps).all(|i| {
-            (-steps..=steps).all(|j| {
-                let q = [p[0] + i as f32 * CELL_M, p[1] + j as f32 * CELL_M];
-                self.height_at(q).is_none_or(|h| h < 0.5)
-            })
+            (-steps..=steps)
+                .all(|j| ok(self.height_at([p[0] + i as f32 * CELL_M, p[1] + j as f32 * CELL_M])))
         })
     }
 
